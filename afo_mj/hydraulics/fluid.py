@@ -1,0 +1,208 @@
+"""Hydraulic fluid: density, viscosity–temperature law, effective bulk modulus, pressure floor.
+
+Pressures in this library are **absolute** (Pa) unless a name says ``gauge``; the atmosphere is
+:data:`ATMOSPHERIC_PRESSURE_PA`. Temperatures are in K.
+
+Sources
+-------
+* Walther's equation / ASTM D341: ``log10(log10(nu + a)) = b - c*log10(T)``, ``nu`` in cSt
+  (mm²/s), ``T`` in K, ``a = 0.7`` (seed eq. 2.3; ASTM D341-20).
+* Effective bulk modulus with entrained air, seed eq. 2.5 (same form in Simscape's
+  isothermal/polytropic liquid):
+  ``B = B_L (1 + α (p_a/p)^(1/n)) / (1 + α p_a^(1/n) B_L / (n p^((n+1)/n)))``.
+* Oil presets from published datasheet points (viscosity at 40 °C and 100 °C, ISO 3448 grade
+  midpoints and a typical viscosity index ~100); the VG 46 density is the commercial figure in
+  ``shared/reference/facts.md`` (879 kg/m³ at 15 °C).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .params import Parameters, ParameterError, effect, param
+
+ATMOSPHERIC_PRESSURE_PA = 101_325.0
+WALTHER_A_CST = 0.7
+CELSIUS_ZERO_K = 273.15
+
+
+def walther_coefficients(t1_k: float, nu1_m2_s: float, t2_k: float, nu2_m2_s: float,
+                         a_cst: float = WALTHER_A_CST) -> tuple[float, float]:
+    """Walther/ASTM D341 constants ``(b, c)`` through two measured viscosity points.
+
+    Solves ``log10(log10(nu_i + a)) = b - c log10(T_i)`` (nu in cSt) for ``i = 1, 2``.
+
+    Example: ISO VG 46 datasheet, 46 cSt at 40 °C and 6.7 cSt at 100 °C:
+    ``walther_coefficients(313.15, 46e-6, 373.15, 6.7e-6)`` → ``(9.513, 3.7225)``.
+    """
+    if not (t1_k > 0 and t2_k > 0 and t1_k != t2_k and nu1_m2_s > 0 and nu2_m2_s > 0):
+        raise ParameterError(
+            f"walther_coefficients needs two distinct positive temperatures and positive "
+            f"viscosities; got T=({t1_k}, {t2_k}) K, nu=({nu1_m2_s}, {nu2_m2_s}) m²/s")
+    y1 = math.log10(math.log10(nu1_m2_s * 1e6 + a_cst))
+    y2 = math.log10(math.log10(nu2_m2_s * 1e6 + a_cst))
+    x1, x2 = math.log10(t1_k), math.log10(t2_k)
+    c = (y1 - y2) / (x2 - x1)
+    b = y1 + c * x1
+    return b, c
+
+
+def walther_viscosity_m2_s(temperature_k, b: float, c: float, a_cst: float = WALTHER_A_CST):
+    """Kinematic viscosity from Walther's equation (ASTM D341, seed eq. 2.3).
+
+    ``nu = 10^(10^(b - c log10 T)) - a`` in cSt, returned in m²/s.
+
+    Example: the Modelica OpenHydraulics VG 46-like set ``b = 9.32, c = 3.65`` gives about
+    41 cSt at 313.15 K: ``walther_viscosity_m2_s(313.15, 9.32, 3.65)`` → ``4.13e-5``.
+    """
+    t = np.asarray(temperature_k, dtype=float)
+    nu_cst = 10.0 ** (10.0 ** (b - c * np.log10(t))) - a_cst
+    return nu_cst * 1e-6
+
+
+def effective_bulk_modulus_pa(pressure_pa, liquid_bulk_modulus_pa: float, air_fraction: float,
+                              polytropic_index: float,
+                              atmospheric_pressure_pa: float = ATMOSPHERIC_PRESSURE_PA):
+    """Effective bulk modulus of a liquid with entrained air, seed eq. 2.5.
+
+    ``B = B_L (1 + α (p_a/p)^(1/n)) / (1 + α p_a^(1/n) B_L / (n p^((n+1)/n)))``
+
+    with ``p`` absolute pressure, ``α`` the gas volume fraction at ``p_a``, ``n`` the polytropic
+    index (1 isothermal … 1.4 adiabatic). With ``α = 0`` it is ``B_L``.
+
+    Example (``B_L`` = 1.5 GPa, ``α`` = 0.01, ``n`` = 1.4): 0.49 GPa at 1 MPa abs, 1.14 GPa at
+    3 MPa abs, 1.40 GPa at 7 MPa abs (``shared/reference/facts.md``).
+    """
+    p = np.asarray(pressure_pa, dtype=float)
+    if air_fraction == 0.0:
+        return np.full_like(p, liquid_bulk_modulus_pa)
+    n = polytropic_index
+    ratio = (atmospheric_pressure_pa / p) ** (1.0 / n)
+    num = 1.0 + air_fraction * ratio
+    den = 1.0 + air_fraction * ratio * liquid_bulk_modulus_pa / (n * p)
+    return liquid_bulk_modulus_pa * num / den
+
+
+@dataclasses.dataclass(frozen=True)
+class FluidParams(Parameters):
+    """A hydraulic mineral oil. Viscosity follows Walther's law through two datasheet points."""
+
+    name: str = "ISO VG 46 mineral oil"
+    density_kg_m3: float = param(879.0, unit="kg/m^3", lo=500.0, hi=2000.0,
+                                 doc="density at reference temperature and atmospheric pressure")
+    reference_temperature_k: float = param(288.15, unit="K", lo=200.0, hi=450.0,
+                                           doc="temperature at which density_kg_m3 holds")
+    thermal_expansion_per_k: float = param(7.0e-4, unit="1/K", lo=0.0, hi=2e-3,
+                                           doc="volumetric thermal expansion coefficient")
+    viscosity_low_m2_s: float = param(46.0e-6, unit="m^2/s", lo=0.0, hi=1e-2, lo_open=True,
+                                      doc="kinematic viscosity at viscosity_low_temperature_k")
+    viscosity_low_temperature_k: float = param(313.15, unit="K", lo=200.0, hi=450.0)
+    viscosity_high_m2_s: float = param(6.7e-6, unit="m^2/s", lo=0.0, hi=1e-2, lo_open=True,
+                                       doc="kinematic viscosity at viscosity_high_temperature_k")
+    viscosity_high_temperature_k: float = param(373.15, unit="K", lo=200.0, hi=450.0)
+    liquid_bulk_modulus_pa: float = param(1.5e9, unit="Pa", lo=1e8, hi=5e9,
+                                          doc="bulk modulus of the air-free liquid (B_L)")
+    air_fraction: float = param(0.005, unit="-", lo=0.0, hi=1.0, hi_open=True,
+                                doc="entrained gas volume fraction at atmospheric pressure (α)")
+    polytropic_index: float = param(1.4, unit="-", lo=1.0, hi=1.4,
+                                    doc="polytropic index of the entrained air (n)")
+    specific_heat_j_kg_k: float = param(1900.0, unit="J/(kg K)", lo=500.0, hi=5000.0)
+    pressure_floor_pa: float = param(2.0e3, unit="Pa", lo=0.0, hi=ATMOSPHERIC_PRESSURE_PA,
+                                     lo_open=True,
+                                     doc="absolute pressure below which the liquid cavitates "
+                                         "(vapour/gas release); states are kept above it")
+    cavitation_band_pa: float = param(2.0e4, unit="Pa", lo=1.0, hi=1e6,
+                                      doc="width above the floor over which the cavitation "
+                                          "rule softens the fluid")
+    entrained_air_enabled: bool = effect(True, doc="entrained air lowers the bulk modulus (eq. 2.5)")
+
+    def check(self) -> None:
+        if self.viscosity_low_temperature_k >= self.viscosity_high_temperature_k:
+            self.fail("viscosity_low_temperature_k",
+                      f"must be below viscosity_high_temperature_k = "
+                      f"{self.viscosity_high_temperature_k}")
+        if self.viscosity_low_m2_s <= self.viscosity_high_m2_s:
+            self.fail("viscosity_low_m2_s", "oil viscosity must fall with temperature: must exceed "
+                      f"viscosity_high_m2_s = {self.viscosity_high_m2_s}")
+
+
+#: ISO VG 46 (commercial datasheet: 879 kg/m³ at 15 °C; 46 / 6.7 cSt at 40 / 100 °C).
+ISO_VG46 = FluidParams()
+#: ISO VG 32 (typical datasheet: 875 kg/m³ at 15 °C; 32 / 5.4 cSt at 40 / 100 °C, VI ≈ 100).
+ISO_VG32 = FluidParams(name="ISO VG 32 mineral oil", density_kg_m3=875.0,
+                       viscosity_low_m2_s=32.0e-6, viscosity_high_m2_s=5.4e-6)
+#: ISO VG 22 (typical datasheet: 865 kg/m³ at 15 °C; 22 / 4.3 cSt at 40 / 100 °C).
+ISO_VG22 = FluidParams(name="ISO VG 22 mineral oil", density_kg_m3=865.0,
+                       viscosity_low_m2_s=22.0e-6, viscosity_high_m2_s=4.3e-6)
+
+FLUID_PRESETS = {"ISO_VG22": ISO_VG22, "ISO_VG32": ISO_VG32, "ISO_VG46": ISO_VG46}
+
+
+class Fluid:
+    """Property evaluator for one :class:`FluidParams` (vectorised over numpy arrays)."""
+
+    def __init__(self, params: FluidParams = ISO_VG46):
+        self.params = params
+        self.walther_b, self.walther_c = walther_coefficients(
+            params.viscosity_low_temperature_k, params.viscosity_low_m2_s,
+            params.viscosity_high_temperature_k, params.viscosity_high_m2_s)
+
+    def kinematic_viscosity_m2_s(self, temperature_k):
+        """Walther/ASTM D341 viscosity at ``temperature_k`` (see :func:`walther_viscosity_m2_s`)."""
+        return walther_viscosity_m2_s(temperature_k, self.walther_b, self.walther_c)
+
+    def density_kg_m3(self, pressure_pa=ATMOSPHERIC_PRESSURE_PA, temperature_k=None):
+        """Linearised equation of state ``rho = rho0 (1 + (p - p_a)/B_L - beta (T - T0))``."""
+        p = self.params
+        t = p.reference_temperature_k if temperature_k is None else temperature_k
+        return p.density_kg_m3 * (1.0 + (np.asarray(pressure_pa) - ATMOSPHERIC_PRESSURE_PA)
+                                  / p.liquid_bulk_modulus_pa
+                                  - p.thermal_expansion_per_k * (t - p.reference_temperature_k))
+
+    def dynamic_viscosity_pa_s(self, temperature_k):
+        """``mu = rho(T) nu(T)`` at atmospheric pressure."""
+        return self.density_kg_m3(temperature_k=temperature_k) * \
+            self.kinematic_viscosity_m2_s(temperature_k)
+
+    def bulk_modulus_pa(self, pressure_pa):
+        """Effective bulk modulus for the continuity equation: eq. 2.5 (if entrained air is
+        enabled) times the cavitation factor of :meth:`cavitation_factor`."""
+        p = self.params
+        alpha = p.air_fraction if p.entrained_air_enabled else 0.0
+        pf = np.maximum(np.asarray(pressure_pa, dtype=float), p.pressure_floor_pa)
+        return effective_bulk_modulus_pa(pf, p.liquid_bulk_modulus_pa, alpha,
+                                         p.polytropic_index) * self.cavitation_factor(pressure_pa)
+
+    def cavitation_factor(self, pressure_pa):
+        """Pressure-floor rule: a smooth factor in (0, 1] on the bulk modulus.
+
+        Above ``floor + band`` it is 1. Between the floor and ``floor + band`` it falls as a
+        cubic smoothstep to a small residual (1e-4), so that a chamber whose volume grows with
+        no inflow (a cavitating suction side) changes pressure slowly and stops near the floor
+        instead of going negative. This stands for vapour and gas release, which hold the
+        pressure near the floor while the void grows (the usual lumped cavitation rule of
+        system simulators such as Hopsan and Simscape). States below the floor are clamped by
+        :meth:`clamp_pressure`.
+        """
+        p = self.params
+        s = np.clip((np.asarray(pressure_pa, dtype=float) - p.pressure_floor_pa)
+                    / p.cavitation_band_pa, 0.0, 1.0)
+        return 1e-4 + (1.0 - 1e-4) * s * s * (3.0 - 2.0 * s)
+
+    def clamp_pressure(self, pressure_pa):
+        """Pressures held at or above the floor: returns ``(clamped, n_clamped)``."""
+        p = np.asarray(pressure_pa, dtype=float)
+        low = p < self.params.pressure_floor_pa
+        return np.where(low, self.params.pressure_floor_pa, p), int(np.count_nonzero(low))
+
+    def compression_energy_density_j_m3(self, pressure_pa, n_points: int = 64):
+        """Energy stored per unit volume when compressing from atmosphere to ``pressure_pa``:
+        ``e(p) = ∫_{p_a}^{p} p'/B(p') dp'`` (from ``dV = -V dp / B``), trapezoidal in p."""
+        p = np.asarray(pressure_pa, dtype=float)
+        s = np.linspace(0.0, 1.0, n_points).reshape((-1,) + (1,) * p.ndim)
+        pp = ATMOSPHERIC_PRESSURE_PA + s * (p - ATMOSPHERIC_PRESSURE_PA)
+        integrand = pp / self.bulk_modulus_pa(pp)
+        return np.trapezoid(integrand, pp, axis=0)
