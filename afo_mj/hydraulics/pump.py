@@ -1,0 +1,133 @@
+"""Fixed- and variable-displacement pumps with a viscous/Coulomb/leakage loss model.
+
+Loss model (Wilson 1950; McCandlish & Dorey 1984, *The mathematical modelling of hydrostatic
+pumps and motors*, Proc. IMechE B 198:165), for a pump between ports a and b with
+``Δp = p_a − p_b`` and displacement ``D`` per revolution (``d = ε D / 2π`` per radian, ``ε`` the
+displacement fraction, 1 for a fixed pump):
+
+* delivered flow into port a:  ``Q = d ω − C_s D Δp / (2π μ)``      (slip/leakage ∝ Δp/μ)
+* shaft torque:                ``T = d Δp + C_f D |Δp|/(2π) tanh(ω/ω_c) + C_v D μ ω/(2π) + T_0 tanh(ω/ω_c)``
+  (Coulomb part ∝ Δp·D, viscous part ∝ μ·ω, a constant drag ``T_0``).
+
+These hold in all four quadrants (pumping and motoring, either direction) and give
+
+    T ω − Δp Q = (friction torque) ω + Δp Q_leak ≥ 0
+
+exactly, the heat of the pump. Volumetric efficiency ``η_v = Q/(d ω)`` and mechanical
+efficiency ``η_m = d Δp / T`` (pumping quadrant) fall with Δp (leakage, Coulomb), η_v falls as
+μ or speed falls, η_m falls as μ·ω rises.
+
+The presets' coefficients are chosen so the rated-point efficiencies match typical small gear
+and axial-piston units (stated at each preset).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .params import Parameters, effect, param
+from .power import PowerFlow
+
+
+@dataclasses.dataclass(frozen=True)
+class PumpParams(Parameters):
+    """A bidirectional positive-displacement pump/motor."""
+
+    kind: str = "gear"
+    displacement_m3_rev: float = param(0.2e-6, unit="m^3/rev", lo=0.0, hi=1e-3, lo_open=True,
+                                       doc="geometric displacement per revolution D")
+    slip_coefficient: float = param(1.2e-7, unit="-", lo=0.0, hi=1e-4,
+                                    doc="C_s: leakage Q = C_s D Δp / (2π μ)")
+    coulomb_coefficient: float = param(0.05, unit="-", lo=0.0, hi=1.0,
+                                       doc="C_f: friction torque C_f D |Δp| / 2π")
+    viscous_coefficient: float = param(1.8e4, unit="-", lo=0.0, hi=1e8,
+                                       doc="C_v: viscous torque C_v D μ ω / 2π")
+    drag_torque_nm: float = param(0.002, unit="N m", lo=0.0, hi=100.0,
+                                  doc="T_0: constant drag torque")
+    smoothing_speed_rad_s: float = param(1.0, unit="rad/s", lo=1e-6, hi=1e3,
+                                         doc="ω_c of tanh(ω/ω_c) for friction sign")
+    max_speed_rad_s: float = param(1200.0, unit="rad/s", lo=0.0, hi=1e5, lo_open=True)
+    rotor_inertia_kg_m2: float = param(2e-7, unit="kg m^2", lo=0.0, hi=1.0)
+    variable_displacement_enabled: bool = effect(
+        False, doc="displacement fraction ε in [-1, 1] is an input (variable-displacement pump)")
+    leakage_enabled: bool = effect(True, doc="slip flow ∝ Δp/μ")
+    coulomb_friction_enabled: bool = effect(True, doc="friction torque ∝ Δp D")
+    viscous_friction_enabled: bool = effect(True, doc="friction torque ∝ μ ω")
+
+    def check(self) -> None:
+        if self.kind not in ("gear", "axial_piston"):
+            self.fail("kind", "allowed: gear, axial_piston")
+
+
+#: Small external gear pump, 0.2 cm³/rev: η_v ≈ 0.93, η_m ≈ 0.92 at 10 MPa, 4000 rpm, μ = 0.04 Pa s
+#: (VG 46 at 40 °C): slip 7 %, Coulomb 5 %, viscous 3 %, drag 0.6 % of the ideal torque.
+GEAR_PUMP_SMALL = PumpParams()
+#: Miniature axial-piston pump, 0.4 cm³/rev: η_v ≈ 0.96, η_m ≈ 0.95 at 10 MPa, 3000 rpm,
+#: μ = 0.04 Pa s: slip 4 %, Coulomb 3 %, viscous 2 %, drag 0.6 % of the ideal torque.
+AXIAL_PISTON_PUMP_SMALL = PumpParams(kind="axial_piston", displacement_m3_rev=0.4e-6,
+                                     slip_coefficient=5.0e-8, coulomb_coefficient=0.03,
+                                     viscous_coefficient=1.6e4, drag_torque_nm=0.004,
+                                     rotor_inertia_kg_m2=1e-6)
+
+
+class Pump:
+    """Flow, torque, efficiencies and power of one :class:`PumpParams` pump."""
+
+    def __init__(self, params: PumpParams):
+        p = self.params = params
+        self.d_m3_rad = p.displacement_m3_rev / (2.0 * math.pi)
+        self._cs = p.slip_coefficient if p.leakage_enabled else 0.0
+        self._cf = p.coulomb_coefficient if p.coulomb_friction_enabled else 0.0
+        self._cv = p.viscous_coefficient if p.viscous_friction_enabled else 0.0
+
+    def _fraction(self, displacement_fraction):
+        if self.params.variable_displacement_enabled:
+            return np.clip(displacement_fraction, -1.0, 1.0)
+        return 1.0
+
+    def leakage_m3_s(self, dp_pa, dynamic_viscosity_pa_s):
+        """Slip flow from a to b, ``C_s D Δp / (2π μ)``."""
+        return self._cs * self.d_m3_rad * np.asarray(dp_pa, dtype=float) / dynamic_viscosity_pa_s
+
+    def flow_m3_s(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
+        """Flow delivered into port a (drawn from b): ``ε d ω − Q_leak``."""
+        eps = self._fraction(displacement_fraction)
+        return eps * self.d_m3_rad * np.asarray(speed_rad_s, dtype=float) - \
+            self.leakage_m3_s(dp_pa, dynamic_viscosity_pa_s)
+
+    def friction_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s):
+        """Loss torque (sign of ω): Coulomb ∝ |Δp| D, viscous ∝ μ ω, constant drag."""
+        w = np.asarray(speed_rad_s, dtype=float)
+        sgn = np.tanh(w / self.params.smoothing_speed_rad_s)
+        return ((self._cf * self.d_m3_rad * np.abs(dp_pa) + self.params.drag_torque_nm) * sgn
+                + self._cv * self.d_m3_rad * dynamic_viscosity_pa_s * w)
+
+    def shaft_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
+        """Torque the drive must supply: ``ε d Δp + T_friction``."""
+        eps = self._fraction(displacement_fraction)
+        return eps * self.d_m3_rad * np.asarray(dp_pa, dtype=float) + \
+            self.friction_torque_nm(speed_rad_s, dp_pa, dynamic_viscosity_pa_s)
+
+    def efficiencies(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
+        """``(η_v, η_m, η_total)`` in the pumping quadrant (ω > 0, Δp > 0)."""
+        eps = self._fraction(displacement_fraction)
+        q_ideal = eps * self.d_m3_rad * np.asarray(speed_rad_s, dtype=float)
+        q = self.flow_m3_s(speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction)
+        t = self.shaft_torque_nm(speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction)
+        eta_v = q / q_ideal
+        eta_m = eps * self.d_m3_rad * np.asarray(dp_pa, dtype=float) / t
+        return eta_v, eta_m, eta_v * eta_m
+
+    def power(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s,
+              displacement_fraction=1.0) -> PowerFlow:
+        """``in = T ω`` (shaft), ``out = Δp Q`` (hydraulic), ``heat = T_f ω + Δp Q_leak``."""
+        w = np.asarray(speed_rad_s, dtype=float)
+        dp = np.asarray(dp_pa, dtype=float)
+        t = self.shaft_torque_nm(w, dp, dynamic_viscosity_pa_s, displacement_fraction)
+        q = self.flow_m3_s(w, dp, dynamic_viscosity_pa_s, displacement_fraction)
+        heat = (self.friction_torque_nm(w, dp, dynamic_viscosity_pa_s) * w
+                + dp * self.leakage_m3_s(dp, dynamic_viscosity_pa_s))
+        return PowerFlow(t * w, dp * q, heat, 0.0)
