@@ -39,18 +39,22 @@ class Ros2:
 
     ``f`` returns ``(dY, extra)``; ``extra`` (anything, e.g. power flows) is passed through from
     the unperturbed column of the Jacobian batch so callers get outputs at ``y`` for free.
-    ``scale`` gives each state's typical magnitude for the difference increments.
+    ``scale`` gives each state's typical magnitude for the difference increments;
+    ``error_scale`` (default ``scale``) the magnitude below which its error is not controlled
+    (absolute tolerance ``atol_fraction * error_scale``; relative tolerance ``rtol``).
     """
 
     def __init__(self, f: Callable, scale: np.ndarray, rel_increment: float = 1e-7,
-                 names: list[str] | None = None, rtol: float = 1e-3, atol_fraction: float = 1e-3,
-                 max_subdivision: int = 1024):
+                 names: list[str] | None = None, rtol: float = 1e-2, atol_fraction: float = 1e-2,
+                 max_subdivision: int = 1024, error_scale: np.ndarray | None = None):
         self.f = f
         self.rtol = rtol
-        self.atol = atol_fraction * np.asarray(scale, dtype=float)
+        self.atol = atol_fraction * np.asarray(scale if error_scale is None else error_scale,
+                                               dtype=float)
         self.max_subdivision = max_subdivision
         self.substeps_taken = 0
         self.rejected = 0
+        self._h_next = None
         self.scale = np.asarray(scale, dtype=float)
         self.n = self.scale.size
         self.rel_increment = rel_increment
@@ -93,7 +97,7 @@ class Ros2:
         start. Returns the state at ``t + dt``.
         """
         t_end = t + dt
-        h = dt
+        h = min(dt, self._h_next or dt)
         h_min = dt / self.max_subdivision
         while t < t_end - 1e-15 * dt:
             h = min(h, t_end - t)
@@ -110,8 +114,11 @@ class Ros2:
             self.substeps_taken += 1
             t += h
             y = y_next
+            h_taken = h
             if err < 0.5:
                 h = h * min(4.0, 0.9 / np.sqrt(max(err, 1e-10)))
+        # remember the step size that worked (not the remainder-trimmed last one)
+        self._h_next = max(h, h_taken) if dt > 0 else self._h_next
         return y
 
     def _check(self, t, y, h):

@@ -1,0 +1,187 @@
+"""Sharp-edged orifice: the throttling law every valve in this library is built on.
+
+Equation
+--------
+The standard turbulent orifice equation (Bernoulli across the vena contracta with a discharge
+coefficient; Merritt, *Hydraulic Control Systems*, Wiley 1967, §3.2–3.3; seed §2.4;
+``shared/reference/facts.md``):
+
+    Q = C_d A √(2 |Δp| / ρ) sign(Δp)
+
+has an infinite slope ``dQ/dΔp`` at ``Δp = 0``, which breaks Newton iterations of an implicit
+integrator. System simulators regularise it near zero (e.g. the "critical pressure" form of
+Hopsan's turbulent orifice and of Simscape's orifice blocks); this library uses
+
+    Q = C_d A √(2/ρ) · Δp / (Δp² + p_cr²)^(1/4)
+
+with ``p_cr`` the transition pressure. For ``|Δp| ≫ p_cr`` it equals the turbulent law (the
+relative error is about ``(p_cr/Δp)²/4``: 2.5e-5 at ``Δp = 100 p_cr``); near zero it is linear,
+``Q ≈ C_d A √(2/ρ) Δp / √p_cr``, like the laminar flow through a small opening. It is odd,
+smooth (C^∞) and strictly increasing in ``Δp``, and linear in ``A`` (so a valve's flow is
+proportional to its opening at a fixed pressure drop).
+
+Power: all of ``Δp·Q`` is throttled to heat (no work is done), ``Δp Q ≥ 0`` because ``Q`` has the
+sign of ``Δp``.
+
+Also here: the small smoothing helpers used by the valve modules (:func:`smooth_max0`,
+:func:`smooth_ramp01`), which round the corners of valve opening laws so their Jacobian is
+continuous.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .params import Parameters, param
+from .power import PowerFlow
+
+__all__ = [
+    "DEFAULT_DISCHARGE_COEFFICIENT",
+    "DEFAULT_TRANSITION_PRESSURE_PA",
+    "orifice_flow_m3_s",
+    "orifice_area_for_flow",
+    "orifice_dp_for_flow",
+    "throttle_power",
+    "smooth_max0",
+    "smooth_ramp01",
+    "OrificeParams",
+    "Orifice",
+]
+
+#: Sharp-edged orifice, fully developed jet (Merritt 1967 §3.3: 0.611 from von Mises' ideal
+#: two-dimensional jet, 0.6–0.65 measured).
+DEFAULT_DISCHARGE_COEFFICIENT = 0.61
+#: Regularisation pressure p_cr (0.1 bar): far below working drops (MPa), large enough to keep
+#: the slope at Δp = 0 moderate.
+DEFAULT_TRANSITION_PRESSURE_PA = 1.0e4
+
+
+def orifice_flow_m3_s(dp_pa, area_m2, discharge_coefficient, density_kg_m3,
+                      transition_pressure_pa=DEFAULT_TRANSITION_PRESSURE_PA):
+    """Regularised turbulent orifice flow (positive from the high to the low side of ``dp_pa``).
+
+    ``Q = C_d A √(2/ρ) Δp / (Δp² + p_cr²)^(1/4)``
+
+    Source: standard orifice equation (Merritt 1967, §3.3), regularised near zero in the
+    critical-pressure form of system simulators (Hopsan, Simscape). ``p_cr`` must be > 0.
+    Broadcasts over all arguments.
+
+    Example: 1 mm² orifice, C_d = 0.61, ρ = 870 kg/m³, Δp = 5 MPa:
+    ``orifice_flow_m3_s(5e6, 1e-6, 0.61, 870.0, 1e4)`` → 6.540e-5 m³/s (3.92 L/min), the same
+    as ``0.61e-6 * sqrt(2 * 5e6 / 870)`` to 1e-9.
+    """
+    dp = np.asarray(dp_pa, dtype=float)
+    pcr = transition_pressure_pa
+    k = discharge_coefficient * area_m2 * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
+    return k * dp / (dp * dp + pcr * pcr) ** 0.25
+
+
+def orifice_area_for_flow(flow_m3_s, dp_pa, discharge_coefficient, density_kg_m3,
+                          transition_pressure_pa=DEFAULT_TRANSITION_PRESSURE_PA):
+    """Orifice area that passes ``|flow_m3_s|`` at ``|dp_pa|`` (sizing; inverse in ``A``).
+
+    ``A = |Q| (Δp² + p_cr²)^(1/4) / (C_d √(2/ρ) |Δp|)``  (``dp_pa`` must not be 0).
+
+    Example: 4 L/min at 3.5 MPa, C_d 0.61, ρ 870: ``orifice_area_for_flow(4/60e3, 3.5e6, 0.61,
+    870.0)`` → 1.214e-6 m² (a 1.24 mm diameter hole).
+    """
+    dp = np.abs(np.asarray(dp_pa, dtype=float))
+    pcr = transition_pressure_pa
+    k = discharge_coefficient * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
+    return np.abs(np.asarray(flow_m3_s, dtype=float)) * (dp * dp + pcr * pcr) ** 0.25 / (k * dp)
+
+
+def orifice_dp_for_flow(flow_m3_s, area_m2, discharge_coefficient, density_kg_m3,
+                        transition_pressure_pa=DEFAULT_TRANSITION_PRESSURE_PA):
+    """Pressure drop that drives ``flow_m3_s`` through the orifice (inverse in ``Δp``).
+
+    Squaring the law twice gives ``Δp⁴ = c (Δp² + p_cr²)`` with ``c = (Q/k)⁴``,
+    ``k = C_d A √(2/ρ)``, so ``Δp = sign(Q) √((c + √(c² + 4 c p_cr²))/2)`` (exact inverse of
+    :func:`orifice_flow_m3_s`; ``area_m2`` must be > 0).
+
+    Example: ``orifice_dp_for_flow(6.540e-5, 1e-6, 0.61, 870.0, 1e4)`` → 5.0e6 Pa.
+    """
+    q = np.asarray(flow_m3_s, dtype=float)
+    k = discharge_coefficient * area_m2 * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
+    c = (q / k) ** 4
+    pcr2 = transition_pressure_pa * transition_pressure_pa
+    u = 0.5 * (c + np.sqrt(c * c + 4.0 * c * pcr2))
+    return np.sign(q) * np.sqrt(u)
+
+
+def throttle_power(p_in_pa, p_out_pa, flow_m3_s) -> PowerFlow:
+    """Power flows of a pure throttle carrying ``flow_m3_s`` from ``p_in`` to ``p_out``.
+
+    Whichever side is upstream for the present flow direction is the input (the
+    :class:`PowerFlow` convention): ``in = p_up |Q|``, ``out = p_down |Q|``,
+    ``heat = (p_in − p_out) Q ≥ 0`` (``Q`` has the sign of ``p_in − p_out``), ``stored = 0``.
+    For forward flow (``p_in > p_out``) this is ``in = p_in Q``, ``out = p_out Q``.
+    """
+    p_in = np.asarray(p_in_pa, dtype=float)
+    p_out = np.asarray(p_out_pa, dtype=float)
+    q = np.asarray(flow_m3_s, dtype=float)
+    aq = np.abs(q)
+    heat = (p_in - p_out) * q
+    return PowerFlow(in_w=np.maximum(p_in, p_out) * aq, out_w=np.minimum(p_in, p_out) * aq,
+                     heat_w=heat, stored_w=np.zeros_like(heat))
+
+
+def smooth_max0(s, width: float):
+    """``max(s, 0)`` with its corner rounded by a parabola over ``|s| < width`` (C¹).
+
+    ``0`` for ``s ≤ −width``, ``(s + width)²/(4 width)`` between, ``s`` for ``s ≥ width``;
+    ``width = 0`` gives the exact ``max(s, 0)``. (Quadratic corner smoothing, our choice.)
+    """
+    s = np.asarray(s, dtype=float)
+    if width <= 0.0:
+        return np.maximum(s, 0.0)
+    mid = (s + width) ** 2 / (4.0 * width)
+    return np.where(s <= -width, 0.0, np.where(s >= width, s, mid))
+
+
+def smooth_ramp01(s, width: float):
+    """``clip(s, 0, 1)`` with both corners rounded over ``±width`` (``width < 0.5``; C¹).
+
+    Exactly 0 for ``s ≤ −width``, exactly ``s`` on ``[width, 1 − width]``, exactly 1 for
+    ``s ≥ 1 + width``; odd-symmetric about ``s = 1/2``.
+    """
+    return smooth_max0(s, width) - smooth_max0(np.asarray(s, dtype=float) - 1.0, width)
+
+
+@dataclasses.dataclass(frozen=True)
+class OrificeParams(Parameters):
+    """A fixed sharp-edged orifice (restrictor)."""
+
+    area_m2: float = param(1.0e-6, unit="m^2", lo=0.0, hi=1e-2, lo_open=True,
+                           doc="flow area A")
+    discharge_coefficient: float = param(DEFAULT_DISCHARGE_COEFFICIENT, unit="-", lo=0.0, hi=1.0,
+                                         lo_open=True, doc="discharge coefficient C_d")
+    transition_pressure_pa: float = param(DEFAULT_TRANSITION_PRESSURE_PA, unit="Pa", lo=0.0,
+                                          hi=1e6, lo_open=True,
+                                          doc="p_cr: Δp below which the law turns linear")
+
+    @property
+    def diameter_m(self) -> float:
+        """Diameter of a round hole of the same area."""
+        return math.sqrt(4.0 * self.area_m2 / math.pi)
+
+
+class Orifice:
+    """Flow and power of one :class:`OrificeParams` restrictor."""
+
+    def __init__(self, params: OrificeParams = OrificeParams()):
+        self.params = params
+
+    def flow_m3_s(self, p_in_pa, p_out_pa, density_kg_m3):
+        """Flow from ``in`` to ``out`` (negative when reversed), :func:`orifice_flow_m3_s`."""
+        p = self.params
+        return orifice_flow_m3_s(np.asarray(p_in_pa, dtype=float) - p_out_pa, p.area_m2,
+                                 p.discharge_coefficient, density_kg_m3,
+                                 p.transition_pressure_pa)
+
+    def power(self, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
+        """All of ``Δp Q`` is heat: see :func:`throttle_power`."""
+        return throttle_power(p_in_pa, p_out_pa, self.flow_m3_s(p_in_pa, p_out_pa, density_kg_m3))
