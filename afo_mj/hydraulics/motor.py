@@ -66,13 +66,13 @@ class BrushlessMotor:
     def applied_voltage_v(self, command_v, speed_rad_s, bus_voltage_v):
         """Voltage the driver applies: command clipped to the duty range and the current limit."""
         d, m = self.driver, self.params
-        v_max = d.max_duty * np.asarray(bus_voltage_v, dtype=float)
-        v = np.clip(command_v, -v_max, v_max)
+        v = np.asarray(command_v, dtype=float)
         if d.current_limit_enabled:
             emf = m.torque_constant_nm_a * np.asarray(speed_rad_s, dtype=float)
             band = m.resistance_ohm * d.current_limit_a
-            v = np.clip(v, emf - band, emf + band)
-        return v
+            v = np.minimum(np.maximum(v, emf - band), emf + band)
+        v_max = d.max_duty * np.asarray(bus_voltage_v, dtype=float)
+        return np.minimum(np.maximum(v, -v_max), v_max)
 
     def friction_torque_nm(self, speed_rad_s):
         m = self.params
