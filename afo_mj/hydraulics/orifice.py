@@ -71,7 +71,7 @@ def orifice_flow_m3_s(dp_pa, area_m2, discharge_coefficient, density_kg_m3,
 
     Example: 1 mm² orifice, C_d = 0.61, ρ = 870 kg/m³, Δp = 5 MPa:
     ``orifice_flow_m3_s(5e6, 1e-6, 0.61, 870.0, 1e4)`` → 6.540e-5 m³/s (3.92 L/min), the same
-    as ``0.61e-6 * sqrt(2 * 5e6 / 870)`` to 1e-9.
+    as ``0.61e-6 * sqrt(2 * 5e6 / 870)`` to 1e-6 (relative).
     """
     dp = np.asarray(dp_pa, dtype=float)
     pcr = transition_pressure_pa
@@ -86,7 +86,7 @@ def orifice_area_for_flow(flow_m3_s, dp_pa, discharge_coefficient, density_kg_m3
     ``A = |Q| (Δp² + p_cr²)^(1/4) / (C_d √(2/ρ) |Δp|)``  (``dp_pa`` must not be 0).
 
     Example: 4 L/min at 3.5 MPa, C_d 0.61, ρ 870: ``orifice_area_for_flow(4/60e3, 3.5e6, 0.61,
-    870.0)`` → 1.214e-6 m² (a 1.24 mm diameter hole).
+    870.0)`` → 1.218e-6 m² (a 1.25 mm diameter hole).
     """
     dp = np.abs(np.asarray(dp_pa, dtype=float))
     pcr = transition_pressure_pa

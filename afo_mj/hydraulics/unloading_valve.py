@@ -1,0 +1,146 @@
+"""Unloading valve: dumps pump flow to tank while the accumulator is charged (hysteresis).
+
+Function (accumulator charging circuits; Esposito, *Fluid Power with Applications*, ch. on
+pressure-control valves / accumulator circuits): the pilot port senses the accumulator
+pressure. When it reaches the **cut-out** pressure the valve opens and the pump's flow goes to
+tank at low pressure (the pump is unloaded, a check valve holds the accumulator); the valve stays
+open while the accumulator discharges, and closes again only when the pilot falls to the lower
+**cut-in** pressure, so the pump recharges it. Between cut-in and cut-out the valve keeps its
+present state: a hysteresis.
+
+Model (ours, made for an implicit integrator). A switching valve is a discontinuous state
+machine; here its position ``x ∈ [0, 1]`` is a continuous state with first-order dynamics
+
+    dx/dt = [ σ_open(p) (1 − x) − σ_close(p) x ] / τ
+
+* ``σ_open = 1`` for ``p ≥ p_out`` (cut-out), 0 for ``p ≤ p_out − b``, smoothstep between;
+* ``σ_close = 1`` for ``p ≤ p_in`` (cut-in), 0 for ``p ≥ p_in + b``, smoothstep between;
+* ``b`` the switching band (``b = 0``: sharp thresholds), ``τ`` the time constant.
+
+So the target is 1 above cut-out and 0 below cut-in, and between ``p_in + b`` and ``p_out − b``
+the rate is exactly 0: the valve holds whatever position it had (the hysteresis memory lives in
+``x``). Without hysteresis (``hysteresis_enabled=False``) the valve closes as soon as the pilot
+falls below cut-out: ``σ_close = 1 − σ_open``, ``dx/dt = (σ_open − x)/τ``.
+
+Flow from ``in`` (pump line) to ``out`` (tank): ``A = A_leak + (A_max − A_leak) clip(x, 0, 1)``
+through the regularised orifice law (:func:`~afo_mj.hydraulics.orifice.orifice_flow_m3_s`); all
+of ``Δp Q`` is heat.
+
+Example: default valve (cut-out 14.1 MPa, cut-in 12.5 MPa, τ = 5 ms). The pilot rising past
+14.1 MPa drives ``x`` to 1 within ~5 τ = 25 ms; it stays 1 while the pilot falls through
+13 MPa; at 12.5 MPa it closes (``x → 0``). Open, 5 mm², it passes 4 L/min with
+``Δp ≈ 0.21 MPa``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
+                      orifice_flow_m3_s, throttle_power)
+from .params import Parameters, effect, param
+from .power import PowerFlow
+
+__all__ = ["UnloadingValveParams", "UnloadingValve"]
+
+
+def _smoothstep01(s):
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@dataclasses.dataclass(frozen=True)
+class UnloadingValveParams(Parameters):
+    """A pilot-operated unloading valve from ``in`` (pump line) to ``out`` (tank)."""
+
+    cut_out_pressure_pa: float = param(14.1e6, unit="Pa", lo=0.0, hi=1e8, lo_open=True,
+                                       doc="absolute pilot pressure at which the valve opens "
+                                           "(pump unloaded)")
+    cut_in_pressure_pa: float = param(12.5e6, unit="Pa", lo=0.0, hi=1e8, lo_open=True,
+                                      doc="absolute pilot pressure at which it closes again "
+                                          "(must be < cut_out_pressure_pa)")
+    max_area_m2: float = param(5.0e-6, unit="m^2", lo=0.0, hi=1e-2, lo_open=True,
+                               doc="flow area fully open")
+    leakage_area_m2: float = param(1.0e-10, unit="m^2", lo=0.0, hi=1e-2,
+                                   doc="leakage area when closed (must be < max_area_m2)")
+    discharge_coefficient: float = param(DEFAULT_DISCHARGE_COEFFICIENT, unit="-", lo=0.0,
+                                         hi=1.0, lo_open=True, doc="C_d")
+    transition_pressure_pa: float = param(DEFAULT_TRANSITION_PRESSURE_PA, unit="Pa", lo=0.0,
+                                          hi=1e6, lo_open=True,
+                                          doc="p_cr of the regularised orifice law")
+    time_constant_s: float = param(5.0e-3, unit="s", lo=0.0, hi=10.0, lo_open=True,
+                                   doc="τ of the first-order valve travel")
+    switching_band_pa: float = param(0.1e6, unit="Pa", lo=0.0, hi=1e7,
+                                     doc="pilot band below cut-out / above cut-in over which the "
+                                         "switching rule blends in (0 = sharp)")
+    leakage_enabled: bool = effect(True, doc="leakage through leakage_area_m2 when closed")
+    hysteresis_enabled: bool = effect(True, doc="stay open until the pilot falls to cut-in "
+                                                "(False: close below cut-out)")
+
+    def check(self) -> None:
+        if self.cut_in_pressure_pa >= self.cut_out_pressure_pa:
+            self.fail("cut_in_pressure_pa",
+                      f"must be below cut_out_pressure_pa = {self.cut_out_pressure_pa}")
+        if 2.0 * self.switching_band_pa >= self.cut_out_pressure_pa - self.cut_in_pressure_pa:
+            self.fail("switching_band_pa", "twice the band must be below cut_out_pressure_pa - "
+                      f"cut_in_pressure_pa = {self.cut_out_pressure_pa - self.cut_in_pressure_pa}")
+        if self.leakage_area_m2 >= self.max_area_m2:
+            self.fail("leakage_area_m2", f"must be below max_area_m2 = {self.max_area_m2}")
+
+
+class UnloadingValve:
+    """Position dynamics, flow and power of one :class:`UnloadingValveParams` valve."""
+
+    def __init__(self, params: UnloadingValveParams = UnloadingValveParams()):
+        self.params = params
+        self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
+
+    def _blend(self, s):
+        if self.params.switching_band_pa > 0.0:
+            return _smoothstep01(s)
+        return (s >= 1.0).astype(float)
+
+    def open_drive(self, pilot_pressure_pa):
+        """``σ_open ∈ [0, 1]``: 1 at or above cut-out, 0 below ``cut_out − band``."""
+        p = self.params
+        pilot = np.asarray(pilot_pressure_pa, dtype=float)
+        band = max(p.switching_band_pa, 1.0)
+        return self._blend((pilot - p.cut_out_pressure_pa + band) / band)
+
+    def close_drive(self, pilot_pressure_pa):
+        """``σ_close ∈ [0, 1]``: 1 at or below cut-in, 0 above ``cut_in + band`` (without
+        hysteresis: ``1 − σ_open``)."""
+        p = self.params
+        if not p.hysteresis_enabled:
+            return 1.0 - self.open_drive(pilot_pressure_pa)
+        pilot = np.asarray(pilot_pressure_pa, dtype=float)
+        band = max(p.switching_band_pa, 1.0)
+        return self._blend((p.cut_in_pressure_pa + band - pilot) / band)
+
+    def position_rate(self, x, pilot_pressure_pa):
+        """``dx/dt = [σ_open (1 − x) − σ_close x] / τ`` (1/s): toward 1 above cut-out, toward 0
+        below cut-in, exactly 0 in the hysteresis band (the valve holds its position)."""
+        x = np.asarray(x, dtype=float)
+        up = self.open_drive(pilot_pressure_pa)
+        down = self.close_drive(pilot_pressure_pa)
+        return (up * (1.0 - x) - down * x) / self.params.time_constant_s
+
+    def area_m2(self, x):
+        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``."""
+        a_max = self.params.max_area_m2
+        return self._leak_area + (a_max - self._leak_area) * np.clip(np.asarray(x, dtype=float),
+                                                                     0.0, 1.0)
+
+    def flow_m3_s(self, x, p_in_pa, p_out_pa, density_kg_m3):
+        """Flow from ``in`` (pump line) to ``out`` (tank) at valve position ``x``."""
+        p = self.params
+        dp = np.asarray(p_in_pa, dtype=float) - p_out_pa
+        return orifice_flow_m3_s(dp, self.area_m2(x), p.discharge_coefficient, density_kg_m3,
+                                 p.transition_pressure_pa)
+
+    def power(self, x, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
+        """Throttling power (:func:`~afo_mj.hydraulics.orifice.throttle_power`)."""
+        return throttle_power(p_in_pa, p_out_pa,
+                              self.flow_m3_s(x, p_in_pa, p_out_pa, density_kg_m3))
