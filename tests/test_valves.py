@@ -114,11 +114,11 @@ def test_smooth_ramp_is_c1_and_exact_outside_corners():
 # ----------------------------------------------------------------------------- check valve
 
 def test_check_valve_closed_below_cracking_except_leakage():
-    p = CheckValveParams(cracking_pressure_pa=0.1e6, full_open_dp_pa=0.4e6, max_area_m2=3e-6,
+    p = CheckValveParams(cracking_pressure_pa=0.3e6, full_open_dp_pa=0.4e6, max_area_m2=3e-6,
                          leakage_area_m2=2e-10, opening_smoothing=0.05)
     v = CheckValve(p)
     band = p.opening_smoothing * p.full_open_dp_pa
-    dp = np.linspace(0.02e6, p.cracking_pressure_pa - band, 7)
+    dp = np.linspace(0.15e6, p.cracking_pressure_pa - band, 7)   # Δp >> p_cr = 1e4
     q = v.flow_m3_s(P_TANK + dp, P_TANK, RHO)
     np.testing.assert_allclose(q, turbulent(dp, 2e-10), rtol=5e-3)
     np.testing.assert_array_equal(v.opening(dp), 0.0)
