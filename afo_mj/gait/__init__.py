@@ -1,0 +1,1 @@
+"""Gait: reference gait, gait events, controller, driver."""

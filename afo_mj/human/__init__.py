@@ -1,0 +1,1 @@
+"""The human side: anthropometry, the MuJoCo walker and the ankle test stand."""
