@@ -1,8 +1,13 @@
 """Command-line interface: ``afo-mj``.
 
-Until the gait scenarios exist the main job is ``afo-mj demo``: a loaded pump-controlled
-cylinder (motor → pump → hoses → piston-cable cylinder → load) stepped at 1 ms, with its
-energy chain and accuracy against a Radau reference printed.
+* ``afo-mj run SCENARIO.toml --out DIR``: simulate a walking scenario (``scenarios/``),
+  analyse the strides it names against its reference gait and write ``summary.json``,
+  ``cycles.csv``, ``gait_curves.csv``, ``gait_curves.png`` and ``scenario.toml`` into DIR.
+  Exit codes: 0 done; 1 the run could not be analysed or written (e.g. the walker fell before
+  a complete stride, numerics failure); 2 invalid scenario (nothing written).
+* ``afo-mj demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
+  cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
+  reference printed.
 """
 
 from __future__ import annotations
@@ -59,6 +64,70 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate_walk(scenario):
+    """The walking simulation (imported lazily: MuJoCo is only needed for ``run``)."""
+    from afo_mj.gait.walk import simulate_walk
+    return simulate_walk(scenario)
+
+
+def _fmt(entry, fmt: str = ".2f") -> str:
+    """``mean ± sd`` of a summary entry (``{"mean", "sd", "n"}``), '-' when missing."""
+    if not isinstance(entry, dict) or entry.get("mean") is None:
+        return "-"
+    sd = entry.get("sd")
+    return f"{entry['mean']:{fmt}}" + ("" if sd is None else f" ± {sd:{fmt}}")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
+    from afo_mj.outputs.gait_report import ReportError, write_run_outputs
+    from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+        reference = scenario.load_reference()
+    except ScenarioError as exc:
+        print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    record = _simulate_walk(scenario)
+    wall = time.perf_counter() - t0
+    try:
+        analysis = analyse_gait(record, reference, scenario.analyse_strides)
+        summary = {"scenario": scenario.as_dict(), **analysis.summary,
+                   "wall_time_s": wall}
+        out = write_run_outputs(args.out, summary, analysis.cycles, reference, record,
+                                scenario.text)
+    except (GaitAnalysisError, ReportError) as exc:
+        print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
+        return 1
+    s = summary
+    print(f"afo_mj walk: {scenario.name} ({scenario.description})" if scenario.description
+          else f"afo_mj walk: {scenario.name}")
+    print(f"  simulated {s['duration_s']:.2f} s in {wall:.1f} s wall; "
+          f"{s['completed_strides']} complete right strides; analysed "
+          f"{s['n_cycles_used']} cycles (strides {scenario.analyse_strides[0]}-"
+          f"{scenario.analyse_strides[1]}, both legs)")
+    print("  " + ("FELL at t = %.2f s" % s["fall_time_s"] if s["fell"] else "no fall")
+          + f"; swing toe contacts {s['swing_toe_contacts']}")
+    ref_name = f"{reference.source} {reference.condition}"
+    print(f"  angle RMS error vs {ref_name} [deg]: hip {_fmt(s['hip_angle_rms_error_deg'])}, "
+          f"knee {_fmt(s['knee_angle_rms_error_deg'])}, "
+          f"ankle {_fmt(s['ankle_angle_rms_error_deg'])}")
+    print(f"  peak ankle plantarflexor moment {_fmt(s['peak_ankle_plantarflexor_moment_nm_per_kg'])} "
+          f"N*m/kg; peak ankle power {_fmt(s['peak_ankle_power_w_per_kg'])} W/kg; "
+          f"push-off work {_fmt(s['ankle_push_off_positive_work_j_per_kg'], '.3f')} J/kg")
+    print(f"  speed {_fmt(s['speed_m_s'])} m/s; cadence {_fmt(s['cadence_steps_per_min'], '.1f')} "
+          f"steps/min; stride {_fmt(s['stride_length_m'])} m; min toe clearance "
+          f"{_fmt(s['min_toe_clearance_m'], '.3f')} m")
+    rf = s["residual_force_rms_percent_body_weight"]
+    span = rf.get("over_analysed_span")
+    print(f"  residual force RMS {'-' if span is None else f'{span:.2f}'} % body weight; "
+          f"residual moment RMS {_fmt(s['residual_moment_rms_nm'])} N*m")
+    print(f"  results: {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -67,6 +136,10 @@ def main(argv: list[str] | None = None) -> int:
     demo.add_argument("--substeps", type=int, default=4)
     demo.add_argument("--json", action="store_true", help="also print a JSON summary line")
     demo.set_defaults(func=_demo)
+    run = sub.add_parser("run", help="simulate a walking scenario (TOML) and write its results")
+    run.add_argument("scenario", help="scenario file, e.g. scenarios/walk_healthy.toml")
+    run.add_argument("--out", required=True, help="output directory (created or updated)")
+    run.set_defaults(func=_run)
     args = parser.parse_args(argv)
     if getattr(args, "duration_s", 1.0) <= 0:
         parser.error(f"--duration-s = {args.duration_s}; allowed: > 0")

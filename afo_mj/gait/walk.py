@@ -54,20 +54,20 @@ class ControllerParams(Parameters):
 
     hip_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
     knee_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
-    ankle_kp_nm_per_rad: float = param(100.0, unit="N*m/rad", lo=0.0, hi=5000.0)
+    ankle_kp_nm_per_rad: float = param(300.0, unit="N*m/rad", lo=0.0, hi=5000.0)
     hip_kv_nm_s_per_rad: float = param(30.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
     knee_kv_nm_s_per_rad: float = param(30.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
     ankle_kv_nm_s_per_rad: float = param(5.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
     hip_feedforward: float = param(0.7, unit="1", lo=0.0, hi=1.5,
                                    doc="fraction of the reference hip moment fed forward")
     knee_feedforward: float = param(0.7, unit="1", lo=0.0, hi=1.5)
-    ankle_feedforward: float = param(0.9, unit="1", lo=0.0, hi=1.5)
+    ankle_feedforward: float = param(0.85, unit="1", lo=0.0, hi=1.5)
     trunk_kp_nm_per_rad: float = param(500.0, unit="N*m/rad", lo=0.0, hi=5000.0,
                                        doc="trunk pitch stiffness through the stance hip")
     trunk_kd_nm_s_per_rad: float = param(50.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
     stance_hip_tracking: float = param(1.0, unit="1", lo=0.0, hi=1.0,
                                        doc="1: stance hip keeps its servo and adds the trunk torque; 0: SIMBICON, trunk torque only")
-    swing_hip_position_gain_rad_per_m: float = param(0.5, unit="rad/m", lo=-5.0, hi=5.0,
+    swing_hip_position_gain_rad_per_m: float = param(0.0, unit="rad/m", lo=-5.0, hi=5.0,
                                                      doc="SIMBICON c_d: swing hip target per m of hip-over-stance-ankle deviation")
     swing_hip_velocity_gain_rad_s_per_m: float = param(0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
                                                        doc="SIMBICON c_v: swing hip target per m/s deviation")
@@ -82,6 +82,10 @@ class ControllerParams(Parameters):
                                         doc="foot load / body weight below which the foot is off")
     min_swing_phase_for_heel_strike: float = param(0.85, unit="1", lo=0.5, hi=0.99,
                                                    doc="earliest gait phase a contact counts as heel strike")
+    phase_rate_speed_exponent: float = param(0.0, unit="1", lo=0.0, hi=2.0,
+                                             doc="phase runs at (v_mean / v_reference)^k of the cadence's rate")
+    min_phase_rate: float = param(0.6, unit="1", lo=0.1, hi=1.0)
+    max_phase_rate: float = param(1.1, unit="1", lo=1.0, hi=2.0)
     initial_speed_m_s: float = param(1.0, unit="m/s", lo=0.0, hi=3.0)
     warmup_cycles: float = param(2.0, unit="1", lo=0.0, hi=10.0,
                                  doc="cycles over which the residual gains fall from warmup_gain× to 1×")
@@ -116,6 +120,9 @@ class ReferenceTable:
         self.hip_ahead = -(thigh_m * np.sin(h) + shank_m * np.sin(h - k))
         hr, kr = self.rate[:, 0], self.rate[:, 1]
         self.hip_ahead_rate = -(thigh_m * np.cos(h) * hr + shank_m * np.cos(h - k) * (hr - kr))
+        single_support = (np.arange(self.n + 1) / self.n >= 0.12) & (np.arange(self.n + 1) / self.n <= 0.5)
+        #: mean hip speed over the stance ankle in single support, per unit phase rate
+        self.mean_ahead_rate = float(self.hip_ahead_rate[single_support].mean())
 
     def lookup(self, phase: np.ndarray):
         x = np.clip(phase, 0.0, 1.0) * self.n
@@ -183,6 +190,8 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
     alpha = dt / c.speed_filter_time_s
     warmup_s = max(c.warmup_cycles * T, 1e-9)
+    v_ref = table.mean_ahead_rate / T
+    rate = 1.0
 
     max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
     n_max = int(max_time / dt) + 2
@@ -211,12 +220,11 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         t = data.time
         load = data.sensordata[touch]                      # (2, 2) heel, ball
         foot_load = load[:, 0] + load[:, 1]
-        phase = (t - t_hs) / T
+        phase += dt * rate / T
         for s in (0, 1):
             if swing[s]:
                 if foot_load[s] > on_n and phase[s] > c.min_swing_phase_for_heel_strike:
                     swing[s] = False
-                    t_hs[s] = t
                     phase[s] = 0.0
                     events.heel_strikes_s[s].append(t)
                     scuffing[s] = False
@@ -234,6 +242,9 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         if right_strides > strides:
             break
         np.minimum(phase, 0.999, out=phase)
+        # Walkers who cannot keep the reference speed (weakness) step at a lower rate.
+        rate = min(max((max(v_mean, 1e-3) / v_ref) ** c.phase_rate_speed_exponent,
+                       c.min_phase_rate), c.max_phase_rate)
 
         qa, qr, qm, ahead_ref, ahead_rate_ref = table.lookup(phase)
         vx = data.qvel[pel_d[0]]
@@ -248,8 +259,12 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         ankle_x = data.xpos[foot_body, 0]
         pelvis_x = data.qpos[pel_q[0]]
         ahead = pelvis_x - ankle_x[::-1]
+        # The speed the walker is judged against is its own stride-mean speed, shaped over the
+        # stride as the reference's hip-over-ankle speed: the walker is never pushed toward a
+        # speed it cannot reach (a weak walker walks slower).
+        v_target = v_mean * ahead_rate_ref[::-1] / table.mean_ahead_rate
         dev = (c.swing_hip_position_gain_rad_per_m * (ahead - ahead_ref[::-1])
-               + c.swing_hip_velocity_gain_rad_s_per_m * (vx - ahead_rate_ref[::-1] / T))
+               + c.swing_hip_velocity_gain_rad_s_per_m * (vx - v_target))
         target[:, 0] += np.where(swing, dev, 0.0)
         torque = ff * qm
         stance = ~swing
@@ -337,6 +352,8 @@ def _foot_grf(model, data, phys: WalkerPhysics, out: np.ndarray) -> None:
 _F6 = np.zeros(6)
 
 
-def simulate_walk(scenario) -> GaitRecord:
+def simulate_walk(scenario, device: AnkleDevice | None = None, worn_masses=()) -> GaitRecord:
     """Run a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` and return its record."""
-    raise NotImplementedError  # wired once the scenario module lands
+    reference = scenario.load_reference()
+    return run_walk(scenario.walker, reference, scenario.cycle_time_s(reference), scenario.strides,
+                    scenario.controller_params(), worn_masses=worn_masses, device=device)

@@ -1,0 +1,202 @@
+"""Result files of a walking run, written atomically.
+
+:func:`write_run_outputs` writes into ``out_dir``:
+
+* ``summary.json`` -- the summary of :func:`afo_mj.analysis.gait_metrics.summarize` (strict
+  JSON: NaN/inf become ``null``; a non-finite joint-angle RMS error is a numerics failure and
+  raises :class:`ReportError` instead);
+* ``cycles.csv`` -- one row per analysed cycle per leg: leg, stride, start/end/toe-off times
+  and every per-cycle scalar, units in the column names;
+* ``gait_curves.csv`` -- mean and SD over cycles of every resampled channel, and the
+  reference mean/SD, on 0..100 % of the cycle;
+* ``gait_curves.png`` -- 3×3 figure: joint angle, moment and power vs % cycle for hip, knee
+  and ankle; simulation mean ± 1 SD shaded, reference mean (with its ±1 SD band where it has
+  one; Winter has none: dashed line only). Moments are drawn in the biomechanics convention,
+  extensor/plantarflexor positive (the negative of the record's sign);
+* ``scenario.toml`` -- the scenario text, when given.
+
+Everything is first written into a temporary sibling directory, then each file is moved into
+``out_dir`` with :func:`os.replace`; a failure before that leaves ``out_dir`` untouched (and
+not created). Files in ``out_dir`` other than these are left alone.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from afo_mj.analysis.gait_metrics import (
+    CURVE_CHANNELS, JOINTS, PERCENT_CYCLE, GaitCycle, reference_band, curve_statistics)
+
+__all__ = ["ReportError", "write_run_outputs", "OUTPUT_FILES", "json_ready"]
+
+OUTPUT_FILES = ("summary.json", "cycles.csv", "gait_curves.csv", "gait_curves.png",
+                "scenario.toml")
+
+#: Summary keys whose mean must be finite: a NaN there means the simulation's numbers broke.
+KEY_METRICS = tuple(f"{j}_angle_rms_error_deg" for j in JOINTS)
+
+
+class ReportError(ValueError):
+    """The results cannot be written as they are (non-finite key metric, bad input)."""
+
+
+def json_ready(x: Any) -> Any:
+    """NaN/inf → None, numpy scalars/arrays → Python, recursively."""
+    if isinstance(x, dict):
+        return {str(k): json_ready(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_ready(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return json_ready(x.tolist())
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def _check_key_metrics(summary: dict) -> None:
+    for key in KEY_METRICS:
+        if key not in summary:
+            continue
+        entry = summary[key]
+        mean = entry.get("mean") if isinstance(entry, dict) else entry
+        if mean is None or not math.isfinite(float(mean)):
+            raise ReportError(f"summary[{key!r}] mean = {mean!r}: a joint-angle RMS error that "
+                              f"is not a finite number means the simulation's numerics failed; "
+                              f"no results written")
+
+
+def _write_summary(path: Path, summary: dict) -> None:
+    text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
+    path.write_text(text + "\n", encoding="utf-8")
+
+
+def _write_cycles(path: Path, cycles: Sequence[GaitCycle]) -> None:
+    keys = list(cycles[0].scalars) if cycles else []
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["leg", "stride", "start_s", "end_s", "toe_off_s", *keys])
+        for c in cycles:
+            w.writerow([c.leg, c.stride, f"{c.start_s:.6f}", f"{c.end_s:.6f}",
+                        "" if c.toe_off_s is None else f"{c.toe_off_s:.6f}",
+                        *("" if not math.isfinite(c.scalars[k]) else f"{c.scalars[k]:.8g}"
+                          for k in keys)])
+
+
+def _write_curves(path: Path, cycles: Sequence[GaitCycle], reference) -> None:
+    cols: list[tuple[str, np.ndarray | None]] = [("percent_cycle", PERCENT_CYCLE)]
+    for ch in CURVE_CHANNELS:
+        mean, sd = curve_statistics(cycles, ch)
+        cols += [(f"{ch}_mean", mean), (f"{ch}_sd", sd)]
+        band = reference_band(reference, ch)
+        if band is not None:
+            cols += [(f"reference_{ch}_mean", band[0]), (f"reference_{ch}_sd", band[1])]
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow([n for n, _ in cols])
+        for i in range(PERCENT_CYCLE.size):
+            w.writerow(["" if v is None or not math.isfinite(v[i]) else f"{v[i]:.8g}"
+                        for _, v in cols])
+
+
+def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 9), layout="constrained")
+    axes = fig.subplots(3, 3, sharex=True)
+    rows = (("angle_rad", math.degrees(1.0), "angle [deg]\n(+ flexion / dorsiflexion)"),
+            ("moment_nm_per_kg", -1.0,
+             "moment [N·m/kg]\n(+ extensor / plantarflexor,\n= −moment of the record)"),
+            ("power_w_per_kg", 1.0, "power [W/kg]\n(+ generation)"))
+    ref_name = (f"{getattr(reference, 'source', 'reference')} "
+                f"{getattr(reference, 'condition', '')}").strip()
+    for r, (kind, scale, ylabel) in enumerate(rows):
+        for c, joint in enumerate(JOINTS):
+            ax = axes[r, c]
+            ch = f"{joint}_{kind}"
+            mean, sd = curve_statistics(cycles, ch)
+            ax.plot(PERCENT_CYCLE, scale * mean, color="C0", lw=1.8,
+                    label=f"simulation (n = {len(cycles)})")
+            if sd is not None:
+                lo, hi = scale * (mean - sd), scale * (mean + sd)
+                ax.fill_between(PERCENT_CYCLE, np.minimum(lo, hi), np.maximum(lo, hi),
+                                color="C0", alpha=0.25, lw=0, label="simulation ±1 SD")
+            band = reference_band(reference, ch)
+            if band is not None:
+                rmean, rsd = band
+                ax.plot(PERCENT_CYCLE, scale * rmean, color="k", lw=1.2, ls="--",
+                        label=f"{ref_name} mean")
+                if rsd is not None:
+                    a, b = scale * (rmean - rsd), scale * (rmean + rsd)
+                    ax.fill_between(PERCENT_CYCLE, np.minimum(a, b), np.maximum(a, b),
+                                    color="0.5", alpha=0.25, lw=0, label=f"{ref_name} ±1 SD")
+            ax.axhline(0.0, color="0.7", lw=0.6)
+            if r == 0:
+                ax.set_title(joint)
+            if c == 0:
+                ax.set_ylabel(ylabel)
+            if r == 2:
+                ax.set_xlabel("gait cycle [%] (heel strike to heel strike)")
+            ax.set_xlim(0, 100)
+    axes[0, 0].legend(fontsize="small", loc="best")
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+
+
+def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], reference,
+                      record=None, scenario_text: str | None = None,
+                      title: str | None = None) -> Path:
+    """Write the run's result files into ``out_dir`` atomically (see the module docstring).
+
+    ``cycles``: the analysed cycles (:func:`afo_mj.analysis.gait_metrics.extract_cycles` or
+    ``analyse_gait(...).cycles``); ``reference``: the reference gait the run was compared
+    with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
+    is used, for the figure title). Returns the output directory path.
+    Raises :class:`ReportError` (nothing written) for a non-finite key metric or no cycles.
+    """
+    out = Path(out_dir)
+    if not cycles:
+        raise ReportError("write_run_outputs: no cycles to write; nothing written")
+    _check_key_metrics(summary)
+    if title is None:
+        name = summary.get("scenario", {}).get("name") if isinstance(summary.get("scenario"), dict) else None
+        title = f"{name or 'walk'}: {len(cycles)} cycles"
+        if record is not None:
+            title += f", {record.body_mass_kg:g} kg, {record.height_m:g} m"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    umask = os.umask(0o022)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)         # mkdtemp makes 0700; the result is an ordinary dir
+    try:
+        _write_summary(tmp / "summary.json", summary)
+        _write_cycles(tmp / "cycles.csv", cycles)
+        _write_curves(tmp / "gait_curves.csv", cycles, reference)
+        _plot(tmp / "gait_curves.png", cycles, reference, title)
+        if scenario_text is not None:
+            (tmp / "scenario.toml").write_text(scenario_text, encoding="utf-8")
+        if not out.exists():
+            os.replace(tmp, out)          # the whole directory appears at once
+            return out
+        if not out.is_dir():
+            raise ReportError(f"{out} exists and is not a directory; nothing written")
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return out

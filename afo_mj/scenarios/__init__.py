@@ -1,0 +1,2 @@
+"""Walking scenarios: TOML files validated into frozen :class:`WalkScenario` objects
+(:mod:`afo_mj.scenarios.walk_scenario`)."""

@@ -1,0 +1,330 @@
+"""Walking scenarios: a TOML file validated into a frozen :class:`WalkScenario`.
+
+Schema (every section and key optional except where said; unknown keys are errors)::
+
+    name = "walk_healthy"            # [A-Za-z0-9_.-]+, default: the file name without .toml
+    description = "..."
+    [walker]                         # any WalkerParams field (afo_mj.human.walker), SI units
+    body_mass_kg = 75.0
+    height_m = 1.75
+    [gait]
+    reference = "winter"             # "winter" | "schwartz2008" (default "winter")
+    condition = "normal"             # winter: normal; schwartz2008: VerySlow|Slow|Free|Fast|VeryFast
+    reference_path = "my_gait.csv"   # instead of reference/condition: a user's cycle, CSV
+                                     # (afo_mj.gait.reference.load_reference_csv) or OpenSim
+                                     # .sto/.mot (load_opensim_storage); relative to the file
+    cadence_steps_per_min = 105.3    # 30..200; default: the reference's own cadence
+    strides = 10                     # right-leg cycles to simulate, 1..1000
+    analyse_strides = [4, 10]        # first, last stride analysed (1-based, inclusive)
+    [impairment]                     # WalkerParams impairment fields, validated by WalkerParams
+    plantarflexor_strength_fraction = 1.0     # 0..1
+    dorsiflexor_strength_fraction = 1.0       # 0..1
+    ankle_passive_stiffness_nm_per_rad = 0.0  # 0..2000
+    ankle_passive_damping_nm_s_per_rad = 0.0  # 0..100
+    [controller]                     # overrides of afo_mj.gait.walk.ControllerParams fields
+
+Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
+file) raises one :class:`ScenarioError` naming the file, the dotted key, the value and what
+is allowed. ``afo-mj run`` maps it to exit code 2 and writes nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import tomllib
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from afo_mj.hydraulics.params import ParameterError
+from afo_mj.human.walker import WalkerParams
+
+__all__ = ["ScenarioError", "WalkScenario", "load_scenario", "parse_scenario",
+           "REFERENCES", "IMPAIRMENT_KEYS"]
+
+REFERENCES: dict[str, tuple[str, ...]] = {
+    "winter": ("normal",),
+    "schwartz2008": ("VerySlow", "Slow", "Free", "Fast", "VeryFast"),
+}
+"""Shipped normative references and their conditions."""
+DEFAULT_CONDITION = {"winter": "normal", "schwartz2008": "Free"}
+
+IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_fraction",
+                   "ankle_passive_stiffness_nm_per_rad", "ankle_passive_damping_nm_s_per_rad")
+"""Keys of ``[impairment]``: the WalkerParams fields of the same names."""
+
+_TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller")
+_GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
+              "analyse_strides")
+_NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
+CADENCE_RANGE = (30.0, 200.0)
+STRIDES_RANGE = (1, 1000)
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario: names the file, the dotted key, the value and what is allowed."""
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkScenario:
+    """A validated walking scenario (see the module docstring for the TOML schema).
+
+    ``walker`` holds body size and impairment; ``reference``/``condition`` name a shipped
+    normative gait, or ``reference == "file"`` with ``reference_path``; ``cadence_steps_per_min``
+    None means the reference's own; ``controller`` maps ControllerParams field names to
+    overriding values; ``text`` is the TOML source (copied into the run's outputs).
+    """
+
+    name: str
+    description: str
+    walker: WalkerParams
+    reference: str
+    condition: str | None
+    reference_path: Path | None
+    cadence_steps_per_min: float | None
+    strides: int
+    analyse_strides: tuple[int, int]
+    controller: Mapping[str, float]
+    source_path: Path | None = None
+    text: str = ""
+
+    def load_reference(self):
+        """The reference gait (:class:`afo_mj.gait.reference.ReferenceGait`)."""
+        from afo_mj.gait import reference as ref
+        if self.reference_path is None:
+            return ref.load_normative(self.reference, self.condition)
+        return _load_reference_file(self.reference_path, self.walker.body_mass_kg)
+
+    def cycle_time_s(self, reference=None) -> float:
+        """Gait cycle time: 120 / cadence, or the reference's cycle time without a cadence."""
+        if self.cadence_steps_per_min is not None:
+            return 120.0 / self.cadence_steps_per_min
+        ref = reference if reference is not None else self.load_reference()
+        if ref.cycle_time_s is None:
+            raise ScenarioError(f"{self.source_path or self.name}: the reference has no cycle "
+                                f"time; set gait.cadence_steps_per_min")
+        return float(ref.cycle_time_s)
+
+    def controller_params(self):
+        """:class:`afo_mj.gait.walk.ControllerParams` with this scenario's overrides."""
+        from afo_mj.gait.walk import ControllerParams
+        return ControllerParams(**dict(self.controller))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready description (for the run summary)."""
+        return {"name": self.name, "description": self.description,
+                "file": None if self.source_path is None else str(self.source_path),
+                "reference": self.reference, "condition": self.condition,
+                "reference_path": None if self.reference_path is None else str(self.reference_path),
+                "cadence_steps_per_min": self.cadence_steps_per_min, "strides": self.strides,
+                "analyse_strides": list(self.analyse_strides),
+                "walker": {f.name: getattr(self.walker, f.name)
+                           for f in dataclasses.fields(self.walker)},
+                "controller": dict(self.controller)}
+
+
+def _load_reference_file(path: Path, body_mass_kg: float):
+    from afo_mj.gait import reference as ref
+    if path.suffix.lower() in (".sto", ".mot"):
+        return ref.load_opensim_storage(path, body_mass_kg=body_mass_kg)
+    return ref.load_reference_csv(path, body_mass_kg=body_mass_kg)
+
+
+# ------------------------------------------------------------------------------------------
+# validation helpers
+# ------------------------------------------------------------------------------------------
+
+class _Ctx:
+    def __init__(self, origin: str):
+        self.origin = origin
+
+    def fail(self, key: str, value: Any, problem: str, allowed: str) -> ScenarioError:
+        return ScenarioError(f"{self.origin}: {key} = {value!r} {problem}; allowed: {allowed}")
+
+    def table(self, doc: Mapping, key: str) -> dict:
+        v = doc.get(key, {})
+        if not isinstance(v, dict):
+            raise self.fail(key, v, "is not a table", f"a [{key}] section")
+        return v
+
+    def unknown(self, section: str, table: Mapping, allowed: tuple[str, ...] | list[str]) -> None:
+        for k, v in table.items():
+            if k not in allowed:
+                dotted = f"{section}.{k}" if section else k
+                raise ScenarioError(f"{self.origin}: unknown key {dotted!r} (= {v!r}); allowed "
+                                    f"keys{' in [' + section + ']' if section else ''}: "
+                                    f"{', '.join(allowed)}")
+
+    def string(self, key: str, v: Any, allowed: str = "a string") -> str:
+        if not isinstance(v, str):
+            raise self.fail(key, v, f"has the wrong type ({type(v).__name__})", allowed)
+        return v
+
+    def number(self, key: str, v: Any, lo: float, hi: float, unit: str) -> float:
+        allowed = f"a number {lo:g} <= {key.rsplit('.', 1)[-1]} <= {hi:g} [{unit}]"
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.fail(key, v, f"has the wrong type ({type(v).__name__})", allowed)
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise self.fail(key, v, "is out of range", allowed)
+        return float(v)
+
+    def integer(self, key: str, v: Any, lo: int, hi: int) -> int:
+        allowed = f"an integer {lo} <= {key.rsplit('.', 1)[-1]} <= {hi}"
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.fail(key, v, f"has the wrong type ({type(v).__name__})", allowed)
+        if not lo <= v <= hi:
+            raise self.fail(key, v, "is out of range", allowed)
+        return v
+
+
+def _controller_fields() -> dict[str, Any] | None:
+    """ControllerParams fields by name, or None while the controller module is absent."""
+    try:
+        from afo_mj.gait.walk import ControllerParams
+    except ImportError:
+        return None
+    return {f.name: f for f in dataclasses.fields(ControllerParams)}
+
+
+def _walker(ctx: _Ctx, walker_tbl: dict, imp_tbl: dict) -> WalkerParams:
+    fields = [f.name for f in dataclasses.fields(WalkerParams)]
+    ctx.unknown("walker", walker_tbl, fields)
+    ctx.unknown("impairment", imp_tbl, IMPAIRMENT_KEYS)
+    kw: dict[str, Any] = {}
+    dotted: dict[str, str] = {}
+    for section, tbl in (("walker", walker_tbl), ("impairment", imp_tbl)):
+        for k, v in tbl.items():
+            if k in kw:
+                raise ScenarioError(f"{ctx.origin}: {section}.{k} = {v!r} is also set as "
+                                    f"{dotted[k]} = {kw[k]!r}; allowed: set it once")
+            kw[k], dotted[k] = v, f"{section}.{k}"
+    for k, v in kw.items():          # one field at a time, so the error names its key
+        try:
+            WalkerParams(**{k: v})
+        except ParameterError as exc:
+            raise ScenarioError(f"{ctx.origin}: {dotted[k]} = {v!r} rejected: {exc}") from None
+    try:
+        return WalkerParams(**kw)
+    except ParameterError as exc:
+        raise ScenarioError(f"{ctx.origin}: [walker]/[impairment] "
+                            f"{', '.join(dotted.values())} rejected together: {exc}") from None
+
+
+def _controller(ctx: _Ctx, tbl: dict) -> dict[str, float]:
+    fields = _controller_fields()
+    out: dict[str, float] = {}
+    if fields is None:                # controller module absent: keep plain numbers
+        for k, v in tbl.items():
+            out[k] = ctx.number(f"controller.{k}", v, -math.inf, math.inf, "SI")
+        return out
+    ctx.unknown("controller", tbl, list(fields))
+    from afo_mj.gait.walk import ControllerParams
+    for k, v in tbl.items():
+        md = fields[k].metadata
+        if md.get("kind") == "number":
+            out[k] = ctx.number(f"controller.{k}", v, md.get("lo", -math.inf),
+                                md.get("hi", math.inf), md.get("unit", ""))
+        else:
+            out[k] = v
+        try:
+            ControllerParams(**{k: out[k]})
+        except ParameterError as exc:
+            raise ScenarioError(f"{ctx.origin}: controller.{k} = {v!r} rejected: {exc}") from None
+    try:
+        ControllerParams(**out)
+    except ParameterError as exc:
+        raise ScenarioError(f"{ctx.origin}: [controller] values rejected together: {exc}") from None
+    return out
+
+
+def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None = None,
+                   default_name: str = "scenario", source_path: Path | None = None
+                   ) -> WalkScenario:
+    """Validate TOML ``text`` into a :class:`WalkScenario` (``origin`` names it in errors;
+    ``base_dir`` resolves a relative ``gait.reference_path``)."""
+    ctx = _Ctx(origin)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{origin}: not valid TOML: {exc}") from None
+    ctx.unknown("", doc, _TOP_KEYS)
+    name = ctx.string("name", doc.get("name", default_name), "a name of letters, digits, _ . -")
+    if not _NAME_RE.match(name):
+        raise ctx.fail("name", name, "is not a valid name", "letters, digits, _ . - (non-empty)")
+    description = ctx.string("description", doc.get("description", ""))
+
+    walker = _walker(ctx, ctx.table(doc, "walker"), ctx.table(doc, "impairment"))
+
+    gait = ctx.table(doc, "gait")
+    ctx.unknown("gait", gait, _GAIT_KEYS)
+    reference_path = None
+    if "reference_path" in gait:
+        raw = ctx.string("gait.reference_path", gait["reference_path"],
+                         "a path to a .csv, .sto or .mot file")
+        for k in ("reference", "condition"):
+            if k in gait:
+                raise ctx.fail(f"gait.{k}", gait[k], "is given together with gait.reference_path",
+                               "either gait.reference (+ condition) or gait.reference_path")
+        p = Path(raw)
+        if not p.is_absolute() and base_dir is not None:
+            p = base_dir / p
+        if p.suffix.lower() not in (".csv", ".sto", ".mot"):
+            raise ctx.fail("gait.reference_path", raw, "has an unknown file type",
+                           "a .csv, .sto or .mot file")
+        if not p.is_file():
+            raise ctx.fail("gait.reference_path", raw, f"does not exist (looked at {p})",
+                           "an existing .csv, .sto or .mot file")
+        from afo_mj.gait.reference import ReferenceGaitError
+        try:
+            _load_reference_file(p, walker.body_mass_kg)
+        except ReferenceGaitError as exc:
+            raise ScenarioError(f"{origin}: gait.reference_path = {raw!r} cannot be used: "
+                                f"{exc}") from None
+        reference_path, reference, condition = p, "file", None
+    else:
+        reference = ctx.string("gait.reference", gait.get("reference", "winter"),
+                               " | ".join(repr(r) for r in REFERENCES))
+        if reference not in REFERENCES:
+            raise ctx.fail("gait.reference", reference, "is not a known reference",
+                           " | ".join(repr(r) for r in REFERENCES))
+        condition = ctx.string("gait.condition",
+                               gait.get("condition", DEFAULT_CONDITION[reference]))
+        if condition not in REFERENCES[reference]:
+            raise ctx.fail("gait.condition", condition, f"is not a {reference} condition",
+                           " | ".join(repr(c) for c in REFERENCES[reference]))
+    cadence = None
+    if "cadence_steps_per_min" in gait:
+        cadence = ctx.number("gait.cadence_steps_per_min", gait["cadence_steps_per_min"],
+                             *CADENCE_RANGE, "steps/min")
+    strides = ctx.integer("gait.strides", gait.get("strides", 10), *STRIDES_RANGE)
+    raw_an = gait.get("analyse_strides", [min(4, strides), strides])
+    allowed_an = f"[first, last] integers with 1 <= first <= last <= gait.strides ({strides})"
+    if (not isinstance(raw_an, list) or len(raw_an) != 2
+            or any(isinstance(x, bool) or not isinstance(x, int) for x in raw_an)):
+        raise ctx.fail("gait.analyse_strides", raw_an, "has the wrong type or length", allowed_an)
+    first, last = raw_an
+    if not 1 <= first <= last <= strides:
+        raise ctx.fail("gait.analyse_strides", raw_an, "is out of range", allowed_an)
+
+    controller = _controller(ctx, ctx.table(doc, "controller"))
+    return WalkScenario(name=name, description=description, walker=walker,
+                        reference=reference, condition=condition,
+                        reference_path=reference_path, cadence_steps_per_min=cadence,
+                        strides=strides, analyse_strides=(first, last),
+                        controller=MappingProxyType(controller), source_path=source_path,
+                        text=text)
+
+
+def load_scenario(path) -> WalkScenario:
+    """Read and validate a scenario TOML file; raises :class:`ScenarioError`."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"{p}: cannot read the scenario file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{p}: not UTF-8 text ({exc})") from None
+    return parse_scenario(text, origin=str(p), base_dir=p.parent, default_name=p.stem,
+                          source_path=p)

@@ -1,0 +1,161 @@
+"""``afo-mj run`` end to end with the simulation replaced by a synthetic Winter record."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from afo_mj import cli
+from afo_mj.analysis.gait_metrics import analyse_gait
+from afo_mj.gait.reference import load_normative
+from afo_mj.outputs import gait_report
+from afo_mj.outputs.gait_report import ReportError, write_run_outputs
+from afo_mj.scenarios.walk_scenario import WalkScenario
+
+from gait_fixtures import WinterSplines, synthetic_record
+
+HEALTHY = Path(__file__).resolve().parents[1] / "scenarios" / "walk_healthy.toml"
+
+
+@pytest.fixture(scope="module")
+def record():
+    return synthetic_record(splines=WinterSplines())
+
+
+@pytest.fixture
+def fake_sim(monkeypatch, record):
+    seen = []
+
+    def simulate(scenario):
+        assert isinstance(scenario, WalkScenario)
+        seen.append(scenario)
+        return record
+
+    monkeypatch.setattr(cli, "_simulate_walk", simulate)
+    return seen
+
+
+def _strict_json(path: Path) -> dict:
+    def no_constant(name):
+        raise ValueError(f"non-finite JSON constant {name}")
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=no_constant)
+
+
+def test_run_writes_all_outputs(tmp_path, fake_sim, capsys):
+    out = tmp_path / "runs" / "healthy"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 0
+    assert fake_sim and fake_sim[0].name == "walk_healthy"
+    printed = capsys.readouterr().out
+    assert "angle RMS error" in printed and str(out) in printed and "no fall" in printed
+
+    s = _strict_json(out / "summary.json")
+    for key in ("ankle_angle_rms_error_deg", "knee_angle_rms_error_deg", "hip_angle_rms_error_deg",
+                "peak_ankle_plantarflexor_moment_nm_per_kg", "peak_ankle_power_w_per_kg",
+                "ankle_push_off_positive_work_j_per_kg", "residual_force_rms_percent_body_weight",
+                "speed_m_s", "cadence_steps_per_min", "stride_length_m", "min_toe_clearance_m"):
+        assert set(s[key]) >= {"mean", "sd", "n"}, key
+        assert s[key]["n"] == 14
+    assert s["ankle_angle_rms_error_deg"]["mean"] < 0.05
+    assert s["speed_m_s"]["mean"] == pytest.approx(1.325)
+    assert s["fall_time_s"] is None and s["n_cycles_used"] == 14 and s["completed_strides"] == 12
+    assert s["ankle_angle_within_1sd_fraction"] is None          # Winter: no SD
+    assert s["scenario"]["name"] == "walk_healthy"
+
+    with (out / "cycles.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 14
+    assert {r["leg"] for r in rows} == {"right", "left"}
+    assert sorted({int(r["stride"]) for r in rows}) == list(range(4, 11))
+    assert float(rows[0]["peak_ankle_plantarflexor_moment_nm_per_kg"]) == pytest.approx(1.69, abs=0.02)
+    for col in ("cadence_steps_per_min", "stride_length_m", "ankle_positive_work_j_per_kg",
+                "min_toe_clearance_m", "residual_force_rms_n"):
+        assert col in rows[0]
+
+    with (out / "gait_curves.csv").open(encoding="utf-8") as f:
+        curves = list(csv.DictReader(f))
+    assert len(curves) == 101 and "reference_ankle_angle_rad_mean" in curves[0]
+
+    png = (out / "gait_curves.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+    assert (out / "scenario.toml").read_text(encoding="utf-8") == HEALTHY.read_text(encoding="utf-8")
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]   # no temp dirs left
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o777 & ~umask       # an ordinary dir, not mkdtemp's 0700
+
+
+def test_bad_scenario_exit_2_and_nothing_written(tmp_path, fake_sim, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(HEALTHY.read_text(encoding="utf-8").replace(
+        "plantarflexor_strength_fraction = 1.0", "plantarflexor_strength_fraction = 2.0"),
+        encoding="utf-8")
+    out = tmp_path / "out"
+    assert cli.main(["run", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "impairment.plantarflexor_strength_fraction = 2.0" in err and str(bad) in err
+    assert not out.exists() and not fake_sim
+    assert cli.main(["run", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
+    assert not out.exists()
+
+
+def test_fall_before_a_stride_exit_1(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(cli, "_simulate_walk",
+                        lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9))
+    out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 1
+    assert "fell at t = 0.900 s" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def analysis(record):
+    ref = load_normative("winter", "normal")
+    return analyse_gait(record, ref, (4, 10)), ref
+
+
+def test_existing_dir_keeps_unrelated_files(tmp_path, analysis, record):
+    a, ref = analysis
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me", encoding="utf-8")
+    (out / "summary.json").write_text("old", encoding="utf-8")
+    write_run_outputs(out, a.summary, a.cycles, ref, record, None)
+    assert (out / "notes.txt").read_text(encoding="utf-8") == "keep me"
+    assert _strict_json(out / "summary.json")["n_cycles_used"] == 14
+    assert not (out / "scenario.toml").exists()
+
+
+def test_failure_leaves_previous_results(tmp_path, analysis, record, monkeypatch):
+    a, ref = analysis
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text("previous", encoding="utf-8")
+
+    def broken_plot(*args, **kwargs):
+        raise RuntimeError("plot failed")
+
+    monkeypatch.setattr(gait_report, "_plot", broken_plot)
+    with pytest.raises(RuntimeError, match="plot failed"):
+        write_run_outputs(out, a.summary, a.cycles, ref, record, "x = 1\n")
+    assert (out / "summary.json").read_text(encoding="utf-8") == "previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]      # temp dir removed
+    with pytest.raises(RuntimeError):
+        write_run_outputs(tmp_path / "new", a.summary, a.cycles, ref, record, None)
+    assert not (tmp_path / "new").exists()
+
+
+def test_nan_key_metric_raises_and_other_nan_becomes_null(tmp_path, analysis, record):
+    a, ref = analysis
+    bad = dict(a.summary, ankle_angle_rms_error_deg={"mean": math.nan, "sd": None, "n": 14})
+    with pytest.raises(ReportError, match="ankle_angle_rms_error_deg"):
+        write_run_outputs(tmp_path / "nan", bad, a.cycles, ref, record, None)
+    assert not (tmp_path / "nan").exists()
+    odd = dict(a.summary, extra_metric={"mean": math.nan, "sd": math.inf, "n": 0})
+    write_run_outputs(tmp_path / "ok", odd, a.cycles, ref, record, None)
+    assert _strict_json(tmp_path / "ok" / "summary.json")["extra_metric"] == {
+        "mean": None, "sd": None, "n": 0}
