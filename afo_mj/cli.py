@@ -96,6 +96,12 @@ def _run(args: argparse.Namespace) -> int:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
         summary = {"scenario": scenario.as_dict(), **analysis.summary,
                    "wall_time_s": wall}
+        if scenario.band_references:
+            from afo_mj.analysis.gait_metrics import band_fraction
+            from afo_mj.gait.reference import load_normative
+            summary["band_fraction_vs"] = {
+                f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
+                for src, cond in scenario.band_references}
         out = write_run_outputs(args.out, summary, analysis.cycles, reference, record,
                                 scenario.text)
     except (GaitAnalysisError, ReportError) as exc:
@@ -124,6 +130,9 @@ def _run(args: argparse.Namespace) -> int:
     span = rf.get("over_analysed_span")
     print(f"  residual force RMS {'-' if span is None else f'{span:.2f}'} % body weight; "
           f"residual moment RMS {_fmt(s['residual_moment_rms_nm'])} N*m")
+    for name, fractions in s.get("band_fraction_vs", {}).items():
+        print(f"  fraction of the cycle inside the ±1 SD band of {name}: " + ", ".join(
+            f"{ch.split('_')[0]} {_fmt(v, '.2f')}" for ch, v in fractions.items()))
     print(f"  results: {out}")
     return 0
 

@@ -57,7 +57,7 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
 
 _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
-              "analyse_strides")
+              "analyse_strides", "band_references")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 CADENCE_RANGE = (30.0, 200.0)
 STRIDES_RANGE = (1, 1000)
@@ -87,6 +87,7 @@ class WalkScenario:
     strides: int
     analyse_strides: tuple[int, int]
     controller: Mapping[str, float]
+    band_references: tuple[tuple[str, str], ...] = ()
     source_path: Path | None = None
     text: str = ""
 
@@ -120,6 +121,7 @@ class WalkScenario:
                 "reference_path": None if self.reference_path is None else str(self.reference_path),
                 "cadence_steps_per_min": self.cadence_steps_per_min, "strides": self.strides,
                 "analyse_strides": list(self.analyse_strides),
+                "band_references": [f"{s}:{c}" for s, c in self.band_references],
                 "walker": {f.name: getattr(self.walker, f.name)
                            for f in dataclasses.fields(self.walker)},
                 "controller": dict(self.controller)}
@@ -308,8 +310,20 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     if not 1 <= first <= last <= strides:
         raise ctx.fail("gait.analyse_strides", raw_an, "is out of range", allowed_an)
 
+    bands = []
+    allowed_bands = "a list of 'source:condition' strings, e.g. ['schwartz2008:Free']"
+    raw_bands = gait.get("band_references", [])
+    if not isinstance(raw_bands, list):
+        raise ctx.fail("gait.band_references", raw_bands, "has the wrong type", allowed_bands)
+    for item in raw_bands:
+        src, _, cond = str(item).partition(":")
+        if not isinstance(item, str) or src not in REFERENCES or cond not in REFERENCES[src]:
+            raise ctx.fail("gait.band_references", item, "is not a known reference condition",
+                           allowed_bands)
+        bands.append((src, cond))
+
     controller = _controller(ctx, ctx.table(doc, "controller"))
-    return WalkScenario(name=name, description=description, walker=walker,
+    return WalkScenario(band_references=tuple(bands), name=name, description=description, walker=walker,
                         reference=reference, condition=condition,
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),

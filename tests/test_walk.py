@@ -1,0 +1,147 @@
+"""The forward-dynamic walk against the issue's acceptance figures (Winter normal cadence).
+
+References: Winter (2009) normal-cadence data as summarised in ../shared/data/README.md and
+the shipped normative table: peak ankle plantarflexor moment 1.69 N·m/kg, peak ankle power
+3.24 W/kg in push-off. Each walk takes a few seconds of wall time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from afo_mj.analysis.gait_metrics import analyse_gait, band_fraction  # noqa: E402
+from afo_mj.gait.reference import load_normative  # noqa: E402
+from afo_mj.gait.walk import simulate_walk  # noqa: E402
+from afo_mj.scenarios.walk_scenario import load_scenario  # noqa: E402
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+WINTER_PEAK_MOMENT = 1.69
+WINTER_PEAK_POWER = 3.24
+
+
+def _walk(name: str, **walker_changes):
+    sc = load_scenario(SCENARIOS / f"{name}.toml")
+    if walker_changes:
+        sc = dataclasses.replace(sc, walker=sc.walker.replace(**walker_changes))
+    return sc, simulate_walk(sc)
+
+
+@pytest.fixture(scope="module")
+def healthy():
+    sc, rec = _walk("walk_healthy")
+    return sc, rec, analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
+
+
+def _mean(summary, key):
+    return summary[key]["mean"]
+
+
+def test_healthy_walk_meets_acceptance(healthy):
+    sc, rec, an = healthy
+    s = an.summary
+    assert rec.events.fall_time_s is None
+    assert s["completed_strides"] >= 10
+    assert np.isfinite(rec.joint_angle_rad).all() and np.isfinite(rec.grf_n).all()
+    for joint in ("hip", "knee", "ankle"):
+        assert _mean(s, f"{joint}_angle_rms_error_deg") <= 5.0, joint
+    assert _mean(s, "peak_ankle_plantarflexor_moment_nm_per_kg") == pytest.approx(
+        WINTER_PEAK_MOMENT, rel=0.15)
+    assert _mean(s, "peak_ankle_power_w_per_kg") == pytest.approx(WINTER_PEAK_POWER, rel=0.25)
+    assert s["residual_force_rms_percent_body_weight"]["over_analysed_span"] <= 5.0
+    assert _mean(s, "min_toe_clearance_m") >= 0.01
+    # speed emerges from the kinematics (shorter planar stride than Winter's 1.51 m) and is
+    # reported, not forced toward Winter's 1.325 m/s
+    assert 0.7 < _mean(s, "speed_m_s") < 1.3
+
+
+def test_contact_forces_carry_body_weight(healthy):
+    """Over whole strides the mean vertical GRF equals body weight (momentum balance)."""
+    sc, rec, an = healthy
+    hs = rec.events.heel_strikes_s[0]
+    i0, i1 = np.searchsorted(rec.time_s, [hs[3], hs[9]])
+    fz = rec.grf_n[i0:i1, :, 1].sum(axis=1) + rec.residual_force_n[i0:i1, 1]
+    weight = rec.body_mass_kg * 9.81
+    assert fz.mean() == pytest.approx(weight, rel=0.02)
+    # mid-stance (20–40 % of a right cycle): the walker stands on one foot, and the vertical
+    # GRF is near body weight, as in Winter's data (8.3–10.8 N/kg)
+    t0, t1 = hs[5], hs[6]
+    j0, j1 = np.searchsorted(rec.time_s, [t0 + 0.2 * (t1 - t0), t0 + 0.4 * (t1 - t0)])
+    mid = rec.grf_n[j0:j1, 0, 1].mean() / rec.body_mass_kg
+    assert 7.0 < mid < 11.5
+
+
+@pytest.mark.parametrize("name", ["walk_schwartz_free", "walk_schwartz_fast"])
+def test_schwartz_cadences_report_band_fractions(name):
+    sc, rec = _walk(name)
+    assert rec.events.fall_time_s is None
+    an = analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
+    (src, cond), = sc.band_references
+    fr = band_fraction(an.cycles, load_normative(src, cond))
+    for ch in ("hip_angle_rad", "knee_angle_rad", "ankle_angle_rad"):
+        assert 0.0 <= fr[ch]["mean"] <= 1.0
+    # the ankle is what the AFO acts on: most of its cycle lies inside the children's band
+    assert fr["ankle_angle_rad"]["mean"] >= 0.5
+
+
+@pytest.fixture(scope="module")
+def weak():
+    sc, rec = _walk("walk_weak_plantarflexors")
+    return sc, rec
+
+
+def test_plantarflexor_weakness_lowers_push_off(healthy, weak):
+    """50 % plantarflexor strength, same controller and gains: push-off work down by ≥ 20 %,
+    peak plantarflexion in push-off down by ≥ 3° (over the strides walked before any fall)."""
+    _, _, an_h = healthy
+    sc, rec = weak
+    an_w = analyse_gait(rec, sc.load_reference(), (2, 10))
+    h, w = an_h.summary, an_w.summary
+    work_h = _mean(h, "ankle_push_off_positive_work_j_per_kg")
+    work_w = _mean(w, "ankle_push_off_positive_work_j_per_kg")
+    assert work_w <= 0.8 * work_h
+    pf_h = _mean(h, "push_off_peak_plantarflexion_deg")
+    pf_w = _mean(w, "push_off_peak_plantarflexion_deg")
+    assert pf_w <= pf_h - 3.0
+    assert _mean(w, "peak_ankle_plantarflexor_moment_nm_per_kg") <= 1.0 + 1e-6
+
+
+@pytest.mark.xfail(strict=True, reason="open: the 50 %-weak walker falls after ~6 strides "
+                   "(issue 3 asks for no fall over 10 strides with residuals <= 8 % BW)")
+def test_weak_walker_completes_ten_strides(weak):
+    sc, rec = weak
+    assert rec.events.fall_time_s is None
+
+
+def test_foot_drop_lowers_swing_dorsiflexion_and_clearance(healthy):
+    """Dorsiflexors at 2 % strength: the swinging foot hangs, clears the floor less, and
+    catches it; the stumble is reported with its time, never raised as an error."""
+    _, rec_h, an_h = healthy
+    sc, rec = _walk("walk_foot_drop")
+
+    def first_swings(r, n=2):
+        out = []
+        for side in (0, 1):
+            for to in r.events.toe_offs_s[side]:
+                later = [t for t in r.events.heel_strikes_s[side] if t > to]
+                end = later[0] if later else r.time_s[-1]
+                i0, i1 = np.searchsorted(r.time_s, [to, end])
+                if i1 - i0 > 50:
+                    k = (i1 - i0) // 5
+                    out.append((r.joint_angle_rad[i0:i1, side, 2].max(),
+                                r.contact_height_m[i0 + k:i1 - k, side, 1].min()))
+        return np.array(out[:n])
+
+    h, d = first_swings(rec_h), first_swings(rec)
+    assert d[:, 0].max() < h[:, 0].min() - np.radians(5.0)      # less swing dorsiflexion
+    assert d[:, 1].min() < h[:, 1].min() - 0.005                 # less toe clearance
+    n_h = sum(1 for t, _ in rec_h.events.swing_toe_contacts if t < rec.time_s[-1])
+    assert len(rec.events.swing_toe_contacts) > n_h
+    if rec.events.fall_time_s is not None:
+        assert rec.events.fall_time_s == pytest.approx(rec.time_s[-1], abs=2e-3)
