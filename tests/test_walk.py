@@ -98,10 +98,10 @@ def weak():
 
 def test_plantarflexor_weakness_lowers_push_off(healthy, weak):
     """50 % plantarflexor strength, same controller and gains: push-off work down by ≥ 20 %,
-    peak plantarflexion in push-off down by ≥ 3° (over the strides walked before any fall)."""
+    peak plantarflexion in push-off down by ≥ 3° (strides 4–10)."""
     _, _, an_h = healthy
     sc, rec = weak
-    an_w = analyse_gait(rec, sc.load_reference(), (2, 10))
+    an_w = analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
     h, w = an_h.summary, an_w.summary
     work_h = _mean(h, "ankle_push_off_positive_work_j_per_kg")
     work_w = _mean(w, "ankle_push_off_positive_work_j_per_kg")
@@ -109,14 +109,16 @@ def test_plantarflexor_weakness_lowers_push_off(healthy, weak):
     pf_h = _mean(h, "push_off_peak_plantarflexion_deg")
     pf_w = _mean(w, "push_off_peak_plantarflexion_deg")
     assert pf_w <= pf_h - 3.0
-    assert _mean(w, "peak_ankle_plantarflexor_moment_nm_per_kg") <= 1.0 + 1e-6
+    cap = sc.walker.plantarflexor_strength_fraction * sc.walker.plantarflexor_strength_nm_per_kg
+    assert _mean(w, "peak_ankle_plantarflexor_moment_nm_per_kg") <= cap + 1e-6
 
 
-@pytest.mark.xfail(strict=True, reason="open: the 50 %-weak walker falls after ~6 strides "
-                   "(issue 3 asks for no fall over 10 strides with residuals <= 8 % BW)")
-def test_weak_walker_completes_ten_strides(weak):
+def test_weak_walker_completes_ten_strides_on_weak_residuals(weak):
     sc, rec = weak
     assert rec.events.fall_time_s is None
+    an = analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
+    assert an.summary["completed_strides"] >= 10
+    assert an.summary["residual_force_rms_percent_body_weight"]["over_analysed_span"] <= 8.0
 
 
 def test_foot_drop_lowers_swing_dorsiflexion_and_clearance(healthy):

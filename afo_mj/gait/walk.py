@@ -35,7 +35,7 @@ import numpy as np
 
 from afo_mj.hydraulics.params import Parameters, param
 from afo_mj.human.anthropometry import scale_body
-from afo_mj.human.walker import WalkerParams, WalkerPhysics, WornMass, build_walker
+from afo_mj.human.walker import hill_concentric_fraction, WalkerParams, WalkerPhysics, WornMass, build_walker
 from afo_mj.gait.record import GaitEvents, GaitRecord
 
 __all__ = ["ControllerParams", "WalkNumericsError", "run_walk", "simulate_walk",
@@ -71,6 +71,15 @@ class ControllerParams(Parameters):
                                                      doc="SIMBICON c_d: swing hip target per m of hip-over-stance-ankle deviation")
     swing_hip_velocity_gain_rad_s_per_m: float = param(0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
                                                        doc="SIMBICON c_v: swing hip target per m/s deviation")
+    foot_placement_speed_adaptation: float = param(1.0, unit="1", lo=0.0, hi=1.0,
+                                                   doc="1: foot placement regulates around the walker's own stride-mean speed; 0: around the reference kinematics' speed")
+    swing_clearance_m: float = param(0.02, unit="m", lo=0.0, hi=0.1,
+                                     doc="forefoot clearance the swing leg keeps (flexion withdrawal below it)")
+    swing_clearance_gain_rad_per_m: float = param(0.0, unit="rad/m", lo=0.0, hi=100.0,
+                                                  doc="extra swing knee flexion per m of clearance deficit (hip gets half)")
+    trunk_lean_gain_rad_s_per_m: float = param(0.0, unit="rad*s/m", lo=0.0, hi=5.0,
+                                               doc="forward trunk lean per m/s the stride-mean speed lies below the reference kinematics' speed")
+    max_trunk_lean_rad: float = param(0.35, unit="rad", lo=0.0, hi=0.8)
     residual_tx_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
     residual_tz_stiffness_n_per_m: float = param(500.0, unit="N/m", lo=0.0, hi=50000.0)
     residual_tz_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
@@ -82,6 +91,10 @@ class ControllerParams(Parameters):
                                         doc="foot load / body weight below which the foot is off")
     min_swing_phase_for_heel_strike: float = param(0.85, unit="1", lo=0.5, hi=0.99,
                                                    doc="earliest gait phase a contact counts as heel strike")
+    stance_phase_hold: float = param(0.999, unit="1", lo=0.3, hi=0.999,
+                                     doc="a stance leg's phase waits here until the other foot lands (0.5 = reference's contralateral heel strike)")
+    phase_sync_gain_per_s: float = param(0.0, unit="1/s", lo=0.0, hi=100.0,
+                                         doc="pulls the gait phase toward the phase at which the reference has the hip this far ahead of the leading stance ankle")
     phase_rate_speed_exponent: float = param(0.0, unit="1", lo=0.0, hi=2.0,
                                              doc="phase runs at (v_mean / v_reference)^k of the cadence's rate")
     min_phase_rate: float = param(0.6, unit="1", lo=0.1, hi=1.0)
@@ -120,6 +133,13 @@ class ReferenceTable:
         self.hip_ahead = -(thigh_m * np.sin(h) + shank_m * np.sin(h - k))
         hr, kr = self.rate[:, 0], self.rate[:, 1]
         self.hip_ahead_rate = -(thigh_m * np.cos(h) * hr + shank_m * np.cos(h - k) * (hr - kr))
+        stance = slice(0, int(0.6 * self.n) + 1)
+        #: hip-ahead-of-ankle over early stance, monotonic: inverted to a phase estimate
+        self.stance_ahead = self.hip_ahead[stance].copy()
+        self.stance_phase = np.arange(self.n + 1)[stance] / self.n
+        #: no-slip stride of the reference posture: twice the hip's travel over the leading
+        #: ankle from heel strike (phase 0) to the other heel strike (phase 0.5), in m
+        self.geometric_stride_m = 2.0 * float(self.hip_ahead[self.n // 2] - self.hip_ahead[0])
         single_support = (np.arange(self.n + 1) / self.n >= 0.12) & (np.arange(self.n + 1) / self.n <= 0.5)
         #: mean hip speed over the stance ankle in single support, per unit phase rate
         self.mean_ahead_rate = float(self.hip_ahead_rate[single_support].mean())
@@ -190,7 +210,9 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
     alpha = dt / c.speed_filter_time_s
     warmup_s = max(c.warmup_cycles * T, 1e-9)
-    v_ref = table.mean_ahead_rate / T
+    # speed of the reference posture walked at the cadence without slip (emergent-speed
+    # scale for foot placement and trunk lean; not a target the pelvis is driven to)
+    v_ref = table.geometric_stride_m / T
     rate = 1.0
 
     max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
@@ -211,6 +233,10 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     leg_q, leg_d = phys.leg_qpos, phys.leg_dof
     touch = phys.touch_adr
     foot_body = phys.foot_body
+    ball_geoms = phys.contact_geoms[:, 1]
+    ankle_jnt = phys.ankle_joint
+    pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()   # negative: plantarflexion
+    radius = phys.contact_radius_m
     device_torque = np.zeros(2)
     right_strides = 0
     k = 0
@@ -242,13 +268,30 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         if right_strides > strides:
             break
         np.minimum(phase, 0.999, out=phase)
+        # A stance leg does not start its pre-swing (knee flexion, push-off) before the other
+        # foot has landed: its phase waits at the reference's contralateral heel strike.
+        for s in (0, 1):
+            if not swing[s] and swing[1 - s] and phase[s] > c.stance_phase_hold:
+                phase[s] = c.stance_phase_hold
         # Walkers who cannot keep the reference speed (weakness) step at a lower rate.
         rate = min(max((max(v_mean, 1e-3) / v_ref) ** c.phase_rate_speed_exponent,
                        c.min_phase_rate), c.max_phase_rate)
+        if c.phase_sync_gain_per_s:
+            # Phase follows the body's progression over the leading stance foot: the phase at
+            # which the reference has the hip as far ahead of that ankle as it is now.
+            lead_leg = 0 if phase[0] < phase[1] else 1
+            if not swing[lead_leg] and phase[lead_leg] < 0.55:
+                ahead_now = data.qpos[pel_q[0]] - data.xpos[foot_body[lead_leg], 0]
+                geom_phase = np.interp(ahead_now, table.stance_ahead, table.stance_phase)
+                rate = min(max(rate + c.phase_sync_gain_per_s * T * (geom_phase - phase[lead_leg]),
+                               c.min_phase_rate), c.max_phase_rate)
 
         qa, qr, qm, ahead_ref, ahead_rate_ref = table.lookup(phase)
         vx = data.qvel[pel_d[0]]
-        tilt, tilt_rate = data.qpos[pel_q[2]], data.qvel[pel_d[2]]
+        # Trunk strategy: a walker slower than the reference kinematics' speed leans its trunk
+        # forward (a P law, so the speed still settles where the walker's strength allows).
+        lean = min(max(c.trunk_lean_gain_rad_s_per_m * (v_ref - v_mean), 0.0), c.max_trunk_lean_rad)
+        tilt, tilt_rate = data.qpos[pel_q[2]] - lean, data.qvel[pel_d[2]]
         v_mean += alpha * (vx - v_mean)
         z = data.qpos[pel_q[1]]
         z_mean += alpha * (z - z_mean)
@@ -262,32 +305,38 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         # The speed the walker is judged against is its own stride-mean speed, shaped over the
         # stride as the reference's hip-over-ankle speed: the walker is never pushed toward a
         # speed it cannot reach (a weak walker walks slower).
-        v_target = v_mean * ahead_rate_ref[::-1] / table.mean_ahead_rate
+        v_level = c.foot_placement_speed_adaptation * v_mean + (1.0 - c.foot_placement_speed_adaptation) * v_ref
+        v_target = v_level * ahead_rate_ref[::-1] / table.mean_ahead_rate
         dev = (c.swing_hip_position_gain_rad_per_m * (ahead - ahead_ref[::-1])
                + c.swing_hip_velocity_gain_rad_s_per_m * (vx - v_target))
         target[:, 0] += np.where(swing, dev, 0.0)
+        if c.swing_clearance_gain_rad_per_m:
+            # Toe-clearance reflex: in mid-swing a forefoot closer to the floor than
+            # swing_clearance_m flexes knee and hip further (flexion withdrawal).
+            ball_z = data.geom_xpos[ball_geoms, 2] - radius
+            deficit = np.where(swing & (phase > 0.6) & (phase < 0.9),
+                               np.maximum(c.swing_clearance_m - ball_z, 0.0), 0.0)
+            target[:, 1] += c.swing_clearance_gain_rad_per_m * deficit
+            target[:, 0] += 0.5 * c.swing_clearance_gain_rad_per_m * deficit
         torque = ff * qm
         stance = ~swing
         n_st = stance.sum()
         if n_st:
-            # SIMBICON trunk control: the stance hip(s) apply the pelvis torque that holds the
-            # trunk upright, less the reaction of the swing hip. A hip flexion torque τ on the
-            # thigh pitches the pelvis forward by +τ (tilt sign), so τ_stance = τ_trunk − τ_swing.
+            # Trunk through the stance hip(s). A stance hip that tracks its reference angle by
+            # the clock tilts the trunk back whenever the body lags the clock (the hip angle is
+            # thigh-to-pelvis), so the stance hip servo blends its reference with the angle
+            # that keeps the trunk upright (thigh angle from vertical = q_hip − tilt):
+            # α = stance_hip_tracking; α = 0 is SIMBICON's stance hip, which only holds the
+            # trunk. Feedback on trunk pitch adds through the stance hips by load share.
             q_hip, qd_hip = data.qpos[leg_q[:, 0]], data.qvel[leg_d[:, 0]]
-            tau_hip = kp[0] * (target[:, 0] - q_hip) - kv[0] * qd_hip + torque[:, 0]
-            tau_swing = float(np.where(swing, tau_hip, 0.0).sum())
-            tau_trunk = -trunk_kp * tilt - trunk_kd * tilt_rate - tau_swing
             share = np.where(stance, foot_load, 0.0)
             total = share.sum()
             share = share / total if total > 0 else stance / n_st
-            # Cancel the stance hip's servo and command the trunk torque instead:
-            # servo force kp·(ctrl − q) − kv·q̇ = 0 for ctrl = q + kv·q̇/kp.
-            st_target = q_hip + kv[0] * qd_hip / kp[0]
-            if c.stance_hip_tracking == 0.0:
-                target[:, 0] = np.where(stance, st_target, target[:, 0])
-                torque[:, 0] = np.where(stance, share * tau_trunk, torque[:, 0])
-            else:
-                torque[:, 0] += np.where(stance, share * (-trunk_kp * tilt - trunk_kd * tilt_rate), 0.0)
+            upright = q_hip - tilt + lead[0] * (qd_hip - tilt_rate)
+            a = c.stance_hip_tracking
+            target[:, 0] = np.where(stance, a * target[:, 0] + (1.0 - a) * upright, target[:, 0])
+            torque[:, 0] = np.where(stance, a * torque[:, 0], torque[:, 0])
+            torque[:, 0] += share * (-trunk_kp * tilt - trunk_kd * tilt_rate)
         if device is not None:
             device_torque = device.torque_nm(t, data.qpos[leg_q[:, 2]], data.qvel[leg_d[:, 2]],
                                              phase, stance)
@@ -299,6 +348,11 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                             - c.residual_tz_damping_n_s_per_m * g * data.qvel[pel_d[1]])
         ctrl[res_act[2]] = (-c.residual_tilt_stiffness_nm_per_rad * g * tilt
                             - c.residual_tilt_damping_nm_s_per_rad * g * tilt_rate)
+        # Plantarflexor capacity falls with shortening speed (Hill): limit the net ankle
+        # actuator torque in the plantarflexion direction accordingly.
+        ankle_w = data.qvel[leg_d[:, 2]]
+        model.jnt_actfrcrange[ankle_jnt, 0] = pf_iso * hill_concentric_fraction(
+            -ankle_w, walker.plantarflexor_max_velocity_rad_s, walker.hill_curvature)
         mujoco.mj_step(model, data)
         step += 1
         if step % record_every == 0 and k < n_rec:

@@ -62,7 +62,7 @@ class WalkerParams(Parameters):
     ball_fraction: float = param(0.73, unit="1", lo=0.5, hi=1.0,
                                  doc="metatarsal heads from the heel / foot length")
     friction: float = param(1.0, unit="1", lo=0.1, hi=3.0, doc="foot-floor friction coefficient")
-    plantarflexor_strength_nm_per_kg: float = param(2.0, unit="N*m/kg", lo=0.1, hi=5.0)
+    plantarflexor_strength_nm_per_kg: float = param(2.5, unit="N*m/kg", lo=0.1, hi=5.0)
     dorsiflexor_strength_nm_per_kg: float = param(0.6, unit="N*m/kg", lo=0.05, hi=3.0)
     hip_knee_strength_nm_per_kg: float = param(3.0, unit="N*m/kg", lo=0.5, hi=6.0)
     plantarflexor_strength_fraction: float = param(1.0, unit="1", lo=0.0, hi=1.0,
@@ -73,7 +73,27 @@ class WalkerParams(Parameters):
                                                       doc="added passive ankle stiffness (spasticity)")
     ankle_passive_damping_nm_s_per_rad: float = param(0.0, unit="N*m*s/rad", lo=0.0, hi=100.0,
                                                       doc="added passive ankle damping (spasticity)")
+    plantarflexor_max_velocity_rad_s: float = param(30.0, unit="rad/s", lo=1.0, hi=200.0,
+                                                    doc="joint-level unloaded plantarflexion speed of the Hill torque-velocity curve")
+    hill_curvature: float = param(0.25, unit="1", lo=0.05, hi=2.0,
+                                  doc="Hill's a/F0 (curvature of the torque-velocity hyperbola)")
     timestep_s: float = param(1e-3, unit="s", lo=1e-4, hi=5e-3, doc="MuJoCo time step")
+
+
+def hill_concentric_fraction(shortening_velocity_rad_s, max_velocity_rad_s: float,
+                             curvature: float):
+    """Fraction of isometric torque a muscle group can produce while shortening.
+
+    Hill's (1938) hyperbola written at joint level, as joint-torque models use it (e.g.
+    Anderson, Madigan & Nussbaum 2007, J. Biomech. 40:3105):
+    T/T0 = (1 − ω/ω_max) / (1 + ω/(a·ω_max)) for shortening speed 0 ≤ ω ≤ ω_max (0 beyond),
+    1 when lengthening (eccentric enhancement left out). ``a`` is the curvature a/F0.
+
+    >>> round(hill_concentric_fraction(3.0, 30.0, 0.25), 3)
+    0.643
+    """
+    w = np.clip(np.asarray(shortening_velocity_rad_s, float) / max_velocity_rad_s, 0.0, 1.0)
+    return (1.0 - w) / (1.0 + w / curvature)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -260,6 +280,7 @@ class WalkerPhysics:
         self.contact_radius_m = float(m.geom_size[self.contact_geoms[0, 0], 0])
         ankle_lim = np.array([m.jnt_actfrcrange[jid(f"ankle_{s}")] for s in SIDES])
         self.ankle_torque_limits_nm = ankle_lim
+        self.ankle_joint = np.array([jid(f"ankle_{s}") for s in SIDES])
 
     # -- named accessors (allocation-free views) ------------------------------------------
     def leg_angles_rad(self) -> np.ndarray:
