@@ -192,3 +192,20 @@ def test_bad_stride_selection(splines, winter):
 
 def test_independent_winter_source_is_used_when_available(splines):
     assert splines.source == ("raw" if WINTER_CSV.exists() else "shipped")
+
+
+def test_push_off_plantarflexion_ends_at_an_early_toe_off(winter):
+    """Push-off is stance: with toe off moved to 55 % of the cycle the push-off peak
+    plantarflexion is Winter's ankle minimum over 40–55 %, not over 40–62 %."""
+    rec = synthetic_record(n_cycles=8)
+    T = WINTER_CYCLE_TIME_S
+    for side in (0, 1):
+        rec.events.toe_offs_s[side][:] = [h + 0.55 * T for h in rec.events.heel_strikes_s[side]]
+    ref = winter
+    s = summarize(rec, ref, strides=(2, 6))
+    pct = np.linspace(0.40, 0.55, 200)
+    expected = -np.degrees(ref.angles_rad(pct)[:, 2].min())
+    whole = -np.degrees(ref.angles_rad(np.linspace(0.40, 0.62, 200))[:, 2].min())
+    assert s["push_off_peak_plantarflexion_deg"]["mean"] == pytest.approx(expected, abs=0.3)
+    assert s["peak_plantarflexion_40_62_percent_deg"]["mean"] == pytest.approx(whole, abs=0.3)
+    assert whole > expected + 3.0

@@ -74,9 +74,13 @@ _PHASE = PERCENT_CYCLE / 100.0
 PUSH_OFF_WINDOW = (0.35, 0.70)
 """Fraction of the cycle for ankle push-off work and peak ankle power (Winter's A2 burst)."""
 PUSH_OFF_ANGLE_WINDOW = (0.40, 0.62)
-"""Fraction of the cycle for the push-off peak plantarflexion angle."""
+"""Fraction of the cycle for the push-off peak plantarflexion angle. Push-off is stance: the
+window ends at toe off when the foot leaves earlier (after toe off the unloaded foot moves
+freely and is not pushing off); ``peak_plantarflexion_40_62_percent_deg`` is the whole window."""
 MID_SWING_WINDOW = (0.10, 0.90)
-"""Fraction of the swing duration (from toe off) searched for minimum foot clearance."""
+"""Fraction of the swing duration (from toe off) searched for minimum foot clearance and swing
+peak dorsiflexion (the ends are left out: the last touch of toe off and the floor's push on the
+foot as heel strike begins are not swing)."""
 
 ANGLE_CHANNELS = tuple(f"{j}_angle_rad" for j in JOINTS)
 MOMENT_CHANNELS = tuple(f"{j}_moment_nm_per_kg" for j in JOINTS)
@@ -277,18 +281,25 @@ def _cycle(record: GaitRecord, side: int, stride: int, t0: float, t1: float,
 
     ankle = record.joint_angle_rad[:, side, 2]
     _, a_all = _window(t, ankle, t0, t1)
-    _, a_po = _window(t, ankle, t0 + PUSH_OFF_ANGLE_WINDOW[0] * T, t0 + PUSH_OFF_ANGLE_WINDOW[1] * T)
+    wa, wb = t0 + PUSH_OFF_ANGLE_WINDOW[0] * T, t0 + PUSH_OFF_ANGLE_WINDOW[1] * T
+    _, a_po = _window(t, ankle, wa, wb)
+    s["peak_plantarflexion_40_62_percent_deg"] = -math.degrees(float(np.min(a_po)))
+    if toe_off is not None and toe_off > wa:
+        _, a_po = _window(t, ankle, wa, min(wb, toe_off))
     s["push_off_peak_plantarflexion_deg"] = -math.degrees(float(np.min(a_po)))
     s["peak_plantarflexion_deg"] = -math.degrees(float(np.min(a_all)))
     if toe_off is not None:
-        _, a_sw = _window(t, ankle, toe_off, t1)
-        s["swing_peak_dorsiflexion_deg"] = math.degrees(float(np.max(a_sw)))
         ts = t1 - toe_off
         wa, wb = toe_off + MID_SWING_WINDOW[0] * ts, toe_off + MID_SWING_WINDOW[1] * ts
+        _, a_sw = _window(t, ankle, wa, wb)
+        s["swing_peak_dorsiflexion_deg"] = math.degrees(float(np.max(a_sw)))
+        # the foot drop signature: the ankle hangs plantarflexed through swing
+        s["swing_mean_ankle_angle_deg"] = math.degrees(float(np.mean(a_sw)))
         s["min_toe_clearance_m"] = float(np.min(_window(t, record.contact_height_m[:, side, 1], wa, wb)[1]))
         s["min_heel_clearance_m"] = float(np.min(_window(t, record.contact_height_m[:, side, 0], wa, wb)[1]))
     else:
-        for k in ("swing_peak_dorsiflexion_deg", "min_toe_clearance_m", "min_heel_clearance_m"):
+        for k in ("swing_peak_dorsiflexion_deg", "swing_mean_ankle_angle_deg",
+                  "min_toe_clearance_m", "min_heel_clearance_m"):
             s[k] = math.nan
     _, fz = _window(t, record.grf_n[:, side, 1], t0, t1)
     s["peak_vertical_grf_n_per_kg"] = float(np.max(fz)) / m

@@ -42,6 +42,8 @@ __all__ = ["ControllerParams", "WalkNumericsError", "run_walk", "simulate_walk",
            "ReferenceTable"]
 
 GRAVITY_M_S2 = 9.81
+#: contacts this soon after toe off are the forefoot's last touches, not scuffs
+TOE_OFF_CHATTER_S = 0.03
 
 
 class WalkNumericsError(RuntimeError):
@@ -73,11 +75,11 @@ class ControllerParams(Parameters):
                                                        doc="SIMBICON c_v: swing hip target per m/s deviation")
     foot_placement_speed_adaptation: float = param(1.0, unit="1", lo=0.0, hi=1.0,
                                                    doc="1: foot placement regulates around the walker's own stride-mean speed; 0: around the reference kinematics' speed")
-    swing_clearance_m: float = param(0.02, unit="m", lo=0.0, hi=0.1,
+    swing_clearance_m: float = param(0.01, unit="m", lo=0.0, hi=0.1,
                                      doc="forefoot clearance the swing leg keeps (flexion withdrawal below it)")
-    swing_clearance_gain_rad_per_m: float = param(0.0, unit="rad/m", lo=0.0, hi=100.0,
+    swing_clearance_gain_rad_per_m: float = param(60.0, unit="rad/m", lo=0.0, hi=100.0,
                                                   doc="extra swing knee flexion per m of clearance deficit (hip gets half)")
-    trunk_lean_gain_rad_s_per_m: float = param(0.0, unit="rad*s/m", lo=0.0, hi=5.0,
+    trunk_lean_gain_rad_s_per_m: float = param(1.0, unit="rad*s/m", lo=0.0, hi=5.0,
                                                doc="forward trunk lean per m/s the stride-mean speed lies below the reference kinematics' speed")
     max_trunk_lean_rad: float = param(0.35, unit="rad", lo=0.0, hi=0.8)
     residual_tx_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
@@ -223,6 +225,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     swing = np.array([False, False])
     stance_started = np.array([0.0, -0.5 * T])
     scuffing = np.array([False, False])
+    t_toe_off = np.array([-1.0, -1.0])
     v_mean = c.initial_speed_m_s
     pel_q, pel_d = phys.pelvis_qpos, phys.pelvis_dof
     z0 = phys.pelvis_height_offset_m
@@ -256,7 +259,8 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                     scuffing[s] = False
                     if s == 0:
                         right_strides += 1
-                elif foot_load[s] > on_n:
+                elif foot_load[s] > on_n and t - t_toe_off[s] > TOE_OFF_CHATTER_S:
+                    # a floor contact in swing (not the last touch of toe off): a scuff
                     if not scuffing[s]:
                         events.swing_toe_contacts.append((t, s))
                         scuffing[s] = True
@@ -264,6 +268,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                     scuffing[s] = False
             elif foot_load[s] <= off_n and phase[s] > 0.4:
                 swing[s] = True
+                t_toe_off[s] = t
                 events.toe_offs_s[s].append(t)
         if right_strides > strides:
             break

@@ -73,7 +73,7 @@ class WalkerParams(Parameters):
                                                       doc="added passive ankle stiffness (spasticity)")
     ankle_passive_damping_nm_s_per_rad: float = param(0.0, unit="N*m*s/rad", lo=0.0, hi=100.0,
                                                       doc="added passive ankle damping (spasticity)")
-    plantarflexor_max_velocity_rad_s: float = param(30.0, unit="rad/s", lo=1.0, hi=200.0,
+    plantarflexor_max_velocity_rad_s: float = param(20.0, unit="rad/s", lo=1.0, hi=200.0,
                                                     doc="joint-level unloaded plantarflexion speed of the Hill torque-velocity curve")
     hill_curvature: float = param(0.25, unit="1", lo=0.05, hi=2.0,
                                   doc="Hill's a/F0 (curvature of the torque-velocity hyperbola)")
