@@ -44,7 +44,7 @@ def test_shipped_impairments_map_to_walker_params():
     get = lambda n: load_scenario(SCENARIO_DIR / f"{n}.toml").walker  # noqa: E731
     assert get("walk_healthy") == WalkerParams(body_mass_kg=75.0, height_m=1.75)
     assert get("walk_weak_plantarflexors").plantarflexor_strength_fraction == 0.5
-    assert get("walk_foot_drop").dorsiflexor_strength_fraction == 0.05
+    assert get("walk_foot_drop").dorsiflexor_strength_fraction == 0.02
     spastic = get("walk_spastic_ankle")
     assert spastic.ankle_passive_stiffness_nm_per_rad == 150.0
     assert spastic.ankle_passive_damping_nm_s_per_rad == 3.0
