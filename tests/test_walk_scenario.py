@@ -49,7 +49,8 @@ def test_shipped_impairments_map_to_walker_params():
     assert spastic.ankle_passive_stiffness_nm_per_rad == 150.0
     assert spastic.ankle_passive_damping_nm_s_per_rad == 3.0
     free = load_scenario(SCENARIO_DIR / "walk_schwartz_free.toml")
-    assert (free.reference, free.condition) == ("schwartz2008", "Free")
+    assert (free.reference, free.condition) == ("winter", "normal")
+    assert free.band_references == (("schwartz2008", "Free"),)
     fast = load_scenario(SCENARIO_DIR / "walk_schwartz_fast.toml")
     assert fast.cycle_time_s() < free.cycle_time_s()
 
@@ -155,3 +156,9 @@ def test_reference_path(tmp_path):
     (tmp_path / "broken.csv").write_text("a,b\n1,2\n", encoding="utf-8")
     msg = _error('[gait]\nreference_path = "broken.csv"\n', tmp_path)
     assert "gait.reference_path = 'broken.csv' cannot be used" in msg
+
+
+def test_band_references_are_validated():
+    bad = BASE.replace('[gait]', '[gait]\nband_references = ["schwartz2008:Jogging"]')
+    with pytest.raises(ScenarioError, match="band_references.*Jogging"):
+        parse_scenario(bad, origin="x.toml")
