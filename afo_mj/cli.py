@@ -137,6 +137,13 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _build_models(args: argparse.Namespace) -> int:
+    from afo_mj.human import test_stand, walker
+    for path in (walker.write_default_xml(), test_stand.write_default_xml()):
+        print(f"wrote {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -149,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("scenario", help="scenario file, e.g. scenarios/walk_healthy.toml")
     run.add_argument("--out", required=True, help="output directory (created or updated)")
     run.set_defaults(func=_run)
+    build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
+    build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)
     if getattr(args, "duration_s", 1.0) <= 0:
         parser.error(f"--duration-s = {args.duration_s}; allowed: > 0")

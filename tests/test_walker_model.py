@@ -85,3 +85,13 @@ def test_bad_walker_parameter_names_key_and_range():
     with pytest.raises(ParameterError, match="plantarflexor_strength_fraction.*1.5"):
         WalkerParams(plantarflexor_strength_fraction=1.5)
     assert math.isfinite(WalkerParams().sole_pitch_rad)
+
+
+def test_committed_mjcf_files_match_the_builders():
+    from afo_mj.human import test_stand, walker
+    from afo_mj.human.walker import DEFAULT_XML_PATH
+    assert DEFAULT_XML_PATH.read_text() == build_walker().to_xml_string()
+    stand = test_stand.build_test_stand(75.0, 1.75, test_stand.StandLoad(kind="free"))
+    assert test_stand.DEFAULT_XML_PATH.read_text() == stand.to_xml_string()
+    model = mujoco.MjModel.from_xml_path(str(DEFAULT_XML_PATH))
+    assert model.nq == 9 and model.nu == 15

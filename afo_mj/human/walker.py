@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from typing import Iterable, Sequence
 
 import mujoco
@@ -34,7 +35,8 @@ from dm_control import mjcf
 from afo_mj.hydraulics.params import ParameterError, Parameters, param
 from afo_mj.human.anthropometry import BodySegments, scale_body
 
-__all__ = ["WalkerParams", "WornMass", "build_walker", "WalkerPhysics", "SIDES", "JOINTS"]
+__all__ = ["WalkerParams", "WornMass", "build_walker", "WalkerPhysics", "SIDES", "JOINTS",
+           "hill_concentric_fraction", "write_default_xml"]
 
 SIDES = ("r", "l")
 JOINTS = ("hip", "knee", "ankle")
@@ -240,6 +242,20 @@ def _touch_site(root, part: str, side: str, seg: BodySegments, p: WalkerParams) 
     geom.parent.add("site", name=f"touch_{part}_{side}", type="sphere", size=[1.6 * r],
                     pos=geom.pos, rgba=[0, 0, 0, 0])
     return f"touch_{part}_{side}"
+
+
+#: where ``afo-mj build-models`` writes the default walker (75 kg, 1.75 m, healthy)
+DEFAULT_XML_PATH = Path(__file__).resolve().parents[2] / "models" / "mjcf" / "walker.xml"
+
+
+def write_default_xml(path: str | Path = DEFAULT_XML_PATH) -> Path:
+    """Write the default walker (75 kg, 1.75 m, healthy, default gains) as MJCF; returns the
+    path. The file is for inspection and for other tools (e.g. ``python -m mujoco.viewer``);
+    afo_mj itself always builds the model from :class:`WalkerParams`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(build_walker().to_xml_string())
+    return path
 
 
 class WalkerPhysics:
