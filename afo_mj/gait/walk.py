@@ -1,49 +1,66 @@
 """Forward-dynamic walking of the sagittal walker: controller, gait events and the run loop.
 
 The human joint torques come from three parts, all saturated together by each joint's strength
-(``actuatorfrcrange`` in the model, :mod:`afo_mj.human.walker`):
+(``actuatorfrcrange`` in the model, :mod:`afo_mj.human.walker`; the plantarflexor limit also
+falls with shortening speed, Hill's torque–velocity relation):
 
 * a PD servo inside MuJoCo tracking the reference angle and velocity at the leg's gait phase
-  (stiff at hip and knee, soft at the ankle so that a change of ankle torque, from weakness or
-  from an orthosis, shows up in the kinematics instead of being compensated);
-* feedforward of the reference joint moment (fraction ``*_feedforward`` of the normative moment
-  per kg × body mass): the ankle is mostly feedforward;
+  (stiff at hip and knee, softer at the ankle);
+* feedforward of the reference joint moment (fraction ``*_feedforward`` of the normative
+  moment per kg × body mass);
 * balance feedback in the style of SIMBICON (Yin, Loken & van de Panne, ACM TOG 26(3), 2007):
-  the trunk is held upright through the stance hip(s) (τ = −k_p·θ_trunk − k_d·θ̇_trunk, the
-  reaction of the hip torque on the pelvis), and the swing hip target moves with the deviation
-  of the forward velocity from its stride-averaged value (foot placement).
+  the trunk is held through the stance hip(s) (τ = −k_p·θ_trunk − k_d·θ̇_trunk: the reaction of
+  a hip torque pitches the pelvis), and the swing hip target moves with the deviation of the
+  forward velocity from the walker's own stride-mean speed, shaped over the stride like the
+  reference's hip-over-ankle speed (foot placement);
+* a trunk strategy: a walker slower than the no-slip speed of the reference posture at the
+  cadence leans its trunk forward in proportion (a P law, so the speed still settles where
+  strength allows: weak push-off gives a slower walk, not a pushed one);
+* a toe-clearance reflex: a swinging forefoot closer to the floor than ``swing_clearance_m``
+  in mid-swing flexes knee and hip further (the steppage response to foot drop).
 
 Gait phase per leg is the time since that leg's last heel strike divided by the cycle time
-(from the cadence): heel strike, detected from foot–floor contact force, resets it; the clock
-never drives a heel strike. Contact stays on throughout swing, so scuffs happen and are
-counted.
+(from the cadence). Heel strike, detected from foot–floor contact force, resets it; the clock
+never makes a heel strike: a late contact holds the swing leg at the end of its swing. Contact
+stays on throughout swing, so scuffs happen and are counted.
 
-The pelvis carries weak residual actuators (forward, vertical, pitch) whose forces are
-recorded, as OpenSim reports residuals: forward damping about the stride-mean speed (never a
-pull toward a target speed), a soft vertical spring about the stride-mean pelvis height and a
-soft pitch spring about upright.
+The pelvis carries weak residual actuators (forward, vertical, pitch) whose forces are recorded
+as OpenSim reports residuals: forward damping about the stride-mean speed (never a pull toward
+a target speed), a soft vertical spring about the stride-mean pelvis height and a soft pitch
+spring about the trunk's target. For the first ``warmup_cycles`` they are ``warmup_gain``
+times stronger and fade out (a supported start, like a hand on a rail); analysis skips those
+strides.
+
+Hot loop: per 1 ms step the controller does a handful of small numpy operations and scalar
+Python, writes ``data.ctrl`` and calls ``mj_step``; the raw state is copied into preallocated
+buffers and turned into a :class:`~afo_mj.gait.record.GaitRecord` after the run
+(``benchmarks/gait_step.py`` measures it).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable, Protocol
+from typing import Protocol
 
 import mujoco
 import numpy as np
 
-from afo_mj.hydraulics.params import Parameters, param
-from afo_mj.human.anthropometry import scale_body
-from afo_mj.human.walker import hill_concentric_fraction, WalkerParams, WalkerPhysics, WornMass, build_walker
 from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.human.anthropometry import scale_body
+from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
+from afo_mj.hydraulics.params import Parameters, param
 
-__all__ = ["ControllerParams", "WalkNumericsError", "run_walk", "simulate_walk",
-           "ReferenceTable"]
+__all__ = ["ControllerParams", "ReferenceTable", "AnkleDevice", "WalkNumericsError",
+           "run_walk", "simulate_walk"]
 
 GRAVITY_M_S2 = 9.81
 #: contacts this soon after toe off are the forefoot's last touches, not scuffs
 TOE_OFF_CHATTER_S = 0.03
+#: the walker has fallen when the hip drops below this fraction of its starting height or the
+#: trunk pitches more than FALL_TILT_RAD
+FALL_HEIGHT_FRACTION = 0.55
+FALL_TILT_RAD = 1.0
 
 
 class WalkNumericsError(RuntimeError):
@@ -52,7 +69,7 @@ class WalkNumericsError(RuntimeError):
 
 @dataclasses.dataclass(frozen=True)
 class ControllerParams(Parameters):
-    """Gains of the walking controller. Gains are for a 75 kg walker and scale with body mass."""
+    """Gains of the walking controller, for a 75 kg walker; torques scale with body mass."""
 
     hip_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
     knee_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
@@ -67,21 +84,23 @@ class ControllerParams(Parameters):
     trunk_kp_nm_per_rad: float = param(500.0, unit="N*m/rad", lo=0.0, hi=5000.0,
                                        doc="trunk pitch stiffness through the stance hip")
     trunk_kd_nm_s_per_rad: float = param(50.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
-    stance_hip_tracking: float = param(1.0, unit="1", lo=0.0, hi=1.0,
-                                       doc="1: stance hip keeps its servo and adds the trunk torque; 0: SIMBICON, trunk torque only")
-    swing_hip_position_gain_rad_per_m: float = param(0.0, unit="rad/m", lo=-5.0, hi=5.0,
-                                                     doc="SIMBICON c_d: swing hip target per m of hip-over-stance-ankle deviation")
-    swing_hip_velocity_gain_rad_s_per_m: float = param(0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
-                                                       doc="SIMBICON c_v: swing hip target per m/s deviation")
-    foot_placement_speed_adaptation: float = param(1.0, unit="1", lo=0.0, hi=1.0,
-                                                   doc="1: foot placement regulates around the walker's own stride-mean speed; 0: around the reference kinematics' speed")
-    swing_clearance_m: float = param(0.01, unit="m", lo=0.0, hi=0.1,
-                                     doc="forefoot clearance the swing leg keeps (flexion withdrawal below it)")
-    swing_clearance_gain_rad_per_m: float = param(60.0, unit="rad/m", lo=0.0, hi=100.0,
-                                                  doc="extra swing knee flexion per m of clearance deficit (hip gets half)")
-    trunk_lean_gain_rad_s_per_m: float = param(1.0, unit="rad*s/m", lo=0.0, hi=5.0,
-                                               doc="forward trunk lean per m/s the stride-mean speed lies below the reference kinematics' speed")
+    stance_hip_tracking: float = param(
+        1.0, unit="1", lo=0.0, hi=1.0,
+        doc="1: the stance hip tracks its reference and adds the trunk torque; 0: SIMBICON's "
+            "stance hip, which only holds the trunk upright")
+    swing_hip_velocity_gain_rad_s_per_m: float = param(
+        0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
+        doc="SIMBICON c_v: swing hip target per m/s of speed above the stride-mean profile")
+    trunk_lean_gain_rad_s_per_m: float = param(
+        1.0, unit="rad*s/m", lo=0.0, hi=5.0,
+        doc="forward trunk lean per m/s the stride-mean speed lies below the reference "
+            "posture's no-slip speed")
     max_trunk_lean_rad: float = param(0.35, unit="rad", lo=0.0, hi=0.8)
+    swing_clearance_m: float = param(0.01, unit="m", lo=0.0, hi=0.1,
+                                     doc="forefoot clearance below which the swing leg flexes more")
+    swing_clearance_gain_rad_per_m: float = param(
+        60.0, unit="rad/m", lo=0.0, hi=200.0,
+        doc="extra swing knee flexion per m of clearance deficit (the hip gets half)")
     residual_tx_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
     residual_tz_stiffness_n_per_m: float = param(500.0, unit="N/m", lo=0.0, hi=50000.0)
     residual_tz_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
@@ -91,89 +110,112 @@ class ControllerParams(Parameters):
                                        doc="foot load / body weight that marks heel strike")
     contact_off_fraction: float = param(0.01, unit="1", lo=0.0, hi=0.5,
                                         doc="foot load / body weight below which the foot is off")
-    min_swing_phase_for_heel_strike: float = param(0.85, unit="1", lo=0.5, hi=0.99,
-                                                   doc="earliest gait phase a contact counts as heel strike")
-    stance_phase_hold: float = param(0.999, unit="1", lo=0.3, hi=0.999,
-                                     doc="a stance leg's phase waits here until the other foot lands (0.5 = reference's contralateral heel strike)")
-    phase_sync_gain_per_s: float = param(0.0, unit="1/s", lo=0.0, hi=100.0,
-                                         doc="pulls the gait phase toward the phase at which the reference has the hip this far ahead of the leading stance ankle")
-    phase_rate_speed_exponent: float = param(0.0, unit="1", lo=0.0, hi=2.0,
-                                             doc="phase runs at (v_mean / v_reference)^k of the cadence's rate")
-    min_phase_rate: float = param(0.6, unit="1", lo=0.1, hi=1.0)
-    max_phase_rate: float = param(1.1, unit="1", lo=1.0, hi=2.0)
+    min_swing_phase_for_heel_strike: float = param(
+        0.85, unit="1", lo=0.5, hi=0.99, doc="earliest gait phase a contact counts as heel strike")
     initial_speed_m_s: float = param(1.0, unit="m/s", lo=0.0, hi=3.0)
     warmup_cycles: float = param(2.0, unit="1", lo=0.0, hi=10.0,
-                                 doc="cycles over which the residual gains fall from warmup_gain× to 1×")
+                                 doc="cycles over which the residual gains fall to 1x")
     warmup_gain: float = param(10.0, unit="1", lo=1.0, hi=100.0,
-                               doc="residual gain multiplier at the start (a supported start, like a treadmill hand-rail)")
+                               doc="residual gain multiplier at the start (a supported start)")
     speed_filter_time_s: float = param(1.2, unit="s", lo=0.05, hi=20.0,
                                        doc="time constant of the stride-mean speed and height")
 
 
-class ReferenceTable:
-    """Reference angles, angular rates and moments tabulated on a phase grid for the hot loop.
+# Columns of the reference table.
+_ANGLE, _RATE, _MOMENT, _AHEAD, _AHEAD_RATE = slice(0, 3), slice(3, 6), slice(6, 9), 9, 10
 
-    ``reference`` provides ``angles_rad(phase)`` and ``moments_nm_per_kg(phase)`` (…, 3) and a
-    phase derivative of the angles (``angle_rates_per_phase`` or finite differences).
-    Lookup is linear interpolation on ``n`` points (1000 points: < 0.01° error on Winter's
-    splines).
+
+class ReferenceTable:
+    """The reference gait tabulated on ``n + 1`` phase points for the hot loop.
+
+    Row ``i`` (phase i/n) holds the angles [rad], their rates per unit phase, the moments
+    [N·m/kg], the hip's horizontal distance ahead of the stance ankle for an upright trunk and
+    its rate per unit phase (leg lengths from :meth:`set_leg`). Linear interpolation on 1000
+    points is within 0.01° of Winter's splines.
     """
 
-    def __init__(self, reference, n: int = 1000):
+    def __init__(self, reference, thigh_m: float, shank_m: float, n: int = 1000):
         ph = np.arange(n + 1) / n
         self.n = n
-        self.angle = np.asarray(reference.angles_rad(ph), float)
+        angle = np.asarray(reference.angles_rad(ph), float)
         h = 1e-4
-        self.rate = (np.asarray(reference.angles_rad((ph + h) % 1.0)) -
-                     np.asarray(reference.angles_rad((ph - h) % 1.0))) / (2 * h)
-        self.moment = np.asarray(reference.moments_nm_per_kg(ph), float)
-
-    def set_leg(self, thigh_m: float, shank_m: float) -> None:
-        """Tabulate the hip's horizontal offset ahead of the stance ankle, and its rate per
-        phase, for an upright trunk (hip angle = thigh angle from vertical)."""
-        h, k = self.angle[:, 0], self.angle[:, 1]
-        self.hip_ahead = -(thigh_m * np.sin(h) + shank_m * np.sin(h - k))
-        hr, kr = self.rate[:, 0], self.rate[:, 1]
-        self.hip_ahead_rate = -(thigh_m * np.cos(h) * hr + shank_m * np.cos(h - k) * (hr - kr))
-        stance = slice(0, int(0.6 * self.n) + 1)
-        #: hip-ahead-of-ankle over early stance, monotonic: inverted to a phase estimate
-        self.stance_ahead = self.hip_ahead[stance].copy()
-        self.stance_phase = np.arange(self.n + 1)[stance] / self.n
-        #: no-slip stride of the reference posture: twice the hip's travel over the leading
-        #: ankle from heel strike (phase 0) to the other heel strike (phase 0.5), in m
-        self.geometric_stride_m = 2.0 * float(self.hip_ahead[self.n // 2] - self.hip_ahead[0])
-        single_support = (np.arange(self.n + 1) / self.n >= 0.12) & (np.arange(self.n + 1) / self.n <= 0.5)
+        rate = (np.asarray(reference.angles_rad((ph + h) % 1.0))
+                - np.asarray(reference.angles_rad((ph - h) % 1.0))) / (2 * h)
+        moment = np.asarray(reference.moments_nm_per_kg(ph), float)
+        # Hip ahead of the stance ankle: ankle x relative to the hip is
+        # L_t·sin(hip) + L_s·sin(hip − knee) (thigh and shank angles from vertical).
+        hip, knee = angle[:, 0], angle[:, 1]
+        ahead = -(thigh_m * np.sin(hip) + shank_m * np.sin(hip - knee))
+        ahead_rate = -(thigh_m * np.cos(hip) * rate[:, 0]
+                       + shank_m * np.cos(hip - knee) * (rate[:, 0] - rate[:, 1]))
+        self.table = np.column_stack([angle, rate, moment, ahead, ahead_rate])
+        self.step = np.diff(self.table, axis=0)      # row i+1 − row i, for interpolation
+        self._out = np.zeros((2, self.table.shape[1]))
+        single_support = (ph >= 0.12) & (ph <= 0.5)
         #: mean hip speed over the stance ankle in single support, per unit phase rate
-        self.mean_ahead_rate = float(self.hip_ahead_rate[single_support].mean())
+        self.mean_ahead_rate = float(ahead_rate[single_support].mean())
+        #: no-slip stride of the reference posture: twice the hip's travel over the leading
+        #: ankle from heel strike (phase 0) to the other heel strike (phase 0.5) [m]
+        self.geometric_stride_m = 2.0 * float(ahead[n // 2] - ahead[0])
 
-    def lookup(self, phase: np.ndarray):
-        x = np.clip(phase, 0.0, 1.0) * self.n
-        i = np.minimum(x.astype(np.int64), self.n - 1)
-        f = (x - i)[:, None]
-        a = self.angle[i] * (1 - f) + self.angle[i + 1] * f
-        r = self.rate[i] * (1 - f) + self.rate[i + 1] * f
-        m = self.moment[i] * (1 - f) + self.moment[i + 1] * f
-        f = f[:, 0]
-        d = self.hip_ahead[i] * (1 - f) + self.hip_ahead[i + 1] * f
-        dr = self.hip_ahead_rate[i] * (1 - f) + self.hip_ahead_rate[i + 1] * f
-        return a, r, m, d, dr
+    def rows(self, phase_r: float, phase_l: float) -> np.ndarray:
+        """(2, 11) interpolated rows for the two legs' phases (clipped to [0, 1]).
+
+        The returned array is reused by the next call (no allocation in the hot loop)."""
+        out = self._out
+        for leg, p in ((0, phase_r), (1, phase_l)):
+            x = min(max(p, 0.0), 1.0) * self.n
+            i = min(int(x), self.n - 1)
+            np.multiply(self.step[i], x - i, out=out[leg])
+            out[leg] += self.table[i]
+        return out
+
+    def angles_rates_moments(self, phase: np.ndarray):
+        """Angles, rates per phase and moments per kg at ``phase`` (2,), each (2, 3)."""
+        r = self.rows(phase[0], phase[1]).copy()
+        return r[:, _ANGLE], r[:, _RATE], r[:, _MOMENT]
 
 
 class AnkleDevice(Protocol):
-    """What the walk loop needs of an orthosis (issue 4 supplies real ones)."""
+    """What the walk loop needs of an orthosis (issue 4 supplies real ones): the ankle torque
+    [N·m, + dorsiflexion] for each leg given time, ankle angle and velocity, gait phase and
+    stance flags. The loop applies it to each ankle as a joint torque beside the muscles."""
 
     def torque_nm(self, t_s: float, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
                   phase: np.ndarray, stance: np.ndarray) -> np.ndarray: ...
 
 
+@dataclasses.dataclass
+class _Buffers:
+    """Raw per-step state, preallocated; turned into a GaitRecord after the run."""
+
+    time: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    qfrc_actuator: np.ndarray
+    actuator_force: np.ndarray
+    touch: np.ndarray
+    contact_z: np.ndarray
+    grf: np.ndarray
+    phase: np.ndarray
+    device: np.ndarray
+
+    @classmethod
+    def allocate(cls, n: int, model) -> "_Buffers":
+        z = np.zeros
+        return cls(z(n), z((n, model.nq)), z((n, model.nv)), z((n, model.nv)), z((n, model.nu)),
+                   z((n, 4)), z((n, 4)), z((n, 2, 2)), z((n, 2)), z((n, 2)))
+
+
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
-             device: AnkleDevice | None = None, max_time_s: float | None = None,
-             record_every: int = 1) -> GaitRecord:
+             device: AnkleDevice | None = None, max_time_s: float | None = None) -> GaitRecord:
     """Walk ``strides`` right-leg cycles (or until a fall) and return the record.
 
-    The walker starts at the reference posture at right heel strike with a forward speed of
-    ``controller.initial_speed_m_s``; phase 0 of the left leg is half a cycle earlier.
+    The walker starts in the reference posture at right heel strike (left leg at phase 0.5)
+    moving forward at ``controller.initial_speed_m_s``. A fall (hip below 55 % of its start
+    height or trunk pitched beyond 1 rad) ends the run and is recorded with its time; a
+    non-finite state raises :class:`WalkNumericsError`.
     """
     c = controller or ControllerParams()
     m_body = walker.body_mass_kg
@@ -185,18 +227,15 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                             "ankle": c.ankle_kv_nm_s_per_rad})
     phys = WalkerPhysics(root)
     model, data = phys.model, phys.data
-    table = ReferenceTable(reference)
     seg = scale_body(walker.body_mass_kg, walker.height_m)
-    table.set_leg(seg.thigh.length_m, seg.shank.length_m)
+    table = ReferenceTable(reference, seg.thigh.length_m, seg.shank.length_m)
     T = float(cycle_time_s)
     dt = model.opt.timestep
-    mass = phys.body_mass_kg
-    weight = mass * GRAVITY_M_S2
+    weight = phys.body_mass_kg * GRAVITY_M_S2
 
-    # --- initial state: reference posture, right heel strike --------------------------------
-    t_hs = np.array([0.0, -0.5 * T])
-    phase = -t_hs / T
-    a0, r0, _, _, _ = table.lookup(phase)
+    # --- initial state: reference posture at right heel strike ------------------------------
+    phase = np.array([0.0, 0.5])
+    a0, r0, _ = table.angles_rates_moments(phase)
     data.qpos[phys.leg_qpos] = a0
     data.qvel[phys.leg_dof] = r0 / T
     data.qvel[phys.pelvis_dof[0]] = c.initial_speed_m_s
@@ -204,215 +243,255 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     data.qpos[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.001
     mujoco.mj_forward(model, data)
 
+    # --- constants of the loop ----------------------------------------------------------------
     kp = np.array([c.hip_kp_nm_per_rad, c.knee_kp_nm_per_rad, c.ankle_kp_nm_per_rad]) * scale
     kv = np.array([c.hip_kv_nm_s_per_rad, c.knee_kv_nm_s_per_rad, c.ankle_kv_nm_s_per_rad]) * scale
-    lead = np.where(kp > 0, kv / np.maximum(kp, 1e-12), 0.0)
+    lead_over_T = np.where(kp > 0, kv / np.maximum(kp, 1e-12), 0.0) / T
+    lead_hip = float(lead_over_T[0] * T)
     ff = np.array([c.hip_feedforward, c.knee_feedforward, c.ankle_feedforward]) * m_body
     trunk_kp, trunk_kd = c.trunk_kp_nm_per_rad * scale, c.trunk_kd_nm_s_per_rad * scale
+    alpha_track = c.stance_hip_tracking
+    cv = c.swing_hip_velocity_gain_rad_s_per_m
+    clear_m, clear_gain = c.swing_clearance_m, c.swing_clearance_gain_rad_per_m
     on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
+    hs_phase = c.min_swing_phase_for_heel_strike
     alpha = dt / c.speed_filter_time_s
     warmup_s = max(c.warmup_cycles * T, 1e-9)
-    # speed of the reference posture walked at the cadence without slip (emergent-speed
-    # scale for foot placement and trunk lean; not a target the pelvis is driven to)
+    extra_gain = c.warmup_gain - 1.0
+    res_tx, res_tz, res_tzd = (c.residual_tx_damping_n_s_per_m * scale,
+                               c.residual_tz_stiffness_n_per_m * scale,
+                               c.residual_tz_damping_n_s_per_m * scale)
+    res_tk, res_tkd = (c.residual_tilt_stiffness_nm_per_rad * scale,
+                       c.residual_tilt_damping_nm_s_per_rad * scale)
+    # No-slip speed of the reference posture at this cadence: the scale of the trunk lean
+    # (a P law toward it; the walker is never pushed toward it by a residual).
     v_ref = table.geometric_stride_m / T
-    rate = 1.0
+    lean_gain, lean_max = c.trunk_lean_gain_rad_s_per_m, c.max_trunk_lean_rad
+    ahead_norm = 1.0 / table.mean_ahead_rate
+    pf_w_max, hill_a = walker.plantarflexor_max_velocity_rad_s, walker.hill_curvature
+    pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()      # negative: plantarflexion
+
+    ctrl, qpos, qvel, qfrc_applied = data.ctrl, data.qpos, data.qvel, data.qfrc_applied
+    sens, xpos, gxpos = data.sensordata, data.xpos, data.geom_xpos
+    actfrc = model.jnt_actfrcrange
+    pd_act = phys.pd_act.ravel()
+    ff_act = phys.ff_act.ravel()
+    rx, rz, rt = (int(i) for i in phys.residual_act)
+    (hip_r, knee_r, ank_r), (hip_l, knee_l, ank_l) = phys.leg_qpos.tolist()
+    (dhip_r, _, dank_r), (dhip_l, _, dank_l) = phys.leg_dof.tolist()
+    px, pz, pt = phys.pelvis_qpos.tolist()
+    dpx, dpz, dpt = phys.pelvis_dof.tolist()
+    touch = phys.touch_adr.tolist()
+    if phys.touch_adr.ravel().tolist() != [0, 1, 2, 3]:
+        raise AssertionError("walker sensors: the four touch sensors must come first")
+    foot_r, foot_l = phys.foot_body.tolist()
+    ball_r, ball_l = phys.contact_geoms[:, 1].tolist()
+    ank_jr, ank_jl = phys.ankle_joint.tolist()
+    contact_geoms = phys.contact_geoms.ravel()
+    geom_side = np.full(model.ngeom, -1, dtype=np.int64)
+    geom_side[phys.contact_geoms[0]] = 0
+    geom_side[phys.contact_geoms[1]] = 1
+    floor = phys.floor_geom
+    radius = phys.contact_radius_m
 
     max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
     n_max = int(max_time / dt) + 2
-    n_rec = n_max // record_every + 1
-    rec = GaitRecord.allocate(n_rec, m_body, walker.height_m, dt * record_every)
+    buf = _Buffers.allocate(n_max, model)
     events = GaitEvents()
-    swing = np.array([False, False])
-    stance_started = np.array([0.0, -0.5 * T])
-    scuffing = np.array([False, False])
-    t_toe_off = np.array([-1.0, -1.0])
+    swing = [False, False]
+    scuffing = [False, False]
+    t_toe_off = [-1.0, -1.0]
+    ph = [0.0, 0.5]
     v_mean = c.initial_speed_m_s
-    pel_q, pel_d = phys.pelvis_qpos, phys.pelvis_dof
-    z0 = phys.pelvis_height_offset_m
-    z_mean = float(data.qpos[pel_q[1]])
-    fall_dz = -0.45 * (z0 + z_mean)
-    ctrl = data.ctrl
-    pd_act, ff_act, res_act = phys.pd_act, phys.ff_act, phys.residual_act
-    leg_q, leg_d = phys.leg_qpos, phys.leg_dof
-    touch = phys.touch_adr
-    foot_body = phys.foot_body
-    ball_geoms = phys.contact_geoms[:, 1]
-    ankle_jnt = phys.ankle_joint
-    pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()   # negative: plantarflexion
-    radius = phys.contact_radius_m
+    z_mean = float(qpos[pz])
+    fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + z_mean)
     device_torque = np.zeros(2)
+    phase_arr = np.zeros(2)
+    stance_arr = np.zeros(2, dtype=bool)
+    inv_T = 1.0 / T
     right_strides = 0
     k = 0
-    n = 0
-    step = 0
-    while step < n_max:
+    while k < n_max:
         t = data.time
-        load = data.sensordata[touch]                      # (2, 2) heel, ball
-        foot_load = load[:, 0] + load[:, 1]
-        phase += dt * rate / T
+        # --- gait events from foot load (touch sensors: heel + ball) ---------------------------
+        loads = (sens[touch[0][0]] + sens[touch[0][1]], sens[touch[1][0]] + sens[touch[1][1]])
         for s in (0, 1):
+            ph[s] += dt * inv_T
+            load = loads[s]
             if swing[s]:
-                if foot_load[s] > on_n and phase[s] > c.min_swing_phase_for_heel_strike:
+                if load > on_n and ph[s] > hs_phase:
                     swing[s] = False
-                    phase[s] = 0.0
-                    events.heel_strikes_s[s].append(t)
+                    ph[s] = 0.0
                     scuffing[s] = False
-                    if s == 0:
-                        right_strides += 1
-                elif foot_load[s] > on_n and t - t_toe_off[s] > TOE_OFF_CHATTER_S:
+                    events.heel_strikes_s[s].append(t)
+                    right_strides += s == 0
+                elif load > on_n and t - t_toe_off[s] > TOE_OFF_CHATTER_S:
                     # a floor contact in swing (not the last touch of toe off): a scuff
                     if not scuffing[s]:
                         events.swing_toe_contacts.append((t, s))
                         scuffing[s] = True
-                elif foot_load[s] <= off_n:
+                elif load <= off_n:
                     scuffing[s] = False
-            elif foot_load[s] <= off_n and phase[s] > 0.4:
+            elif load <= off_n and ph[s] > 0.4:
                 swing[s] = True
                 t_toe_off[s] = t
                 events.toe_offs_s[s].append(t)
+            if ph[s] > 0.999:
+                ph[s] = 0.999      # a late heel strike: hold the end of swing
         if right_strides > strides:
             break
-        np.minimum(phase, 0.999, out=phase)
-        # A stance leg does not start its pre-swing (knee flexion, push-off) before the other
-        # foot has landed: its phase waits at the reference's contralateral heel strike.
-        for s in (0, 1):
-            if not swing[s] and swing[1 - s] and phase[s] > c.stance_phase_hold:
-                phase[s] = c.stance_phase_hold
-        # Walkers who cannot keep the reference speed (weakness) step at a lower rate.
-        rate = min(max((max(v_mean, 1e-3) / v_ref) ** c.phase_rate_speed_exponent,
-                       c.min_phase_rate), c.max_phase_rate)
-        if c.phase_sync_gain_per_s:
-            # Phase follows the body's progression over the leading stance foot: the phase at
-            # which the reference has the hip as far ahead of that ankle as it is now.
-            lead_leg = 0 if phase[0] < phase[1] else 1
-            if not swing[lead_leg] and phase[lead_leg] < 0.55:
-                ahead_now = data.qpos[pel_q[0]] - data.xpos[foot_body[lead_leg], 0]
-                geom_phase = np.interp(ahead_now, table.stance_ahead, table.stance_phase)
-                rate = min(max(rate + c.phase_sync_gain_per_s * T * (geom_phase - phase[lead_leg]),
-                               c.min_phase_rate), c.max_phase_rate)
 
-        qa, qr, qm, ahead_ref, ahead_rate_ref = table.lookup(phase)
-        vx = data.qvel[pel_d[0]]
-        # Trunk strategy: a walker slower than the reference kinematics' speed leans its trunk
-        # forward (a P law, so the speed still settles where the walker's strength allows).
-        lean = min(max(c.trunk_lean_gain_rad_s_per_m * (v_ref - v_mean), 0.0), c.max_trunk_lean_rad)
-        tilt, tilt_rate = data.qpos[pel_q[2]] - lean, data.qvel[pel_d[2]]
+        # --- reference at each leg's phase -----------------------------------------------------
+        row = table.rows(ph[0], ph[1])
+        target = row[:, _ANGLE] + lead_over_T * row[:, _RATE]
+        torque = ff * row[:, _MOMENT]
+
+        vx = qvel[dpx]
+        lean = min(max(lean_gain * (v_ref - v_mean), 0.0), lean_max)
+        tilt = qpos[pt] - lean                     # trunk pitch error (+ = too far forward)
+        tilt_rate = qvel[dpt]
         v_mean += alpha * (vx - v_mean)
-        z = data.qpos[pel_q[1]]
+        z = qpos[pz]
         z_mean += alpha * (z - z_mean)
-        target = qa + lead * qr / T
-        # SIMBICON foot placement: a swing leg steps further ahead when the hip is further
-        # ahead of (or moving faster over) the other leg's ankle than the reference says at
-        # that leg's phase.
-        ankle_x = data.xpos[foot_body, 0]
-        pelvis_x = data.qpos[pel_q[0]]
-        ahead = pelvis_x - ankle_x[::-1]
-        # The speed the walker is judged against is its own stride-mean speed, shaped over the
-        # stride as the reference's hip-over-ankle speed: the walker is never pushed toward a
-        # speed it cannot reach (a weak walker walks slower).
-        v_level = c.foot_placement_speed_adaptation * v_mean + (1.0 - c.foot_placement_speed_adaptation) * v_ref
-        v_target = v_level * ahead_rate_ref[::-1] / table.mean_ahead_rate
-        dev = (c.swing_hip_position_gain_rad_per_m * (ahead - ahead_ref[::-1])
-               + c.swing_hip_velocity_gain_rad_s_per_m * (vx - v_target))
-        target[:, 0] += np.where(swing, dev, 0.0)
-        if c.swing_clearance_gain_rad_per_m:
-            # Toe-clearance reflex: in mid-swing a forefoot closer to the floor than
-            # swing_clearance_m flexes knee and hip further (flexion withdrawal).
-            ball_z = data.geom_xpos[ball_geoms, 2] - radius
-            deficit = np.where(swing & (phase > 0.6) & (phase < 0.9),
-                               np.maximum(c.swing_clearance_m - ball_z, 0.0), 0.0)
-            target[:, 1] += c.swing_clearance_gain_rad_per_m * deficit
-            target[:, 0] += 0.5 * c.swing_clearance_gain_rad_per_m * deficit
-        torque = ff * qm
-        stance = ~swing
-        n_st = stance.sum()
-        if n_st:
-            # Trunk through the stance hip(s). A stance hip that tracks its reference angle by
-            # the clock tilts the trunk back whenever the body lags the clock (the hip angle is
-            # thigh-to-pelvis), so the stance hip servo blends its reference with the angle
-            # that keeps the trunk upright (thigh angle from vertical = q_hip − tilt):
-            # α = stance_hip_tracking; α = 0 is SIMBICON's stance hip, which only holds the
-            # trunk. Feedback on trunk pitch adds through the stance hips by load share.
-            q_hip, qd_hip = data.qpos[leg_q[:, 0]], data.qvel[leg_d[:, 0]]
-            share = np.where(stance, foot_load, 0.0)
-            total = share.sum()
-            share = share / total if total > 0 else stance / n_st
-            upright = q_hip - tilt + lead[0] * (qd_hip - tilt_rate)
-            a = c.stance_hip_tracking
-            target[:, 0] = np.where(stance, a * target[:, 0] + (1.0 - a) * upright, target[:, 0])
-            torque[:, 0] = np.where(stance, a * torque[:, 0], torque[:, 0])
-            torque[:, 0] += share * (-trunk_kp * tilt - trunk_kd * tilt_rate)
+
+        # --- swing legs: foot placement and toe-clearance reflex --------------------------------
+        pelvis_x = qpos[px]
+        for s, other_row, ball in ((0, row[1], ball_r), (1, row[0], ball_l)):
+            if not swing[s]:
+                continue
+            v_target = v_mean * other_row[_AHEAD_RATE] * ahead_norm
+            target[s, 0] += cv * (vx - v_target)
+            if clear_gain and 0.6 < ph[s] < 0.9:
+                deficit = clear_m - (gxpos[ball, 2] - radius)
+                if deficit > 0.0:
+                    target[s, 1] += clear_gain * deficit
+                    target[s, 0] += 0.5 * clear_gain * deficit
+
+        # --- stance legs: trunk through the stance hip(s) ---------------------------------------
+        # A stance hip tracking its reference by the clock tilts the trunk back when the body
+        # lags (the hip angle is thigh-to-pelvis); with stance_hip_tracking < 1 its servo blends
+        # toward the angle that keeps the trunk on target (q_hip − tilt). Trunk feedback adds
+        # through the stance hips in proportion to the load each carries.
+        st_r, st_l = not swing[0], not swing[1]
+        if st_r or st_l:
+            lr = loads[0] if st_r else 0.0
+            ll = loads[1] if st_l else 0.0
+            total = lr + ll
+            if total > 0.0:
+                share = (lr / total, ll / total)
+            else:
+                n_st = st_r + st_l
+                share = (st_r / n_st, st_l / n_st)
+            tau_trunk = -trunk_kp * tilt - trunk_kd * tilt_rate
+            for s, st, qh, dqh in ((0, st_r, hip_r, dhip_r), (1, st_l, hip_l, dhip_l)):
+                if not st:
+                    continue
+                if alpha_track < 1.0:
+                    upright = qpos[qh] - tilt + lead_hip * (qvel[dqh] - tilt_rate)
+                    target[s, 0] = alpha_track * target[s, 0] + (1.0 - alpha_track) * upright
+                    torque[s, 0] *= alpha_track
+                torque[s, 0] += share[s] * tau_trunk
+
         if device is not None:
-            device_torque = device.torque_nm(t, data.qpos[leg_q[:, 2]], data.qvel[leg_d[:, 2]],
-                                             phase, stance)
-        ctrl[pd_act] = target
-        ctrl[ff_act] = torque
-        g = scale * (1.0 + (c.warmup_gain - 1.0) * max(0.0, 1.0 - t / warmup_s))
-        ctrl[res_act[0]] = -c.residual_tx_damping_n_s_per_m * g * (vx - v_mean)
-        ctrl[res_act[1]] = (-c.residual_tz_stiffness_n_per_m * g * (z - z_mean)
-                            - c.residual_tz_damping_n_s_per_m * g * data.qvel[pel_d[1]])
-        ctrl[res_act[2]] = (-c.residual_tilt_stiffness_nm_per_rad * g * tilt
-                            - c.residual_tilt_damping_nm_s_per_rad * g * tilt_rate)
-        # Plantarflexor capacity falls with shortening speed (Hill): limit the net ankle
-        # actuator torque in the plantarflexion direction accordingly.
-        ankle_w = data.qvel[leg_d[:, 2]]
-        model.jnt_actfrcrange[ankle_jnt, 0] = pf_iso * hill_concentric_fraction(
-            -ankle_w, walker.plantarflexor_max_velocity_rad_s, walker.hill_curvature)
+            phase_arr[0], phase_arr[1] = ph
+            stance_arr[0], stance_arr[1] = st_r, st_l
+            device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
+                                             phase_arr, stance_arr)
+            # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
+            # outside the muscles' strength limit.
+            qfrc_applied[dank_r], qfrc_applied[dank_l] = device_torque
+
+        ctrl[pd_act] = target.ravel()
+        ctrl[ff_act] = torque.ravel()
+        g = scale * (1.0 + extra_gain * max(0.0, 1.0 - t / warmup_s)) / scale
+        ctrl[rx] = -res_tx * g * (vx - v_mean)
+        ctrl[rz] = -res_tz * g * (z - z_mean) - res_tzd * g * qvel[dpz]
+        ctrl[rt] = -res_tk * g * tilt - res_tkd * g * tilt_rate
+        # Plantarflexor capacity falls with shortening speed (Hill, joint level; see
+        # afo_mj.human.walker.hill_concentric_fraction): the net ankle torque limit follows it.
+        for jnt, dof, iso in ((ank_jr, dank_r, pf_iso[0]), (ank_jl, dank_l, pf_iso[1])):
+            w = -qvel[dof] / pf_w_max
+            w = 0.0 if w < 0.0 else (1.0 if w > 1.0 else w)
+            actfrc[jnt, 0] = iso * (1.0 - w) / (1.0 + w / hill_a)
+
         mujoco.mj_step(model, data)
-        step += 1
-        if step % record_every == 0 and k < n_rec:
-            rec.time_s[k] = data.time
-            rec.joint_angle_rad[k] = data.qpos[leg_q]
-            rec.joint_velocity_rad_s[k] = data.qvel[leg_d]
-            rec.joint_moment_nm[k] = data.qfrc_actuator[leg_d]
-            rec.device_moment_nm[k] = device_torque
-            rec.contact_force_n[k] = data.sensordata[touch]
-            rec.contact_height_m[k] = data.geom_xpos[phys.contact_geoms, 2] - phys.contact_radius_m
-            rec.pelvis_position_m[k] = data.qpos[pel_q[:2]]
-            rec.pelvis_position_m[k, 1] += z0
-            rec.pelvis_velocity_m_s[k] = data.qvel[pel_d[:2]]
-            rec.pelvis_tilt_rad[k] = data.qpos[pel_q[2]]
-            rec.residual_force_n[k] = data.actuator_force[res_act[:2]]
-            rec.residual_moment_nm[k] = data.actuator_force[res_act[2]]
-            rec.gait_phase[k] = phase
-            _foot_grf(model, data, phys, rec.grf_n[k])
-            k += 1
-        if not np.isfinite(data.qpos).all() or not np.isfinite(data.qvel).all():
+
+        # --- record the raw state -------------------------------------------------------------
+        buf.time[k] = data.time
+        buf.qpos[k] = qpos
+        buf.qvel[k] = qvel
+        buf.qfrc_actuator[k] = data.qfrc_actuator
+        buf.actuator_force[k] = data.actuator_force
+        buf.touch[k] = sens[:4]
+        buf.contact_z[k] = gxpos[contact_geoms, 2]
+        buf.phase[k] = ph
+        buf.device[k] = device_torque
+        if data.ncon:
+            _foot_grf(model, data, geom_side, floor, buf.grf[k])
+        k += 1
+        check = qpos.sum() + qvel.sum()
+        if not math.isfinite(check):
             raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
-                                    f"(qpos={data.qpos.tolist()})")
-        if data.qpos[pel_q[1]] < fall_dz or abs(data.qpos[pel_q[2]]) > 1.0:
+                                    f"(qpos={qpos.tolist()}, qvel={qvel.tolist()})")
+        if qpos[pz] < fall_dz or abs(qpos[pt]) > FALL_TILT_RAD:
             events.fall_time_s = float(data.time)
             break
-    out = rec.trimmed(k)
-    out.events = events
-    return out
+    return _assemble(buf, k, phys, walker, events, radius, dt)
 
 
-def _foot_grf(model, data, phys: WalkerPhysics, out: np.ndarray) -> None:
-    """Sum the contact forces of each foot's spheres in world x and z into ``out`` (2, 2)."""
-    out[:] = 0.0
+def _foot_grf(model, data, geom_side: np.ndarray, floor: int, out: np.ndarray) -> None:
+    """Sum each foot's contact forces with the floor, world x and z, into ``out`` (2, 2).
+
+    MuJoCo's contact frame has its normal (first row) pointing from geom1 to geom2, and
+    ``mj_contactForce`` gives the force on geom2 in that frame.
+    """
     f6 = _F6
+    con = data.contact
+    g1, g2, frames = con.geom1, con.geom2, con.frame
     for i in range(data.ncon):
-        con = data.contact[i]
-        g = con.geom2 if con.geom1 == phys.floor_geom else con.geom1
-        side = 0 if g in phys.contact_geoms[0] else (1 if g in phys.contact_geoms[1] else -1)
+        a, b = int(g1[i]), int(g2[i])
+        foot, sign = (b, 1.0) if a == floor else (a, -1.0)
+        side = geom_side[foot]
         if side < 0:
             continue
         mujoco.mj_contactForce(model, data, i, f6)
-        frame = con.frame.reshape(3, 3)
-        # The contact normal points from geom1 to geom2 and the force acts on geom2.
-        world = frame.T @ f6[:3]
-        if con.geom1 != phys.floor_geom:
-            world = -world
-        out[side, 0] += world[0]
-        out[side, 1] += world[2]
+        fr = frames[i]
+        out[side, 0] += sign * (fr[0] * f6[0] + fr[3] * f6[1] + fr[6] * f6[2])
+        out[side, 1] += sign * (fr[2] * f6[0] + fr[5] * f6[1] + fr[8] * f6[2])
 
 
 _F6 = np.zeros(6)
 
 
+def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
+              events: GaitEvents, radius: float, dt: float) -> GaitRecord:
+    """Build the GaitRecord (named, SI) from the first ``n`` raw samples."""
+    q, v = buf.qpos[:n], buf.qvel[:n]
+    rec = GaitRecord(
+        body_mass_kg=walker.body_mass_kg, height_m=walker.height_m, sample_period_s=dt,
+        time_s=buf.time[:n].copy(),
+        joint_angle_rad=q[:, phys.leg_qpos],
+        joint_velocity_rad_s=v[:, phys.leg_dof],
+        joint_moment_nm=buf.qfrc_actuator[:n][:, phys.leg_dof],
+        device_moment_nm=buf.device[:n].copy(),
+        grf_n=buf.grf[:n].copy(),
+        contact_force_n=buf.touch[:n].reshape(n, 2, 2).copy(),
+        contact_height_m=buf.contact_z[:n].reshape(n, 2, 2) - radius,
+        pelvis_position_m=np.column_stack([q[:, phys.pelvis_qpos[0]],
+                                           q[:, phys.pelvis_qpos[1]] + phys.pelvis_height_offset_m]),
+        pelvis_velocity_m_s=v[:, phys.pelvis_dof[:2]],
+        pelvis_tilt_rad=q[:, phys.pelvis_qpos[2]].copy(),
+        residual_force_n=buf.actuator_force[:n][:, phys.residual_act[:2]],
+        residual_moment_nm=buf.actuator_force[:n][:, phys.residual_act[2]].copy(),
+        gait_phase=buf.phase[:n].copy(),
+    )
+    rec.events = events
+    return rec
+
+
 def simulate_walk(scenario, device: AnkleDevice | None = None, worn_masses=()) -> GaitRecord:
     """Run a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` and return its record."""
     reference = scenario.load_reference()
-    return run_walk(scenario.walker, reference, scenario.cycle_time_s(reference), scenario.strides,
-                    scenario.controller_params(), worn_masses=worn_masses, device=device)
+    return run_walk(scenario.walker, reference, scenario.cycle_time_s(reference),
+                    scenario.strides, scenario.controller_params(), worn_masses=worn_masses,
+                    device=device)
