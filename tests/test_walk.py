@@ -146,3 +146,37 @@ def test_fall_is_an_outcome_not_a_crash():
     assert rec.events.fall_time_s == pytest.approx(rec.time_s[-1], abs=2e-3)
     assert rec.events.swing_toe_contacts
     assert np.isfinite(rec.joint_angle_rad).all()
+
+
+class _PushOffAssist:
+    """An ideal orthosis: a half-sine plantarflexion torque over 35–62 % of each stance leg's
+    phase (peak ``peak_nm``), zero otherwise. Stands in for the hydraulic AFO of issue 4."""
+
+    def __init__(self, peak_nm: float):
+        self.peak_nm = peak_nm
+
+    def torque_nm(self, t_s, angle_rad, velocity_rad_s, phase, stance):
+        out = np.zeros(2)
+        for s in (0, 1):
+            if stance[s] and 0.35 < phase[s] < 0.62:
+                out[s] = -self.peak_nm * np.sin(np.pi * (phase[s] - 0.35) / 0.27)
+        return out
+
+
+def test_orthosis_torque_changes_the_weak_walkers_kinematics(weak):
+    """The ankle torque of a worn device reaches the kinematics: 20 N·m of push-off assistance
+    gives the weak walker back push-off plantarflexion and speed; the device torque is recorded
+    apart from the muscles' moment, which stays within their strength."""
+    sc, rec_w = weak
+    rec_a = simulate_walk(sc, device=_PushOffAssist(20.0))
+    assert rec_a.events.fall_time_s is None
+    ref = sc.load_reference()
+    w = analyse_gait(rec_w, ref, sc.analyse_strides).summary
+    a = analyse_gait(rec_a, ref, sc.analyse_strides).summary
+    assert (_mean(a, "push_off_peak_plantarflexion_deg")
+            >= _mean(w, "push_off_peak_plantarflexion_deg") + 3.0)
+    assert _mean(a, "speed_m_s") > _mean(w, "speed_m_s") + 0.1
+    assert _mean(a, "peak_device_plantarflexor_moment_nm_per_kg") == pytest.approx(
+        20.0 / sc.walker.body_mass_kg, rel=0.05)
+    cap = sc.walker.plantarflexor_strength_fraction * sc.walker.plantarflexor_strength_nm_per_kg
+    assert _mean(a, "peak_ankle_plantarflexor_moment_nm_per_kg") <= cap + 1e-6
