@@ -3,9 +3,11 @@
 * ``afo-mj run SCENARIO.toml --out DIR``: simulate a walking scenario (``scenarios/``),
   analyse the strides it names against its reference gait and write ``summary.json``,
   ``cycles.csv``, ``gait_curves.csv``, ``gait_curves.png`` and ``scenario.toml`` into DIR.
-  Exit codes: 0 done; 1 the run could not be analysed or written (e.g. the walker fell before
-  a complete stride, numerics failure); 2 invalid scenario (nothing written).
-* ``afo-mj demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
+  A walker that falls before a complete stride is an outcome: ``summary.json`` says so with the
+  fall time. Exit codes: 0 done (fall or not); 1 the run could not be simulated, analysed or
+  written (numerics failure, nothing written); 2 invalid scenario (nothing written).
+* ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
+* ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
   reference printed.
 """
@@ -89,11 +91,34 @@ def _run(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
         return 2
+    from afo_mj.gait.walk import WalkNumericsError
     t0 = time.perf_counter()
-    record = _simulate_walk(scenario)
+    try:
+        record = _simulate_walk(scenario)
+    except WalkNumericsError as exc:
+        print(f"afo-mj run: {scenario.name}: {exc}; nothing written", file=sys.stderr)
+        return 1
     wall = time.perf_counter() - t0
     try:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
+    except GaitAnalysisError as exc:
+        if record.events.fall_time_s is None:
+            print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
+            return 1
+        # A fall before any analysable stride is the run's outcome: report it.
+        ev = record.events
+        summary = {"scenario": scenario.as_dict(), "fell": True,
+                   "fall_time_s": ev.fall_time_s,
+                   "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
+                   "swing_toe_contacts": len(ev.swing_toe_contacts),
+                   "duration_s": float(record.time_s[-1]) if len(record.time_s) else 0.0,
+                   "analysis": str(exc), "wall_time_s": wall}
+        out = write_run_outputs(args.out, summary, [], reference, record, scenario.text)
+        print(f"afo_mj walk: {scenario.name}: FELL at t = {ev.fall_time_s:.2f} s after "
+              f"{summary['completed_strides']} complete strides; {exc}")
+        print(f"  results: {out}")
+        return 0
+    try:
         summary = {"scenario": scenario.as_dict(), **analysis.summary,
                    "wall_time_s": wall}
         if scenario.band_references:
@@ -147,7 +172,8 @@ def _build_models(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="run the hydraulic demo headless and print results")
+    demo = sub.add_parser("hydraulics-demo",
+                          help="run the hydraulic cylinder demo headless and print results")
     demo.add_argument("--duration-s", type=float, default=1.0, dest="duration_s")
     demo.add_argument("--substeps", type=int, default=4)
     demo.add_argument("--json", action="store_true", help="also print a JSON summary line")

@@ -103,12 +103,27 @@ def test_bad_scenario_exit_2_and_nothing_written(tmp_path, fake_sim, capsys):
     assert not out.exists()
 
 
-def test_fall_before_a_stride_exit_1(tmp_path, monkeypatch, capsys):
+def test_fall_before_a_stride_is_a_reported_outcome(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(cli, "_simulate_walk",
                         lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9))
     out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 0
+    assert "FELL at t = 0.90 s" in capsys.readouterr().out
+    s = _strict_json(out / "summary.json")
+    assert s["fell"] is True and s["fall_time_s"] == pytest.approx(0.9)
+    assert s["completed_strides"] == 0
+    assert not (out / "gait_curves.png").exists()
+
+
+def test_numerics_failure_exit_1_and_nothing_written(tmp_path, monkeypatch, capsys):
+    from afo_mj.gait.walk import WalkNumericsError
+
+    def boom(sc):
+        raise WalkNumericsError("non-finite walker state at t = 0.1230 s")
+    monkeypatch.setattr(cli, "_simulate_walk", boom)
+    out = tmp_path / "out"
     assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 1
-    assert "fell at t = 0.900 s" in capsys.readouterr().err
+    assert "non-finite walker state" in capsys.readouterr().err
     assert not out.exists()
 
 

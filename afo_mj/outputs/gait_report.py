@@ -166,12 +166,16 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
     ``analyse_gait(...).cycles``); ``reference``: the reference gait the run was compared
     with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
     is used, for the figure title). Returns the output directory path.
-    Raises :class:`ReportError` (nothing written) for a non-finite key metric or no cycles.
+    A run that fell before any analysable cycle (``summary["fell"]`` true, no cycles) writes
+    its outcome: ``summary.json`` (and ``scenario.toml``) only.
+    Raises :class:`ReportError` (nothing written) for a non-finite key metric, or for no
+    cycles without a fall.
     """
     out = Path(out_dir)
-    if not cycles:
+    if not cycles and not summary.get("fell"):
         raise ReportError("write_run_outputs: no cycles to write; nothing written")
-    _check_key_metrics(summary)
+    if cycles:
+        _check_key_metrics(summary)
     if title is None:
         name = summary.get("scenario", {}).get("name") if isinstance(summary.get("scenario"), dict) else None
         title = f"{name or 'walk'}: {len(cycles)} cycles"
@@ -184,9 +188,10 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
     os.chmod(tmp, 0o777 & ~umask)         # mkdtemp makes 0700; the result is an ordinary dir
     try:
         _write_summary(tmp / "summary.json", summary)
-        _write_cycles(tmp / "cycles.csv", cycles)
-        _write_curves(tmp / "gait_curves.csv", cycles, reference)
-        _plot(tmp / "gait_curves.png", cycles, reference, title)
+        if cycles:
+            _write_cycles(tmp / "cycles.csv", cycles)
+            _write_curves(tmp / "gait_curves.csv", cycles, reference)
+            _plot(tmp / "gait_curves.png", cycles, reference, title)
         if scenario_text is not None:
             (tmp / "scenario.toml").write_text(scenario_text, encoding="utf-8")
         if not out.exists():
