@@ -64,6 +64,10 @@ class WalkerParams(Parameters):
     ball_fraction: float = param(0.73, unit="1", lo=0.5, hi=1.0,
                                  doc="metatarsal heads from the heel / foot length")
     friction: float = param(1.0, unit="1", lo=0.1, hi=3.0, doc="foot-floor friction coefficient")
+    contact_time_constant_s: float = param(
+        0.015, unit="s", lo=0.002, hi=0.1,
+        doc="MuJoCo solref time constant of foot-floor contact (critically damped): the "
+            "softness of heel pad and shoe; at least 2 time steps")
     plantarflexor_strength_nm_per_kg: float = param(2.5, unit="N*m/kg", lo=0.1, hi=5.0)
     dorsiflexor_strength_nm_per_kg: float = param(0.6, unit="N*m/kg", lo=0.05, hi=3.0)
     hip_knee_strength_nm_per_kg: float = param(3.0, unit="N*m/kg", lo=0.5, hi=6.0)
@@ -178,7 +182,7 @@ def build_walker(params: WalkerParams | None = None, worn_masses: Sequence[WornM
     root.asset.add("texture", name="grid", type="2d", builtin="checker", width=256, height=256,
                    rgb1=[0.85, 0.85, 0.85], rgb2=[0.7, 0.7, 0.7])
     root.asset.add("material", name="grid", texture="grid", texrepeat=[20, 20])
-    root.default.geom.solref = [0.008, 1.0]
+    root.default.geom.solref = [p.contact_time_constant_s, 1.0]
     wb = root.worldbody
     wb.add("light", pos=[0, -3, 4], dir=[0, 1, -1])
     wb.add("geom", name="floor", type="plane", size=[100, 2, 0.1], material="grid",
