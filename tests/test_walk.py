@@ -180,3 +180,20 @@ def test_orthosis_torque_changes_the_weak_walkers_kinematics(weak):
         20.0 / sc.walker.body_mass_kg, rel=0.05)
     cap = sc.walker.plantarflexor_strength_fraction * sc.walker.plantarflexor_strength_nm_per_kg
     assert _mean(a, "peak_ankle_plantarflexor_moment_nm_per_kg") <= cap + 1e-6
+
+
+def test_child_walks_dynamically_similar():
+    """A 25 kg, 1.2 m child at the Froude-scaled cadence walks like the adult in
+    non-dimensional terms: angle errors as small, peak ankle moment per kg × (1.75 m /
+    stature) and speed / √(g·stature) near the adult's, no fall."""
+    sc, rec = _walk("walk_child_healthy")
+    assert rec.events.fall_time_s is None
+    s = analyse_gait(rec, sc.load_reference(), sc.analyse_strides).summary
+    lam = sc.walker.height_m / 1.75
+    assert sc.cycle_time_s() == pytest.approx(1.1396 * np.sqrt(lam), rel=1e-9)
+    for joint in ("hip", "knee", "ankle"):
+        assert _mean(s, f"{joint}_angle_rms_error_deg") <= 5.0, joint
+    assert _mean(s, "peak_ankle_plantarflexor_moment_nm_per_kg") / lam == pytest.approx(
+        WINTER_PEAK_MOMENT, rel=0.15)
+    froude_speed = _mean(s, "speed_m_s") / np.sqrt(9.81 * sc.walker.height_m)
+    assert froude_speed == pytest.approx(1.05 / np.sqrt(9.81 * 1.75), rel=0.1)

@@ -95,3 +95,17 @@ def test_committed_mjcf_files_match_the_builders():
     assert test_stand.DEFAULT_XML_PATH.read_text() == stand.to_xml_string()
     model = mujoco.MjModel.from_xml_path(str(DEFAULT_XML_PATH))
     assert model.nq == 9 and model.nu == 15
+
+
+def test_dynamic_scale_factors():
+    from afo_mj.human.walker import DynamicScale
+    ds = DynamicScale.of(37.5, 1.75 * 0.64)
+    assert ds.time == pytest.approx(0.8) and ds.speed == pytest.approx(0.8)
+    assert ds.torque == pytest.approx(0.5 * 0.64)
+    assert ds.rotational_damping == pytest.approx(0.5 * 0.64 * 0.8)
+    assert ds.linear_stiffness == pytest.approx(0.5 / 0.64)
+    assert ds.linear_damping == pytest.approx(0.5 / 0.8)
+    # strengths per kg are stated for 1.75 m and scale with stature
+    p = WalkerParams(body_mass_kg=37.5, height_m=1.12)
+    phys = WalkerPhysics(build_walker(p))
+    assert -phys.ankle_torque_limits_nm[0, 0] == pytest.approx(2.5 * 37.5 * 0.64)

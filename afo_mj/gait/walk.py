@@ -48,7 +48,7 @@ import numpy as np
 
 from afo_mj.gait.record import GaitEvents, GaitRecord
 from afo_mj.human.anthropometry import scale_body
-from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
+from afo_mj.human.walker import DynamicScale, WalkerParams, WalkerPhysics, build_walker
 from afo_mj.hydraulics.params import Parameters, param
 
 __all__ = ["ControllerParams", "ReferenceTable", "AnkleDevice", "WalkNumericsError",
@@ -69,7 +69,9 @@ class WalkNumericsError(RuntimeError):
 
 @dataclasses.dataclass(frozen=True)
 class ControllerParams(Parameters):
-    """Gains of the walking controller, for a 75 kg walker; torques scale with body mass."""
+    """Gains of the walking controller for the 75 kg, 1.75 m walker. Other body sizes get them
+    scaled by dynamic similarity (:class:`afo_mj.human.walker.DynamicScale`): torque gains by
+    mass × stature, damping by mass × stature^1.5, speed gains by 1/√stature, and so on."""
 
     hip_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
     knee_kp_nm_per_rad: float = param(600.0, unit="N*m/rad", lo=0.0, hi=5000.0)
@@ -219,12 +221,12 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     """
     c = controller or ControllerParams()
     m_body = walker.body_mass_kg
-    scale = m_body / 75.0
-    root = build_walker(walker, worn_masses,
-                        kp={"hip": c.hip_kp_nm_per_rad, "knee": c.knee_kp_nm_per_rad,
-                            "ankle": c.ankle_kp_nm_per_rad},
-                        kv={"hip": c.hip_kv_nm_s_per_rad, "knee": c.knee_kv_nm_s_per_rad,
-                            "ankle": c.ankle_kv_nm_s_per_rad})
+    ds = DynamicScale.of(m_body, walker.height_m)
+    kp = np.array([c.hip_kp_nm_per_rad, c.knee_kp_nm_per_rad, c.ankle_kp_nm_per_rad]) * ds.torque
+    kv = (np.array([c.hip_kv_nm_s_per_rad, c.knee_kv_nm_s_per_rad, c.ankle_kv_nm_s_per_rad])
+          * ds.rotational_damping)
+    root = build_walker(walker, worn_masses, kp=dict(zip(("hip", "knee", "ankle"), kp.tolist())),
+                        kv=dict(zip(("hip", "knee", "ankle"), kv.tolist())))
     phys = WalkerPhysics(root)
     model, data = phys.model, phys.data
     seg = scale_body(walker.body_mass_kg, walker.height_m)
@@ -238,37 +240,40 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     a0, r0, _ = table.angles_rates_moments(phase)
     data.qpos[phys.leg_qpos] = a0
     data.qvel[phys.leg_dof] = r0 / T
-    data.qvel[phys.pelvis_dof[0]] = c.initial_speed_m_s
+    data.qvel[phys.pelvis_dof[0]] = c.initial_speed_m_s * ds.speed
     mujoco.mj_kinematics(model, data)
     data.qpos[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.001
     mujoco.mj_forward(model, data)
 
     # --- constants of the loop ----------------------------------------------------------------
-    kp = np.array([c.hip_kp_nm_per_rad, c.knee_kp_nm_per_rad, c.ankle_kp_nm_per_rad]) * scale
-    kv = np.array([c.hip_kv_nm_s_per_rad, c.knee_kv_nm_s_per_rad, c.ankle_kv_nm_s_per_rad]) * scale
     lead_over_T = np.where(kp > 0, kv / np.maximum(kp, 1e-12), 0.0) / T
     lead_hip = float(lead_over_T[0] * T)
-    ff = np.array([c.hip_feedforward, c.knee_feedforward, c.ankle_feedforward]) * m_body
-    trunk_kp, trunk_kd = c.trunk_kp_nm_per_rad * scale, c.trunk_kd_nm_s_per_rad * scale
+    # Reference moments per kg are for a 1.75 m body; a dynamically similar walker of another
+    # stature needs them × λ (moment / (m·g·L) is invariant).
+    ff = np.array([c.hip_feedforward, c.knee_feedforward, c.ankle_feedforward]) * m_body * ds.length
+    trunk_kp = c.trunk_kp_nm_per_rad * ds.torque
+    trunk_kd = c.trunk_kd_nm_s_per_rad * ds.rotational_damping
     alpha_track = c.stance_hip_tracking
-    cv = c.swing_hip_velocity_gain_rad_s_per_m
-    clear_m, clear_gain = c.swing_clearance_m, c.swing_clearance_gain_rad_per_m
+    cv = c.swing_hip_velocity_gain_rad_s_per_m / ds.speed
+    clear_m = c.swing_clearance_m * ds.length
+    clear_gain = c.swing_clearance_gain_rad_per_m / ds.length
     on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
     hs_phase = c.min_swing_phase_for_heel_strike
-    alpha = dt / c.speed_filter_time_s
+    alpha = dt / (c.speed_filter_time_s * ds.time)
     warmup_s = max(c.warmup_cycles * T, 1e-9)
     extra_gain = c.warmup_gain - 1.0
-    res_tx, res_tz, res_tzd = (c.residual_tx_damping_n_s_per_m * scale,
-                               c.residual_tz_stiffness_n_per_m * scale,
-                               c.residual_tz_damping_n_s_per_m * scale)
-    res_tk, res_tkd = (c.residual_tilt_stiffness_nm_per_rad * scale,
-                       c.residual_tilt_damping_nm_s_per_rad * scale)
+    res_tx = c.residual_tx_damping_n_s_per_m * ds.linear_damping
+    res_tz = c.residual_tz_stiffness_n_per_m * ds.linear_stiffness
+    res_tzd = c.residual_tz_damping_n_s_per_m * ds.linear_damping
+    res_tk = c.residual_tilt_stiffness_nm_per_rad * ds.torque
+    res_tkd = c.residual_tilt_damping_nm_s_per_rad * ds.rotational_damping
     # No-slip speed of the reference posture at this cadence: the scale of the trunk lean
     # (a P law toward it; the walker is never pushed toward it by a residual).
     v_ref = table.geometric_stride_m / T
-    lean_gain, lean_max = c.trunk_lean_gain_rad_s_per_m, c.max_trunk_lean_rad
+    lean_gain, lean_max = c.trunk_lean_gain_rad_s_per_m / ds.speed, c.max_trunk_lean_rad
     ahead_norm = 1.0 / table.mean_ahead_rate
-    pf_w_max, hill_a = walker.plantarflexor_max_velocity_rad_s, walker.hill_curvature
+    pf_w_max = walker.plantarflexor_max_velocity_rad_s / ds.time
+    hill_a = walker.hill_curvature
     pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()      # negative: plantarflexion
 
     ctrl, qpos, qvel, qfrc_applied = data.ctrl, data.qpos, data.qvel, data.qfrc_applied
@@ -302,7 +307,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     scuffing = [False, False]
     t_toe_off = [-1.0, -1.0]
     ph = [0.0, 0.5]
-    v_mean = c.initial_speed_m_s
+    v_mean = c.initial_speed_m_s * ds.speed
     z_mean = float(qpos[pz])
     fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + z_mean)
     device_torque = np.zeros(2)
@@ -403,7 +408,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
 
         ctrl[pd_act] = target.ravel()
         ctrl[ff_act] = torque.ravel()
-        g = scale * (1.0 + extra_gain * max(0.0, 1.0 - t / warmup_s)) / scale
+        g = 1.0 + extra_gain * max(0.0, 1.0 - t / warmup_s)
         ctrl[rx] = -res_tx * g * (vx - v_mean)
         ctrl[rz] = -res_tz * g * (z - z_mean) - res_tzd * g * qvel[dpz]
         ctrl[rt] = -res_tk * g * tilt - res_tkd * g * tilt_rate

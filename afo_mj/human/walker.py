@@ -36,7 +36,7 @@ from afo_mj.hydraulics.params import ParameterError, Parameters, param
 from afo_mj.human.anthropometry import BodySegments, scale_body
 
 __all__ = ["WalkerParams", "WornMass", "build_walker", "WalkerPhysics", "SIDES", "JOINTS",
-           "hill_concentric_fraction", "write_default_xml"]
+           "hill_concentric_fraction", "write_default_xml", "DynamicScale"]
 
 SIDES = ("r", "l")
 JOINTS = ("hip", "knee", "ankle")
@@ -49,8 +49,12 @@ class WalkerParams(Parameters):
     """Body size, sole geometry, joint strength and passive joint properties of the walker.
 
     Strengths are the largest net actuator torques each muscle group can produce, per kg body
-    mass. Defaults: plantarflexors 2.0 Nm/kg (healthy adults reach 1.5–2.5 Nm/kg isometric;
-    above Winter's 1.69 Nm/kg gait peak), dorsiflexors 0.6 Nm/kg, hip and knee 3 Nm/kg.
+    mass, stated for a 1.75 m adult; other statures get them scaled by dynamic similarity
+    (× stature / 1.75 m, as gait moments per kg scale), and the plantarflexors' unloaded speed
+    by √(1.75 m / stature). Defaults: plantarflexors 2.5 N·m/kg isometric (healthy young adults
+    produce about 150–200 N·m at 70–80 kg; above Winter's 1.69 N·m/kg gait peak), falling with
+    shortening speed on Hill's curve (unloaded speed 20 rad/s, a/F0 0.25: about 55 % at
+    180°/s, as isovelocity dynamometry shows); dorsiflexors 0.6 N·m/kg; hip and knee 3 N·m/kg.
     Impairments are fractions of these (1 = healthy) plus added passive ankle stiffness and
     damping for spasticity.
     """
@@ -66,8 +70,8 @@ class WalkerParams(Parameters):
     friction: float = param(1.0, unit="1", lo=0.1, hi=3.0, doc="foot-floor friction coefficient")
     contact_time_constant_s: float = param(
         0.015, unit="s", lo=0.002, hi=0.1,
-        doc="MuJoCo solref time constant of foot-floor contact (critically damped): the "
-            "softness of heel pad and shoe; at least 2 time steps")
+        doc="MuJoCo solref time constant of foot-floor contact (critically damped) for a "
+            "1.75 m body, × √(stature / 1.75 m) for others: the softness of heel pad and shoe")
     plantarflexor_strength_nm_per_kg: float = param(2.5, unit="N*m/kg", lo=0.1, hi=5.0)
     dorsiflexor_strength_nm_per_kg: float = param(0.6, unit="N*m/kg", lo=0.05, hi=3.0)
     hip_knee_strength_nm_per_kg: float = param(3.0, unit="N*m/kg", lo=0.5, hi=6.0)
@@ -83,7 +87,60 @@ class WalkerParams(Parameters):
                                                     doc="joint-level unloaded plantarflexion speed of the Hill torque-velocity curve")
     hill_curvature: float = param(0.25, unit="1", lo=0.05, hi=2.0,
                                   doc="Hill's a/F0 (curvature of the torque-velocity hyperbola)")
-    timestep_s: float = param(1e-3, unit="s", lo=1e-4, hi=5e-3, doc="MuJoCo time step")
+    timestep_s: float = param(1e-3, unit="s", lo=1e-4, hi=5e-3,
+                              doc="MuJoCo time step; walkers below about 1.3 m stature need 0.5 ms "
+                                  "(their dynamics are faster by √(1.75 m / stature))")
+
+
+@dataclasses.dataclass(frozen=True)
+class DynamicScale:
+    """Factors that carry quantities of the 75 kg, 1.75 m reference walker to another body
+    size under dynamic similarity (equal Froude number; Alexander & Jayes 1983, J. Zool.
+    201:135): lengths × λ, times × √λ, speeds × √λ, forces × μ, torques × μ·λ, with
+    λ = stature / 1.75 m and μ = mass / 75 kg.
+
+    >>> DynamicScale.of(37.5, 1.4).torque
+    0.4
+    """
+
+    length: float
+    mass: float
+
+    @classmethod
+    def of(cls, body_mass_kg: float, height_m: float) -> "DynamicScale":
+        return cls(height_m / 1.75, body_mass_kg / 75.0)
+
+    @property
+    def time(self) -> float:
+        return math.sqrt(self.length)
+
+    @property
+    def speed(self) -> float:
+        return math.sqrt(self.length)
+
+    @property
+    def force(self) -> float:
+        return self.mass
+
+    @property
+    def torque(self) -> float:
+        """N·m and N·m/rad."""
+        return self.mass * self.length
+
+    @property
+    def rotational_damping(self) -> float:
+        """N·m·s/rad: torque × time."""
+        return self.mass * self.length * math.sqrt(self.length)
+
+    @property
+    def linear_stiffness(self) -> float:
+        """N/m: force / length."""
+        return self.mass / self.length
+
+    @property
+    def linear_damping(self) -> float:
+        """N·s/m: force / speed."""
+        return self.mass / math.sqrt(self.length)
 
 
 def hill_concentric_fraction(shortening_velocity_rad_s, max_velocity_rad_s: float,
@@ -166,11 +223,12 @@ def build_walker(params: WalkerParams | None = None, worn_masses: Sequence[WornM
     """Build the walker's MJCF (a ``dm_control.mjcf`` root) for a body size and impairment.
 
     ``kp`` and ``kv`` give the PD servo gains per joint kind (``hip``, ``knee``, ``ankle``) in
-    N·m/rad and N·m·s/rad; they are scaled by body mass / 75 kg.
+    N·m/rad and N·m·s/rad, as used (the controller scales them to body size; the defaults are
+    the 75 kg, 1.75 m walker's).
     """
     p = params or WalkerParams()
     seg = scale_body(p.body_mass_kg, p.height_m)
-    kp = {"hip": 600.0, "knee": 600.0, "ankle": 100.0, **(kp or {})}
+    kp = {"hip": 600.0, "knee": 600.0, "ankle": 300.0, **(kp or {})}
     kv = {"hip": 30.0, "knee": 30.0, "ankle": 5.0, **(kv or {})}
     m = p.body_mass_kg
     root = mjcf.RootElement(model="walker")
@@ -182,7 +240,10 @@ def build_walker(params: WalkerParams | None = None, worn_masses: Sequence[WornM
     root.asset.add("texture", name="grid", type="2d", builtin="checker", width=256, height=256,
                    rgb1=[0.85, 0.85, 0.85], rgb2=[0.7, 0.7, 0.7])
     root.asset.add("material", name="grid", texture="grid", texrepeat=[20, 20])
-    root.default.geom.solref = [p.contact_time_constant_s, 1.0]
+    root.default.geom.solref = [p.contact_time_constant_s
+                                * math.sqrt(p.height_m / 1.75), 1.0]
+    # MuJoCo's default impedance (0.9 → 0.95 over 1 mm of penetration), width scaled with size
+    root.default.geom.solimp = [0.9, 0.95, 0.001 * p.height_m / 1.75, 0.5, 2]
     wb = root.worldbody
     wb.add("light", pos=[0, -3, 4], dir=[0, 1, -1])
     wb.add("geom", name="floor", type="plane", size=[100, 2, 0.1], material="grid",
@@ -206,20 +267,21 @@ def build_walker(params: WalkerParams | None = None, worn_masses: Sequence[WornM
     for side, y in (("r", -half_width), ("l", half_width)):
         _leg(pelvis, side, seg, p, y, kp, kv)
 
+    ds = DynamicScale.of(m, p.height_m)
+    mt = m * ds.length           # per-kg strengths are for 1.75 m: × λ (dynamic similarity)
     strength = {
-        "hip": (-p.hip_knee_strength_nm_per_kg * m, p.hip_knee_strength_nm_per_kg * m),
-        "knee": (-p.hip_knee_strength_nm_per_kg * m, p.hip_knee_strength_nm_per_kg * m),
-        "ankle": (-p.plantarflexor_strength_nm_per_kg * m * p.plantarflexor_strength_fraction,
-                  p.dorsiflexor_strength_nm_per_kg * m * p.dorsiflexor_strength_fraction),
+        "hip": (-p.hip_knee_strength_nm_per_kg * mt, p.hip_knee_strength_nm_per_kg * mt),
+        "knee": (-p.hip_knee_strength_nm_per_kg * mt, p.hip_knee_strength_nm_per_kg * mt),
+        "ankle": (-p.plantarflexor_strength_nm_per_kg * mt * p.plantarflexor_strength_fraction,
+                  p.dorsiflexor_strength_nm_per_kg * mt * p.dorsiflexor_strength_fraction),
     }
-    scale = m / 75.0
     for side in SIDES:
         for j in JOINTS:
             jn = f"{j}_{side}"
             joint = root.find("joint", jn)
             joint.actuatorfrclimited = "true"
             joint.actuatorfrcrange = list(strength[j])
-            k, d = kp[j] * scale, kv[j] * scale
+            k, d = kp[j], kv[j]
             root.actuator.add("general", name=f"pd_{jn}", joint=jn, gaintype="fixed",
                               gainprm=[k], biastype="affine", biasprm=[0, -k, -d])
             root.actuator.add("motor", name=f"ff_{jn}", joint=jn, gear=[1])

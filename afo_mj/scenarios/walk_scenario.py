@@ -99,14 +99,18 @@ class WalkScenario:
         return _load_reference_file(self.reference_path, self.walker.body_mass_kg)
 
     def cycle_time_s(self, reference=None) -> float:
-        """Gait cycle time: 120 / cadence, or the reference's cycle time without a cadence."""
+        """Gait cycle time: 120 / cadence; without a cadence, the reference's cycle time
+        carried to this walker's stature by dynamic similarity (equal Froude number, cycle
+        time ∝ √stature; the reference adult is taken as 1.75 m)."""
         if self.cadence_steps_per_min is not None:
             return 120.0 / self.cadence_steps_per_min
         ref = reference if reference is not None else self.load_reference()
         if ref.cycle_time_s is None:
             raise ScenarioError(f"{self.source_path or self.name}: the reference has no cycle "
                                 f"time; set gait.cadence_steps_per_min")
-        return float(ref.cycle_time_s)
+        from afo_mj.human.walker import DynamicScale
+        return float(ref.cycle_time_s) * DynamicScale.of(
+            self.walker.body_mass_kg, self.walker.height_m).time
 
     def controller_params(self):
         """:class:`afo_mj.gait.walk.ControllerParams` with this scenario's overrides."""
