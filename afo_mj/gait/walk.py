@@ -143,7 +143,17 @@ class ReferenceTable:
         h = 1e-4
         rate = (np.asarray(reference.angles_rad((ph + h) % 1.0))
                 - np.asarray(reference.angles_rad((ph - h) % 1.0))) / (2 * h)
-        moment = np.asarray(reference.moments_nm_per_kg(ph), float)
+        # A user reference may come without inverse-dynamics moments (kinematics only): the
+        # missing moments are fed forward as zero, and the walk rests on the servo and balance.
+        from afo_mj.gait.reference import MOMENT_CHANNELS
+        has = getattr(reference, "has", lambda name: True)
+        #: moment channels the reference lacks (fed forward as zero)
+        self.missing_moments = tuple(m for m in MOMENT_CHANNELS if not has(m))
+        if self.missing_moments:
+            moment = np.column_stack([reference.channel(m, ph) if has(m) else np.zeros_like(ph)
+                                      for m in MOMENT_CHANNELS])
+        else:
+            moment = np.asarray(reference.moments_nm_per_kg(ph), float)
         # Hip ahead of the stance ankle: ankle x relative to the hip is
         # L_t·sin(hip) + L_s·sin(hip − knee) (thigh and shank angles from vertical).
         hip, knee = angle[:, 0], angle[:, 1]
