@@ -206,9 +206,8 @@ class _Buffers:
     qvel: np.ndarray
     qfrc_actuator: np.ndarray
     actuator_force: np.ndarray
-    touch: np.ndarray
+    sensors: np.ndarray
     contact_z: np.ndarray
-    grf: np.ndarray
     phase: np.ndarray
     device: np.ndarray
 
@@ -216,7 +215,7 @@ class _Buffers:
     def allocate(cls, n: int, model) -> "_Buffers":
         z = np.zeros
         return cls(z(n), z((n, model.nq)), z((n, model.nv)), z((n, model.nv)), z((n, model.nu)),
-                   z((n, 4)), z((n, 4)), z((n, 2, 2)), z((n, 2)), z((n, 2)))
+                   z((n, model.nsensordata)), z((n, 4)), z((n, 2)), z((n, 2)))
 
 
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
@@ -303,10 +302,6 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     ball_r, ball_l = phys.contact_geoms[:, 1].tolist()
     ank_jr, ank_jl = phys.ankle_joint.tolist()
     contact_geoms = phys.contact_geoms.ravel()
-    geom_side = np.full(model.ngeom, -1, dtype=np.int64)
-    geom_side[phys.contact_geoms[0]] = 0
-    geom_side[phys.contact_geoms[1]] = 1
-    floor = phys.floor_geom
     radius = phys.contact_radius_m
 
     max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
@@ -437,12 +432,10 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         buf.qvel[k] = qvel
         buf.qfrc_actuator[k] = data.qfrc_actuator
         buf.actuator_force[k] = data.actuator_force
-        buf.touch[k] = sens[:4]
+        buf.sensors[k] = sens
         buf.contact_z[k] = gxpos[contact_geoms, 2]
         buf.phase[k] = ph
         buf.device[k] = device_torque
-        if data.ncon:
-            _foot_grf(model, data, geom_side, floor, buf.grf[k])
         k += 1
         check = qpos.sum() + qvel.sum()
         if not math.isfinite(check):
@@ -452,30 +445,6 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
             events.fall_time_s = float(data.time)
             break
     return _assemble(buf, k, phys, walker, events, radius, dt)
-
-
-def _foot_grf(model, data, geom_side: np.ndarray, floor: int, out: np.ndarray) -> None:
-    """Sum each foot's contact forces with the floor, world x and z, into ``out`` (2, 2).
-
-    MuJoCo's contact frame has its normal (first row) pointing from geom1 to geom2, and
-    ``mj_contactForce`` gives the force on geom2 in that frame.
-    """
-    f6 = _F6
-    con = data.contact
-    g1, g2, frames = con.geom1, con.geom2, con.frame
-    for i in range(data.ncon):
-        a, b = int(g1[i]), int(g2[i])
-        foot, sign = (b, 1.0) if a == floor else (a, -1.0)
-        side = geom_side[foot]
-        if side < 0:
-            continue
-        mujoco.mj_contactForce(model, data, i, f6)
-        fr = frames[i]
-        out[side, 0] += sign * (fr[0] * f6[0] + fr[3] * f6[1] + fr[6] * f6[2])
-        out[side, 1] += sign * (fr[2] * f6[0] + fr[5] * f6[1] + fr[8] * f6[2])
-
-
-_F6 = np.zeros(6)
 
 
 def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
@@ -489,8 +458,9 @@ def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
         joint_velocity_rad_s=v[:, phys.leg_dof],
         joint_moment_nm=buf.qfrc_actuator[:n][:, phys.leg_dof],
         device_moment_nm=buf.device[:n].copy(),
-        grf_n=buf.grf[:n].copy(),
-        contact_force_n=buf.touch[:n].reshape(n, 2, 2).copy(),
+        # ground reaction force = − (force of the foot on the floor), world x and z
+        grf_n=-buf.sensors[:n][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
+        contact_force_n=buf.sensors[:n][:, phys.touch_adr],
         contact_height_m=buf.contact_z[:n].reshape(n, 2, 2) - radius,
         pelvis_position_m=np.column_stack([q[:, phys.pelvis_qpos[0]],
                                            q[:, phys.pelvis_qpos[1]] + phys.pelvis_height_offset_m]),

@@ -291,6 +291,11 @@ def build_walker(params: WalkerParams | None = None, worn_masses: Sequence[WornM
         for part in ("heel", "ball"):
             root.sensor.add("touch", name=f"touch_{part}_{side}",
                             site=_touch_site(root, part, side, seg, p))
+    for side in SIDES:
+        # Net contact force of the foot on the floor, world frame (MuJoCo's contact sensor,
+        # reduce="netforce"); the ground reaction force is its negative.
+        root.sensor.add("contact", name=f"foot_floor_force_{side}", subtree1=f"foot_{side}",
+                        geom2="floor", data="force", reduce="netforce", num=1)
     for wm in worn_masses:
         site = root.find("site", wm.site)
         if site is None:
@@ -353,6 +358,9 @@ class WalkerPhysics:
         self.touch_adr = np.array([[m.sensor_adr[mujoco.mj_name2id(
             m, mujoco.mjtObj.mjOBJ_SENSOR, f"touch_{p}_{s}")] for p in ("heel", "ball")]
             for s in SIDES])
+        #: sensordata addresses of the (x, y, z) foot-on-floor force per side
+        self.foot_force_adr = np.array([m.sensor_adr[mujoco.mj_name2id(
+            m, mujoco.mjtObj.mjOBJ_SENSOR, f"foot_floor_force_{s}")] for s in SIDES])
         self.body_mass_kg = float(m.body_subtreemass[0])
         #: height of the pelvis (hip centre) frame when ``pelvis_tz`` is 0
         self.pelvis_height_offset_m = float(
@@ -379,6 +387,11 @@ class WalkerPhysics:
     def contact_point_heights_m(self) -> np.ndarray:
         """(2, 2) lowest point of the heel and ball spheres above the floor [r/l][heel, ball]."""
         return self.data.geom_xpos[self.contact_geoms, 2] - self.contact_radius_m
+
+    def ground_reaction_forces_n(self) -> np.ndarray:
+        """(2, 2) ground reaction force on each foot, world [x, z] (after mj_forward/mj_step)."""
+        adr = self.foot_force_adr
+        return -self.data.sensordata[np.stack([adr, adr + 2], axis=1)]
 
     def contact_normal_forces_n(self) -> np.ndarray:
         """(2, 2) normal contact force on heel and ball spheres (touch sensors)."""
