@@ -221,3 +221,20 @@ def test_users_kinematics_only_csv_reference_walks(tmp_path):
     assert _mean(s, "hip_angle_rms_error_deg") <= 6.0
     assert _mean(s, "ankle_angle_rms_error_deg") <= 6.0
     assert _mean(s, "knee_angle_rms_error_deg") <= 15.0
+
+
+def test_push_off_deficit_grows_with_weakness():
+    """Dose–response, same controller: as plantarflexor strength falls from 100 % through 70 %
+    to 50 %, push-off work, push-off plantarflexion and speed fall with it, and no level
+    falls (the deficit is real, not a switch between walking and falling)."""
+    out = []
+    for fraction in (1.0, 0.7, 0.5):
+        sc, rec = _walk("walk_healthy", plantarflexor_strength_fraction=fraction)
+        assert rec.events.fall_time_s is None, fraction
+        s = analyse_gait(rec, sc.load_reference(), sc.analyse_strides).summary
+        out.append([_mean(s, "ankle_push_off_positive_work_j_per_kg"),
+                    _mean(s, "push_off_peak_plantarflexion_deg"), _mean(s, "speed_m_s")])
+    work, pf, speed = np.array(out).T
+    assert work[0] > work[1] > work[2]
+    assert pf[1] >= pf[0] - 0.5 and pf[1] > pf[2] + 1.0   # 70 % still reaches full push-off angle
+    assert speed[0] > speed[1] > speed[2]
