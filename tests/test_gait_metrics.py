@@ -145,10 +145,30 @@ def test_band_fraction_with_sd_reference(splines, winter, healthy):
     assert frac["hip_angle_rad"]["mean"] == 1.0
     assert all(c.scalars["ankle_angle_within_1sd_fraction"] == 0.0 for c in offset)
     # Winter has no SD: None
-    assert band_fraction(healthy.cycles, winter) == {c: None for c in chans}
+    assert band_fraction(healthy.cycles, winter) == {c: None for c in (*chans, "thigh_angle_rad")}
     # Schwartz (children, other speed): usable, fractions in [0, 1]
     sch = band_fraction(healthy.cycles, load_normative("schwartz2008", "Free"))
-    assert all(0.0 <= sch[c]["mean"] <= 1.0 for c in chans)
+    assert all(0.0 <= sch[c]["mean"] <= 1.0 for c in (*chans, "thigh_angle_rad"))
+
+
+def test_thigh_angle_is_hip_less_pelvic_tilt(splines, winter):
+    """A walker whose pelvis tilts 10° forward with the same hip angles has its thighs 10° less
+    flexed from vertical: the thigh curve is hip − tilt, and a band around (hip − 10°)
+    contains it entirely."""
+    rec = synthetic_record(splines=splines)
+    rec.pelvis_tilt_rad[:] = math.radians(10.0)
+    cycles = extract_cycles(rec, winter, strides=(4, 10))
+    for c in cycles:
+        np.testing.assert_allclose(c.curves["thigh_angle_rad"],
+                                   c.curves["hip_angle_rad"] - math.radians(10.0), atol=1e-12)
+    ph = np.linspace(0.0, 0.99, 100)
+    thigh = winter.channel("hip_angle_rad", ph) - math.radians(10.0)
+    ref = ReferenceGait.from_samples(
+        ph, {**{c: winter.channel(c, ph) for c in ("hip_angle_rad", "knee_angle_rad",
+                                                   "ankle_angle_rad")},
+             "thigh_angle_rad": thigh},
+        sd={"thigh_angle_rad": np.full_like(ph, math.radians(1.0))}, cycle_time_s=T)
+    assert band_fraction(cycles, ref)["thigh_angle_rad"]["mean"] == 1.0
 
 
 def test_fewer_cycles_than_requested(splines, winter):

@@ -88,6 +88,9 @@ def test_schwartz_cadences_report_band_fractions(name):
         assert 0.0 <= fr[ch]["mean"] <= 1.0
     # the ankle is what the AFO acts on: most of its cycle lies inside the children's band
     assert fr["ankle_angle_rad"]["mean"] >= 0.5
+    # the hip compared like for like (thigh from vertical; Schwartz's pelvis tilts ~12°
+    # forward, the walker's stays level) lies mostly inside the band too
+    assert fr["thigh_angle_rad"]["mean"] >= 0.7
 
 
 @pytest.fixture(scope="module")

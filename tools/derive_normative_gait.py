@@ -57,6 +57,7 @@ JOINTS = ("hip", "knee", "ankle")
 
 UNITS = {
     "angle_rad": "rad",
+    "tilt_rad": "rad",
     "moment_nm_per_kg": "N*m/kg",
     "power_w_per_kg": "W/kg",
     "n_per_kg": "N/kg",
@@ -195,6 +196,13 @@ def schwartz_channels(cond: dict) -> tuple[np.ndarray, dict[str, tuple[np.ndarra
         out[f"{j}_moment_nm_per_kg"] = (-m * 1e-3, s * 1e-3)
         p, m, s = schwartz_band(cond, f"{name}Power", "Z")
         out[f"{j}_power_w_per_kg"] = (m, s)
+    # Pelvic tilt (axis X, Plug-in Gait: anterior tilt positive) and the thigh's angle from the
+    # vertical, hip flexion − pelvic tilt, for comparison with models whose pelvis stays level.
+    # The thigh SD is the hip angle's (the source gives no covariance of hip and pelvis).
+    p, m, s = schwartz_band(cond, "PelvisAngles", "X")
+    out["pelvis_tilt_rad"] = (np.deg2rad(m), np.deg2rad(s))
+    hip_m, hip_s = out["hip_angle_rad"]
+    out["thigh_angle_rad"] = (hip_m - np.deg2rad(m), hip_s)
     return percent, out
 
 

@@ -249,6 +249,10 @@ def _cycle(record: GaitRecord, side: int, stride: int, t0: float, t1: float,
         curves[f"{name}_angle_rad"] = interp(record.joint_angle_rad[:, side, j])
         curves[f"{name}_moment_nm_per_kg"] = interp(record.joint_moment_nm[:, side, j]) / m
         curves[f"{name}_power_w_per_kg"] = interp(power[:, j]) / m
+    # the thigh's angle from vertical (hip flexion − trunk/pelvis forward tilt), comparable
+    # with gait data whose pelvis tilts (Schwartz 2008: hip − pelvic tilt)
+    curves["pelvis_tilt_rad"] = interp(record.pelvis_tilt_rad)
+    curves["thigh_angle_rad"] = interp(record.joint_angle_rad[:, side, 0] - record.pelvis_tilt_rad)
     curves["grf_x_n_per_kg"] = interp(record.grf_n[:, side, 0]) / m
     curves["grf_z_n_per_kg"] = interp(record.grf_n[:, side, 1]) / m
     curves["ankle_device_moment_nm_per_kg"] = interp(record.device_moment_nm[:, side]) / m
@@ -389,12 +393,15 @@ def curve_statistics(cycles: Sequence[GaitCycle], channel: str
 
 
 def band_fraction(cycles: Sequence[GaitCycle], reference,
-                  channels: Sequence[str] = ANGLE_CHANNELS) -> dict[str, dict | None]:
+                  channels: Sequence[str] = ANGLE_CHANNELS + ("thigh_angle_rad",)
+                  ) -> dict[str, dict | None]:
     """Fraction of each cycle's 101 points inside the reference mean ± 1 SD, per channel.
 
     Returns ``{channel: {"mean", "sd", "n"}}`` over cycles, or ``None`` for a channel the
     reference lacks or gives without SD (Winter). Works with any reference with SD bands, e.g.
-    ``load_normative("schwartz2008", "Free")`` (angles only).
+    ``load_normative("schwartz2008", "Free")`` (angles only). ``thigh_angle_rad`` compares the
+    walker's thigh-from-vertical with the reference's hip angle less its pelvic tilt: the
+    like-for-like hip comparison for a walker whose pelvis stays level.
     """
     out: dict[str, dict | None] = {}
     for ch in channels:

@@ -49,7 +49,10 @@ ANGLE_CHANNELS = tuple(f"{j}_angle_rad" for j in JOINTS)
 MOMENT_CHANNELS = tuple(f"{j}_moment_nm_per_kg" for j in JOINTS)
 POWER_CHANNELS = tuple(f"{j}_power_w_per_kg" for j in JOINTS)
 GRF_CHANNELS = ("grf_x_n_per_kg", "grf_z_n_per_kg")
-CHANNELS = ANGLE_CHANNELS + MOMENT_CHANNELS + POWER_CHANNELS + GRF_CHANNELS
+#: pelvic tilt (anterior +) and the thigh's angle from vertical (hip flexion − pelvic tilt):
+#: what a model with a level pelvis compares with a gait whose pelvis tilts
+PELVIS_CHANNELS = ("pelvis_tilt_rad", "thigh_angle_rad")
+CHANNELS = ANGLE_CHANNELS + MOMENT_CHANNELS + POWER_CHANNELS + GRF_CHANNELS + PELVIS_CHANNELS
 """Every channel a :class:`ReferenceGait` can hold."""
 
 #: Units accepted per channel kind in user mappings, with their factor to our SI-per-kg unit.
@@ -71,7 +74,7 @@ class ReferenceGaitError(ValueError):
 
 def _kind(channel: str) -> str:
     """Channel kind (angle, moment, power, grf) from our channel name."""
-    if channel.endswith("_angle_rad"):
+    if channel.endswith("_angle_rad") or channel.endswith("_tilt_rad"):
         return "angle"
     if channel.endswith("_moment_nm_per_kg"):
         return "moment"
