@@ -46,6 +46,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
+from afo_mj.gait import control_law as law
 from afo_mj.gait.record import GaitEvents, GaitRecord
 from afo_mj.human.anthropometry import scale_body
 from afo_mj.human.walker import DynamicScale, WalkerParams, WalkerPhysics, build_walker
@@ -286,143 +287,82 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()      # negative: plantarflexion
 
     ctrl, qpos, qvel, qfrc_applied = data.ctrl, data.qpos, data.qvel, data.qfrc_applied
-    sens, xpos, gxpos = data.sensordata, data.xpos, data.geom_xpos
-    actfrc = model.jnt_actfrcrange
-    pd_act = phys.pd_act.ravel()
-    ff_act = phys.ff_act.ravel()
-    rx, rz, rt = (int(i) for i in phys.residual_act)
-    (hip_r, knee_r, ank_r), (hip_l, knee_l, ank_l) = phys.leg_qpos.tolist()
-    (dhip_r, _, dank_r), (dhip_l, _, dank_l) = phys.leg_dof.tolist()
-    px, pz, pt = phys.pelvis_qpos.tolist()
-    dpx, dpz, dpt = phys.pelvis_dof.tolist()
-    touch = phys.touch_adr.tolist()
+    sens, gxpos = data.sensordata, data.geom_xpos
     if phys.touch_adr.ravel().tolist() != [0, 1, 2, 3]:
         raise AssertionError("walker sensors: the four touch sensors must come first")
-    foot_r, foot_l = phys.foot_body.tolist()
-    ball_r, ball_l = phys.contact_geoms[:, 1].tolist()
-    ank_jr, ank_jl = phys.ankle_joint.tolist()
+    (ank_r, ank_l) = phys.leg_qpos[:, 2].tolist()
+    (dank_r, dank_l) = phys.leg_dof[:, 2].tolist()
+    pz, pt = int(phys.pelvis_qpos[1]), int(phys.pelvis_qpos[2])
     contact_geoms = phys.contact_geoms.ravel()
     radius = phys.contact_radius_m
+
+    const = np.zeros(law.N_CONST)
+    const[[law.C_DT, law.C_INV_T, law.C_ON_N, law.C_OFF_N, law.C_HS_PHASE, law.C_CHATTER_S,
+           law.C_ALPHA, law.C_V_REF, law.C_LEAN_GAIN, law.C_LEAN_MAX, law.C_AHEAD_NORM, law.C_CV,
+           law.C_CLEAR_M, law.C_CLEAR_GAIN, law.C_RADIUS, law.C_TRACK, law.C_LEAD_HIP,
+           law.C_TRUNK_KP, law.C_TRUNK_KD, law.C_EXTRA_GAIN, law.C_WARMUP_S, law.C_RES_TX,
+           law.C_RES_TZ, law.C_RES_TZD, law.C_RES_TK, law.C_RES_TKD, law.C_PF_W_MAX,
+           law.C_HILL_A, law.C_TABLE_N]] = [
+        dt, 1.0 / T, on_n, off_n, hs_phase, TOE_OFF_CHATTER_S, alpha, v_ref, lean_gain,
+        lean_max, ahead_norm, cv, clear_m, clear_gain, radius, alpha_track, lead_hip, trunk_kp,
+        trunk_kd, extra_gain, warmup_s, res_tx, res_tz, res_tzd, res_tk, res_tkd, pf_w_max,
+        hill_a, table.n]
+    const[law.C_PF_ISO:law.C_PF_ISO + 2] = pf_iso
+    const[law.C_LEAD:law.C_LEAD + 3] = lead_over_T
+    const[law.C_FF:law.C_FF + 3] = ff
+    index = np.zeros(law.N_INDEX, dtype=np.int64)
+    index[law.I_TOUCH:law.I_TOUCH + 4] = phys.touch_adr.ravel()
+    index[law.I_HIP_Q:law.I_HIP_Q + 2] = phys.leg_qpos[:, 0]
+    index[law.I_HIP_V:law.I_HIP_V + 2] = phys.leg_dof[:, 0]
+    index[law.I_ANKLE_V:law.I_ANKLE_V + 2] = phys.leg_dof[:, 2]
+    index[[law.I_PX, law.I_PZ, law.I_PT]] = phys.pelvis_qpos
+    index[[law.I_DPX, law.I_DPZ, law.I_DPT]] = phys.pelvis_dof
+    index[law.I_BALL:law.I_BALL + 2] = phys.contact_geoms[:, 1]
+    index[law.I_ANKLE_J:law.I_ANKLE_J + 2] = phys.ankle_joint
+    index[law.I_PD:law.I_PD + 6] = phys.pd_act.ravel()
+    index[law.I_FF:law.I_FF + 6] = phys.ff_act.ravel()
+    index[[law.I_RES_X, law.I_RES_Z, law.I_RES_T]] = phys.residual_act
+    state = np.zeros(law.N_STATE)
+    state[law.S_PHASE:law.S_PHASE + 2] = (0.0, 0.5)
+    state[law.S_TOE_OFF_T:law.S_TOE_OFF_T + 2] = -1.0
+    state[law.S_V_MEAN] = c.initial_speed_m_s * ds.speed
+    state[law.S_Z_MEAN] = qpos[pz]
+    step_fn = law.control_step
+    tab, tab_step = table.table, table.step
+    actfrc = model.jnt_actfrcrange
 
     max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
     n_max = int(max_time / dt) + 2
     buf = _Buffers.allocate(n_max, model)
     events = GaitEvents()
-    swing = [False, False]
-    scuffing = [False, False]
-    t_toe_off = [-1.0, -1.0]
-    ph = [0.0, 0.5]
-    v_mean = c.initial_speed_m_s * ds.speed
-    z_mean = float(qpos[pz])
-    fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + z_mean)
+    fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + qpos[pz])
     device_torque = np.zeros(2)
-    phase_arr = np.zeros(2)
-    stance_arr = np.zeros(2, dtype=bool)
-    inv_T = 1.0 / T
+    phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
+    swing = state[law.S_SWING:law.S_SWING + 2]
+    ev = state[law.S_EVENT:law.S_EVENT + 2]
     right_strides = 0
     k = 0
     while k < n_max:
         t = data.time
-        # --- gait events from foot load (touch sensors: heel + ball) ---------------------------
-        loads = (sens[touch[0][0]] + sens[touch[0][1]], sens[touch[1][0]] + sens[touch[1][1]])
-        for s in (0, 1):
-            ph[s] += dt * inv_T
-            load = loads[s]
-            if swing[s]:
-                if load > on_n and ph[s] > hs_phase:
-                    swing[s] = False
-                    ph[s] = 0.0
-                    scuffing[s] = False
+        step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
+        if ev[0] or ev[1]:
+            for s in (0, 1):
+                code = ev[s]
+                if code == 1.0:
                     events.heel_strikes_s[s].append(t)
                     right_strides += s == 0
-                elif load > on_n and t - t_toe_off[s] > TOE_OFF_CHATTER_S:
-                    # a floor contact in swing (not the last touch of toe off): a scuff
-                    if not scuffing[s]:
-                        events.swing_toe_contacts.append((t, s))
-                        scuffing[s] = True
-                elif load <= off_n:
-                    scuffing[s] = False
-            elif load <= off_n and ph[s] > 0.4:
-                swing[s] = True
-                t_toe_off[s] = t
-                events.toe_offs_s[s].append(t)
-            if ph[s] > 0.999:
-                ph[s] = 0.999      # a late heel strike: hold the end of swing
-        if right_strides > strides:
-            break
-
-        # --- reference at each leg's phase -----------------------------------------------------
-        row = table.rows(ph[0], ph[1])
-        target = row[:, _ANGLE] + lead_over_T * row[:, _RATE]
-        torque = ff * row[:, _MOMENT]
-
-        vx = qvel[dpx]
-        lean = min(max(lean_gain * (v_ref - v_mean), 0.0), lean_max)
-        tilt = qpos[pt] - lean                     # trunk pitch error (+ = too far forward)
-        tilt_rate = qvel[dpt]
-        v_mean += alpha * (vx - v_mean)
-        z = qpos[pz]
-        z_mean += alpha * (z - z_mean)
-
-        # --- swing legs: foot placement and toe-clearance reflex --------------------------------
-        pelvis_x = qpos[px]
-        for s, other_row, ball in ((0, row[1], ball_r), (1, row[0], ball_l)):
-            if not swing[s]:
-                continue
-            v_target = v_mean * other_row[_AHEAD_RATE] * ahead_norm
-            target[s, 0] += cv * (vx - v_target)
-            if clear_gain and 0.6 < ph[s] < 0.9:
-                deficit = clear_m - (gxpos[ball, 2] - radius)
-                if deficit > 0.0:
-                    target[s, 1] += clear_gain * deficit
-                    target[s, 0] += 0.5 * clear_gain * deficit
-
-        # --- stance legs: trunk through the stance hip(s) ---------------------------------------
-        # A stance hip tracking its reference by the clock tilts the trunk back when the body
-        # lags (the hip angle is thigh-to-pelvis); with stance_hip_tracking < 1 its servo blends
-        # toward the angle that keeps the trunk on target (q_hip − tilt). Trunk feedback adds
-        # through the stance hips in proportion to the load each carries.
-        st_r, st_l = not swing[0], not swing[1]
-        if st_r or st_l:
-            lr = loads[0] if st_r else 0.0
-            ll = loads[1] if st_l else 0.0
-            total = lr + ll
-            if total > 0.0:
-                share = (lr / total, ll / total)
-            else:
-                n_st = st_r + st_l
-                share = (st_r / n_st, st_l / n_st)
-            tau_trunk = -trunk_kp * tilt - trunk_kd * tilt_rate
-            for s, st, qh, dqh in ((0, st_r, hip_r, dhip_r), (1, st_l, hip_l, dhip_l)):
-                if not st:
-                    continue
-                if alpha_track < 1.0:
-                    upright = qpos[qh] - tilt + lead_hip * (qvel[dqh] - tilt_rate)
-                    target[s, 0] = alpha_track * target[s, 0] + (1.0 - alpha_track) * upright
-                    torque[s, 0] *= alpha_track
-                torque[s, 0] += share[s] * tau_trunk
-
+                elif code == 2.0:
+                    events.toe_offs_s[s].append(t)
+                elif code == 3.0:
+                    events.swing_toe_contacts.append((t, s))
+            if right_strides > strides:
+                break
         if device is not None:
-            phase_arr[0], phase_arr[1] = ph
-            stance_arr[0], stance_arr[1] = st_r, st_l
             device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
-                                             phase_arr, stance_arr)
+                                             phases.copy(), swing < 0.5)
             # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
             # outside the muscles' strength limit.
             qfrc_applied[dank_r], qfrc_applied[dank_l] = device_torque
-
-        ctrl[pd_act] = target.ravel()
-        ctrl[ff_act] = torque.ravel()
-        g = 1.0 + extra_gain * max(0.0, 1.0 - t / warmup_s)
-        ctrl[rx] = -res_tx * g * (vx - v_mean)
-        ctrl[rz] = -res_tz * g * (z - z_mean) - res_tzd * g * qvel[dpz]
-        ctrl[rt] = -res_tk * g * tilt - res_tkd * g * tilt_rate
-        # Plantarflexor capacity falls with shortening speed (Hill, joint level; see
-        # afo_mj.human.walker.hill_concentric_fraction): the net ankle torque limit follows it.
-        for jnt, dof, iso in ((ank_jr, dank_r, pf_iso[0]), (ank_jl, dank_l, pf_iso[1])):
-            w = -qvel[dof] / pf_w_max
-            w = 0.0 if w < 0.0 else (1.0 if w > 1.0 else w)
-            actfrc[jnt, 0] = iso * (1.0 - w) / (1.0 + w / hill_a)
 
         mujoco.mj_step(model, data)
 
@@ -434,7 +374,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         buf.actuator_force[k] = data.actuator_force
         buf.sensors[k] = sens
         buf.contact_z[k] = gxpos[contact_geoms, 2]
-        buf.phase[k] = ph
+        buf.phase[k] = phases
         buf.device[k] = device_torque
         k += 1
         check = qpos.sum() + qvel.sum()
