@@ -8,7 +8,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+
 import pytest  # noqa: E402
 
 from afo_mj.hydraulics.params import ParameterError  # noqa: E402
@@ -88,7 +88,7 @@ def test_bad_walker_parameter_names_key_and_range():
 
 
 def test_committed_mjcf_files_match_the_builders():
-    from afo_mj.human import test_stand, walker
+    from afo_mj.human import test_stand
     from afo_mj.human.walker import DEFAULT_XML_PATH
     assert DEFAULT_XML_PATH.read_text() == build_walker().to_xml_string()
     stand = test_stand.build_test_stand(75.0, 1.75, test_stand.StandLoad(kind="free"))

@@ -60,7 +60,7 @@ from dm_control import mjcf
 
 from afo_mj.hydraulics.params import ParameterError, Parameters, param
 from afo_mj.human.anthropometry import scale_body
-from afo_mj.human.walker import WalkerParams
+from afo_mj.human.walker import WalkerParams, add_foot_segment
 
 __all__ = [
     "LOAD_KINDS",
@@ -197,8 +197,7 @@ def build_test_stand(body_mass_kg: float = 75.0, height_m: float = 1.75,
     p = WalkerParams(body_mass_kg=body_mass_kg, height_m=height_m)
     seg = scale_body(p.body_mass_kg, p.height_m)
     s = p.height_m
-    r = p.contact_radius_fraction * s
-    sh, ft = seg.shank, seg.foot
+    sh = seg.shank
 
     root = mjcf.RootElement(model="ankle_test_stand")
     root.compiler.angle = "radian"
@@ -223,18 +222,7 @@ def build_test_stand(body_mass_kg: float = 75.0, height_m: float = 1.75,
              damping=load.joint_damping_nm_s_per_rad,
              stiffness=load.spring_stiffness_nm_per_rad if load.kind == "spring" else 0.0,
              springref=load.spring_rest_angle_rad if load.kind == "spring" else 0.0)
-    heel_x = -seg.heel_to_ankle_m + r
-    ball_x = p.ball_fraction * ft.length_m - seg.heel_to_ankle_m
-    sole_z = -seg.ankle_height_m + r
-    ball_z = sole_z + math.tan(p.sole_pitch_rad) * (ball_x - heel_x)
-    com_x = ft.com_from_proximal_m - seg.heel_to_ankle_m
-    foot.add("inertial", pos=[com_x, 0, -0.5 * seg.ankle_height_m], mass=ft.mass_kg,
-             diaginertia=[0.3 * ft.inertia_kg_m2, ft.inertia_kg_m2, ft.inertia_kg_m2])
-    foot.add("geom", name="foot", type="capsule", size=[0.5 * r],
-             fromto=[heel_x, 0, sole_z, ft.length_m - seg.heel_to_ankle_m, 0, ball_z],
-             mass=0, contype=0, conaffinity=0, rgba=[0.4, 0.4, 0.5, 1])
-    foot.add("site", name="foot_plate", pos=[0.5 * (heel_x + ball_x), 0, sole_z - r + 0.005],
-             size=[0.01])
+    add_foot_segment(foot, seg, p)
 
     if load.added_inertia_kg_m2 > 0:
         # A flywheel on the axis: inertia only (its 1 mg mass moves no CoM).

@@ -26,7 +26,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import mujoco
 import numpy as np
@@ -172,11 +172,36 @@ class WornMass:
             raise ParameterError(f"WornMass.mass_kg = {self.mass_kg!r}; allowed: finite >= 0")
 
 
+def add_foot_segment(foot, seg: BodySegments, p: WalkerParams, suffix: str = ""
+                     ) -> tuple[float, float, float, float]:
+    """Give a foot body (frame at the ankle axis, x forward) its mass, inertia, a visual
+    capsule along the sole and the ``foot_plate`` site; return the sole's contact points
+    (heel x, ball x, heel z, ball z) for contact spheres of radius
+    ``contact_radius_fraction × stature``. The heel–ball line is pitched ``sole_pitch_rad``
+    toe-up (Winter's neutral ankle then loads the heel); the foot CoM is de Leva's, from the
+    heel. Shared by the walker and the ankle test stand."""
+    r = p.contact_radius_fraction * p.height_m
+    ft = seg.foot
+    heel_x = -seg.heel_to_ankle_m + r
+    ball_x = p.ball_fraction * ft.length_m - seg.heel_to_ankle_m
+    sole_z = -seg.ankle_height_m + r
+    ball_z = sole_z + math.tan(p.sole_pitch_rad) * (ball_x - heel_x)
+    com_x = ft.com_from_proximal_m - seg.heel_to_ankle_m
+    foot.add("inertial", pos=[com_x, 0, -0.5 * seg.ankle_height_m], mass=ft.mass_kg,
+             diaginertia=[0.3 * ft.inertia_kg_m2, ft.inertia_kg_m2, ft.inertia_kg_m2])
+    foot.add("geom", name=f"foot{suffix}", type="capsule", size=[0.5 * r],
+             fromto=[heel_x, 0, sole_z, ft.length_m - seg.heel_to_ankle_m, 0, ball_z],
+             mass=0, contype=0, conaffinity=0, rgba=[0.4, 0.4, 0.5, 1])
+    foot.add("site", name=f"foot_plate{suffix}", pos=[0.5 * (heel_x + ball_x), 0, sole_z - r + 0.005],
+             size=[0.01])
+    return heel_x, ball_x, sole_z, ball_z
+
+
 def _leg(parent, side: str, seg: BodySegments, p: WalkerParams, y: float,
          kp: dict[str, float], kv: dict[str, float]) -> None:
     s = p.height_m
     r = p.contact_radius_fraction * s
-    th, sh, ft = seg.thigh, seg.shank, seg.foot
+    th, sh = seg.thigh, seg.shank
     thigh = parent.add("body", name=f"thigh_{side}", pos=[0, y, 0])
     thigh.add("joint", name=f"hip_{side}", type="hinge", axis=_AXIS["hip"], range=[-0.7, 1.4])
     thigh.add("inertial", pos=[0, 0, -th.com_from_proximal_m], mass=th.mass_kg,
@@ -198,22 +223,11 @@ def _leg(parent, side: str, seg: BodySegments, p: WalkerParams, y: float,
     foot.add("joint", name=f"ankle_{side}", type="hinge", axis=_AXIS["ankle"], range=ankle_range,
              stiffness=p.ankle_passive_stiffness_nm_per_rad,
              damping=p.ankle_passive_damping_nm_s_per_rad)
-    heel_x = -seg.heel_to_ankle_m + r
-    ball_x = p.ball_fraction * ft.length_m - seg.heel_to_ankle_m
-    sole_z = -seg.ankle_height_m + r
-    ball_z = sole_z + math.tan(p.sole_pitch_rad) * (ball_x - heel_x)
-    com_x = ft.com_from_proximal_m - seg.heel_to_ankle_m
-    foot.add("inertial", pos=[com_x, 0, -0.5 * seg.ankle_height_m], mass=ft.mass_kg,
-             diaginertia=[0.3 * ft.inertia_kg_m2, ft.inertia_kg_m2, ft.inertia_kg_m2])
-    foot.add("geom", name=f"foot_{side}", type="capsule", size=[0.5 * r],
-             fromto=[heel_x, 0, sole_z, ft.length_m - seg.heel_to_ankle_m, 0, ball_z],
-             mass=0, contype=0, conaffinity=0, rgba=[0.4, 0.4, 0.5, 1])
+    heel_x, ball_x, sole_z, ball_z = add_foot_segment(foot, seg, p, f"_{side}")
     for name, x, z in (("heel", heel_x, sole_z), ("ball", ball_x, ball_z)):
         foot.add("geom", name=f"{name}_{side}", type="sphere", size=[r], pos=[x, 0, z],
                  mass=0, contype=1, conaffinity=0, condim=3, friction=[p.friction, 0.005, 1e-4],
                  rgba=[0.2, 0.2, 0.3, 1])
-    foot.add("site", name=f"foot_plate_{side}", pos=[0.5 * (heel_x + ball_x), 0, sole_z - r + 0.005],
-             size=[0.01])
     shank.add("site", name=f"ankle_axis_{side}", pos=[0, 0, -sh.length_m], size=[0.012])
 
 
