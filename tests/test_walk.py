@@ -241,3 +241,39 @@ def test_push_off_deficit_grows_with_weakness():
     assert work[0] > work[1] > work[2]
     assert pf[1] >= pf[0] - 0.5 and pf[1] > pf[2] + 1.0   # 70 % still reaches full push-off angle
     assert speed[0] > speed[1] > speed[2]
+
+
+def test_opensim_reference_scenario_walks_through_the_cli(tmp_path):
+    """A user of OpenSim: coordinates (.mot, gait2392 knee sign, degrees) and inverse dynamics
+    (.sto, N·m) of one cycle, named in a scenario; `afo-mj run` walks it and writes results
+    with the OpenSim cycle as the reference (Winter's numbers here, so the same figures)."""
+    from afo_mj import cli
+
+    winter = load_normative("winter", "normal")
+    ph = np.arange(101) / 100.0
+    t = 0.2 + ph * 1.1396
+    ang = np.degrees(winter.angles_rad(ph))
+    mom = winter.moments_nm_per_kg(ph) * 75.0
+
+    def sto(path, name, labels, cols, in_degrees):
+        head = [name, "version=1", f"nRows={len(t)}", f"nColumns={len(labels)}",
+                f"inDegrees={in_degrees}", "endheader", "\t".join(labels)]
+        rows = ["\t".join(f"{v:.10g}" for v in r) for r in np.column_stack(cols)]
+        path.write_text("\n".join(head + rows) + "\n")
+
+    sto(tmp_path / "ik.mot", "ik", ["time", "hip_flexion_r", "knee_angle_r", "ankle_angle_r"],
+        [t, ang[:, 0], -ang[:, 1], ang[:, 2]], "yes")
+    sto(tmp_path / "id.sto", "Inverse Dynamics",
+        ["time", "hip_flexion_r_moment", "knee_angle_r_moment", "ankle_angle_r_moment"],
+        [t, mom[:, 0], -mom[:, 1], mom[:, 2]], "no")
+    (tmp_path / "mine.toml").write_text(
+        'name = "mine"\n[walker]\nbody_mass_kg = 75.0\nheight_m = 1.75\n'
+        '[gait]\nreference_path = "ik.mot"\nreference_id_path = "id.sto"\nstrides = 6\n'
+        'analyse_strides = [3, 6]\n')
+    out = tmp_path / "out"
+    assert cli.main(["run", str(tmp_path / "mine.toml"), "--out", str(out)]) == 0
+    import json
+    s = json.loads((out / "summary.json").read_text())
+    assert s["fell"] is False and s["reference"]["source"] == "opensim"
+    assert s["knee_angle_rms_error_deg"]["mean"] <= 5.0
+    assert s["peak_ankle_plantarflexor_moment_nm_per_kg"]["mean"] == pytest.approx(1.69, rel=0.15)

@@ -162,3 +162,10 @@ def test_band_references_are_validated():
     bad = BASE.replace('[gait]', '[gait]\nband_references = ["schwartz2008:Jogging"]')
     with pytest.raises(ScenarioError, match="band_references.*Jogging"):
         parse_scenario(bad, origin="x.toml")
+
+
+def test_reference_id_path_needs_an_opensim_reference_path(tmp_path):
+    (tmp_path / "id.sto").write_text("x\n")
+    with pytest.raises(ScenarioError, match="reference_id_path.*without gait.reference_path"):
+        parse_scenario('[gait]\nreference_id_path = "id.sto"\n', origin="x.toml",
+                       base_dir=tmp_path)

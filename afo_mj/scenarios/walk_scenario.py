@@ -57,7 +57,7 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
 
 _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
-              "analyse_strides", "band_references")
+              "analyse_strides", "band_references", "reference_id_path")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 CADENCE_RANGE = (30.0, 200.0)
 STRIDES_RANGE = (1, 1000)
@@ -88,6 +88,7 @@ class WalkScenario:
     analyse_strides: tuple[int, int]
     controller: Mapping[str, float]
     band_references: tuple[tuple[str, str], ...] = ()
+    reference_id_path: Path | None = None
     source_path: Path | None = None
     text: str = ""
 
@@ -96,7 +97,8 @@ class WalkScenario:
         from afo_mj.gait import reference as ref
         if self.reference_path is None:
             return ref.load_normative(self.reference, self.condition)
-        return _load_reference_file(self.reference_path, self.walker.body_mass_kg)
+        return _load_reference_file(self.reference_path, self.walker.body_mass_kg,
+                                    self.reference_id_path)
 
     def cycle_time_s(self, reference=None) -> float:
         """Gait cycle time: 120 / cadence; without a cadence, the reference's cycle time
@@ -123,6 +125,8 @@ class WalkScenario:
                 "file": None if self.source_path is None else str(self.source_path),
                 "reference": self.reference, "condition": self.condition,
                 "reference_path": None if self.reference_path is None else str(self.reference_path),
+                "reference_id_path": (None if self.reference_id_path is None
+                                      else str(self.reference_id_path)),
                 "cadence_steps_per_min": self.cadence_steps_per_min, "strides": self.strides,
                 "analyse_strides": list(self.analyse_strides),
                 "band_references": [f"{s}:{c}" for s, c in self.band_references],
@@ -131,10 +135,12 @@ class WalkScenario:
                 "controller": dict(self.controller)}
 
 
-def _load_reference_file(path: Path, body_mass_kg: float):
+def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None = None):
+    """A user's reference cycle: OpenSim ``.sto``/``.mot`` coordinates (with an optional
+    inverse-dynamics ``.sto``) or CSV, with the loaders' documented default column mapping."""
     from afo_mj.gait import reference as ref
     if path.suffix.lower() in (".sto", ".mot"):
-        return ref.load_opensim_storage(path, body_mass_kg=body_mass_kg)
+        return ref.load_opensim_storage(path, body_mass_kg=body_mass_kg, id_path=id_path)
     return ref.load_reference_csv(path, body_mass_kg=body_mass_kg)
 
 
@@ -282,14 +288,31 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         if not p.is_file():
             raise ctx.fail("gait.reference_path", raw, f"does not exist (looked at {p})",
                            "an existing .csv, .sto or .mot file")
+        id_path = None
+        if "reference_id_path" in gait:
+            raw_id = ctx.string("gait.reference_id_path", gait["reference_id_path"],
+                                "a path to an OpenSim inverse-dynamics .sto file")
+            id_path = Path(raw_id)
+            if not id_path.is_absolute() and base_dir is not None:
+                id_path = base_dir / id_path
+            if p.suffix.lower() not in (".sto", ".mot") or not id_path.is_file():
+                raise ctx.fail("gait.reference_id_path", raw_id,
+                               "needs an OpenSim gait.reference_path and an existing file",
+                               "an existing .sto beside an OpenSim .sto/.mot reference_path")
         from afo_mj.gait.reference import ReferenceGaitError
         try:
-            _load_reference_file(p, walker.body_mass_kg)
+            _load_reference_file(p, walker.body_mass_kg, id_path)
         except ReferenceGaitError as exc:
             raise ScenarioError(f"{origin}: gait.reference_path = {raw!r} cannot be used: "
                                 f"{exc}") from None
         reference_path, reference, condition = p, "file", None
+        reference_id_path = id_path
     else:
+        reference_id_path = None
+        if "reference_id_path" in gait:
+            raise ctx.fail("gait.reference_id_path", gait["reference_id_path"],
+                           "is given without gait.reference_path",
+                           "an OpenSim ID file beside an OpenSim gait.reference_path")
         reference = ctx.string("gait.reference", gait.get("reference", "winter"),
                                " | ".join(repr(r) for r in REFERENCES))
         if reference not in REFERENCES:
@@ -327,7 +350,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         bands.append((src, cond))
 
     controller = _controller(ctx, ctx.table(doc, "controller"))
-    return WalkScenario(band_references=tuple(bands), name=name, description=description, walker=walker,
+    return WalkScenario(band_references=tuple(bands), reference_id_path=reference_id_path, name=name, description=description, walker=walker,
                         reference=reference, condition=condition,
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),
