@@ -277,3 +277,20 @@ def test_opensim_reference_scenario_walks_through_the_cli(tmp_path):
     assert s["fell"] is False and s["reference"]["source"] == "opensim"
     assert s["knee_angle_rms_error_deg"]["mean"] <= 5.0
     assert s["peak_ankle_plantarflexor_moment_nm_per_kg"]["mean"] == pytest.approx(1.69, rel=0.15)
+
+
+def test_spastic_ankle_narrows_ankle_motion_and_push_off(healthy):
+    """Added passive ankle stiffness and damping (spasticity), same controller: the ankle's
+    range of motion over the cycle narrows and push-off power falls."""
+    _, _, an_h = healthy
+    sc, rec = _walk("walk_spastic_ankle")
+    assert rec.events.fall_time_s is None
+    an = analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
+
+    def ankle_range_deg(analysis):
+        a = np.stack([c.curves["ankle_angle_rad"] for c in analysis.cycles])
+        return np.degrees(np.mean(a.max(axis=1) - a.min(axis=1)))
+
+    assert ankle_range_deg(an) < ankle_range_deg(an_h) - 3.0
+    assert (_mean(an.summary, "peak_ankle_power_w_per_kg")
+            < 0.8 * _mean(an_h.summary, "peak_ankle_power_w_per_kg"))

@@ -31,10 +31,10 @@ spring about the trunk's target. For the first ``warmup_cycles`` they are ``warm
 times stronger and fade out (a supported start, like a hand on a rail); analysis skips those
 strides.
 
-Hot loop: per 1 ms step the controller does a handful of small numpy operations and scalar
-Python, writes ``data.ctrl`` and calls ``mj_step``; the raw state is copied into preallocated
-buffers and turned into a :class:`~afo_mj.gait.record.GaitRecord` after the run
-(``benchmarks/gait_step.py`` measures it).
+Hot loop: per 1 ms step one compiled function (:mod:`afo_mj.gait.control_law`, numba) reads
+MuJoCo's state and writes ``data.ctrl`` and the ankle's torque range, Python calls ``mj_step``
+and copies the raw state into preallocated buffers, which become a
+:class:`~afo_mj.gait.record.GaitRecord` after the run (``benchmarks/gait_step.py``).
 """
 
 from __future__ import annotations
@@ -163,7 +163,6 @@ class ReferenceTable:
                        + shank_m * np.cos(hip - knee) * (rate[:, 0] - rate[:, 1]))
         self.table = np.column_stack([angle, rate, moment, ahead, ahead_rate])
         self.step = np.diff(self.table, axis=0)      # row i+1 − row i, for interpolation
-        self._out = np.zeros((2, self.table.shape[1]))
         single_support = (ph >= 0.12) & (ph <= 0.5)
         #: mean hip speed over the stance ankle in single support, per unit phase rate
         self.mean_ahead_rate = float(ahead_rate[single_support].mean())
@@ -171,21 +170,12 @@ class ReferenceTable:
         #: ankle from heel strike (phase 0) to the other heel strike (phase 0.5) [m]
         self.geometric_stride_m = 2.0 * float(ahead[n // 2] - ahead[0])
 
-    def rows(self, phase_r: float, phase_l: float) -> np.ndarray:
-        """(2, 11) interpolated rows for the two legs' phases (clipped to [0, 1]).
-
-        The returned array is reused by the next call (no allocation in the hot loop)."""
-        out = self._out
-        for leg, p in ((0, phase_r), (1, phase_l)):
-            x = min(max(p, 0.0), 1.0) * self.n
-            i = min(int(x), self.n - 1)
-            np.multiply(self.step[i], x - i, out=out[leg])
-            out[leg] += self.table[i]
-        return out
-
     def angles_rates_moments(self, phase: np.ndarray):
-        """Angles, rates per phase and moments per kg at ``phase`` (2,), each (2, 3)."""
-        r = self.rows(phase[0], phase[1]).copy()
+        """Angles, rates per phase and moments per kg at ``phase`` (2,), each (2, 3), by the
+        same linear interpolation the compiled control law uses."""
+        x = np.clip(np.asarray(phase, float), 0.0, 1.0) * self.n
+        i = np.minimum(x.astype(np.int64), self.n - 1)
+        r = self.table[i] + (x - i)[:, None] * self.step[i]
         return r[:, _ANGLE], r[:, _RATE], r[:, _MOMENT]
 
 
