@@ -294,3 +294,20 @@ def test_spastic_ankle_narrows_ankle_motion_and_push_off(healthy):
     assert ankle_range_deg(an) < ankle_range_deg(an_h) - 3.0
     assert (_mean(an.summary, "peak_ankle_power_w_per_kg")
             < 0.8 * _mean(an_h.summary, "peak_ankle_power_w_per_kg"))
+
+
+def test_assisted_healthy_walker_hands_push_off_work_to_the_device():
+    """A healthy wearer of 40 N·m push-off assistance lowers their own ankle effort by the
+    device's torque (assistance_adaptation = 1, the default): the gait keeps its kinematics
+    and the human's positive push-off work falls by at least 40 %."""
+    sc = load_scenario(SCENARIOS / "walk_healthy.toml")
+    ref = sc.load_reference()
+    base = analyse_gait(simulate_walk(sc), ref, sc.analyse_strides).summary
+    rec = simulate_walk(sc, device=_PushOffAssist(40.0))
+    assert rec.events.fall_time_s is None
+    a = analyse_gait(rec, ref, sc.analyse_strides).summary
+    assert (_mean(a, "ankle_push_off_positive_work_j_per_kg")
+            <= 0.6 * _mean(base, "ankle_push_off_positive_work_j_per_kg"))
+    for joint in ("hip", "knee", "ankle"):
+        assert _mean(a, f"{joint}_angle_rms_error_deg") <= 5.0
+    assert _mean(a, "speed_m_s") == pytest.approx(_mean(base, "speed_m_s"), rel=0.05)

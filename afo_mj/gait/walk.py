@@ -104,6 +104,11 @@ class ControllerParams(Parameters):
     swing_clearance_gain_rad_per_m: float = param(
         60.0, unit="rad/m", lo=0.0, hi=200.0,
         doc="extra swing knee flexion per m of clearance deficit (the hip gets half)")
+    assistance_adaptation: float = param(
+        1.0, unit="1", lo=0.0, hi=1.0,
+        doc="fraction of an orthosis' ankle torque by which the wearer lowers their own ankle "
+            "feedforward (people walking with ankle assistance reduce their plantarflexor "
+            "effort, e.g. Zhang et al. 2017); 0 adds the device on top of unchanged effort")
     residual_tx_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
     residual_tz_stiffness_n_per_m: float = param(500.0, unit="N/m", lo=0.0, hi=50000.0)
     residual_tz_damping_n_s_per_m: float = param(100.0, unit="N*s/m", lo=0.0, hi=5000.0)
@@ -312,6 +317,8 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     index[law.I_PD:law.I_PD + 6] = phys.pd_act.ravel()
     index[law.I_FF:law.I_FF + 6] = phys.ff_act.ravel()
     index[[law.I_RES_X, law.I_RES_Z, law.I_RES_T]] = phys.residual_act
+    adapt = c.assistance_adaptation
+    ff_ank_r, ff_ank_l = int(phys.ff_act[0, 2]), int(phys.ff_act[1, 2])
     state = np.zeros(law.N_STATE)
     state[law.S_PHASE:law.S_PHASE + 2] = (0.0, 0.5)
     state[law.S_TOE_OFF_T:law.S_TOE_OFF_T + 2] = -1.0
@@ -351,8 +358,12 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
             device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
                                              phases.copy(), swing < 0.5)
             # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
-            # outside the muscles' strength limit.
+            # outside the muscles' strength limit. The wearer lowers their own ankle effort by
+            # `assistance_adaptation` of it (the muscles' limit still applies to what is left).
             qfrc_applied[dank_r], qfrc_applied[dank_l] = device_torque
+            if adapt:
+                ctrl[ff_ank_r] -= adapt * device_torque[0]
+                ctrl[ff_ank_l] -= adapt * device_torque[1]
 
         mujoco.mj_step(model, data)
 
