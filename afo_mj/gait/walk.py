@@ -17,7 +17,12 @@ falls with shortening speed, Hill's torque–velocity relation):
   cadence leans its trunk forward in proportion (a P law, so the speed still settles where
   strength allows: weak push-off gives a slower walk, not a pushed one);
 * a toe-clearance reflex: a swinging forefoot closer to the floor than ``swing_clearance_m``
-  in mid-swing flexes knee and hip further (the steppage response to foot drop).
+  in mid-swing flexes knee and hip further (the steppage response to foot drop);
+* adaptation to an orthosis: its ankle torque is applied beside the muscles (outside their
+  strength limit) and the wearer lowers their own ankle feedforward by
+  ``assistance_adaptation`` × that torque. A healthy wearer then keeps their gait and hands
+  push-off work to the device; a weak one, whose muscles stay at their limit, gets the
+  device's torque added and walks closer to normal.
 
 Gait phase per leg is the time since that leg's last heel strike divided by the cycle time
 (from the cadence). Heel strike, detected from foot–floor contact force, resets it; the clock
