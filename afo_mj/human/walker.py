@@ -11,10 +11,13 @@ is measured at it). Contact is never switched off.
 
 Actuators per leg joint: ``pd_{joint}_{side}`` a proportional-derivative servo evaluated inside
 MuJoCo (force = kp·(ctrl − q) − kv·q̇; set ctrl = q_ref + kv/kp·q̇_ref to track a velocity
-too) and ``ff_{joint}_{side}`` a torque motor for feedforward and Python-side feedback. Their sum
+too) and ``ff_{joint}_{side}`` a torque motor for feedforward and balance feedback. Their sum
 is clamped per joint by ``actuatorfrcrange``: this is where the strength of each muscle group
 lives (plantarflexor weakness lowers the negative ankle limit). Residual actuators
 ``residual_tx``, ``residual_tz``, ``residual_tilt`` act on the pelvis as OpenSim's residuals do.
+Sensors: ``touch_{heel,ball}_{side}`` (normal contact force on each sphere) and
+``foot_floor_force_{side}`` (MuJoCo's net-force contact sensor, world frame; the ground
+reaction force is its negative).
 
 Sites for devices: ``waist`` (power supply worn at the lower back), ``shank_cuff_{side}``,
 ``foot_plate_{side}`` and ``ankle_axis_{side}`` (the pulley axis of an orthosis). Devices add
