@@ -31,7 +31,7 @@ N_STATE = 12
  C_LEAN_MAX, C_AHEAD_NORM, C_CV, C_CLEAR_M, C_CLEAR_GAIN, C_RADIUS, C_TRACK, C_LEAD_HIP,
  C_TRUNK_KP, C_TRUNK_KD, C_EXTRA_GAIN, C_WARMUP_S, C_RES_TX, C_RES_TZ, C_RES_TZD, C_RES_TK,
  C_RES_TKD, C_PF_W_MAX, C_HILL_A, C_PF_ISO, _C_PF_ISO_L, C_TABLE_N, C_LEAD, _C_LEAD1, _C_LEAD2,
- C_FF, _C_FF1, _C_FF2, N_CONST) = range(38)
+ C_FF, _C_FF1, _C_FF2, C_SPEED_ADAPT, N_CONST) = range(39)
 
 # --- MuJoCo addresses ---------------------------------------------------------------------------
 (I_TOUCH, _I_T1, _I_T2, _I_T3,          # sensordata: heel_r, ball_r, heel_l, ball_l
@@ -114,7 +114,8 @@ def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const
     for s in range(2):
         if state[S_SWING + s] < 0.5:
             continue
-        v_target = v_mean * rows[1 - s, _AHEAD_RATE] * const[C_AHEAD_NORM]
+        v_level = const[C_SPEED_ADAPT] * v_mean + (1.0 - const[C_SPEED_ADAPT]) * const[C_V_REF]
+        v_target = v_level * rows[1 - s, _AHEAD_RATE] * const[C_AHEAD_NORM]
         target[s, 0] += const[C_CV] * (vx - v_target)
         ph = state[S_PHASE + s]
         if const[C_CLEAR_GAIN] != 0.0 and 0.6 < ph < 0.9:

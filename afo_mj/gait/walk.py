@@ -99,6 +99,10 @@ class ControllerParams(Parameters):
     swing_hip_velocity_gain_rad_s_per_m: float = param(
         0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
         doc="SIMBICON c_v: swing hip target per m/s of speed above the stride-mean profile")
+    foot_placement_speed_adaptation: float = param(
+        0.0, unit="1", lo=0.0, hi=1.0,
+        doc="speed the foot placement regulates about: 1 the walker's own stride-mean speed, "
+            "0 the reference posture's no-slip speed, between a blend")
     trunk_lean_gain_rad_s_per_m: float = param(
         1.0, unit="rad*s/m", lo=0.0, hi=5.0,
         doc="forward trunk lean per m/s the stride-mean speed lies below the reference "
@@ -310,6 +314,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     const[law.C_PF_ISO:law.C_PF_ISO + 2] = pf_iso
     const[law.C_LEAD:law.C_LEAD + 3] = lead_over_T
     const[law.C_FF:law.C_FF + 3] = ff
+    const[law.C_SPEED_ADAPT] = c.foot_placement_speed_adaptation
     index = np.zeros(law.N_INDEX, dtype=np.int64)
     index[law.I_TOUCH:law.I_TOUCH + 4] = phys.touch_adr.ravel()
     index[law.I_HIP_Q:law.I_HIP_Q + 2] = phys.leg_qpos[:, 0]
