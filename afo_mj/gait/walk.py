@@ -11,8 +11,10 @@ falls with shortening speed, Hill's torque–velocity relation):
 * balance feedback in the style of SIMBICON (Yin, Loken & van de Panne, ACM TOG 26(3), 2007):
   the trunk is held through the stance hip(s) (τ = −k_p·θ_trunk − k_d·θ̇_trunk: the reaction of
   a hip torque pitches the pelvis), and the swing hip target moves with the deviation of the
-  forward velocity from the walker's own stride-mean speed, shaped over the stride like the
-  reference's hip-over-ankle speed (foot placement);
+  forward velocity from the no-slip speed of the reference posture at the cadence (or, with
+  ``foot_placement_speed_adaptation`` toward 1, from the walker's own stride-mean speed),
+  shaped over the stride like the reference's hip-over-ankle speed (foot placement: a walker
+  that is too fast steps further ahead);
 * a trunk strategy: a walker slower than the no-slip speed of the reference posture at the
   cadence leans its trunk forward in proportion (a P law, so the speed still settles where
   strength allows: weak push-off gives a slower walk, not a pushed one);
