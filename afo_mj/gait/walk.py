@@ -11,8 +11,9 @@ falls with shortening speed, Hill's torque–velocity relation):
 * balance feedback in the style of SIMBICON (Yin, Loken & van de Panne, ACM TOG 26(3), 2007):
   the trunk is held through the stance hip(s) (τ = −k_p·θ_trunk − k_d·θ̇_trunk: the reaction of
   a hip torque pitches the pelvis), and the swing hip target moves with the deviation of the
-  forward velocity from the no-slip speed of the reference posture at the cadence (or, with
-  ``foot_placement_speed_adaptation`` toward 1, from the walker's own stride-mean speed),
+  forward velocity from a blend (``foot_placement_speed_adaptation``, default half and half)
+  of the no-slip speed of the reference posture at the cadence and the walker's own
+  stride-mean speed,
   shaped over the stride like the reference's hip-over-ankle speed (foot placement: a walker
   that is too fast steps further ahead);
 * a trunk strategy: a walker slower than the no-slip speed of the reference posture at the
@@ -93,16 +94,16 @@ class ControllerParams(Parameters):
     ankle_feedforward: float = param(0.85, unit="1", lo=0.0, hi=1.5)
     trunk_kp_nm_per_rad: float = param(500.0, unit="N*m/rad", lo=0.0, hi=5000.0,
                                        doc="trunk pitch stiffness through the stance hip")
-    trunk_kd_nm_s_per_rad: float = param(50.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
+    trunk_kd_nm_s_per_rad: float = param(150.0, unit="N*m*s/rad", lo=0.0, hi=500.0)
     stance_hip_tracking: float = param(
         1.0, unit="1", lo=0.0, hi=1.0,
         doc="1: the stance hip tracks its reference and adds the trunk torque; 0: SIMBICON's "
             "stance hip, which only holds the trunk upright")
     swing_hip_velocity_gain_rad_s_per_m: float = param(
-        0.2, unit="rad*s/m", lo=-5.0, hi=5.0,
+        0.25, unit="rad*s/m", lo=-5.0, hi=5.0,
         doc="SIMBICON c_v: swing hip target per m/s of speed above the stride-mean profile")
     foot_placement_speed_adaptation: float = param(
-        0.0, unit="1", lo=0.0, hi=1.0,
+        0.5, unit="1", lo=0.0, hi=1.0,
         doc="speed the foot placement regulates about: 1 the walker's own stride-mean speed, "
             "0 the reference posture's no-slip speed, between a blend")
     trunk_lean_gain_rad_s_per_m: float = param(
