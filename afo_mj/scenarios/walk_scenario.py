@@ -132,7 +132,9 @@ class WalkScenario:
                 "band_references": [f"{s}:{c}" for s, c in self.band_references],
                 "walker": {f.name: getattr(self.walker, f.name)
                            for f in dataclasses.fields(self.walker)},
-                "controller": dict(self.controller)}
+                "controller": dict(self.controller),
+                # every gain the run used (defaults included), so a result can be reproduced
+                "controller_effective": dataclasses.asdict(self.controller_params())}
 
 
 def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None = None):
