@@ -330,3 +330,23 @@ def test_walks_carrying_a_device_mass(worn):
     s = analyse_gait(rec, ref, (4, 10)).summary
     for joint in ("hip", "knee", "ankle"):
         assert _mean(s, f"{joint}_angle_rms_error_deg") <= 10.0, joint
+
+
+@pytest.mark.parametrize("walker_changes, controller_changes", [
+    ({"plantarflexor_strength_fraction": 0.45}, {}),
+    ({"plantarflexor_strength_fraction": 0.40}, {}),
+    ({}, {"initial_speed_m_s": 0.8}),
+    ({}, {"initial_speed_m_s": 1.3}),
+], ids=["weak-45", "weak-40", "start-0.8", "start-1.3"])
+def test_walker_keeps_walking_at_the_edges(walker_changes, controller_changes):
+    """The controller's basin (benchmarks/walker_robustness.py): deeper plantarflexor weakness
+    and starts well off the settled speed still walk 10 strides with the default gains."""
+    from afo_mj.gait.walk import ControllerParams, run_walk
+    from afo_mj.human.walker import WalkerParams
+
+    ref = load_normative("winter", "normal")
+    rec = run_walk(WalkerParams(**walker_changes), ref, ref.cycle_time_s, 10,
+                   ControllerParams(**controller_changes))
+    assert rec.events.fall_time_s is None
+    s = analyse_gait(rec, ref, (4, 10)).summary
+    assert s["residual_force_rms_percent_body_weight"]["over_analysed_span"] <= 8.0
