@@ -1,0 +1,1 @@
+"""Controllers of the orthoses: assistance profiles, gait-phase estimation."""

@@ -1,0 +1,1 @@
+"""Ankle orthoses assembled from the hydraulic component library."""

@@ -1,0 +1,479 @@
+"""The HAFO: untethered pump-controlled hydraulic ankle-foot orthosis (seed ch. 6).
+
+Published figures it must reproduce (Neubauer & Durfee 2016; ``shared/reference/facts.md``):
+65 N·m assistance torque, 105 deg/s no-load speed, 3.3 kg in all of which 0.97 kg is worn at
+the ankle, design target 90 N·m at 13.8 MPa. The unpublished parameters of :data:`HAFO` are
+chosen so that these figures come out of the model (``benchmarks``/bench scenario measure
+them); the reasoning, item by item:
+
+* **Pulley and cylinders** — design torque ``τ = p A_e r``: 90 N·m at 13.8 MPa needs
+  ``A_e r = 6.52e-6 m³``. An ankle pulley of radius 40 mm (clears the malleoli, keeps cable
+  tension below 2.3 kN) and two piston-cable cylinders (antagonistic, one each side of the
+  pulley, hydraulically cross-connected so both pull the same way) of 10.4 mm bore with a
+  2.0 mm cable give ``A_e = 2 · π/4 (10.4² − 2²) mm² = 163.6 mm²`` and ``A_e r = 6.545e-6 m³``:
+  90 N·m at 13.75 MPa. Stroke 45 mm covers ±32° of ankle motion.
+* **Pump** — the library's small external gear pump (0.2 cm³/rev, η_v ≈ 0.93, η_m ≈ 0.92 at
+  10 MPa): at 105 deg/s the ankle takes 0.72 L/min, 3600 rpm of this pump.
+* **Battery** — 6S Li-ion (22.5 V open circuit at the 50 % state of charge the bench figures
+  are quoted at), 3 Ah, 0.40 kg.
+* **Motor** — a 100 W class brushless motor: torque constant 0.055 N·m/A so that the no-load
+  speed at full duty, ``(0.95 · 22.5 V − R i_0)/K ≈ 384 rad/s``, drives the ankle at
+  ``384 · d / (A_e r) ≈ 107 deg/s`` before pump slip (≈ 105 deg/s after); 0.6 Ω, 0.1 mH.
+* **Current limit** — 6.2 A: at stall the pump needs ``d Δp (1 + C_f)`` + drag for
+  ``Δp = 65 N·m / (A_e r) = 9.9 MPa``, ≈ 0.34 N·m, i.e. 6.2 A at K = 0.055. So the 65 N·m
+  assistance torque is the driver's current limit, and the 90 N·m design torque is what the
+  structure and the relief (cracking at 14.0 MPa) are sized for.
+* **Hoses** — 1.1 m each (waist pack to ankle), 3.2 mm bore thermoplastic micro-hose with a
+  volumetric wall modulus of 1.5 GPa: Reynolds number ≈ 80 at the rated flow (laminar), 0.3 MPa
+  drop per hose at 105 deg/s in 25 °C VG 32.
+* **Oil** — ISO VG 32 (low enough viscosity for the cold start of a worn device, high enough for
+  pump slip), 0.1 % entrained air after bleeding.
+* **Charge** — a 0.2 MPa (gauge) spring reservoir feeds the low-pressure line through a
+  flushing (shuttle) valve.
+* **Masses** — :data:`HAFO_MASSES`, item by item; hose mass is computed (wall 45 g/m + oil).
+
+Torque control is through motor voltage (:func:`~afo_mj.devices.pump_ankle_actuator.
+controller`); its gains (:class:`HafoControlParams`) give the isometric torque-step response of
+the bench scenario (``scenarios/bench_hafo.toml``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.control import assistance as asst
+from afo_mj.devices import pump_ankle_actuator as pa
+from afo_mj.hydraulics.battery import BatteryParams
+from afo_mj.hydraulics.conduit import HoseParams
+from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
+from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, ISO_VG32, Fluid, FluidParams
+from afo_mj.hydraulics.motor import DriverParams, MotorParams
+from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_named
+from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL, PumpParams
+from afo_mj.hydraulics.relief_valve import ReliefValveParams
+from afo_mj.hydraulics.seal import OringSealParams
+from afo_mj.human.walker import WornMass
+
+__all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
+           "HafoDevice", "pack_parameters", "mass_budget", "hafo_params"]
+
+
+@dataclasses.dataclass(frozen=True)
+class HafoControlParams(Parameters):
+    """Gains of the low-level torque controller (see ``pump_ankle_actuator.controller``)."""
+
+    pressure_gain_rad_s_per_pa: float = param(1.2e-5, unit="rad/s/Pa", lo=0.0, hi=1e-2,
+                                              doc="k_p: pump speed per unit pressure error")
+    pressure_integral_gain_rad_per_pa: float = param(6e-5, unit="rad/(Pa s)", lo=0.0, hi=1.0,
+                                                     doc="k_i: pump speed per ∫ pressure error")
+    integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
+                                       doc="anti-windup clamp on ∫ pressure error")
+    speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
+                                          doc="k_ω: motor voltage per unit speed error")
+
+
+@dataclasses.dataclass(frozen=True)
+class PumpAnkleParams(Parameters):
+    """One side of a pump-controlled ankle orthosis, component by component."""
+
+    fluid: FluidParams = ISO_VG32.replace(air_fraction=0.001)
+    motor: MotorParams = MotorParams(resistance_ohm=0.6, inductance_h=0.1e-3,
+                                     torque_constant_nm_a=0.055, rotor_inertia_kg_m2=9e-6,
+                                     coulomb_torque_nm=0.004, viscous_coefficient_nm_s_rad=2e-6,
+                                     max_speed_rad_s=1700.0, mass_kg=0.35)
+    driver: DriverParams = DriverParams(current_limit_a=6.2, max_duty=0.95,
+                                        on_resistance_ohm=0.02, quiescent_power_w=0.3)
+    pump: PumpParams = GEAR_PUMP_SMALL
+    hose: HoseParams = HoseParams(length_m=1.1, bore_m=3.2e-3, wall_bulk_modulus_pa=1.5e9)
+    cylinder: CylinderParams = CylinderParams(
+        kind="piston_cable", bore_m=10.4e-3, rod_diameter_m=2.0e-3, stroke_m=0.045,
+        dead_volume_a_m3=0.3e-6, dead_volume_b_m3=0.3e-6, piston_mass_kg=0.02,
+        radial_clearance_m=5e-6, land_length_m=5e-3,
+        piston_seal=OringSealParams(cross_section_m=1.78e-3),
+        rod_seal=OringSealParams(cross_section_m=1.0e-3))
+    cylinders: float = param(2.0, unit="-", lo=1.0, hi=4.0, doc="cylinders on the pulley")
+    pulley_radius_m: float = param(0.040, unit="m", lo=0.005, hi=0.2, doc="ankle pulley radius r")
+    relief: ReliefValveParams = ReliefValveParams(cracking_dp_pa=14.0e6, override_dp_pa=1.0e6,
+                                                  max_area_m2=1.0e-6, leakage_area_m2=1e-11)
+    flushing_conductance_m3_s_pa: float = param(2e-11, unit="m^3/(s Pa)", lo=1e-15, hi=1e-6,
+                                                doc="flushing valve conductance (open)")
+    reservoir_pressure_pa: float = param(0.2e6, unit="Pa", lo=0.0, hi=5e6,
+                                         doc="charge reservoir gauge pressure")
+    flushing_band_pa: float = param(0.05e6, unit="Pa", lo=1e3, hi=1e6,
+                                    doc="line pressure difference over which the shuttle shifts")
+    pump_port_volume_m3: float = param(0.3e-6, unit="m^3", lo=1e-9, hi=1e-3,
+                                       doc="oil volume in each pump port and manifold")
+    battery: BatteryParams = BatteryParams(name="6S 3 Ah Li-ion NMC", capacity_ah=3.0,
+                                           cells_series=6.0, internal_resistance_ohm=0.10,
+                                           max_current_a=20.0, mass_kg=0.40)
+    initial_soc: float = param(0.5, unit="-", lo=0.0, hi=1.0, doc="battery state of charge at t=0")
+    heat_capacity_j_k: float = param(240.0, unit="J/K", lo=1.0, hi=1e6,
+                                     doc="oil (≈35 cm³) plus manifold/pump metal")
+    thermal_resistance_k_w: float = param(3.0, unit="K/W", lo=0.01, hi=1e3,
+                                          doc="oil to ambient through pack and hoses")
+    ambient_temperature_k: float = param(298.15, unit="K", lo=230.0, hi=330.0)
+    control: HafoControlParams = HafoControlParams()
+
+    def check(self) -> None:
+        if self.cylinder.kind != "piston_cable":
+            self.fail("cylinder", "the ankle actuator uses piston_cable cylinders")
+        if self.reservoir_pressure_pa >= self.relief.cracking_dp_pa:
+            self.fail("reservoir_pressure_pa", "must be below relief.cracking_dp_pa")
+
+    # -- derived figures ---------------------------------------------------------------------
+    @property
+    def effective_area_m2(self) -> float:
+        return self.cylinders * Cylinder(self.cylinder).area_a_m2
+
+    @property
+    def torque_per_pressure_m3(self) -> float:
+        """``A_e r``: ankle torque per pascal of line pressure difference."""
+        return self.effective_area_m2 * self.pulley_radius_m
+
+    @property
+    def hose_volume_m3(self) -> float:
+        return math.pi / 4 * self.hose.bore_m ** 2 * self.hose.length_m
+
+    @property
+    def oil_volume_m3(self) -> float:
+        cyl = self.cylinders * (self.cylinder.dead_volume_a_m3 + self.cylinder.dead_volume_b_m3
+                                + Cylinder(self.cylinder).area_a_m2 * self.cylinder.stroke_m)
+        return 2 * self.hose_volume_m3 + cyl + 2 * self.pump_port_volume_m3
+
+    def hydraulic_stiffness_nm_per_rad(self, pressure_pa: float = 1e6) -> float:
+        """Ankle stiffness of the oil with the pump held, ``(A_e r)² (1/C_a + 1/C_b)`` at
+        mid-stroke (Merritt §5.3; ``C`` = chamber + hose + port volume / B + hose wall)."""
+        fl = Fluid(self.fluid)
+        b = float(fl.bulk_modulus_pa(pressure_pa + ATMOSPHERIC_PRESSURE_PA))
+        v_ch = (self.cylinder.dead_volume_a_m3
+                + self.effective_area_m2 * self.cylinder.stroke_m / 2)
+        c_line = ((v_ch + self.hose_volume_m3 + self.pump_port_volume_m3) / b
+                  + self.hose_volume_m3 / self.hose.wall_bulk_modulus_pa)
+        return self.torque_per_pressure_m3 ** 2 * 2.0 / c_line
+
+
+HAFO_ACTUATOR = PumpAnkleParams()
+
+
+@dataclasses.dataclass(frozen=True)
+class HafoMassItem:
+    name: str
+    mass_kg: float
+    site: str          # walker site stem: waist, shank_cuff, foot_plate, ankle_axis
+    note: str = ""
+
+
+def _hose_mass_kg(p: PumpAnkleParams, wall_kg_m: float = 0.045) -> float:
+    oil = p.fluid.density_kg_m3 * p.hose_volume_m3
+    return 2 * (wall_kg_m * p.hose.length_m + oil)
+
+
+def mass_budget(p: PumpAnkleParams = HAFO_ACTUATOR) -> tuple[HafoMassItem, ...]:
+    """The HAFO's parts with their masses and where they are worn (one side)."""
+    return (
+        # ankle: 0.97 kg
+        HafoMassItem("cylinders", 0.26, "shank_cuff", "two 10.4 mm piston-cable cylinders, "
+                     "aluminium bodies, with oil"),
+        HafoMassItem("shank_cuff_struts", 0.31, "shank_cuff", "cuff, uprights, cable guides"),
+        HafoMassItem("pulley_bearings", 0.12, "ankle_axis", "40 mm pulley, axle, bearings"),
+        HafoMassItem("foot_plate", 0.28, "foot_plate", "carbon foot plate and stirrup"),
+        # waist: power supply
+        HafoMassItem("battery", p.battery.mass_kg, "waist", p.battery.name),
+        HafoMassItem("motor", p.motor.mass_kg, "waist", "100 W class brushless motor"),
+        HafoMassItem("pump", 0.20, "waist", "0.2 cm³/rev gear pump"),
+        HafoMassItem("manifold_reservoir_valves", 0.42, "waist",
+                     "manifold, charge reservoir, relief and flushing valves"),
+        HafoMassItem("electronics", 0.30, "waist", "motor driver, controller, sensors"),
+        HafoMassItem("enclosure_belt", 0.43, "waist", "housing and waist belt"),
+        HafoMassItem("hoses", _hose_mass_kg(p), "waist",
+                     "two hoses (45 g/m wall + oil), lumped with the pack"),
+    )
+
+
+HAFO_MASSES = mass_budget()
+HAFO = HAFO_ACTUATOR
+
+
+def hafo_params(overrides: dict | None = None) -> PumpAnkleParams:
+    """The HAFO preset with dotted-name overrides (``{"hose.length_m": 2.2}``), validated."""
+    return replace_named(HAFO_ACTUATOR, overrides or {}) if overrides else HAFO_ACTUATOR
+
+
+def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndarray:
+    """The flat parameter row the compiled kernel reads (``pump_ankle_actuator.P_*``)."""
+    P = np.zeros(pa.N_P)
+    m, dr, pu, ho, cy = p.motor, p.driver, p.pump, p.hose, p.cylinder
+    fl = Fluid(p.fluid)
+    cyl = Cylinder(cy)
+    P[pa.P_R] = m.resistance_ohm
+    P[pa.P_L] = m.inductance_h
+    P[pa.P_K] = m.torque_constant_nm_a
+    P[pa.P_J] = m.rotor_inertia_kg_m2 + pu.rotor_inertia_kg_m2
+    P[pa.P_TC_M] = m.coulomb_torque_nm if m.friction_enabled else 0.0
+    P[pa.P_BV_M] = m.viscous_coefficient_nm_s_rad if m.friction_enabled else 0.0
+    P[pa.P_WC_M] = m.smoothing_speed_rad_s
+    P[pa.P_I_LIM] = dr.current_limit_a
+    P[pa.P_DUTY] = dr.max_duty
+    P[pa.P_R_ON] = dr.on_resistance_ohm
+    P[pa.P_P_Q] = dr.quiescent_power_w
+    P[pa.P_CUR_LIM_ON] = 1.0 if dr.current_limit_enabled else 0.0
+    if pu.variable_displacement_enabled:
+        raise ParameterError("pump.variable_displacement_enabled = True; the pump-controlled "
+                             "ankle uses a fixed-displacement pump (allowed: False)")
+    P[pa.P_D] = pu.displacement_m3_rev / (2 * math.pi)
+    P[pa.P_CS] = pu.slip_coefficient if pu.leakage_enabled else 0.0
+    P[pa.P_CF] = pu.coulomb_coefficient if pu.coulomb_friction_enabled else 0.0
+    P[pa.P_CV] = pu.viscous_coefficient if pu.viscous_friction_enabled else 0.0
+    P[pa.P_T0] = pu.drag_torque_nm
+    P[pa.P_WC_P] = pu.smoothing_speed_rad_s
+    P[pa.P_HOSE_K] = 128.0 * ho.length_m / (math.pi * ho.bore_m ** 4)
+    P[pa.P_V_HOSE] = p.hose_volume_m3
+    P[pa.P_KWALL_INV] = 1.0 / ho.wall_bulk_modulus_pa if ho.wall_compliance_enabled else 0.0
+    P[pa.P_A_E] = p.effective_area_m2
+    P[pa.P_N_CYL] = p.cylinders
+    P[pa.P_R_PULLEY] = p.pulley_radius_m
+    P[pa.P_V_DEAD] = cy.dead_volume_a_m3
+    P[pa.P_STROKE] = cy.stroke_m
+    P[pa.P_G_LEAK] = cyl.leakage_conductance_m3 if cy.internal_leakage_enabled else 0.0
+    if cy.seal_friction_enabled:
+        ps, rs = cyl.piston_seal, cyl.rod_seal
+        # one piston seal + two cable seals per cylinder, all sliding at the piston speed
+        P[pa.P_SEAL_FC] = ps.coulomb_force_n + 2 * rs.coulomb_force_n
+        P[pa.P_SEAL_STRIB] = ps._stribeck_gain + 2 * rs._stribeck_gain
+        P[pa.P_SEAL_VST] = ps._v_st
+        P[pa.P_SEAL_VC] = ps._v_c
+        P[pa.P_SEAL_FV] = ps._fv + 2 * rs._fv
+    else:
+        P[pa.P_SEAL_VST] = P[pa.P_SEAL_VC] = 1.0
+    rv = p.relief
+    P[pa.P_REL_CRACK] = rv.cracking_dp_pa
+    P[pa.P_REL_OVER] = rv.override_dp_pa
+    P[pa.P_REL_AMAX] = rv.max_area_m2
+    P[pa.P_REL_ALEAK] = rv.leakage_area_m2 if rv.leakage_enabled else 0.0
+    P[pa.P_REL_CD] = rv.discharge_coefficient
+    P[pa.P_REL_PCR] = rv.transition_pressure_pa
+    P[pa.P_FLUSH_G] = p.flushing_conductance_m3_s_pa
+    P[pa.P_P_RES] = p.reservoir_pressure_pa
+    P[pa.P_FLUSH_BAND] = p.flushing_band_pa
+    f = p.fluid
+    P[pa.P_B_L] = f.liquid_bulk_modulus_pa
+    P[pa.P_AIR] = f.air_fraction if f.entrained_air_enabled else 0.0
+    P[pa.P_N_POLY] = f.polytropic_index
+    P[pa.P_P_ATM] = ATMOSPHERIC_PRESSURE_PA
+    P[pa.P_P_FLOOR] = f.pressure_floor_pa
+    P[pa.P_RHO] = f.density_kg_m3
+    P[pa.P_V_PORT] = p.pump_port_volume_m3
+    b = p.battery
+    P[pa.P_BAT_R] = b.internal_resistance_ohm
+    P[pa.P_BAT_NS] = b.cells_series
+    P[pa.P_BAT_CAP_C] = 3600.0 * b.capacity_ah
+    P[pa.P_C_TH] = p.heat_capacity_j_k
+    P[pa.P_R_TH] = p.thermal_resistance_k_w
+    P[pa.P_T_AMB] = p.ambient_temperature_k
+    P[pa.P_WALTHER_B] = fl.walther_b
+    P[pa.P_WALTHER_C] = fl.walther_c
+    P[pa.P_RHO_T_COEF] = f.thermal_expansion_per_k
+    P[pa.P_T_REF] = f.reference_temperature_k
+    c = p.control
+    P[pa.P_K_PRESSURE] = c.pressure_gain_rad_s_per_pa
+    P[pa.P_K_SPEED] = c.speed_gain_v_s_per_rad
+    P[pa.P_K_INT] = c.pressure_integral_gain_rad_per_pa
+    P[pa.P_INT_LIM] = c.integral_limit_pa_s
+    P[pa.P_MODE] = mode
+    return P
+
+
+SIDE_NAMES = ("right", "left")
+
+
+class HafoDevice:
+    """HAFO worn on one or both ankles, stepped with MuJoCo (coupled-device protocol).
+
+    ``begin_step(t, angle, velocity, stance)`` → ``(joint_force, joint_damping)`` per walker
+    side (zeros where not worn); MuJoCo steps; ``end_step(velocity_new)`` → delivered torque.
+    ``profile`` is a tabulated torque vs stride phase (+dorsiflexion, N·m,
+    :mod:`afo_mj.control.assistance`) or ``None`` (transparent: zero commanded torque).
+    ``torque_fn(t, angle, velocity) -> N·m`` replaces the profile (bench tests); with
+    ``mode="voltage"`` it returns the motor voltage instead (open-loop bench tests).
+    """
+
+    coupled = True
+
+    def __init__(self, params: PumpAnkleParams = HAFO_ACTUATOR, sides=("right",),
+                 profile: np.ndarray | None = None, timestep_s: float = 1e-3,
+                 max_steps: int = 0, mode: str = "torque", torque_fn=None,
+                 initial_pressure_pa: float | None = None, min_stride_s: float = 0.4,
+                 max_stride_s: float = 3.0):
+        if mode not in ("torque", "voltage"):
+            raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
+        bad = [s for s in sides if s not in SIDE_NAMES]
+        if bad or not sides or len(set(sides)) != len(sides):
+            raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
+                                 "of ['right', 'left']")
+        self.params = params
+        self.sides = tuple(sides)
+        self.side_index = np.array([SIDE_NAMES.index(s) for s in self.sides], dtype=np.int64)
+        ns = len(self.sides)
+        self.mode = mode
+        self.P = np.tile(pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage"
+                                         else pa.MODE_TORQUE), (ns, 1))
+        self.profile = (np.zeros(asst.TABLE_POINTS) if profile is None
+                        else np.ascontiguousarray(profile, dtype=float))
+        self.transparent = profile is None and torque_fn is None
+        self.torque_fn = torque_fn
+        self.timestep_s = float(timestep_s)
+        p0 = params.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
+        self.Y = np.zeros((ns, pa.N_Y))
+        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
+        self.W = np.zeros((ns, pa.N_W))
+        self.W[:, pa.W_SOC] = params.initial_soc
+        self.W[:, pa.W_TEMP_K] = params.ambient_temperature_k
+        self.W[:, pa.W_P_MAX] = p0
+        self.S = np.zeros((ns, 19, pa.N_F))
+        self.S[:, 0, 0] = self.timestep_s
+        self.phase_state = asst.new_phase_state(ns)
+        self.stride_limits = (float(min_stride_s), float(max_stride_s))
+        self._theta = np.zeros(ns)
+        self._thd = np.zeros(ns)
+        self._cmd = np.zeros(ns)
+        self._out = np.zeros((ns, 2))
+        self._tau = np.zeros(ns)
+        self._vnew = np.zeros(ns)
+        self.force2 = np.zeros(2)
+        self.damping2 = np.zeros(2)
+        self.delivered2 = np.zeros(2)
+        self.commanded2 = np.zeros(2)
+        self.phase2 = np.full(2, -1.0)
+        self.steps = 0
+        self.log = _DeviceLog(max_steps, ns) if max_steps else None
+        self.t_s = 0.0
+
+    # -- masses ----------------------------------------------------------------------------
+    def worn_masses(self) -> list[WornMass]:
+        """:class:`WornMass` items for the walker: ankle parts on each worn side, one power
+        supply per worn side at the waist."""
+        out = []
+        for side in self.sides:
+            suf = "r" if side == "right" else "l"
+            for it in mass_budget(self.params):
+                site = "waist" if it.site == "waist" else f"{it.site}_{suf}"
+                out.append(WornMass(site, it.mass_kg, f"hafo_{side}_{it.name}"))
+        return out
+
+    @property
+    def mass_total_kg(self) -> float:
+        return len(self.sides) * sum(i.mass_kg for i in mass_budget(self.params))
+
+    @property
+    def mass_at_ankle_kg(self) -> float:
+        """Per worn side (what the published 0.97 kg refers to)."""
+        return sum(i.mass_kg for i in mass_budget(self.params) if i.site != "waist")
+
+    # -- stepping ------------------------------------------------------------------------------
+    def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
+        """Hold inputs, compute the commanded torque and linearise (see module docs of
+        :mod:`~afo_mj.devices.pump_ankle_actuator`); returns views of the per-walker-side
+        joint force and extra damping (length 2)."""
+        si = self.side_index
+        th, thd, cmd = self._theta, self._thd, self._cmd
+        lo, hi = self.stride_limits
+        for k in range(len(si)):
+            s = si[k]
+            th[k] = angle_rad[s]
+            thd[k] = velocity_rad_s[s]
+            if self.torque_fn is not None:
+                cmd[k] = self.torque_fn(t, th[k], thd[k])
+            else:
+                ph = asst.phase_update(self.phase_state[k], t, bool(stance[s]), lo, hi)
+                cmd[k] = asst.table_lookup(self.profile, ph)
+                self.phase2[s] = ph
+        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)
+        f2, d2 = self.force2, self.damping2
+        for k in range(len(si)):
+            f2[si[k]] = self._out[k, 0]
+            d2[si[k]] = self._out[k, 1]
+            self.commanded2[si[k]] = cmd[k]
+        self.t_s = t
+        return f2, d2
+
+    def end_step(self, velocity_new_rad_s):
+        """Close the step with the ankle velocity MuJoCo produced; returns delivered torques
+        (length 2, zero where not worn)."""
+        si = self.side_index
+        for k in range(len(si)):
+            self._vnew[k] = velocity_new_rad_s[si[k]]
+        ok = pa.finish_all(self.Y, self.P, self.W, self.S, self._vnew, self._tau)
+        if not ok:
+            raise FloatingPointError(
+                f"HAFO hydraulic state became non-finite at t = {self.t_s:.4f} s: "
+                f"{dict(zip(pa.STATE_NAMES, self.Y[0].tolist()))}")
+        for k in range(len(si)):
+            self.delivered2[si[k]] = self._tau[k]
+        if self.log is not None:
+            self.log.write(self.steps, self.t_s + self.timestep_s, self)
+        self.steps += 1
+        return self.delivered2
+
+    # -- results ---------------------------------------------------------------------------
+    def ledger(self, k: int = 0) -> dict:
+        """Energy ledger of worn side ``k`` (J), with the balance residual."""
+        W = self.W[k]
+        losses = {n: float(W[i]) for n, i in zip(pa.LOSS_NAMES, pa.LOSS_INDEX)}
+        stored = {"inductance": float(W[pa.W_E_STORE_L]), "rotor": float(W[pa.W_E_STORE_ROT]),
+                  "oil": float(W[pa.W_E_STORE_OIL]),
+                  # the reservoir gives energy when it feeds the lines: its store falls
+                  "reservoir": float(W[pa.W_E_RESERVOIR])}
+        e_in = float(W[pa.W_E_CHEM])
+        e_out = float(W[pa.W_E_MECH])
+        resid = e_in - e_out - sum(losses.values()) - sum(stored.values())
+        return {"electrical_in_j": e_in, "mechanical_out_j": e_out,
+                "hydraulic_j": float(W[pa.W_E_HYD]), "losses_j": losses,
+                "stored_change_j": stored, "residual_j": resid,
+                "heat_to_oil_j": float(W[pa.W_HEAT_TO_OIL]),
+                "peak_pressure_pa": float(W[pa.W_P_MAX]),
+                "peak_current_a": float(W[pa.W_I_PEAK]),
+                "temperature_rise_k": float(W[pa.W_TEMP_K] - self.params.ambient_temperature_k),
+                "soc": float(W[pa.W_SOC]), "pressure_floor_steps": int(W[pa.W_CLIP_STEPS])}
+
+
+class _DeviceLog:
+    """Preallocated per-step device signals (per worn side)."""
+
+    FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
+              "phase", "motor_command_v", "motor_current_a", "motor_speed_rad_s",
+              "pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
+              "bus_voltage_v", "battery_current_a", "mechanical_power_w", "oil_temperature_k",
+              "ankle_velocity_rad_s")
+
+    def __init__(self, n: int, ns: int):
+        self.n = 0
+        self.data = np.zeros((len(self.FIELDS), n, ns))
+
+    def write(self, k: int, t: float, dev: HafoDevice) -> None:
+        if k >= self.data.shape[1]:
+            return
+        d, W, Y = self.data, dev.W, dev.Y
+        d[0, k] = t
+        d[1, k] = W[:, pa.W_TAU_CMD]
+        d[2, k] = W[:, pa.W_TAU]
+        d[3, k] = W[:, pa.W_TAU_MEAS]
+        d[4, k] = dev.phase_state[:, asst.PH_PHASE]
+        d[5, k] = W[:, pa.W_V_CMD]
+        d[6, k] = Y[:, pa.Y_I]
+        d[7, k] = Y[:, pa.Y_W]
+        d[8, k] = Y[:, pa.Y_PPA]
+        d[9, k] = Y[:, pa.Y_PPB]
+        d[10, k] = Y[:, pa.Y_PCA]
+        d[11, k] = Y[:, pa.Y_PCB]
+        d[12, k] = W[:, pa.W_V_BUS]
+        d[13, k] = W[:, pa.W_I_BAT]
+        d[14, k] = W[:, pa.W_P_MECH]
+        d[15, k] = W[:, pa.W_TEMP_K]
+        d[16, k] = dev._vnew
+        self.n = k + 1
+
+    def arrays(self) -> dict:
+        return {f: self.data[i, :self.n].copy() for i, f in enumerate(self.FIELDS)}
