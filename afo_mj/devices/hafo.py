@@ -67,9 +67,9 @@ class HafoControlParams(Parameters):
 
     pressure_gain_rad_s_per_pa: float = param(1.2e-5, unit="rad/s/Pa", lo=0.0, hi=1e-2,
                                               doc="k_p: pump speed per unit pressure error")
-    pressure_integral_gain_rad_per_pa: float = param(6e-5, unit="rad/(Pa s)", lo=0.0, hi=1.0,
+    pressure_integral_gain_rad_per_pa: float = param(4e-4, unit="rad/(Pa s)", lo=0.0, hi=1.0,
                                                      doc="k_i: pump speed per ∫ pressure error")
-    integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
+    integral_limit_pa_s: float = param(1e5, unit="Pa s", lo=0.0, hi=1e9,
                                        doc="anti-windup clamp on ∫ pressure error")
     speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
                                           doc="k_ω: motor voltage per unit speed error")

@@ -419,6 +419,50 @@ class AnkleTestStand:
             out[5, k] = qacc[va]
         return StandRecord(*out)
 
+    def run_device(self, device, duration_s: float) -> StandRecord:
+        """Step for ``duration_s`` with a coupled hydraulic device on the ankle (a
+        :class:`afo_mj.devices.hafo.HafoDevice`, worn on the ``right`` side here): each step
+        the device linearises its hydraulics about the current state and hands MuJoCo its
+        end-of-step torque as a joint force plus extra joint damping, which MuJoCo's
+        implicitfast integrator treats implicitly (see
+        :mod:`afo_mj.devices.pump_ankle_actuator`); after the step the new ankle velocity
+        closes the device's step. ``device_torque_nm`` records the delivered torque."""
+        n = int(round(duration_s / self.timestep_s))
+        m, d = self.model, self.data
+        qa, va = self.qpos_adr, self.dof_adr
+        base = float(self.load.joint_damping_nm_s_per_rad)
+        out = np.empty((6, n))
+        traj = self._traj
+        qpos, qvel, qacc, qfa = d.qpos, d.qvel, d.qacc, d.qfrc_applied
+        qfc, qfp = d.qfrc_constraint, d.qfrc_passive
+        damp = m.dof_damping
+        ang, vel, vnew = np.zeros(2), np.zeros(2), np.zeros(2)
+        stance = np.zeros(2, dtype=bool)
+        self.data.ctrl[self.act] = 0.0
+        try:
+            for k in range(n):
+                t = d.time
+                ang[0] = qpos[qa]
+                vel[0] = qvel[va]
+                force, extra = device.begin_step(t, ang, vel, stance)
+                qfa[va] = force[0]
+                damp[va] = base + extra[0]
+                if traj is not None:
+                    self._set_target(t)
+                mujoco.mj_step(m, d)
+                vnew[0] = qvel[va]
+                tau = device.end_step(vnew)[0]
+                out[0, k] = t
+                out[1, k] = ang[0]
+                out[2, k] = vel[0]
+                out[3, k] = tau
+                out[4, k] = -(qfc[va] + qfp[va])
+                out[5, k] = qacc[va]
+        finally:
+            damp[va] = base
+            qfa[va] = 0.0
+        return StandRecord(*out)
+
 
 def write_default_xml(path: str | Path = DEFAULT_XML_PATH) -> Path:
     """Write the default stand (75 kg, 1.75 m, free load, 1 ms) as MJCF XML; returns the path."""
