@@ -28,8 +28,10 @@ them); the reasoning, item by item:
   drop per hose at 105 deg/s in 25 °C VG 32.
 * **Oil** — ISO VG 32 (low enough viscosity for the cold start of a worn device, high enough for
   pump slip), 0.1 % entrained air after bleeding.
-* **Charge** — a 0.2 MPa (gauge) spring reservoir feeds the low-pressure line through a
-  flushing (shuttle) valve.
+* **Charge** — a 1.5 MPa (gauge) bootstrap reservoir (closed hydrostatic loops run 1–2 MPa
+  of charge so that the hose drop at full ankle speed never cavitates a chamber) feeds the low-pressure line through a
+  flushing (shuttle) valve, and make-up check valves refill either line when the ankle
+  outruns the pump.
 * **Masses** — :data:`HAFO_MASSES`, item by item; hose mass is computed (wall 45 g/m + oil).
 
 Torque control is through motor voltage (:func:`~afo_mj.devices.pump_ankle_actuator.
@@ -81,9 +83,9 @@ class PumpAnkleParams(Parameters):
 
     fluid: FluidParams = ISO_VG32.replace(air_fraction=0.001)
     motor: MotorParams = MotorParams(resistance_ohm=0.6, inductance_h=0.1e-3,
-                                     torque_constant_nm_a=0.055, rotor_inertia_kg_m2=9e-6,
+                                     torque_constant_nm_a=0.055, rotor_inertia_kg_m2=5e-7,
                                      coulomb_torque_nm=0.004, viscous_coefficient_nm_s_rad=2e-6,
-                                     max_speed_rad_s=1700.0, mass_kg=0.35)
+                                     max_speed_rad_s=1700.0, mass_kg=0.14)
     driver: DriverParams = DriverParams(current_limit_a=6.2, max_duty=0.95,
                                         on_resistance_ohm=0.02, quiescent_power_w=0.3)
     pump: PumpParams = GEAR_PUMP_SMALL
@@ -98,9 +100,13 @@ class PumpAnkleParams(Parameters):
     pulley_radius_m: float = param(0.040, unit="m", lo=0.005, hi=0.2, doc="ankle pulley radius r")
     relief: ReliefValveParams = ReliefValveParams(cracking_dp_pa=14.0e6, override_dp_pa=1.0e6,
                                                   max_area_m2=1.0e-6, leakage_area_m2=1e-11)
-    flushing_conductance_m3_s_pa: float = param(2e-11, unit="m^3/(s Pa)", lo=1e-15, hi=1e-6,
+    flushing_conductance_m3_s_pa: float = param(5e-12, unit="m^3/(s Pa)", lo=1e-15, hi=1e-6,
                                                 doc="flushing valve conductance (open)")
-    reservoir_pressure_pa: float = param(0.2e6, unit="Pa", lo=0.0, hi=5e6,
+    makeup_conductance_m3_s_pa: float = param(1e-9, unit="m^3/(s Pa)", lo=1e-15, hi=1e-6,
+                                              doc="make-up check valve conductance (open)")
+    makeup_band_pa: float = param(2e4, unit="Pa", lo=1e2, hi=1e6,
+                                  doc="opening corner width of the make-up check valves")
+    reservoir_pressure_pa: float = param(1.5e6, unit="Pa", lo=0.0, hi=5e6,
                                          doc="charge reservoir gauge pressure")
     flushing_band_pa: float = param(0.05e6, unit="Pa", lo=1e3, hi=1e6,
                                     doc="line pressure difference over which the shuttle shifts")
@@ -258,6 +264,8 @@ def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndar
     P[pa.P_FLUSH_G] = p.flushing_conductance_m3_s_pa
     P[pa.P_P_RES] = p.reservoir_pressure_pa
     P[pa.P_FLUSH_BAND] = p.flushing_band_pa
+    P[pa.P_MAKEUP_G] = p.makeup_conductance_m3_s_pa
+    P[pa.P_MAKEUP_BAND] = p.makeup_band_pa
     f = p.fluid
     P[pa.P_B_L] = f.liquid_bulk_modulus_pa
     P[pa.P_AIR] = f.air_fraction if f.entrained_air_enabled else 0.0
@@ -265,6 +273,7 @@ def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndar
     P[pa.P_P_ATM] = ATMOSPHERIC_PRESSURE_PA
     P[pa.P_P_FLOOR] = f.pressure_floor_pa
     P[pa.P_RHO] = f.density_kg_m3
+    P[pa.P_CAV_BAND] = f.cavitation_band_pa
     P[pa.P_V_PORT] = p.pump_port_volume_m3
     b = p.battery
     P[pa.P_BAT_R] = b.internal_resistance_ohm
@@ -332,7 +341,7 @@ class HafoDevice:
         self.W[:, pa.W_SOC] = params.initial_soc
         self.W[:, pa.W_TEMP_K] = params.ambient_temperature_k
         self.W[:, pa.W_P_MAX] = p0
-        self.S = np.zeros((ns, 19, pa.N_F))
+        self.S = np.zeros((ns, 30, pa.N_F))
         self.S[:, 0, 0] = self.timestep_s
         self.phase_state = asst.new_phase_state(ns)
         self.stride_limits = (float(min_stride_s), float(max_stride_s))
@@ -429,14 +438,23 @@ class HafoDevice:
         e_in = float(W[pa.W_E_CHEM])
         e_out = float(W[pa.W_E_MECH])
         resid = e_in - e_out - sum(losses.values()) - sum(stored.values())
-        return {"electrical_in_j": e_in, "mechanical_out_j": e_out,
+        drawn = float(W[pa.W_E_CHEM_DRAWN])
+        scale = max(drawn, 1e-12)
+        return {"electrical_in_j": e_in, "electrical_drawn_j": drawn,
+                "electrical_regenerated_j": drawn - e_in, "mechanical_out_j": e_out,
+                "balance_error_rel": resid / scale,
+                "energy_throughput_j": float(W[pa.W_E_ABS_FLOW]),
                 "hydraulic_j": float(W[pa.W_E_HYD]), "losses_j": losses,
                 "stored_change_j": stored, "residual_j": resid,
                 "heat_to_oil_j": float(W[pa.W_HEAT_TO_OIL]),
                 "peak_pressure_pa": float(W[pa.W_P_MAX]),
                 "peak_current_a": float(W[pa.W_I_PEAK]),
                 "temperature_rise_k": float(W[pa.W_TEMP_K] - self.params.ambient_temperature_k),
-                "soc": float(W[pa.W_SOC]), "pressure_floor_steps": int(W[pa.W_CLIP_STEPS])}
+                "soc": float(W[pa.W_SOC]), "pressure_floor_steps": int(W[pa.W_CLIP_STEPS]),
+                "newton_iterations": int(W[pa.W_NEWTON_ITERS]),
+                "newton_unconverged_steps": int(W[pa.W_NEWTON_FAIL]),
+                "coupling_torque_error_rms_nm": float(np.sqrt(W[pa.W_COUPLE_SQ]
+                                                              / max(self.steps, 1)))}
 
 
 class _DeviceLog:

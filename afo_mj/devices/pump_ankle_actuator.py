@@ -23,8 +23,11 @@ checks them against those modules):
 * relief (:mod:`afo_mj.hydraulics.relief_valve`): opening a smoothstep ramp from cracking to
   cracking + override, orifice ``Q = C_d A √(2/ρ) Δp/(Δp² + p_cr²)^¼``; one valve each way
   between the pump ports.
-* flushing valve: conductance ``G_f`` from the reservoir (gauge ``p_r``) into the lower line,
-  switched by a ``tanh`` of the line pressure difference over ``band``.
+* charge valves (loss ``charge_valves``): a flushing valve of conductance ``G_f`` between the
+  reservoir (gauge ``p_r``) and the lower line, switched by a ``tanh`` of the line pressure
+  difference over ``band``, and a make-up check valve into each line,
+  ``Q = G_m · ramp(x)``, ``x = p_r − p``, ramp C¹ over ``b`` (:func:`_ramp_c1`) (opens as the line falls below the
+  reservoir: the ankle can outrun the pump without cavitating the suction line).
 * cylinders (:mod:`afo_mj.hydraulics.cylinder`, :mod:`afo_mj.hydraulics.seal`): effective area
   ``A_e = n A`` (n cylinders, annular area ``A = π/4 (D² − d_c²)``); line a drives
   plantarflexion. Piston speed ``ẋ = r θ̇``; chamber a volume
@@ -81,8 +84,8 @@ _P_NAMES = (
     "A_E", "N_CYL", "R_PULLEY", "V_DEAD", "STROKE", "G_LEAK",
     "SEAL_FC", "SEAL_STRIB", "SEAL_VST", "SEAL_VC", "SEAL_FV",
     "REL_CRACK", "REL_OVER", "REL_AMAX", "REL_ALEAK", "REL_CD", "REL_PCR",
-    "FLUSH_G", "P_RES", "FLUSH_BAND",
-    "B_L", "AIR", "N_POLY", "P_ATM", "P_FLOOR", "RHO",
+    "FLUSH_G", "P_RES", "FLUSH_BAND", "MAKEUP_G", "MAKEUP_BAND",
+    "B_L", "AIR", "N_POLY", "P_ATM", "P_FLOOR", "RHO", "CAV_BAND",
     "V_PORT",
     # battery
     "BAT_R", "BAT_NS", "BAT_CAP_C",
@@ -113,6 +116,8 @@ _W_NAMES = (
     "E_RESERVOIR", "E_STORE_L", "E_STORE_ROT", "E_STORE_OIL",
     # extrema and diagnostics
     "P_MAX", "HEAT_TO_OIL", "E_HYD", "I_PEAK", "CLIP_STEPS",
+    # coupling: end-point torque after the Newton correction, Σ(τ_applied − τ_end)², Newton
+    "TAU_END", "COUPLE_SQ", "NEWTON_ITERS", "NEWTON_FAIL", "E_CHEM_DRAWN", "E_ABS_FLOW",
 )
 for _k, _n in enumerate(_W_NAMES):
     globals()["W_" + _n] = _k
@@ -120,7 +125,7 @@ N_W = len(_W_NAMES)
 
 #: Loss names in the ledger, in the order of the chain (battery → ankle), with their W_ index.
 LOSS_NAMES = ("battery_internal", "driver", "motor_copper", "motor_friction", "pump_volumetric",
-              "pump_mechanical", "line", "flushing_valve", "relief", "seal_friction", "leakage")
+              "pump_mechanical", "line", "charge_valves", "relief", "seal_friction", "leakage")
 LOSS_INDEX = tuple(globals()["W_" + n] for n in (
     "E_BATTERY", "E_DRIVER", "E_COPPER", "E_MOTOR_FRICTION", "E_PUMP_VOL", "E_PUMP_MECH",
     "E_LINE", "E_FLUSH", "E_RELIEF", "E_SEAL", "E_LEAK"))
@@ -133,20 +138,6 @@ N_F = 20
 MODE_TORQUE, MODE_VOLTAGE = 0.0, 1.0
 
 
-@numba.njit(cache=True, fastmath=False)
-def _bulk_modulus(p_gauge, P):
-    """Seed eq. 2.5 (entrained air) at absolute pressure, with the pressure floor."""
-    p = p_gauge + P[P_P_ATM]
-    if p < P[P_P_FLOOR]:
-        p = P[P_P_FLOOR]
-    a = P[P_AIR]
-    if a == 0.0:
-        return P[P_B_L]
-    n = P[P_N_POLY]
-    ratio = (P[P_P_ATM] / p) ** (1.0 / n)
-    return P[P_B_L] * (1.0 + a * ratio) / (1.0 + a * ratio * P[P_B_L] / (n * p))
-
-
 @numba.njit(cache=True)
 def _smoothstep01(s):
     if s <= 0.0:
@@ -154,6 +145,46 @@ def _smoothstep01(s):
     if s >= 1.0:
         return 1.0
     return s * s * (3.0 - 2.0 * s)
+
+
+@numba.njit(cache=True, fastmath=False)
+def _bulk_modulus(p_gauge, P):
+    """Seed eq. 2.5 (entrained air) at absolute pressure. (The charge pressure keeps every
+    node well above the vapour floor; a node that reaches it anyway is clamped there after
+    the step and counted, instead of the library's cavitation softening, whose thousandfold
+    capacitance change would stall the step's Newton correction.)"""
+    p = p_gauge + P[P_P_ATM]
+    cav = 1.0
+    if p < P[P_P_FLOOR]:
+        p = P[P_P_FLOOR]
+    a = P[P_AIR]
+    if a == 0.0:
+        return P[P_B_L] * cav
+    n = P[P_N_POLY]
+    ratio = (P[P_P_ATM] / p) ** (1.0 / n)
+    return cav * P[P_B_L] * (1.0 + a * ratio) / (1.0 + a * ratio * P[P_B_L] / (n * p))
+
+
+@numba.njit(cache=True)
+def _ramp_c1(x, b):
+    """``max(x, 0)`` with a quadratic start over ``0 … b``: 0 for ``x ≤ 0``, ``x²/(2b)`` up to
+    ``b``, ``x − b/2`` beyond (C¹; a check valve cracking at zero pressure difference)."""
+    if x <= 0.0:
+        return 0.0
+    if x < b:
+        return 0.5 * x * x / b
+    return x - 0.5 * b
+
+
+@numba.njit(cache=True)
+def _soft_clip(x, lo, hi, r):
+    """``min(max(x, lo), hi)`` with hyperbolic corners of radius ``r`` (same units as ``x``):
+    exact away from the corners, C¹ at them (so Newton does not cycle on the driver's voltage
+    clamps)."""
+    a = x - lo
+    x = lo + 0.5 * (a + math.sqrt(a * a + r * r)) - 0.5 * r
+    b = hi - x
+    return hi - 0.5 * (b + math.sqrt(b * b + r * r)) + 0.5 * r
 
 
 @numba.njit(cache=True)
@@ -187,15 +218,9 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     emf = P[P_K] * w
     if P[P_CUR_LIM_ON] > 0.0:
         band = P[P_R] * P[P_I_LIM]
-        if volt > emf + band:
-            volt = emf + band
-        elif volt < emf - band:
-            volt = emf - band
+        volt = _soft_clip(volt, emf - band, emf + band, 0.05)
     vmax = P[P_DUTY] * v_bus
-    if volt > vmax:
-        volt = vmax
-    elif volt < -vmax:
-        volt = -vmax
+    volt = _soft_clip(volt, -vmax, vmax, 0.05)
     di = (volt - P[P_R] * cur - emf) / P[P_L]
     tf_m = P[P_TC_M] * math.tanh(w / P[P_WC_M]) + P[P_BV_M] * w
     # pump
@@ -203,7 +228,10 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     q_leak_p = P[P_CS] * P[P_D] * dpp / mu
     q_pump = P[P_D] * w - q_leak_p
     sgn = math.tanh(w / P[P_WC_P])
-    t_pfric = (P[P_CF] * P[P_D] * abs(dpp) + P[P_T0]) * sgn + P[P_CV] * P[P_D] * mu * w
+    # |Δp| rounded over 10 kPa: the Coulomb term's kink at equal port pressures would stall
+    # the step's Newton correction (and is not physical at that scale anyway)
+    abs_dp = math.sqrt(dpp * dpp + 1e8)
+    t_pfric = (P[P_CF] * P[P_D] * abs_dp + P[P_T0]) * sgn + P[P_CV] * P[P_D] * mu * w
     t_pump = P[P_D] * dpp + t_pfric
     dw = (P[P_K] * cur - tf_m - t_pump) / P[P_J]
     # hoses
@@ -216,6 +244,12 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     s_a = 0.5 * (1.0 + math.tanh((ppb - ppa) / P[P_FLUSH_BAND]))
     q_fa = P[P_FLUSH_G] * s_a * (P[P_P_RES] - ppa)
     q_fb = P[P_FLUSH_G] * (1.0 - s_a) * (P[P_P_RES] - ppb)
+    # make-up (anti-cavitation) check valves: reservoir into any line below its pressure
+    eb = P[P_MAKEUP_BAND]
+    xa = P[P_P_RES] - ppa
+    xb = P[P_P_RES] - ppb
+    q_ma = P[P_MAKEUP_G] * _ramp_c1(xa, eb)
+    q_mb = P[P_MAKEUP_G] * _ramp_c1(xb, eb)
     # cylinders on the pulley
     r = P[P_R_PULLEY]
     ae = P[P_A_E]
@@ -237,8 +271,8 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     c_pb = (P[P_V_PORT] + vh2) / _bulk_modulus(ppb, P) + cw
     c_ca = (va + vh2) / _bulk_modulus(pca, P) + cw
     c_cb = (vb + vh2) / _bulk_modulus(pcb, P) + cw
-    net_pa = q_pump - q_ha - q_rel + q_fa
-    net_pb = -q_pump - q_hb + q_rel + q_fb
+    net_pa = q_pump - q_ha - q_rel + q_fa + q_ma
+    net_pb = -q_pump - q_hb + q_rel + q_fb + q_mb
     net_ca = q_ha - q_lk + ae * xdot
     net_cb = q_hb + q_lk - ae * xdot
     dy[Y_I] = di
@@ -256,11 +290,11 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     F[F_PVOL] = dpp * q_leak_p
     F[F_PMECH] = t_pfric * w
     F[F_LINE] = (ppa - pca) * q_ha + (ppb - pcb) * q_hb
-    F[F_FLUSH] = (P[P_P_RES] - ppa) * q_fa + (P[P_P_RES] - ppb) * q_fb
+    F[F_FLUSH] = xa * (q_fa + q_ma) + xb * (q_fb + q_mb)
     F[F_RELIEF] = dpp * q_rel
     F[F_SEAL] = r * f_seal * theta_dot
     F[F_LEAK] = (pca - pcb) * q_lk
-    F[F_RES_Q] = q_fa + q_fb          # flow drawn from the reservoir (at gauge p_r)
+    F[F_RES_Q] = q_fa + q_fb + q_ma + q_mb   # flow drawn from the reservoir (gauge p_r)
     F[F_TAU] = tau
     F[F_HYD] = dpp * q_pump           # hydraulic power leaving the pump
     F[F_CAP_PA] = c_pa
@@ -336,6 +370,7 @@ def linearise(y, P, W, scratch):
     M = scratch[6:12, :N_Y]
     R = scratch[12:18, :2]
     dtau_dy = scratch[18, :N_Y]
+    Mcopy = scratch[19:25, :N_Y]
     for j in range(N_Y):
         for k in range(N_Y):
             yp[k] = y[k]
@@ -352,6 +387,9 @@ def linearise(y, P, W, scratch):
     for k in range(N_Y):
         R[k, 0] = h * f0[k]
         R[k, 1] = h * (fp[k] - f0[k]) / dv
+    for j in range(N_Y):
+        for k in range(N_Y):
+            Mcopy[j, k] = M[j, k]
     _solve6(M, R, 2)
     g = dtau_dv
     t0 = tau0
@@ -444,29 +482,102 @@ def finish_all(Y, P, W, S, theta_dot_new, tau_out):
 
 
 @numba.njit(cache=True)
+def jacobian(y, theta, theta_dot, P, W, scratch, M):
+    """``M = I − h ∂f/∂y`` at ``(y, θ̇)`` by forward differences (uses scratch rows 25–29)."""
+    h = scratch[0, 0]
+    f0 = scratch[25, :N_Y]
+    F0 = scratch[26]
+    yp = scratch[27, :N_Y]
+    fp = scratch[28, :N_Y]
+    Fp = scratch[29]
+    rhs(y, theta, theta_dot, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f0, F0)
+    for j in range(N_Y):
+        for k in range(N_Y):
+            yp[k] = y[k]
+        d = 1e-7 * max(abs(y[j]), _Y_TYP[j])
+        yp[j] = y[j] + d
+        rhs(yp, theta, theta_dot, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, fp, Fp)
+        for k in range(N_Y):
+            M[k, j] = -h * (fp[k] - f0[k]) / d
+        M[j, j] += 1.0
+
+
+@numba.njit(cache=True)
 def finish_step(y, P, W, theta_dot_new, scratch):
-    """Second half of the implicit step: the new ankle velocity closes it. Updates ``y``,
-    the delivered torque, battery, temperature and the ledger."""
+    """Second half of the implicit step: the new ankle velocity closes it.
+
+    The linear prediction ``y_n + a + b Δθ̇`` is corrected by Newton iterations (the step's
+    ``I − h J`` first, then a fresh Jacobian each iteration) on the backward-Euler equations ``y − y_n − h f(y, θ̇_{n+1}) = 0``,
+    so the end state satisfies them to ``1e-9`` of each state's scale and the right-point
+    energy ledger closes. The torque MuJoCo integrated was the prediction ``τ_0 + G Δθ̇``; its
+    difference from the corrected end-point torque is accumulated as the coupling error.
+    Updates ``y``, battery, temperature and the ledger; returns the applied torque."""
     h = scratch[0, 0]
     dthd = theta_dot_new - W[W_THETA_DOT]
     yold = scratch[3, :N_Y]
     for k in range(N_Y):
         yold[k] = y[k]
         y[k] += W[W_A0 + k] + W[W_B0 + k] * dthd
-    # pressure floor (absolute): a cavitating node cannot go below it
+    tau = W[W_TAU0] + W[W_G] * dthd
+    f1 = scratch[1, :N_Y]
+    F1 = scratch[2]
+    Mw = scratch[6:12, :N_Y]
+    Mcopy = scratch[19:25, :N_Y]
+    rv = scratch[12:18, :1]
+    theta = W[W_THETA]
     floor = P[P_P_FLOOR] - P[P_P_ATM]
+    converged = False
+    ybest = scratch[4, :N_Y]
+    step = scratch[5, :N_Y]
+    err_prev = 1e300
+    for it in range(24):
+        rhs(y, theta, theta_dot_new, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f1, F1)
+        err = 0.0
+        for k in range(N_Y):
+            r_ = y[k] - yold[k] - h * f1[k]
+            rv[k, 0] = -r_
+            e = abs(r_) / _Y_TYP[k]
+            if e > err:
+                err = e
+        if err < 1e-9:
+            converged = True
+            break
+        if err > 1e4 * err_prev:
+            # diverging (not merely non-monotone, which Newton often is after a large input
+            # change): halve the last step
+            for k in range(N_Y):
+                step[k] *= 0.5
+                y[k] = ybest[k] + step[k]
+            continue
+        err_prev = err
+        W[W_NEWTON_ITERS] += 1.0
+        if it == 0:
+            for j in range(N_Y):       # the step's own I − h J first (usually enough)
+                for k in range(N_Y):
+                    Mw[j, k] = Mcopy[j, k]
+        else:
+            jacobian(y, theta, theta_dot_new, P, W, scratch, Mw)
+        _solve6(Mw, rv, 1)
+        for k in range(N_Y):
+            ybest[k] = y[k]
+            step[k] = rv[k, 0]
+            y[k] += rv[k, 0]
+    if not converged:
+        W[W_NEWTON_FAIL] += 1.0
+    # pressure floor (absolute): a node cannot go below the vapour pressure
+    clipped = False
     for k in range(Y_PPA, Y_PCB + 1):
         if y[k] < floor:
             y[k] = floor
-            W[W_CLIP_STEPS] += 1.0
-    tau = W[W_TAU0] + W[W_G] * dthd
+            clipped = True
+    if clipped:
+        W[W_CLIP_STEPS] += 1.0
+    if clipped or not converged:
+        rhs(y, theta, theta_dot_new, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f1, F1)
     W[W_TAU] = tau
-    W[W_P_MECH] = tau * theta_dot_new
-    # end-point flows for the ledger (right-point rule)
-    f1 = scratch[1, :N_Y]
-    F1 = scratch[2]
-    rhs(y, W[W_THETA] + h * theta_dot_new, theta_dot_new, W[W_V_CMD], W[W_V_BUS], W[W_MU],
-        P, f1, F1)
+    W[W_TAU_END] = F1[F_TAU]
+    W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
+    W[W_P_MECH] = F1[F_TAU] * theta_dot_new
     # battery: pack current for the bus power, V_oc from the state of charge
     p_bus = F1[F_PBUS]
     soc = W[W_SOC]
@@ -482,8 +593,12 @@ def finish_step(y, P, W, theta_dot_new, scratch):
     W[W_I_BAT] = i_bat
     W[W_SOC] = soc - h * i_bat / P[P_BAT_CAP_C]
     W[W_E_CHEM] += h * v_oc * i_bat
+    if i_bat > 0.0:
+        W[W_E_CHEM_DRAWN] += h * v_oc * i_bat
+    # energy throughput (scale of the balance check when the ankle back-drives the pump)
+    W[W_E_ABS_FLOW] += h * (abs(v_oc * i_bat) + abs(F1[F_TAU] * theta_dot_new))
     W[W_E_BATTERY] += h * rb * i_bat * i_bat
-    W[W_E_MECH] += h * tau * theta_dot_new
+    W[W_E_MECH] += h * F1[F_TAU] * theta_dot_new
     W[W_E_DRIVER] += h * F1[F_DRIVER]
     W[W_E_COPPER] += h * F1[F_COPPER]
     W[W_E_MOTOR_FRICTION] += h * F1[F_MFRIC]

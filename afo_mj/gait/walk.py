@@ -205,6 +205,22 @@ class AnkleDevice(Protocol):
                   phase: np.ndarray, stance: np.ndarray) -> np.ndarray: ...
 
 
+class CoupledAnkleDevice(Protocol):
+    """An orthosis with its own stiff dynamics, stepped implicitly with MuJoCo (``coupled =
+    True``; :class:`afo_mj.devices.hafo.HafoDevice`). ``begin_step`` returns, per side, a
+    joint force and an extra joint damping ``D ≥ 0`` so that the torque MuJoCo integrates is
+    ``force − D q̇_{n+1}``, the device's end-of-step torque; ``end_step`` receives ``q̇_{n+1}``
+    and returns the delivered torque."""
+
+    coupled: bool
+    timestep_s: float
+
+    def begin_step(self, t_s: float, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
+                   stance: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def end_step(self, velocity_rad_s: np.ndarray) -> np.ndarray: ...
+
+
 @dataclasses.dataclass
 class _Buffers:
     """Raw per-step state, preallocated; turned into a GaitRecord after the run."""
@@ -228,7 +244,7 @@ class _Buffers:
 
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
-             device: AnkleDevice | None = None, max_time_s: float | None = None) -> GaitRecord:
+             device: "AnkleDevice | CoupledAnkleDevice | None" = None, max_time_s: float | None = None) -> GaitRecord:
     """Walk ``strides`` right-leg cycles (or until a fall) and return the record.
 
     The walker starts in the reference posture at right heel strike (left leg at phase 0.5)
@@ -347,6 +363,13 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     events = GaitEvents()
     fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + qpos[pz])
     device_torque = np.zeros(2)
+    coupled = device is not None and getattr(device, "coupled", False)
+    dof_damping = model.dof_damping
+    base_damp = (float(dof_damping[dank_r]), float(dof_damping[dank_l]))
+    ang2, vel2, stance2 = np.zeros(2), np.zeros(2), np.zeros(2, dtype=bool)
+    if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
+        raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
+                         f"MuJoCo timestep {dt}; allowed: equal")
     phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
     swing = state[law.S_SWING:law.S_SWING + 2]
     ev = state[law.S_EVENT:law.S_EVENT + 2]
@@ -367,7 +390,21 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                     events.swing_toe_contacts.append((t, s))
             if right_strides > strides:
                 break
-        if device is not None:
+        if coupled:
+            # Hydraulic device: end-of-step torque = force − D·q̇_{n+1}, D integrated
+            # implicitly by MuJoCo (afo_mj.devices.pump_ankle_actuator).
+            ang2[0], ang2[1] = qpos[ank_r], qpos[ank_l]
+            vel2[0], vel2[1] = qvel[dank_r], qvel[dank_l]
+            stance2[0], stance2[1] = swing[0] < 0.5, swing[1] < 0.5
+            force2, extra2 = device.begin_step(t, ang2, vel2, stance2)
+            qfrc_applied[dank_r], qfrc_applied[dank_l] = force2
+            dof_damping[dank_r] = base_damp[0] + extra2[0]
+            dof_damping[dank_l] = base_damp[1] + extra2[1]
+            if adapt:
+                # the wearer anticipates the torque at the present ankle velocity
+                ctrl[ff_ank_r] -= adapt * (force2[0] - extra2[0] * vel2[0])
+                ctrl[ff_ank_l] -= adapt * (force2[1] - extra2[1] * vel2[1])
+        elif device is not None:
             device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
                                              phases.copy(), swing < 0.5)
             # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
@@ -379,6 +416,9 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                 ctrl[ff_ank_l] -= adapt * device_torque[1]
 
         mujoco.mj_step(model, data)
+        if coupled:
+            vel2[0], vel2[1] = qvel[dank_r], qvel[dank_l]
+            device_torque = device.end_step(vel2)
 
         # --- record the raw state -------------------------------------------------------------
         buf.time[k] = data.time
