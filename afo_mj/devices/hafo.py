@@ -189,11 +189,11 @@ def mass_budget(p: PumpAnkleParams = HAFO_ACTUATOR) -> tuple[HafoMassItem, ...]:
         # waist: power supply
         HafoMassItem("battery", p.battery.mass_kg, "waist", p.battery.name),
         HafoMassItem("motor", p.motor.mass_kg, "waist", "100 W class brushless motor"),
-        HafoMassItem("pump", 0.20, "waist", "0.2 cm³/rev gear pump"),
-        HafoMassItem("manifold_reservoir_valves", 0.42, "waist",
+        HafoMassItem("pump", 0.25, "waist", "0.2 cm³/rev gear pump"),
+        HafoMassItem("manifold_reservoir_valves", 0.50, "waist",
                      "manifold, charge reservoir, relief and flushing valves"),
-        HafoMassItem("electronics", 0.30, "waist", "motor driver, controller, sensors"),
-        HafoMassItem("enclosure_belt", 0.43, "waist", "housing and waist belt"),
+        HafoMassItem("electronics", 0.35, "waist", "motor driver, controller, sensors"),
+        HafoMassItem("enclosure_belt", 0.58, "waist", "housing and waist belt"),
         HafoMassItem("hoses", _hose_mass_kg(p), "waist",
                      "two hoses (45 g/m wall + oil), lumped with the pack"),
     )
