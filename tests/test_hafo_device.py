@@ -133,7 +133,8 @@ def test_stiff_oil_coupling_is_stable_and_matches_a_fine_step():
     fine_on_coarse = np.interp(coarse.time_s, fine.time_s, fine.device_torque_nm)
     rms = float(np.sqrt(np.mean((coarse.device_torque_nm - fine_on_coarse) ** 2)))
     assert rms < 0.2 * 20.0     # the fast rise shifts by up to a step; the rest agrees
-    assert coarse.device_torque_nm.min() == pytest.approx(fine.device_torque_nm.min(), rel=0.1)
+    # peak (overshoot) within 25 %: 1 ms resolves a 230 Hz oil mode only coarsely
+    assert coarse.device_torque_nm.min() == pytest.approx(fine.device_torque_nm.min(), rel=0.25)
     late = coarse.time_s > 0.3
     assert np.max(np.abs(coarse.device_torque_nm[late] - fine_on_coarse[late])) < 1.5
 
