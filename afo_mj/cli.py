@@ -85,12 +85,16 @@ def _run(args: argparse.Namespace) -> int:
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
 
+    from afo_mj.scenarios.device_scenario import device_config
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario, overrides=args.set or ())
         reference = scenario.load_reference()
+        dev_cfg = device_config(scenario)
     except ScenarioError as exc:
         print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
         return 2
+    if dev_cfg is not None:
+        return _run_device(args, scenario, reference, dev_cfg)
     from afo_mj.gait.walk import WalkNumericsError
     t0 = time.perf_counter()
     try:
@@ -162,6 +166,70 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_device(args, scenario, reference, cfg) -> int:
+    """A walking scenario with an orthosis: every condition, the headline one written out."""
+    import numpy as np
+
+    from afo_mj.gait.walk import WalkNumericsError
+    from afo_mj.outputs.gait_report import ReportError, write_run_outputs
+    from afo_mj.scenarios.device_scenario import run_device_scenario
+    t0 = time.perf_counter()
+    try:
+        dsum, results = run_device_scenario(scenario, reference, cfg)
+    except (WalkNumericsError, FloatingPointError) as exc:
+        print(f"afo-mj run: {scenario.name}: {exc}; nothing written", file=sys.stderr)
+        return 1
+    wall = time.perf_counter() - t0
+    head = cfg.conditions[-1]
+    rec, analysis, dev = results[head]
+    block = dsum["device_conditions"][head]
+    if analysis is None:
+        print(f"afo-mj run: {scenario.name}: condition {head!r} has no analysable stride "
+              f"(fell at {rec.events.fall_time_s}); nothing written", file=sys.stderr)
+        return 1
+    summary = {"scenario": {**scenario.as_dict(), "device": dict(scenario.device),
+                            "assistance": dict(scenario.assistance)},
+               **analysis.summary, "condition": head, "wall_time_s": wall,
+               "gait": analysis.summary, "human": block["human"], **dsum}
+    if "device" in block:
+        summary["device"] = block["device"]
+        summary["energy"] = block["energy"]
+    extra = {}
+    if dev is not None and dev.log is not None:
+        L = dev.log.arrays()
+        cols = [k for k in L]
+        data = np.column_stack([L[k][:, 0] for k in cols])
+        extra["device_timeseries.csv"] = (",".join(cols), data)
+    try:
+        out = write_run_outputs(args.out, summary, analysis.cycles, reference, rec,
+                                scenario.text, extra_tables=extra)
+    except ReportError as exc:
+        print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
+        return 1
+    print(f"afo_mj walk with {cfg.preset} on {', '.join(cfg.sides)}: {scenario.name} "
+          f"({wall:.1f} s wall)")
+    for c, v in dsum["device_conditions"].items():
+        g = v["gait"]
+        line = f"  {c:12s}: "
+        if g is None:
+            line += "no analysable stride"
+        else:
+            line += (f"ankle RMS {_fmt(g['ankle_angle_rms_error_deg'])} deg, speed "
+                     f"{_fmt(g['speed_m_s'])} m/s, human ankle +work "
+                     f"{v['human']['ankle_positive_work_j_per_stride']:.1f} J/stride")
+        if "device" in v:
+            d, e = v["device"], v["energy"]
+            line += (f"; device peak {d['peak_torque_nm']:.1f} N*m, +work "
+                     f"{d['positive_work_j_per_stride']:.1f} / -work "
+                     f"{d['negative_work_j_per_stride']:.1f} J/stride, tracking RMSE "
+                     f"{d['torque_tracking_rmse_nm']:.1f} N*m, battery drawn "
+                     f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
+                     f"balance error {100 * e['balance_error_rel']:.2f} %")
+        print(line)
+    print(f"  results: {out}")
+    return 0
+
+
 def _build_models(args: argparse.Namespace) -> int:
     from afo_mj.human import test_stand, walker
     for path in (walker.write_default_xml(), test_stand.write_default_xml()):
@@ -181,6 +249,9 @@ def main(argv: list[str] | None = None) -> int:
     run = sub.add_parser("run", help="simulate a walking scenario (TOML) and write its results")
     run.add_argument("scenario", help="scenario file, e.g. scenarios/walk_healthy.toml")
     run.add_argument("--out", required=True, help="output directory (created or updated)")
+    run.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario value by its dotted key, e.g. gait.strides=4 "
+                          "or device.params.hose.length_m=2.2 (repeatable)")
     run.set_defaults(func=_run)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)

@@ -159,7 +159,7 @@ def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str) -> Non
 
 def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], reference,
                       record=None, scenario_text: str | None = None,
-                      title: str | None = None) -> Path:
+                      title: str | None = None, extra_tables: dict | None = None) -> Path:
     """Write the run's result files into ``out_dir`` atomically (see the module docstring).
 
     ``cycles``: the analysed cycles (:func:`afo_mj.analysis.gait_metrics.extract_cycles` or
@@ -194,6 +194,12 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
             _plot(tmp / "gait_curves.png", cycles, reference, title)
         if scenario_text is not None:
             (tmp / "scenario.toml").write_text(scenario_text, encoding="utf-8")
+        for fname, (header, data) in (extra_tables or {}).items():
+            # extra time series (e.g. the device's), SI units named in the header
+            if not np.all(np.isfinite(data)):
+                raise ReportError(f"{fname}: non-finite values; nothing written")
+            np.savetxt(tmp / fname, data, delimiter=",", header=header, comments="",
+                       fmt="%.9g")
         if not out.exists():
             os.replace(tmp, out)          # the whole directory appears at once
             return out

@@ -22,6 +22,8 @@ Schema (every section and key optional except where said; unknown keys are error
     ankle_passive_stiffness_nm_per_rad = 0.0  # 0..2000
     ankle_passive_damping_nm_s_per_rad = 0.0  # 0..100
     [controller]                     # overrides of afo_mj.gait.walk.ControllerParams fields
+    [device]                         # an orthosis (afo_mj.scenarios.device_scenario)
+    [assistance]                     # its assistance profile (afo_mj.scenarios.device_scenario)
 
 Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
 file) raises one :class:`ScenarioError` naming the file, the dotted key, the value and what
@@ -55,7 +57,8 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
                    "ankle_passive_stiffness_nm_per_rad", "ankle_passive_damping_nm_s_per_rad")
 """Keys of ``[impairment]``: the WalkerParams fields of the same names."""
 
-_TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller")
+_TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller", "device",
+             "assistance")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
               "analyse_strides", "band_references", "reference_id_path")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
@@ -91,6 +94,11 @@ class WalkScenario:
     reference_id_path: Path | None = None
     source_path: Path | None = None
     text: str = ""
+    #: raw ``[device]`` and ``[assistance]`` tables (validated by
+    #: :mod:`afo_mj.scenarios.device_scenario`); empty for a walk without an orthosis
+    device: Mapping[str, Any] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
+    assistance: Mapping[str, Any] = dataclasses.field(
+        default_factory=lambda: MappingProxyType({}))
 
     def load_reference(self):
         """The reference gait (:class:`afo_mj.gait.reference.ReferenceGait`)."""
@@ -253,16 +261,47 @@ def _controller(ctx: _Ctx, tbl: dict) -> dict[str, float]:
     return out
 
 
+def apply_overrides(doc: dict, overrides, origin: str = "<scenario>") -> dict:
+    """Set dotted keys in a parsed TOML document: ``["gait.strides=4",
+    "device.params.hose.length_m=2.2"]``. Values are read as TOML values (numbers, booleans,
+    strings in quotes, arrays); anything that is not valid TOML is taken as a bare string.
+    The first two levels are tables of the scenario schema; below ``device.params`` the rest of
+    the key is a dotted parameter name and is kept whole."""
+    for item in overrides or ():
+        key, sep, raw = str(item).partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ScenarioError(f"{origin}: --set {item!r}: expected key=value, e.g. "
+                                "gait.strides=4")
+        try:
+            value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()
+        parts = key.split(".")
+        if parts[:2] == ["device", "params"] and len(parts) > 2:
+            parts = parts[:2] + [".".join(parts[2:])]
+        node = doc
+        for part in parts[:-1]:
+            nxt = node.setdefault(part, {})
+            if not isinstance(nxt, dict):
+                raise ScenarioError(f"{origin}: --set {key}: {part!r} is not a table")
+            node = nxt
+        node[parts[-1]] = value
+    return doc
+
+
 def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None = None,
-                   default_name: str = "scenario", source_path: Path | None = None
-                   ) -> WalkScenario:
+                   default_name: str = "scenario", source_path: Path | None = None,
+                   overrides=()) -> WalkScenario:
     """Validate TOML ``text`` into a :class:`WalkScenario` (``origin`` names it in errors;
-    ``base_dir`` resolves a relative ``gait.reference_path``)."""
+    ``base_dir`` resolves a relative ``gait.reference_path``; ``overrides`` are ``key=value``
+    strings applied first, see :func:`apply_overrides`)."""
     ctx = _Ctx(origin)
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{origin}: not valid TOML: {exc}") from None
+    apply_overrides(doc, overrides, origin)
     ctx.unknown("", doc, _TOP_KEYS)
     name = ctx.string("name", doc.get("name", default_name), "a name of letters, digits, _ . -")
     if not _NAME_RE.match(name):
@@ -357,10 +396,11 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),
                         controller=MappingProxyType(controller), source_path=source_path,
-                        text=text)
+                        text=text, device=MappingProxyType(ctx.table(doc, "device")),
+                        assistance=MappingProxyType(ctx.table(doc, "assistance")))
 
 
-def load_scenario(path) -> WalkScenario:
+def load_scenario(path, overrides=()) -> WalkScenario:
     """Read and validate a scenario TOML file; raises :class:`ScenarioError`."""
     p = Path(path)
     try:
@@ -370,4 +410,4 @@ def load_scenario(path) -> WalkScenario:
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{p}: not UTF-8 text ({exc})") from None
     return parse_scenario(text, origin=str(p), base_dir=p.parent, default_name=p.stem,
-                          source_path=p)
+                          source_path=p, overrides=overrides)

@@ -1,0 +1,218 @@
+"""Walking with an orthosis: the ``[device]`` and ``[assistance]`` tables of a scenario.
+
+Schema (added to :mod:`afo_mj.scenarios.walk_scenario`)::
+
+    [device]
+    preset = "hafo"                   # the pump-controlled HAFO (afo_mj.devices.hafo)
+    sides = ["right"]                 # worn on: ["right"], ["left"] or both
+    conditions = ["no_device", "transparent", "assist"]   # run in this order; the last is
+                                      # the run's headline result
+    [device.params]                   # dotted overrides of the preset, e.g.
+    "hose.length_m" = 2.2
+    [assistance]
+    profile = "zhang"                 # "zhang" (4 parameters) | "spline" (points)
+    peak_torque_nm = 40.0             # plantarflexion, N·m
+    peak_time_pct = 52.9
+    rise_time_pct = 26.2
+    fall_time_pct = 9.8
+    points = [[0, 0], [40, 10], [53, 40], [62, 0]]   # profile = "spline": [% stride, N·m]
+
+Conditions: ``no_device`` (nothing worn), ``transparent`` (worn, zero commanded torque, so the
+cost of wearing it shows: its mass and what the hydraulics resist), ``assist`` (the profile).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.control import assistance as asst
+from afo_mj.hydraulics.params import ParameterError
+from afo_mj.scenarios.walk_scenario import ScenarioError
+
+DEVICE_KEYS = ("preset", "sides", "conditions", "params")
+ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
+               "points")
+CONDITIONS = ("no_device", "transparent", "assist")
+PRESETS = ("hafo",)
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceConfig:
+    preset: str
+    params: object
+    sides: tuple[str, ...]
+    conditions: tuple[str, ...]
+    profile: np.ndarray | None
+
+
+def device_config(scenario) -> DeviceConfig | None:
+    """Validate a scenario's ``[device]``/``[assistance]`` tables (None without a device)."""
+    dev, ass = dict(scenario.device), dict(scenario.assistance)
+    origin = str(scenario.source_path or scenario.name)
+    if not dev:
+        if ass:
+            raise ScenarioError(f"{origin}: [assistance] is given without a [device]")
+        return None
+
+    def fail(key, value, allowed):
+        return ScenarioError(f"{origin}: {key} = {value!r} is not allowed; allowed: {allowed}")
+
+    for k in dev:
+        if k not in DEVICE_KEYS:
+            raise fail(f"device.{k}", dev[k], "keys " + ", ".join(DEVICE_KEYS))
+    for k in ass:
+        if k not in ASSIST_KEYS:
+            raise fail(f"assistance.{k}", ass[k], "keys " + ", ".join(ASSIST_KEYS))
+    preset = dev.get("preset", "hafo")
+    if preset not in PRESETS:
+        raise fail("device.preset", preset, " | ".join(PRESETS))
+    sides = dev.get("sides", ["right"])
+    if (not isinstance(sides, list) or not sides or len(set(sides)) != len(sides)
+            or any(s not in ("right", "left") for s in sides)):
+        raise fail("device.sides", sides, '["right"], ["left"] or ["right", "left"]')
+    conds = dev.get("conditions", ["no_device", "transparent", "assist"])
+    if (not isinstance(conds, list) or not conds or any(c not in CONDITIONS for c in conds)
+            or len(set(conds)) != len(conds)):
+        raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
+    overrides = dev.get("params", {})
+    if not isinstance(overrides, dict):
+        raise fail("device.params", overrides, "a table of dotted parameter names")
+    from afo_mj.devices.hafo import hafo_params
+    try:
+        params = hafo_params(overrides)
+    except ParameterError as exc:
+        raise ScenarioError(f"{origin}: device.params: {exc}") from None
+    profile = None
+    if "assist" in conds:
+        kind = ass.get("profile", "zhang")
+        try:
+            if kind == "zhang":
+                profile = asst.zhang_profile(ass.get("peak_torque_nm", 40.0),
+                                             ass.get("peak_time_pct", 52.9),
+                                             ass.get("rise_time_pct", 26.2),
+                                             ass.get("fall_time_pct", 9.8))
+            elif kind == "spline":
+                pts = ass.get("points")
+                if not isinstance(pts, list) or any(not isinstance(p, list) or len(p) != 2
+                                                    for p in pts):
+                    raise fail("assistance.points", pts, "a list of [phase_pct, torque_nm]")
+                profile = asst.spline_profile([p[0] for p in pts], [p[1] for p in pts])
+            else:
+                raise fail("assistance.profile", kind, '"zhang" | "spline"')
+        except ParameterError as exc:
+            raise ScenarioError(f"{origin}: {exc}") from None
+    return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile)
+
+
+def _per_stride(rec, side: int, first: int, last: int):
+    """Mask of samples in right-leg strides ``first..last`` (1-based) and their count."""
+    hs = rec.events.heel_strikes_s[side]
+    last = min(last, len(hs) - 1)
+    if last < first:
+        return None, 0
+    t0, t1 = hs[first - 1], hs[last]
+    return (rec.time_s >= t0) & (rec.time_s < t1), last - first + 1
+
+
+def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict:
+    """The issue-4 summary block of one condition (gait, human, device, energy)."""
+    side = 0 if cfg.sides[0] == "right" else 1
+    first, last = strides
+    mask, n = _per_stride(rec, side, first, last)
+    out = {"gait": analysis.summary if analysis is not None else None}
+    if mask is None:
+        out["human"] = {"ankle_positive_work_j_per_stride": None}
+        return out
+    dt = rec.sample_period_s
+    w = rec.joint_velocity_rad_s[mask, side, 2]
+    p_h = rec.joint_moment_nm[mask, side, 2] * w
+    out["human"] = {"ankle_positive_work_j_per_stride": float(np.sum(np.clip(p_h, 0, None))
+                                                               * dt / n),
+                    "ankle_negative_work_j_per_stride": float(np.sum(np.clip(p_h, None, 0))
+                                                              * dt / n)}
+    if device is None:
+        return out
+    L = device.log.arrays()
+    k = 0
+    n_log = min(len(L["time_s"]), len(rec.time_s))
+    m = mask[:n_log]
+    cmd = L["commanded_torque_nm"][:n_log, k][m]
+    dlv = L["delivered_torque_nm"][:n_log, k][m]
+    p_d = rec.device_moment_nm[mask, side] * w
+    led = device.ledger(k)
+    drawn = led["electrical_drawn_j"]
+    mech_pos = float(np.sum(np.clip(L["mechanical_power_w"][:, k], 0, None)) * dt)
+    duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec.time_s) > 1 else 0.0
+    mean_power = drawn / duration if duration > 0 else math.nan
+    bat = cfg.params.battery
+    from afo_mj.hydraulics.battery import Battery
+    runtime_h = (Battery(bat).energy_wh / mean_power) if mean_power > 0 else None
+    out["device"] = {
+        "peak_torque_nm": float(np.max(np.abs(dlv))),
+        "torque_tracking_rmse_nm": float(np.sqrt(np.mean((cmd - dlv) ** 2))),
+        "positive_work_j_per_stride": float(np.sum(np.clip(p_d, 0, None)) * dt / n),
+        "negative_work_j_per_stride": float(np.sum(np.clip(p_d, None, 0)) * dt / n),
+        "mass_total_kg": device.mass_total_kg,
+        "mass_at_ankle_kg": device.mass_at_ankle_kg,
+        "peak_pressure_mpa": led["peak_pressure_pa"] / 1e6,
+        "fluid_temperature_rise_k": led["temperature_rise_k"],
+        "battery_runtime_h": runtime_h,
+        "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
+        "newton_unconverged_steps": led["newton_unconverged_steps"],
+    }
+    out["energy"] = {
+        "electrical_in_j": drawn,
+        "electrical_regenerated_j": led["electrical_regenerated_j"],
+        "hydraulic_j": led["hydraulic_j"],
+        "mechanical_out_j": led["mechanical_out_j"],
+        "mechanical_positive_out_j": mech_pos,
+        "losses_j": led["losses_j"],
+        "stored_change_j": led["stored_change_j"],
+        "efficiency_total": mech_pos / drawn if drawn > 0 else None,
+        "balance_error_rel": led["balance_error_rel"],
+        "note": "whole run; electrical_in_j is the battery's chemical energy drawn, "
+                "regeneration (ankle back-driving the pump) counted apart",
+    }
+    return out
+
+
+def run_device_scenario(scenario, reference, cfg: DeviceConfig):
+    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``."""
+    from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
+    from afo_mj.devices.hafo import HafoDevice
+    from afo_mj.gait.walk import run_walk
+    T = scenario.cycle_time_s(reference)
+    dt = scenario.walker.timestep_s
+    results = {}
+    for cond in cfg.conditions:
+        dev = None
+        worn = ()
+        if cond != "no_device":
+            steps = int(((scenario.strides + 1.5) * T + 1.0) / dt) + 4
+            dev = HafoDevice(cfg.params, sides=cfg.sides,
+                             profile=cfg.profile if cond == "assist" else None,
+                             timestep_s=dt, max_steps=steps)
+            worn = dev.worn_masses()
+        rec = run_walk(scenario.walker, reference, T, scenario.strides,
+                       scenario.controller_params(), worn_masses=worn, device=dev)
+        try:
+            analysis = analyse_gait(rec, reference, scenario.analyse_strides)
+        except GaitAnalysisError:
+            analysis = None
+        results[cond] = (rec, analysis, dev)
+    conds = {c: condition_summary(r, a, d, cfg, scenario.analyse_strides)
+             for c, (r, a, d) in results.items()}
+    summary = {"device_conditions": conds, "device_preset": cfg.preset,
+               "device_sides": list(cfg.sides)}
+    if "no_device" in conds:
+        base = conds["no_device"]["human"]["ankle_positive_work_j_per_stride"]
+        summary["comparison_vs_no_device"] = {
+            c: {"human_ankle_positive_work_change_j_per_stride":
+                (v["human"]["ankle_positive_work_j_per_stride"] - base)
+                if base is not None and v["human"]["ankle_positive_work_j_per_stride"]
+                is not None else None}
+            for c, v in conds.items() if c != "no_device"}
+    return summary, results
