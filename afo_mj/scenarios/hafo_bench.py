@@ -1,0 +1,676 @@
+"""HAFO bench tests on the ankle test stand (the seed's chapter 6 prototype tests).
+
+Each test builds a fresh :class:`~afo_mj.human.test_stand.AnkleTestStand` and a fresh
+:class:`~afo_mj.devices.hafo.HafoDevice` per run and steps them together
+(``stand.run_device``). Tests, as reported for the prototype (Neubauer & Durfee 2016):
+
+* :func:`torque_velocity` — full motor voltage, delivered torque against imposed constant
+  plantarflexion velocities; free-foot no-load speed; locked-ankle stall torque.
+* :func:`isometric_steps` — locked ankle, closed-loop torque control, plantarflexion torque
+  steps of 20/30/40/50 N·m.
+* :func:`frequency_response` — open-loop (motor voltage) sinusoidal sweeps: ankle velocity with
+  the foot free on a weak centring spring, isometric torque with the ankle locked.
+* :func:`position_step` — closed-loop ankle position control (PD with gravity compensation,
+  optional integral, on the angle → torque command) with the foot carrying an added inertia.
+
+:func:`run_bench` runs a selection and returns ``(summary, series)``; :func:`plot_bench` draws
+the figures.
+
+Sign conventions: ankle angle, velocity and torque are positive in dorsiflexion (the stand and
+the device). Plantarflexion assistance torque is therefore negative; positive motor voltage
+drives plantarflexion. Figures of merit are reported as positive magnitudes where their name
+says so (``stall_torque_nm``, ``no_load_speed_deg_s``).
+
+Formulas (each run, SI units; degrees only where a name ends in ``_deg`` / ``_deg_s``)
+--------------------------------------------------------------------------------------------
+* Full voltage: the command is ``full_voltage_v`` (default 1.25 × the fully charged pack
+  open-circuit voltage, ``1.25 · 4.2 V · cells``), which the driver clips to
+  ``duty_max · V_bus`` (:mod:`afo_mj.devices.pump_ankle_actuator`); it is reached through a
+  50 ms linear ramp so the first millisecond does not slam the relief valve (a ramp does not
+  change the steady values measured).
+* Stall torque ``= −mean(τ)`` over the last 40 % of a locked-ankle run at full voltage.
+* No-load speed ``= −mean(θ̇)`` of the free foot at full voltage over the window after it
+  reached speed (from 0.15 s until it passes −0.45 rad), converted to deg/s. The foot's own
+  weight (≈ 0.6 N·m near neutral) is the only load.
+* Torque–velocity point: the stand imposes (``imposed`` load) a hold at +0.45 rad while the
+  voltage ramps up (0.2 s, the stall state), then a raised-cosine velocity ramp (40 ms) to the
+  constant velocity ``v`` held until the ankle reaches −0.45 rad (the ±32° stroke is not left);
+  the point is ``mean(τ)`` over the hold after a 0.1 s settling allowance (at most 0.35 s).
+  The no-load speed from the curve is its zero crossing (linear interpolation).
+* Step metrics: :func:`afo_mj.analysis.response_metrics.step_metrics` (10–90 % rise, overshoot
+  re final value, 2 % settling, steady-state error re target).
+* Frequency response: ``u = u_0 + A sin 2πft`` [V] after a preload at ``u_0``; the output ``y``
+  is the plantarflexion velocity ``−θ̇`` [rad/s] or plantarflexion torque ``−τ`` [N·m] (so
+  that the low-frequency phase is ≈ 0°); gain and phase by the IEEE 1057 three-parameter fit
+  (:func:`~afo_mj.analysis.response_metrics.sine_response`); gain in dB relative to the
+  lowest frequency's gain; bandwidth = −3 dB frequency
+  (:func:`~afo_mj.analysis.response_metrics.bandwidth_hz`).
+* Position control: ``τ_cmd = K_p e + K_i ∫e dt − K_d θ̇ − τ_g(θ)``, ``e = θ_ref − θ``,
+  ``τ_g`` the foot's gravity moment from the stand model (PD with gravity compensation,
+  e.g. Spong, Hutchinson & Vidyasagar, *Robot Modeling and Control*, §8.4), clipped to
+  ±``torque_limit_nm``, integral clamped so that ``K_i ∫e`` stays within the limit
+  (anti-windup); the device's own torque loop delivers it.
+* Energy balance of a run (from ``device.ledger()``): relative error
+  ``|residual_j| / max(|electrical_in_j|, |mechanical_out_j|)``, the residual being
+  ``in − out − losses − Δstored``; the denominator is ``electrical_in_j`` whenever the device
+  motors (every run but the over-running torque–velocity points, where the stand drives the
+  device and the mechanical input is the larger flow).
+
+Time step
+---------
+The bench steps at 0.25 ms by default (``timestep_s``; the velocity sweep at 0.1 ms, see
+:data:`VELOCITY_SWEEP_TIMESTEP_S`). At 1 ms the device's implicit step straddles the driver's
+current-limit clamp when a 50 N·m torque step saturates the current (the electrical time
+constant L/R ≈ 0.17 ms is well below the step): the delivered torque is barely affected but
+the energy ledger's residual reaches ≈ 6 % of the input; at 0.25 ms every run stays below
+0.2 %. ``run_bench(timestep_s=...)`` sets one step for every test.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+import warnings
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from afo_mj.analysis.response_metrics import bandwidth_hz, sine_response, step_metrics
+from afo_mj.devices.hafo import HAFO, HafoDevice, PumpAnkleParams
+from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
+
+__all__ = ["BENCH_TESTS", "PUBLISHED", "BenchError", "torque_velocity", "isometric_steps",
+           "frequency_response", "position_step", "run_bench", "plot_bench"]
+
+#: Test names accepted by :func:`run_bench`.
+BENCH_TESTS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step")
+
+#: Published prototype figures (Neubauer & Durfee 2016; seed ch. 6).
+PUBLISHED = {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}
+
+DEFAULT_TIMESTEP_S = 2.5e-4
+DEFAULT_TV_VELOCITIES_DEG_S = tuple(-12.0 * k for k in range(11))      # 0 … −120 deg/s
+DEFAULT_TORQUE_FREQS_HZ = (0.2, 0.5, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0)
+DEFAULT_VELOCITY_FREQS_HZ = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 150.0, 200.0, 250.0,
+                             300.0, 400.0)
+#: The velocity sweep reaches the foot-on-oil resonance (≈ 150 Hz); 0.1 ms resolves it.
+VELOCITY_SWEEP_TIMESTEP_S = 1e-4
+
+_RAMP_S = 0.05          # full-voltage ramp
+_STROKE_LIMIT_RAD = 0.45
+
+
+class BenchError(ValueError):
+    """A bench argument outside what the test allows."""
+
+
+# -- argument checks ------------------------------------------------------------------------------
+def _check_number(name: str, value, lo: float = -math.inf, hi: float = math.inf,
+                  lo_open: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise BenchError(f"{name} = {value!r} is not a number") from None
+    bad_lo = v <= lo if lo_open else v < lo
+    if not math.isfinite(v) or bad_lo or v > hi:
+        lo_s = "" if lo == -math.inf else f"{lo:g} {'<' if lo_open else '<='} "
+        hi_s = "" if hi == math.inf else f" <= {hi:g}"
+        raise BenchError(f"{name} = {value!r} is out of range; allowed: {lo_s}{name}{hi_s}")
+    return v
+
+
+def _check_params(params) -> PumpAnkleParams:
+    if not isinstance(params, PumpAnkleParams):
+        raise BenchError(f"params = {type(params).__name__}; allowed: a PumpAnkleParams "
+                         "(afo_mj.devices.hafo.HAFO or hafo_params({...}))")
+    return params
+
+
+def _check_seq(name: str, values, lo: float, hi: float, lo_open: bool = False) -> tuple:
+    try:
+        vals = tuple(values)
+    except TypeError:
+        raise BenchError(f"{name} = {values!r} is not a sequence of numbers") from None
+    if not vals:
+        raise BenchError(f"{name} is empty; allowed: at least one value")
+    return tuple(_check_number(f"{name}[{i}]", v, lo, hi, lo_open) for i, v in enumerate(vals))
+
+
+# -- one coupled run ------------------------------------------------------------------------------
+class _Run:
+    """One stand + device run: record, device log (1-D arrays), ledger, energy error."""
+
+    def __init__(self, params: PumpAnkleParams, load: StandLoad, mode: str, fn: Callable,
+                 duration_s: float, timestep_s: float, body_mass_kg: float, height_m: float,
+                 initial_angle_rad: float | None = None, label: str = ""):
+        stand = AnkleTestStand(body_mass_kg=body_mass_kg, height_m=height_m, load=load,
+                               timestep_s=timestep_s, initial_angle_rad=initial_angle_rad)
+        n = int(round(duration_s / timestep_s))
+        if getattr(fn, "needs_stand", False):
+            fn = fn(stand)
+        dev = HafoDevice(params=params, mode=mode, torque_fn=fn, timestep_s=timestep_s,
+                         max_steps=n)
+        self.stand = stand
+        self.rec = stand.run_device(dev, duration_s)
+        self.log = {k: v[:, 0] for k, v in dev.log.arrays().items()}
+        self.ledger = dev.ledger()
+        self.label = label
+        self.energy_error = energy_error(self.ledger)
+
+
+def energy_error(ledger: Mapping) -> float:
+    """Relative energy-balance error of a run: ``|residual| / max(|E_in|, |E_mech|)``."""
+    scale = max(abs(ledger["electrical_in_j"]), abs(ledger["mechanical_out_j"]))
+    return abs(ledger["residual_j"]) / scale if scale > 0 else 0.0
+
+
+def _full_voltage(params: PumpAnkleParams, full_voltage_v: float | None) -> float:
+    if full_voltage_v is None:
+        return 1.25 * 4.2 * params.battery.cells_series
+    return _check_number("full_voltage_v", full_voltage_v, 0.0, 1000.0, lo_open=True)
+
+
+def _ramped(v: float, ramp_s: float = _RAMP_S) -> Callable:
+    return lambda t, q, w: v * min(1.0, t / ramp_s)
+
+
+def _ramp_hold(q0: float, v: float, t0: float, ta: float) -> ImposedTrajectory:
+    """Hold at q0 until t0, raised-cosine velocity ramp to v over ta, then constant v."""
+    def vel(t):
+        s = t - t0
+        if s <= 0:
+            return 0.0
+        if s < ta:
+            return 0.5 * v * (1.0 - math.cos(math.pi * s / ta))
+        return v
+
+    def ang(t):
+        s = t - t0
+        if s <= 0:
+            return q0
+        if s < ta:
+            return q0 + 0.5 * v * (s - ta / math.pi * math.sin(math.pi * s / ta))
+        return q0 + v * (0.5 * ta + s - ta)
+
+    def acc(t):
+        s = t - t0
+        return 0.5 * v * math.pi / ta * math.sin(math.pi * s / ta) if 0 < s < ta else 0.0
+
+    return ImposedTrajectory(ang, vel, acc)
+
+
+def _stand_kw(body_mass_kg: float, height_m: float, timestep_s: float) -> dict:
+    return {"body_mass_kg": _check_number("body_mass_kg", body_mass_kg, 20.0, 200.0),
+            "height_m": _check_number("height_m", height_m, 1.0, 2.3),
+            "timestep_s": _check_number("timestep_s", timestep_s, 1e-5, 1e-3)}
+
+
+# -- tests -----------------------------------------------------------------------------------------
+def torque_velocity(params: PumpAnkleParams = HAFO,
+                    velocities_deg_s: Sequence[float] = DEFAULT_TV_VELOCITIES_DEG_S, *,
+                    full_voltage_v: float | None = None, body_mass_kg: float = 75.0,
+                    height_m: float = 1.75, timestep_s: float = DEFAULT_TIMESTEP_S
+                    ) -> tuple[dict, dict]:
+    """Torque–velocity curve at full motor voltage, stall torque and no-load speed.
+
+    ``velocities_deg_s``: imposed ankle velocities (≤ 0: plantarflexion, the direction the
+    positive voltage drives; ≥ −400 deg/s). Returns ``(summary, series)``: summary keys
+    ``stall_torque_nm``, ``no_load_speed_deg_s``, ``no_load_speed_from_curve_deg_s``,
+    ``energy_error_max``; series ``torque_velocity`` (``velocity_deg_s``, ``torque_nm``,
+    ``plantarflexion_speed_deg_s``, ``assist_torque_nm``), ``stall`` and ``no_load`` time series.
+    """
+    _check_params(params)
+    kw = _stand_kw(body_mass_kg, height_m, timestep_s)
+    vels = _check_seq("velocities_deg_s", velocities_deg_s, -400.0, 0.0)
+    vfull = _full_voltage(params, full_voltage_v)
+    fn = _ramped(vfull)
+    errors = {}
+
+    # stall: locked at neutral
+    stall = _Run(params, StandLoad(kind="locked"), "voltage", fn, 0.4, label="stall", **kw)
+    n = stall.rec.time_s.size
+    stall_tau = -float(np.mean(stall.rec.device_torque_nm[int(0.6 * n):]))
+    errors["stall"] = stall.energy_error
+
+    # no load: free foot started dorsiflexed, runs through neutral at full speed
+    free = _Run(params, StandLoad(kind="free"), "voltage", fn, 0.4,
+                initial_angle_rad=_STROKE_LIMIT_RAD, label="no_load", **kw)
+    t, q, w = free.rec.time_s, free.rec.angle_rad, free.rec.velocity_rad_s
+    sel = (t >= 0.15) & (q >= -_STROKE_LIMIT_RAD)
+    if np.count_nonzero(sel) < 10:
+        raise RuntimeError("no-load run: the foot left the stroke before reaching speed")
+    no_load = -math.degrees(float(np.mean(w[sel])))
+    errors["no_load"] = free.energy_error
+
+    # imposed constant velocities
+    t_pre, t_acc, settle, hold_max = 0.2, 0.04, 0.1, 0.35
+    tau_pts = []
+    for v_deg in vels:
+        v = math.radians(v_deg)
+        travel = 2 * _STROKE_LIMIT_RAD - 0.5 * abs(v) * t_acc
+        hold = hold_max if v == 0 else min(hold_max, travel / abs(v))
+        hold = max(hold, settle + 0.05)
+        traj = _ramp_hold(_STROKE_LIMIT_RAD, v, t_pre, t_acc)
+        run = _Run(params, StandLoad(kind="imposed", trajectory=traj), "voltage", fn,
+                   t_pre + t_acc + hold, **kw)
+        tt = run.rec.time_s
+        win = tt >= t_pre + t_acc + settle
+        tau_pts.append(float(np.mean(run.rec.device_torque_nm[win])))
+        errors[f"torque_velocity_{abs(v_deg):g}deg_s_plantarflexion"] = run.energy_error
+    v_arr = np.asarray(vels)
+    tau_arr = np.asarray(tau_pts)
+    # zero crossing of the assistance torque along increasing plantarflexion speed
+    order = np.argsort(-v_arr)
+    sp, at = -v_arr[order], -tau_arr[order]
+    nl_curve = math.nan
+    idx = np.flatnonzero((at[:-1] > 0) & (at[1:] <= 0))
+    if idx.size:
+        k = int(idx[0])
+        nl_curve = float(sp[k] + at[k] / (at[k] - at[k + 1]) * (sp[k + 1] - sp[k]))
+    summary = {"stall_torque_nm": stall_tau, "no_load_speed_deg_s": no_load,
+               "no_load_speed_from_curve_deg_s": nl_curve,
+               "full_voltage_command_v": vfull,
+               "stall_current_a": float(np.mean(stall.log["motor_current_a"][int(0.6 * n):])),
+               "energy_error_max": max(errors.values()), "energy_errors": errors}
+    series = {
+        "torque_velocity": {"velocity_deg_s": v_arr, "torque_nm": tau_arr,
+                            "plantarflexion_speed_deg_s": -v_arr, "assist_torque_nm": -tau_arr},
+        "stall": {"time_s": stall.rec.time_s, "torque_nm": stall.rec.device_torque_nm,
+                  "motor_current_a": stall.log["motor_current_a"]},
+        "no_load": {"time_s": t, "velocity_deg_s": np.degrees(w), "angle_deg": np.degrees(q)},
+    }
+    return summary, series
+
+
+def isometric_steps(params: PumpAnkleParams = HAFO,
+                    levels_nm: Sequence[float] = (20.0, 30.0, 40.0, 50.0), *,
+                    t_step_s: float = 0.05, duration_s: float = 0.5,
+                    locked_angle_rad: float = 0.0, body_mass_kg: float = 75.0,
+                    height_m: float = 1.75, timestep_s: float = DEFAULT_TIMESTEP_S
+                    ) -> tuple[dict, dict]:
+    """Isometric torque steps: locked ankle, torque mode, command 0 → −level at ``t_step_s``.
+
+    ``levels_nm`` are plantarflexion torque magnitudes (> 0, ≤ 90 N·m). Metrics of the
+    delivered torque per level (:func:`step_metrics`). Summary: ``levels`` →
+    ``{"20": {...}, ...}`` plus ``energy_error_max``; series ``isometric_step_<L>nm`` with
+    ``time_s``, ``command_nm``, ``torque_nm``.
+    """
+    _check_params(params)
+    kw = _stand_kw(body_mass_kg, height_m, timestep_s)
+    levels = _check_seq("levels_nm", levels_nm, 0.0, 90.0, lo_open=True)
+    t_step_s = _check_number("t_step_s", t_step_s, 0.0, 1.0)
+    duration_s = _check_number("duration_s", duration_s, t_step_s + 0.1, 10.0)
+    q_lock = _check_number("locked_angle_rad", locked_angle_rad, -0.5, 0.5)
+    out, series, errors = {}, {}, {}
+    eps = 0.5 * kw["timestep_s"]
+    for lev in levels:
+        cmd = -lev
+        fn = (lambda c: lambda t, q, w: c if t >= t_step_s - eps else 0.0)(cmd)
+        run = _Run(params, StandLoad(kind="locked", locked_angle_rad=q_lock), "torque", fn,
+                   duration_s, label=f"step_{lev:g}", **kw)
+        m = step_metrics(run.rec.time_s, run.rec.device_torque_nm, cmd, t_step_s)
+        m["energy_error"] = run.energy_error
+        m["peak_current_a"] = run.ledger["peak_current_a"]
+        out[f"{lev:g}"] = m
+        errors[f"isometric_step_{lev:g}nm"] = run.energy_error
+        series[f"isometric_step_{lev:g}nm"] = {
+            "time_s": run.rec.time_s, "command_nm": run.log["commanded_torque_nm"],
+            "torque_nm": run.rec.device_torque_nm}
+    summary = {"levels": out, "energy_error_max": max(errors.values()), "energy_errors": errors}
+    return summary, series
+
+
+def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
+                       freqs_hz: Sequence[float] | None = None, *,
+                       amplitude_v: float | None = None, bias_v: float | None = None,
+                       spring_stiffness_nm_per_rad: float = 20.0,
+                       added_inertia_kg_m2: float = 0.0, settle_s: float = 0.3,
+                       measure_cycles: int = 1, preload_s: float = 0.3,
+                       body_mass_kg: float = 75.0, height_m: float = 1.75,
+                       timestep_s: float | None = None) -> tuple[dict, dict]:
+    """Open-loop frequency response from motor voltage (mode ``voltage``).
+
+    ``kind="torque"``: isometric — ankle locked at neutral; ``u = bias + A sin 2πft`` with
+    defaults bias 1.5 V, A 0.75 V (stall current ``u/R`` ≤ 3.75 A, inside the 6.2 A limit, so
+    the driver stays linear; the bias keeps line a pressurised so the flushing valve does not
+    switch sides); output plantarflexion torque ``−τ`` [N·m].
+
+    ``kind="velocity"``: the foot swings free on a weak centring spring
+    (``spring_stiffness_nm_per_rad``, default 20 N·m/rad, relaxed at neutral: it holds the foot
+    near neutral against its weight, inside the ±32° stroke, and against the pump's
+    ≈ 35 N·m·s/rad torque–speed slope its corner k/b ≈ 0.1 Hz lies below the sweep) plus
+    optional ``added_inertia_kg_m2``; ``u = A sin 2πft``, no bias, default A = 10 V
+    (≈ ±50 deg/s, 8° at 1 Hz: large enough that the seal-friction stick at each velocity
+    reversal is a small part of the cycle; at 3 V it distorts the response by ~50 %); output
+    plantarflexion velocity ``−θ̇`` [rad/s].
+
+    Each frequency: ``preload_s`` at the bias (50 ms ramp), then the sine for ``settle_s``
+    (transient allowance) plus ``measure_cycles`` whole periods (at least 0.5 s); the fit uses
+    the measured periods. Summary: ``bandwidth_hz`` (−3 dB re the lowest frequency, NaN plus
+    ``bandwidth_note`` if not reached), ``dc_gain`` (gain at the lowest frequency, N·m/V or
+    rad/s/V), ``energy_error_max``; series ``frequency_response_<kind>``: ``freq_hz``, ``gain``
+    (absolute), ``gain_db`` (re the lowest frequency), ``phase_deg``, ``distortion`` (fit
+    residual RMS ÷ fundamental RMS).
+    """
+    _check_params(params)
+    if kind not in ("velocity", "torque"):
+        raise BenchError(f"kind = {kind!r}; allowed: 'velocity', 'torque'")
+    if timestep_s is None:
+        timestep_s = DEFAULT_TIMESTEP_S if kind == "torque" else VELOCITY_SWEEP_TIMESTEP_S
+    kw = _stand_kw(body_mass_kg, height_m, timestep_s)
+    if freqs_hz is None:
+        freqs_hz = DEFAULT_TORQUE_FREQS_HZ if kind == "torque" else DEFAULT_VELOCITY_FREQS_HZ
+    nyq = 0.5 / kw["timestep_s"]
+    freqs = _check_seq("freqs_hz", freqs_hz, 0.0, nyq / 10.0, lo_open=True)
+    if len(freqs) < 2 or len(set(freqs)) != len(freqs):
+        raise BenchError(f"freqs_hz = {list(freqs)!r}; allowed: at least 2 distinct frequencies")
+    freqs = tuple(sorted(freqs))
+    if kind == "torque":
+        amp = _check_number("amplitude_v", 0.75 if amplitude_v is None else amplitude_v,
+                            0.0, 20.0, lo_open=True)
+        bias = _check_number("bias_v", 1.5 if bias_v is None else bias_v, -20.0, 20.0)
+        load = StandLoad(kind="locked", locked_angle_rad=0.0,
+                         added_inertia_kg_m2=_check_number("added_inertia_kg_m2",
+                                                           added_inertia_kg_m2, 0.0, 10.0))
+    else:
+        amp = _check_number("amplitude_v", 10.0 if amplitude_v is None else amplitude_v,
+                            0.0, 20.0, lo_open=True)
+        bias = _check_number("bias_v", 0.0 if bias_v is None else bias_v, -20.0, 20.0)
+        load = StandLoad(kind="spring", spring_stiffness_nm_per_rad=_check_number(
+                             "spring_stiffness_nm_per_rad", spring_stiffness_nm_per_rad, 0.0,
+                             1e4, lo_open=True),
+                         spring_rest_angle_rad=0.0,
+                         added_inertia_kg_m2=_check_number("added_inertia_kg_m2",
+                                                           added_inertia_kg_m2, 0.0, 10.0))
+    settle = _check_number("settle_s", settle_s, 0.0, 10.0)
+    mc = int(_check_number("measure_cycles", measure_cycles, 1.0, 100.0))
+    t_pre = _check_number("preload_s", preload_s, 0.0, 10.0)
+    gains, phases, dist, errors = [], [], [], {}
+    for f in freqs:
+        period = 1.0 / f
+        n_settle = settle / period
+        n_meas = max(mc, math.ceil(0.5 / period))
+        dur = t_pre + (n_settle + n_meas) * period
+        w = 2 * math.pi * f
+
+        def fn(t, q, v, w=w):
+            if t < t_pre:
+                return bias * min(1.0, t / _RAMP_S)
+            return bias + amp * math.sin(w * (t - t_pre))
+
+        run = _Run(params, load, "voltage", fn, dur, label=f"{kind}_{f:g}Hz", **kw)
+        t = run.rec.time_s
+        sel = t >= t_pre - 0.5 * kw["timestep_s"]
+        # sample k: voltage held over step k, state at its start (the delivered torque of
+        # the record is the end-of-step value, so it is shifted one sample)
+        u = run.log["motor_command_v"][sel]
+        if kind == "torque":
+            tau = run.rec.device_torque_nm
+            y = -np.concatenate(([0.0], tau[:-1]))[sel]
+        else:
+            y = -run.rec.velocity_rad_s[sel]
+        r = sine_response(t[sel], u, y, f, settle_cycles=n_settle)
+        gains.append(r["gain"])
+        phases.append(r["phase_deg"])
+        dist.append(r["distortion_y"])
+        errors[f"frequency_response_{kind}_{f:g}Hz"] = run.energy_error
+    g = np.asarray(gains)
+    g_db = 20 * np.log10(g / g[0])
+    ph = np.degrees(np.unwrap(np.radians(phases)))
+    bw, note = bandwidth_hz(freqs, g_db, return_note=True)
+    summary = {"kind": kind, "bandwidth_hz": bw, "bandwidth_note": note,
+               "dc_gain": float(g[0]), "bias_v": bias, "amplitude_v": amp,
+               "energy_error_max": max(errors.values()), "energy_errors": errors}
+    series = {f"frequency_response_{kind}": {"freq_hz": np.asarray(freqs), "gain": g,
+                                              "gain_db": g_db, "phase_deg": ph,
+                                              "distortion": np.asarray(dist)}}
+    return summary, series
+
+
+def position_step(params: PumpAnkleParams = HAFO, step_rad: float = -math.radians(15.0), *,
+                  kp_nm_per_rad: float = 60.0, ki_nm_per_rad_s: float = 0.0,
+                  kd_nm_s_per_rad: float = 6.0, gravity_compensation: bool = True,
+                  torque_limit_nm: float = 65.0,
+                  added_inertia_kg_m2: float = 0.05, t_step_s: float = 0.3,
+                  duration_s: float = 1.5, body_mass_kg: float = 75.0, height_m: float = 1.75,
+                  timestep_s: float = DEFAULT_TIMESTEP_S) -> tuple[dict, dict]:
+    """Closed-loop ankle position step (PD + gravity compensation, optional integral, on the
+    ankle angle → torque command; the device runs in torque mode).
+
+    The foot (plus ``added_inertia_kg_m2`` on the axis, default 0.05 kg·m², about a shoe and
+    foot segment's worth swung at the ankle, and its own weight) starts at neutral, held there
+    by the controller until ``t_step_s``, when the reference steps to ``step_rad`` (default
+    −15°, plantarflexion; |step| ≤ 0.5 rad keeps the ±32° stroke). Control law in the module
+    docstring; with I ≈ 0.058 kg·m² (foot 0.008 + added 0.05) the default gains (K_p
+    60 N·m/rad, K_d 6 N·m·s/rad, K_i 0) put the loop's natural frequency √(K_p/I) ≈ 32 rad/s
+    (5 Hz) below the torque loop's (≈ 35 ms rise) and its damping ratio
+    ζ = K_d / (2√(K_p I)) ≈ 1.6 on the rigid-body model: the torque-loop lag takes part of
+    that damping (K_d 3 overshoots ≈ 30 %). An integral term (K_i > 0) removes a residual
+    friction offset only slowly and winds up during the step, so it is off by default; the
+    gravity compensation removes the foot's weight offset.
+
+    Summary: :func:`step_metrics` of the angle (``*_s``, ``overshoot_pct``,
+    ``steady_state_error`` in rad and ``steady_state_error_deg``), ``energy_error``; series
+    ``position_step`` with ``time_s``, ``angle_deg``, ``reference_deg``, ``command_nm``,
+    ``torque_nm``.
+    """
+    _check_params(params)
+    kw = _stand_kw(body_mass_kg, height_m, timestep_s)
+    step = _check_number("step_rad", step_rad, -0.5, 0.5)
+    if step == 0:
+        raise BenchError("step_rad = 0; allowed: a nonzero step, -0.5 <= step_rad <= 0.5")
+    kp = _check_number("kp_nm_per_rad", kp_nm_per_rad, 0.0, 1e4)
+    ki = _check_number("ki_nm_per_rad_s", ki_nm_per_rad_s, 0.0, 1e5)
+    kd = _check_number("kd_nm_s_per_rad", kd_nm_s_per_rad, 0.0, 1e3)
+    lim = _check_number("torque_limit_nm", torque_limit_nm, 0.0, 90.0, lo_open=True)
+    inertia = _check_number("added_inertia_kg_m2", added_inertia_kg_m2, 0.0, 10.0, lo_open=True)
+    t_step_s = _check_number("t_step_s", t_step_s, 0.0, 5.0)
+    duration_s = _check_number("duration_s", duration_s, t_step_s + 0.2, 20.0)
+    h = kw["timestep_s"]
+    i_lim = lim / ki if ki > 0 else 0.0
+
+    def make_law(stand):
+        gravity = stand.gravity_torque_nm if gravity_compensation else (lambda q: 0.0)
+        state = {"i": 0.0}
+
+        def law(t, q, v):
+            ref = step if t >= t_step_s - 0.5 * h else 0.0
+            e = ref - q
+            if ki > 0:
+                state["i"] = min(i_lim, max(-i_lim, state["i"] + e * h))
+            tau = kp * e + ki * state["i"] - kd * v - gravity(q)
+            return min(lim, max(-lim, tau))
+        return law
+
+    make_law.needs_stand = True
+    run = _Run(params, StandLoad(kind="inertia", added_inertia_kg_m2=inertia), "torque", make_law,
+               duration_s, initial_angle_rad=0.0, label="position_step", **kw)
+    t = run.rec.time_s
+    m = step_metrics(t, run.rec.angle_rad, step, t_step_s)
+    m["steady_state_error_deg"] = math.degrees(m["steady_state_error"])
+    m["step_deg"] = math.degrees(step)
+    m["energy_error"] = run.energy_error
+    ref = np.where(t >= t_step_s - 0.5 * h, step, 0.0)
+    series = {"position_step": {"time_s": t, "angle_deg": np.degrees(run.rec.angle_rad),
+                                "reference_deg": np.degrees(ref),
+                                "command_nm": run.log["commanded_torque_nm"],
+                                "torque_nm": run.rec.device_torque_nm}}
+    return m, series
+
+
+# -- the whole bench -------------------------------------------------------------------------------
+def run_bench(params: PumpAnkleParams = HAFO, tests: Iterable[str] = BENCH_TESTS,
+              body_mass_kg: float = 75.0, height_m: float = 1.75, *,
+              timestep_s: float | None = None) -> tuple[dict, dict]:
+    """Run the selected bench tests; returns ``(summary, series)``.
+
+    ``summary`` (keys present for the tests run): ``stall_torque_nm``, ``no_load_speed_deg_s``,
+    ``no_load_speed_from_curve_deg_s``; ``bandwidth_hz`` (isometric-torque open-loop −3 dB
+    bandwidth), ``velocity_bandwidth_hz``; ``rise_time_s``, ``overshoot_pct``,
+    ``settling_time_s`` (the 40 N·m isometric step, if run) and ``isometric_steps`` (per level);
+    ``position_step`` (metrics) with ``position_rise_time_s``, ``position_overshoot_pct``,
+    ``position_steady_state_error_deg``; ``energy_error_max`` over every run and
+    ``energy_errors`` per run; ``published`` figures; ``wall_time_s``.
+    ``series``: ``{name: {signal: array}}`` (see each test). ``timestep_s=None`` uses each
+    test's default step (module docstring).
+    """
+    _check_params(params)
+    if isinstance(tests, str):
+        tests = (tests,)
+    tests = tuple(tests)
+    bad = [x for x in tests if x not in BENCH_TESTS]
+    if bad or not tests:
+        raise BenchError(f"tests = {list(tests)!r}; allowed: a non-empty subset of "
+                         + ", ".join(repr(x) for x in BENCH_TESTS))
+    kw = {"body_mass_kg": body_mass_kg, "height_m": height_m}
+    _stand_kw(body_mass_kg, height_m, DEFAULT_TIMESTEP_S if timestep_s is None else timestep_s)
+    if timestep_s is not None:
+        kw["timestep_s"] = timestep_s
+    t0 = _time.perf_counter()
+    summary: dict = {"published": dict(PUBLISHED), "tests": list(tests)}
+    series: dict = {}
+    errors: dict = {}
+    if "torque_velocity" in tests:
+        s, ser = torque_velocity(params, **kw)
+        summary.update({k: s[k] for k in ("stall_torque_nm", "no_load_speed_deg_s",
+                                          "no_load_speed_from_curve_deg_s", "stall_current_a")})
+        errors.update(s["energy_errors"])
+        series.update(ser)
+    if "isometric_steps" in tests:
+        s, ser = isometric_steps(params, **kw)
+        summary["isometric_steps"] = s["levels"]
+        m40 = s["levels"].get("40")
+        if m40 is not None:
+            summary.update(rise_time_s=m40["rise_time_s"], overshoot_pct=m40["overshoot_pct"],
+                           settling_time_s=m40["settling_time_s"],
+                           steady_state_error_nm=m40["steady_state_error"])
+        errors.update(s["energy_errors"])
+        series.update(ser)
+    if "frequency_response" in tests:
+        for kind, key in (("torque", "bandwidth_hz"), ("velocity", "velocity_bandwidth_hz")):
+            s, ser = frequency_response(params, kind, **kw)
+            summary[key] = s["bandwidth_hz"]
+            summary[f"{kind}_dc_gain"] = s["dc_gain"]
+            if s["bandwidth_note"]:
+                summary[f"{key.removesuffix('_hz')}_note"] = s["bandwidth_note"]
+            errors.update(s["energy_errors"])
+            series.update(ser)
+    if "position_step" in tests:
+        m, ser = position_step(params, **kw)
+        summary["position_step"] = m
+        summary.update(position_rise_time_s=m["rise_time_s"],
+                       position_overshoot_pct=m["overshoot_pct"],
+                       position_settling_time_s=m["settling_time_s"],
+                       position_steady_state_error_deg=m["steady_state_error_deg"])
+        errors["position_step"] = m["energy_error"]
+        series.update(ser)
+    summary["energy_errors"] = errors
+    summary["energy_error_max"] = max(errors.values())
+    summary["wall_time_s"] = _time.perf_counter() - t0
+    return summary, series
+
+
+# -- figures -------------------------------------------------------------------------------------
+def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[Path]:
+    """Write the bench figures present in ``series`` as PNGs into ``out_dir``; returns paths.
+
+    ``hafo_torque_velocity.png`` (curve with the published 65 N·m stall / 105 deg/s no-load
+    points), ``hafo_isometric_steps.png``, ``hafo_bode.png`` (magnitude re low frequency and
+    phase, torque and velocity), ``hafo_position_step.png``.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not isinstance(series, Mapping):
+        raise BenchError(f"series = {type(series).__name__}; allowed: the series dict of "
+                         "run_bench")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+
+    def save(fig, name):
+        p = out / name
+        fig.tight_layout()
+        fig.savefig(p, dpi=120)
+        plt.close(fig)
+        paths.append(p)
+
+    if "torque_velocity" in series:
+        tv = series["torque_velocity"]
+        fig, ax = plt.subplots(figsize=(6, 4.2))
+        ax.plot(tv["plantarflexion_speed_deg_s"], tv["assist_torque_nm"], "o-", label="model")
+        ax.plot([0.0], [PUBLISHED["stall_torque_nm"]], "r*", ms=13,
+                label="published 65 N·m stall")
+        ax.plot([PUBLISHED["no_load_speed_deg_s"]], [0.0], "rs", ms=9,
+                label="published 105 deg/s no load")
+        if "no_load" in series:
+            nl = series["no_load"]
+            t = nl["time_s"]
+            sel = (t >= 0.15) & (nl["angle_deg"] >= -math.degrees(_STROKE_LIMIT_RAD))
+            if np.any(sel):
+                ax.plot([-float(np.mean(nl["velocity_deg_s"][sel]))], [0.0], "kx", ms=10,
+                        mew=2, label="model no load (free foot)")
+        ax.axhline(0, color="0.6", lw=0.8)
+        ax.set_xlabel("plantarflexion speed [deg/s]")
+        ax.set_ylabel("plantarflexion torque [N·m]")
+        ax.set_title("HAFO torque–velocity at full motor voltage")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        save(fig, "hafo_torque_velocity.png")
+
+    steps = sorted((k for k in series if k.startswith("isometric_step_")),
+                   key=lambda k: float(k.removeprefix("isometric_step_").removesuffix("nm")))
+    if steps:
+        fig, ax = plt.subplots(figsize=(6, 4.2))
+        for k in steps:
+            s = series[k]
+            lab = k.removeprefix("isometric_step_").replace("nm", " N·m")
+            line, = ax.plot(s["time_s"], -s["torque_nm"], label=lab)
+            ax.plot(s["time_s"], -s["command_nm"], "--", color=line.get_color(), lw=0.8)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("plantarflexion torque [N·m]")
+        ax.set_title("Isometric torque steps (dashed: command)")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        save(fig, "hafo_isometric_steps.png")
+
+    fr = [k for k in ("frequency_response_torque", "frequency_response_velocity") if k in series]
+    if fr:
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+        for k in fr:
+            s = series[k]
+            lab = k.removeprefix("frequency_response_")
+            a1.semilogx(s["freq_hz"], s["gain_db"], "o-", label=lab)
+            a2.semilogx(s["freq_hz"], s["phase_deg"], "o-", label=lab)
+        a1.axhline(-3.0, color="0.5", ls=":", lw=1)
+        a1.set_ylabel("gain re low frequency [dB]")
+        a1.set_title("Open-loop response to motor voltage")
+        a1.legend(fontsize=8)
+        a2.set_ylabel("phase [deg]")
+        a2.set_xlabel("frequency [Hz]")
+        for a in (a1, a2):
+            a.grid(alpha=0.3, which="both")
+        save(fig, "hafo_bode.png")
+
+    if "position_step" in series:
+        s = series["position_step"]
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 5.5), sharex=True)
+        a1.plot(s["time_s"], s["angle_deg"], label="ankle angle")
+        a1.plot(s["time_s"], s["reference_deg"], "--", label="reference")
+        a1.set_ylabel("angle [deg]")
+        a1.legend(fontsize=8)
+        a2.plot(s["time_s"], s["torque_nm"], label="delivered")
+        a2.plot(s["time_s"], s["command_nm"], "--", lw=0.8, label="commanded")
+        a2.set_ylabel("torque [N·m]")
+        a2.set_xlabel("time [s]")
+        a2.legend(fontsize=8)
+        a1.set_title("Closed-loop position step")
+        for a in (a1, a2):
+            a.grid(alpha=0.3)
+        save(fig, "hafo_position_step.png")
+    if not paths:
+        warnings.warn("plot_bench: series holds none of the bench tests; nothing drawn",
+                      RuntimeWarning, stacklevel=2)
+    return paths
