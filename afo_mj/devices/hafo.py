@@ -341,7 +341,7 @@ class HafoDevice:
         self.W[:, pa.W_SOC] = params.initial_soc
         self.W[:, pa.W_TEMP_K] = params.ambient_temperature_k
         self.W[:, pa.W_P_MAX] = p0
-        self.S = np.zeros((ns, 30, pa.N_F))
+        self.S = np.zeros((ns, pa.N_SCRATCH, pa.N_F))
         self.S[:, 0, 0] = self.timestep_s
         self.phase_state = asst.new_phase_state(ns)
         self.stride_limits = (float(min_stride_s), float(max_stride_s))
@@ -453,6 +453,8 @@ class HafoDevice:
                 "soc": float(W[pa.W_SOC]), "pressure_floor_steps": int(W[pa.W_CLIP_STEPS]),
                 "newton_iterations": int(W[pa.W_NEWTON_ITERS]),
                 "newton_unconverged_steps": int(W[pa.W_NEWTON_FAIL]),
+                "substepped_steps": int(W[pa.W_SUBSTEPPED]),
+                "substeps": int(W[pa.W_SUBSTEPS]),
                 "coupling_torque_error_rms_nm": float(np.sqrt(W[pa.W_COUPLE_SQ]
                                                               / max(self.steps, 1)))}
 

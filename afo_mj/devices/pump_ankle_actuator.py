@@ -118,6 +118,7 @@ _W_NAMES = (
     "P_MAX", "HEAT_TO_OIL", "E_HYD", "I_PEAK", "CLIP_STEPS",
     # coupling: end-point torque after the Newton correction, Σ(τ_applied − τ_end)², Newton
     "TAU_END", "COUPLE_SQ", "NEWTON_ITERS", "NEWTON_FAIL", "E_CHEM_DRAWN", "E_ABS_FLOW",
+    "SUBSTEPPED", "SUBSTEPS",
 )
 for _k, _n in enumerate(_W_NAMES):
     globals()["W_" + _n] = _k
@@ -136,6 +137,8 @@ LOSS_INDEX = tuple(globals()["W_" + n] for n in (
 N_F = 20
 
 MODE_TORQUE, MODE_VOLTAGE = 0.0, 1.0
+#: Rows of the per-side scratch array (see :func:`linearise`, :func:`finish_step`).
+N_SCRATCH = 31
 
 
 @numba.njit(cache=True)
@@ -482,9 +485,8 @@ def finish_all(Y, P, W, S, theta_dot_new, tau_out):
 
 
 @numba.njit(cache=True)
-def jacobian(y, theta, theta_dot, P, W, scratch, M):
+def jacobian(y, theta, theta_dot, h, P, W, scratch, M):
     """``M = I − h ∂f/∂y`` at ``(y, θ̇)`` by forward differences (uses scratch rows 25–29)."""
-    h = scratch[0, 0]
     f0 = scratch[25, :N_Y]
     F0 = scratch[26]
     yp = scratch[27, :N_Y]
@@ -502,36 +504,28 @@ def jacobian(y, theta, theta_dot, P, W, scratch, M):
         M[j, j] += 1.0
 
 
-@numba.njit(cache=True)
-def finish_step(y, P, W, theta_dot_new, scratch):
-    """Second half of the implicit step: the new ankle velocity closes it.
+#: Newton tolerance on the backward-Euler residual, per state, in units of ``_Y_TYP``.
+NEWTON_TOL = 1e-9
+#: Smallest sub-step, as a fraction of the MuJoCo step, before a step is accepted unconverged.
+MIN_SUBSTEP_FRACTION = 1.0 / 1024.0
 
-    The linear prediction ``y_n + a + b Δθ̇`` is corrected by Newton iterations (the step's
-    ``I − h J`` first, then a fresh Jacobian each iteration) on the backward-Euler equations ``y − y_n − h f(y, θ̇_{n+1}) = 0``,
-    so the end state satisfies them to ``1e-9`` of each state's scale and the right-point
-    energy ledger closes. The torque MuJoCo integrated was the prediction ``τ_0 + G Δθ̇``; its
-    difference from the corrected end-point torque is accumulated as the coupling error.
-    Updates ``y``, battery, temperature and the ledger; returns the applied torque."""
-    h = scratch[0, 0]
-    dthd = theta_dot_new - W[W_THETA_DOT]
-    yold = scratch[3, :N_Y]
-    for k in range(N_Y):
-        yold[k] = y[k]
-        y[k] += W[W_A0 + k] + W[W_B0 + k] * dthd
-    tau = W[W_TAU0] + W[W_G] * dthd
+
+@numba.njit(cache=True)
+def _newton(y, yold, h, theta, theta_dot, P, W, scratch, first_matrix):
+    """Solve the backward-Euler equations ``y − y_old − h f(y, θ̇) = 0`` by Newton from the
+    guess in ``y`` (in place). The first iteration uses the step's own ``I − h J`` (scratch
+    rows 19–24) when ``first_matrix``; later ones a fresh Jacobian. Leaves ``f`` and the
+    power flows at the solution in scratch rows 1–2. Returns whether it converged."""
     f1 = scratch[1, :N_Y]
     F1 = scratch[2]
     Mw = scratch[6:12, :N_Y]
     Mcopy = scratch[19:25, :N_Y]
     rv = scratch[12:18, :1]
-    theta = W[W_THETA]
-    floor = P[P_P_FLOOR] - P[P_P_ATM]
-    converged = False
     ybest = scratch[4, :N_Y]
     step = scratch[5, :N_Y]
     err_prev = 1e300
     for it in range(24):
-        rhs(y, theta, theta_dot_new, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f1, F1)
+        rhs(y, theta, theta_dot, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f1, F1)
         err = 0.0
         for k in range(N_Y):
             r_ = y[k] - yold[k] - h * f1[k]
@@ -539,9 +533,8 @@ def finish_step(y, P, W, theta_dot_new, scratch):
             e = abs(r_) / _Y_TYP[k]
             if e > err:
                 err = e
-        if err < 1e-9:
-            converged = True
-            break
+        if err < NEWTON_TOL:
+            return True
         if err > 1e4 * err_prev:
             # diverging (not merely non-monotone, which Newton often is after a large input
             # change): halve the last step
@@ -551,19 +544,95 @@ def finish_step(y, P, W, theta_dot_new, scratch):
             continue
         err_prev = err
         W[W_NEWTON_ITERS] += 1.0
-        if it == 0:
-            for j in range(N_Y):       # the step's own I − h J first (usually enough)
+        if it == 0 and first_matrix:
+            for j in range(N_Y):
                 for k in range(N_Y):
                     Mw[j, k] = Mcopy[j, k]
         else:
-            jacobian(y, theta, theta_dot_new, P, W, scratch, Mw)
+            jacobian(y, theta, theta_dot, h, P, W, scratch, Mw)
         _solve6(Mw, rv, 1)
         for k in range(N_Y):
             ybest[k] = y[k]
             step[k] = rv[k, 0]
             y[k] += rv[k, 0]
-    if not converged:
-        W[W_NEWTON_FAIL] += 1.0
+        for k in range(N_Y):
+            if not math.isfinite(y[k]):
+                return False
+    return False
+
+
+@numba.njit(cache=True)
+def finish_step(y, P, W, theta_dot_new, scratch):
+    """Second half of the implicit step: the new ankle velocity closes it.
+
+    The linear prediction ``y_n + a + b Δθ̇`` is corrected by Newton iterations on the
+    backward-Euler equations ``y − y_n − h f(y, θ̇_{n+1}) = 0`` (:func:`_newton`), so the end
+    state satisfies them to ``NEWTON_TOL`` of each state's scale and the right-point energy
+    ledger closes. Where Newton does not converge in one step (violent back-driving: the
+    motor's EMF overtakes the bus, a make-up valve slams open), the step is redone as
+    adaptive sub-steps (halved on failure, doubled after success, down to
+    ``MIN_SUBSTEP_FRACTION`` of the step) with the ankle velocity ramped linearly from
+    ``θ̇_n`` to ``θ̇_{n+1}`` across them: every sub-step is a converged backward-Euler step,
+    so the ledger still closes. The torque MuJoCo integrated was the prediction
+    ``τ_0 + G Δθ̇``; its difference from the end-point torque is accumulated as the coupling
+    error. Updates ``y``, battery, temperature and the ledger; returns the applied torque."""
+    h = scratch[0, 0]
+    thd0 = W[W_THETA_DOT]
+    dthd = theta_dot_new - thd0
+    theta = W[W_THETA]
+    yold = scratch[3, :N_Y]
+    ystart = scratch[30, :N_Y]
+    for k in range(N_Y):
+        yold[k] = y[k]
+        ystart[k] = y[k]
+        y[k] += W[W_A0 + k] + W[W_B0 + k] * dthd
+    tau = W[W_TAU0] + W[W_G] * dthd
+    F1 = scratch[2]
+    if _newton(y, yold, h, theta, theta_dot_new, P, W, scratch, True):
+        _close_substep(y, yold, h, theta_dot_new, P, W, scratch)
+    else:
+        W[W_SUBSTEPPED] += 1.0
+        for k in range(N_Y):
+            y[k] = ystart[k]
+        pos = 0.0
+        frac = 0.25
+        while pos < 1.0 - 1e-12:
+            if frac > 1.0 - pos:
+                frac = 1.0 - pos
+            for k in range(N_Y):
+                yold[k] = y[k]
+            thd = thd0 + (pos + frac) * dthd
+            ok = _newton(y, yold, frac * h, theta, thd, P, W, scratch, False)
+            if not ok and frac > MIN_SUBSTEP_FRACTION:
+                for k in range(N_Y):
+                    y[k] = yold[k]
+                frac *= 0.5
+                continue
+            if not ok:
+                # accepted unconverged at the smallest sub-step: counted, never silent
+                W[W_NEWTON_FAIL] += 1.0
+                for k in range(N_Y):
+                    if not math.isfinite(y[k]):
+                        y[k] = yold[k]
+                rhs(y, theta, thd, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, scratch[1, :N_Y], F1)
+            W[W_SUBSTEPS] += 1.0
+            _close_substep(y, yold, frac * h, thd, P, W, scratch)
+            pos += frac
+            if ok:
+                frac *= 2.0
+    W[W_TAU] = tau
+    W[W_TAU_END] = F1[F_TAU]
+    W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
+    W[W_P_MECH] = F1[F_TAU] * theta_dot_new
+    return tau
+
+
+@numba.njit(cache=True)
+def _close_substep(y, yold, h, theta_dot, P, W, scratch):
+    """Accept the backward-Euler (sub-)step ``yold → y`` of length ``h`` (power flows at
+    ``y`` in scratch row 2): pressure floor, battery, right-point energy ledger, thermal."""
+    F1 = scratch[2]
+    floor = P[P_P_FLOOR] - P[P_P_ATM]
     # pressure floor (absolute): a node cannot go below the vapour pressure
     clipped = False
     for k in range(Y_PPA, Y_PCB + 1):
@@ -572,12 +641,8 @@ def finish_step(y, P, W, theta_dot_new, scratch):
             clipped = True
     if clipped:
         W[W_CLIP_STEPS] += 1.0
-    if clipped or not converged:
-        rhs(y, theta, theta_dot_new, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, f1, F1)
-    W[W_TAU] = tau
-    W[W_TAU_END] = F1[F_TAU]
-    W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
-    W[W_P_MECH] = F1[F_TAU] * theta_dot_new
+        rhs(y, W[W_THETA], theta_dot, W[W_V_CMD], W[W_V_BUS], W[W_MU], P, scratch[1, :N_Y],
+            F1)
     # battery: pack current for the bus power, V_oc from the state of charge
     p_bus = F1[F_PBUS]
     soc = W[W_SOC]
@@ -596,9 +661,9 @@ def finish_step(y, P, W, theta_dot_new, scratch):
     if i_bat > 0.0:
         W[W_E_CHEM_DRAWN] += h * v_oc * i_bat
     # energy throughput (scale of the balance check when the ankle back-drives the pump)
-    W[W_E_ABS_FLOW] += h * (abs(v_oc * i_bat) + abs(F1[F_TAU] * theta_dot_new))
+    W[W_E_ABS_FLOW] += h * (abs(v_oc * i_bat) + abs(F1[F_TAU] * theta_dot))
     W[W_E_BATTERY] += h * rb * i_bat * i_bat
-    W[W_E_MECH] += h * F1[F_TAU] * theta_dot_new
+    W[W_E_MECH] += h * F1[F_TAU] * theta_dot
     W[W_E_DRIVER] += h * F1[F_DRIVER]
     W[W_E_COPPER] += h * F1[F_COPPER]
     W[W_E_MOTOR_FRICTION] += h * F1[F_MFRIC]
@@ -628,7 +693,6 @@ def finish_step(y, P, W, theta_dot_new, scratch):
         W[W_P_MAX] = pm
     if abs(y[Y_I]) > W[W_I_PEAK]:
         W[W_I_PEAK] = abs(y[Y_I])
-    return tau
 
 
 _OCV_SOC = np.array([0.0, 0.05, 0.10, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.0])
