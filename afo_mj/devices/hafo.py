@@ -60,7 +60,7 @@ from afo_mj.hydraulics.seal import OringSealParams
 from afo_mj.human.walker import WornMass
 
 __all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
-           "HafoDevice", "pack_parameters", "mass_budget", "hafo_params"]
+           "HafoDevice", "pack_parameters", "mass_budget", "hafo_params", "HAFO_GAIT", "PRESETS"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,6 +89,8 @@ class PumpAnkleParams(Parameters):
     driver: DriverParams = DriverParams(current_limit_a=6.2, max_duty=0.95,
                                         on_resistance_ohm=0.02, quiescent_power_w=0.3)
     pump: PumpParams = GEAR_PUMP_SMALL
+    pump_mass_kg: float = param(0.25, unit="kg", lo=0.01, hi=5.0,
+                                doc="pump with its motor coupling (mass budget)")
     hose: HoseParams = HoseParams(length_m=1.1, bore_m=3.2e-3, wall_bulk_modulus_pa=1.5e9)
     cylinder: CylinderParams = CylinderParams(
         kind="piston_cable", bore_m=10.4e-3, rod_diameter_m=2.0e-3, stroke_m=0.045,
@@ -189,7 +191,8 @@ def mass_budget(p: PumpAnkleParams = HAFO_ACTUATOR) -> tuple[HafoMassItem, ...]:
         # waist: power supply
         HafoMassItem("battery", p.battery.mass_kg, "waist", p.battery.name),
         HafoMassItem("motor", p.motor.mass_kg, "waist", "100 W class brushless motor"),
-        HafoMassItem("pump", 0.25, "waist", "0.2 cm³/rev gear pump"),
+        HafoMassItem("pump", p.pump_mass_kg, "waist",
+                     f"{p.pump.displacement_m3_rev * 1e6:.2g} cm³/rev gear pump"),
         HafoMassItem("manifold_reservoir_valves", 0.50, "waist",
                      "manifold, charge reservoir, relief and flushing valves"),
         HafoMassItem("electronics", 0.35, "waist", "motor driver, controller, sensors"),
@@ -202,10 +205,51 @@ def mass_budget(p: PumpAnkleParams = HAFO_ACTUATOR) -> tuple[HafoMassItem, ...]:
 HAFO_MASSES = mass_budget()
 HAFO = HAFO_ACTUATOR
 
+#: The HAFO architecture sized for normal walking (preset ``hafo_gait``). The published
+#: prototype's 105 deg/s no-load speed is about half the 216 deg/s peak plantarflexion
+#: velocity of a 75 kg walker (``facts.md``), and back-driving it past that speed turns the
+#: motor into a generator whose EMF exceeds the bus: the pump then brakes the ankle at up to
+#: the relief pressure (the gait scenarios measure ≈ 60 J/stride of braking in transparent
+#: mode). This variant keeps every other choice of :data:`HAFO` and changes only what sets
+#: the speed:
+#:
+#: * pump 0.6 cm³/rev (three times the displacement, same gear-pump loss coefficients):
+#:   no-load ankle speed ≈ 3 × 105 ≈ 315 deg/s, above the walker's push-off velocity;
+#:   0.35 kg instead of 0.25 kg;
+#: * driver current limit 18.6 A (three times 6.2 A) so the stall torque stays 65 N·m at the
+#:   same pressure; a 200 W class motor of the same torque constant (same no-load speed per
+#:   volt) with a third of the winding resistance (0.2 Ω) so its copper loss at the limit
+#:   (69 W) matches the prototype motor's at its own; rotor 1.2e-6 kg m², 0.30 kg;
+#: * battery rated for 30 A (high-power 18650 cells, same 6S 3 Ah, same mass);
+#: * hoses 4.2 mm bore: three times the flow through the 3.2 mm hoses would cost nine times
+#:   the laminar line loss; ``3^¼ · 3.2 mm ≈ 4.2 mm`` keeps the pressure drop per hose at
+#:   full speed where the prototype's is (Reynolds number ≈ 180, still laminar);
+#: * pressure-loop gains divided by 3 (the loop gain is pump flow per pressure error).
+#:
+#: Mass: 3.58 kg in all, 0.97 kg at the ankle (unchanged: the ankle parts are the same).
+HAFO_GAIT = HAFO_ACTUATOR.replace(
+    pump=GEAR_PUMP_SMALL.replace(displacement_m3_rev=0.6e-6,
+                                 rotor_inertia_kg_m2=3.0 * GEAR_PUMP_SMALL.rotor_inertia_kg_m2),
+    pump_mass_kg=0.35,
+    motor=HAFO_ACTUATOR.motor.replace(resistance_ohm=0.2, inductance_h=0.05e-3,
+                                      rotor_inertia_kg_m2=1.2e-6, mass_kg=0.30),
+    driver=HAFO_ACTUATOR.driver.replace(current_limit_a=18.6),
+    battery=HAFO_ACTUATOR.battery.replace(max_current_a=30.0),
+    hose=HAFO_ACTUATOR.hose.replace(bore_m=4.2e-3),
+    control=HafoControlParams(pressure_gain_rad_s_per_pa=0.4e-5,
+                              pressure_integral_gain_rad_per_pa=4e-4 / 3.0))
 
-def hafo_params(overrides: dict | None = None) -> PumpAnkleParams:
-    """The HAFO preset with dotted-name overrides (``{"hose.length_m": 2.2}``), validated."""
-    return replace_named(HAFO_ACTUATOR, overrides or {}) if overrides else HAFO_ACTUATOR
+#: Device presets by scenario name.
+PRESETS = {"hafo": HAFO, "hafo_gait": HAFO_GAIT}
+
+
+def hafo_params(overrides: dict | None = None, preset: str = "hafo") -> PumpAnkleParams:
+    """A preset (:data:`PRESETS`) with dotted-name overrides (``{"hose.length_m": 2.2}``),
+    validated."""
+    if preset not in PRESETS:
+        raise ParameterError(f"device.preset = {preset!r}; allowed: {', '.join(PRESETS)}")
+    base = PRESETS[preset]
+    return replace_named(base, overrides or {}) if overrides else base
 
 
 def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndarray:

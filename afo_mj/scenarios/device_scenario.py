@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from afo_mj.analysis.gait_metrics import PUSH_OFF_WINDOW
 from afo_mj.control import assistance as asst
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.scenarios.walk_scenario import ScenarioError
@@ -36,7 +37,7 @@ DEVICE_KEYS = ("preset", "sides", "conditions", "params")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
                "points")
 CONDITIONS = ("no_device", "transparent", "assist")
-PRESETS = ("hafo",)
+PRESETS = ("hafo", "hafo_gait")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +83,7 @@ def device_config(scenario) -> DeviceConfig | None:
         raise fail("device.params", overrides, "a table of dotted parameter names")
     from afo_mj.devices.hafo import hafo_params
     try:
-        params = hafo_params(overrides)
+        params = hafo_params(overrides, preset)
     except ParameterError as exc:
         raise ScenarioError(f"{origin}: device.params: {exc}") from None
     profile = None
@@ -133,6 +134,28 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
                                                                * dt / n),
                     "ankle_negative_work_j_per_stride": float(np.sum(np.clip(p_h, None, 0))
                                                               * dt / n)}
+    # the whole joint (muscles + device): push-off restoration is judged on it
+    p_tot = (rec.joint_moment_nm[mask, side, 2] + rec.device_moment_nm[mask, side]) * w
+    t_m = rec.time_s[mask]
+    hs = [h for h in rec.events.heel_strikes_s[side] if t_m[0] - 1e-9 <= h <= t_m[-1] + dt]
+    peaks, po_work = [], []
+    for a, b in zip(hs[:-1], hs[1:]):
+        sel = (t_m >= a) & (t_m < b)
+        if not np.any(sel):
+            continue
+        ph = (t_m[sel] - a) / (b - a)
+        win = (ph >= PUSH_OFF_WINDOW[0]) & (ph <= PUSH_OFF_WINDOW[1])
+        pw = p_tot[sel][win]
+        if pw.size:
+            peaks.append(float(np.max(pw)))
+            po_work.append(float(np.sum(np.clip(pw, 0, None)) * dt))
+    out["ankle"] = {
+        "push_off_peak_power_w": float(np.mean(peaks)) if peaks else None,
+        "push_off_positive_work_j_per_stride": float(np.mean(po_work)) if po_work else None,
+        "positive_work_j_per_stride": float(np.sum(np.clip(p_tot, 0, None)) * dt / n),
+        "note": "whole ankle joint (muscles + device); push-off is "
+                f"{PUSH_OFF_WINDOW[0]:.0%}-{PUSH_OFF_WINDOW[1]:.0%} of the stride",
+    }
     if device is None:
         return out
     L = device.log.arrays()
