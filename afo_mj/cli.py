@@ -18,6 +18,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -85,7 +86,14 @@ def _run(args: argparse.Namespace) -> int:
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
 
+    from afo_mj.scenarios.bench_scenario import is_bench_document
     from afo_mj.scenarios.device_scenario import device_config
+    try:
+        text = Path(args.scenario).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        text = ""          # load_scenario reports it
+    if is_bench_document(text):
+        return _run_bench(args)
     try:
         scenario = load_scenario(args.scenario, overrides=args.set or ())
         reference = scenario.load_reference()
@@ -226,6 +234,61 @@ def _run_device(args, scenario, reference, cfg) -> int:
                      f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
                      f"balance error {100 * e['balance_error_rel']:.2f} %")
         print(line)
+    print(f"  results: {out}")
+    return 0
+
+
+def _run_bench(args) -> int:
+    """A bench scenario: the device on the ankle test stand."""
+    import json
+
+    from afo_mj.outputs.gait_report import json_ready
+    from afo_mj.outputs.result_dir import ResultDirError, write_atomically
+    from afo_mj.scenarios.bench_scenario import load_bench_scenario, run_bench_scenario
+    from afo_mj.scenarios.hafo_bench import BenchError, plot_bench
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+    try:
+        bs = load_bench_scenario(args.scenario, overrides=args.set or ())
+    except ScenarioError as exc:
+        print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    try:
+        summary, series = run_bench_scenario(bs)
+    except (BenchError, FloatingPointError) as exc:
+        print(f"afo-mj run: {bs.name}: {exc}; nothing written", file=sys.stderr)
+        return 1
+    summary["wall_time_s"] = time.perf_counter() - t0
+
+    def writer(tmp: Path) -> None:
+        text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
+        (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
+        (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
+        plot_bench(series, tmp)
+
+    try:
+        out = write_atomically(args.out, writer)
+    except ResultDirError as exc:
+        print(f"afo-mj run: {bs.name}: {exc}", file=sys.stderr)
+        return 1
+    b = summary["bench"]
+    pub = summary["published"]
+    print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({summary['wall_time_s']:.1f} s wall)")
+
+    def show(key, unit, fmt=".3g", ref=None):
+        if key in b:
+            extra = f" (published {ref:g})" if ref is not None else ""
+            print(f"  {key:32s} {b[key]:{fmt}} {unit}{extra}")
+    show("stall_torque_nm", "N*m", ".1f", pub.get("stall_torque_nm"))
+    show("no_load_speed_deg_s", "deg/s", ".1f", pub.get("no_load_speed_deg_s"))
+    show("rise_time_s", "s (40 N*m isometric step, 10-90 %)", ".4f")
+    show("overshoot_pct", "%", ".1f")
+    show("bandwidth_hz", "Hz (isometric torque, open loop, -3 dB)", ".2f")
+    show("velocity_bandwidth_hz", "Hz (ankle velocity, open loop, -3 dB)", ".1f")
+    show("position_rise_time_s", "s (closed-loop position step)", ".3f")
+    print(f"  mass {summary['device']['mass_total_kg']:.2f} kg in all, "
+          f"{summary['device']['mass_at_ankle_kg']:.2f} kg at the ankle; worst energy "
+          f"balance error {100 * summary['energy']['balance_error_rel']:.3f} %")
     print(f"  results: {out}")
     return 0
 

@@ -25,14 +25,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from afo_mj.outputs.result_dir import ResultDirError, write_atomically
 from afo_mj.analysis.gait_metrics import (
     CURVE_CHANNELS, JOINTS, PERCENT_CYCLE, GaitCycle, reference_band, curve_statistics)
 
@@ -159,13 +157,16 @@ def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str) -> Non
 
 def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], reference,
                       record=None, scenario_text: str | None = None,
-                      title: str | None = None, extra_tables: dict | None = None) -> Path:
+                      title: str | None = None, extra_tables: dict | None = None,
+                      extra_figures=None) -> Path:
     """Write the run's result files into ``out_dir`` atomically (see the module docstring).
 
     ``cycles``: the analysed cycles (:func:`afo_mj.analysis.gait_metrics.extract_cycles` or
     ``analyse_gait(...).cycles``); ``reference``: the reference gait the run was compared
     with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
-    is used, for the figure title). Returns the output directory path.
+    is used, for the figure title); ``extra_tables``: ``{file name: (CSV header, 2-D array)}``;
+    ``extra_figures``: a callable that writes more files into the directory it is given.
+    Returns the output directory path.
     A run that fell before any analysable cycle (``summary["fell"]`` true, no cycles) writes
     its outcome: ``summary.json`` (and ``scenario.toml``) only.
     Raises :class:`ReportError` (nothing written) for a non-finite key metric, or for no
@@ -181,12 +182,8 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
         title = f"{name or 'walk'}: {len(cycles)} cycles"
         if record is not None:
             title += f", {record.body_mass_kg:g} kg, {record.height_m:g} m"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    umask = os.umask(0o022)
-    os.umask(umask)
-    os.chmod(tmp, 0o777 & ~umask)         # mkdtemp makes 0700; the result is an ordinary dir
-    try:
+
+    def writer(tmp: Path) -> None:
         _write_summary(tmp / "summary.json", summary)
         if cycles:
             _write_cycles(tmp / "cycles.csv", cycles)
@@ -200,14 +197,10 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
                 raise ReportError(f"{fname}: non-finite values; nothing written")
             np.savetxt(tmp / fname, data, delimiter=",", header=header, comments="",
                        fmt="%.9g")
-        if not out.exists():
-            os.replace(tmp, out)          # the whole directory appears at once
-            return out
-        if not out.is_dir():
-            raise ReportError(f"{out} exists and is not a directory; nothing written")
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-    return out
+        if extra_figures is not None:
+            extra_figures(tmp)
+
+    try:
+        return write_atomically(out, writer)
+    except ResultDirError as exc:
+        raise ReportError(str(exc)) from None
