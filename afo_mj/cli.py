@@ -81,6 +81,32 @@ def _fmt(entry, fmt: str = ".2f") -> str:
     return f"{entry['mean']:{fmt}}" + ("" if sd is None else f" ± {sd:{fmt}}")
 
 
+def _run_info_writer(wall_s: float):
+    """Writer of ``run_info.json``: what is not a result of the scenario (wall time,
+    versions), kept out of ``summary.json`` so that a rerun gives an identical summary."""
+    def write(tmp: Path) -> None:
+        import platform
+
+        import mujoco
+        info = {"wall_time_s": wall_s, "python": platform.python_version(),
+                "numpy": np.__version__, "mujoco": mujoco.__version__,
+                "platform": platform.platform()}
+        (tmp / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    return write
+
+
+def _device_files_writer(results, reference, dsum, name, wall_s):
+    """Writer of a device run's figures and ``run_info.json``."""
+    def write(tmp: Path) -> None:
+        _run_info_writer(wall_s)(tmp)
+        try:
+            from afo_mj.outputs.device_figures import plot_device_run
+        except ImportError:            # figures module not present in this build
+            return
+        plot_device_run(tmp, results, reference, dsum, name)
+    return write
+
+
 def _run(args: argparse.Namespace) -> int:
     from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
@@ -124,15 +150,15 @@ def _run(args: argparse.Namespace) -> int:
                    "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
                    "swing_toe_contacts": len(ev.swing_toe_contacts),
                    "duration_s": float(record.time_s[-1]) if len(record.time_s) else 0.0,
-                   "analysis": str(exc), "wall_time_s": wall}
-        out = write_run_outputs(args.out, summary, [], reference, record, scenario.text)
+                   "analysis": str(exc)}
+        out = write_run_outputs(args.out, summary, [], reference, record, scenario.text,
+                                extra_files=_run_info_writer(wall))
         print(f"afo_mj walk: {scenario.name}: FELL at t = {ev.fall_time_s:.2f} s after "
               f"{summary['completed_strides']} complete strides; {exc}")
         print(f"  results: {out}")
         return 0
     try:
-        summary = {"scenario": scenario.as_dict(), **analysis.summary,
-                   "wall_time_s": wall}
+        summary = {"scenario": scenario.as_dict(), **analysis.summary}
         if scenario.band_references:
             from afo_mj.analysis.gait_metrics import band_fraction
             from afo_mj.gait.reference import load_normative
@@ -140,7 +166,7 @@ def _run(args: argparse.Namespace) -> int:
                 f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
                 for src, cond in scenario.band_references}
         out = write_run_outputs(args.out, summary, analysis.cycles, reference, record,
-                                scenario.text)
+                                scenario.text, extra_files=_run_info_writer(wall))
     except (GaitAnalysisError, ReportError) as exc:
         print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
         return 1
@@ -197,7 +223,7 @@ def _run_device(args, scenario, reference, cfg) -> int:
         return 1
     summary = {"scenario": {**scenario.as_dict(), "device": dict(scenario.device),
                             "assistance": dict(scenario.assistance)},
-               **analysis.summary, "condition": head, "wall_time_s": wall,
+               **analysis.summary, "condition": head,
                "gait": analysis.summary, "human": block["human"], **dsum}
     if "device" in block:
         summary["device"] = block["device"]
@@ -210,7 +236,9 @@ def _run_device(args, scenario, reference, cfg) -> int:
         extra["device_timeseries.csv"] = (",".join(cols), data)
     try:
         out = write_run_outputs(args.out, summary, analysis.cycles, reference, rec,
-                                scenario.text, extra_tables=extra)
+                                scenario.text, extra_tables=extra,
+                                extra_files=_device_files_writer(results, reference, dsum,
+                                                                 scenario.name, wall))
     except ReportError as exc:
         print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
         return 1
@@ -258,9 +286,10 @@ def _run_bench(args) -> int:
     except (BenchError, FloatingPointError) as exc:
         print(f"afo-mj run: {bs.name}: {exc}; nothing written", file=sys.stderr)
         return 1
-    summary["wall_time_s"] = time.perf_counter() - t0
+    wall = time.perf_counter() - t0
 
     def writer(tmp: Path) -> None:
+        _run_info_writer(wall)(tmp)
         text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
@@ -273,7 +302,7 @@ def _run_bench(args) -> int:
         return 1
     b = summary["bench"]
     pub = summary["published"]
-    print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({summary['wall_time_s']:.1f} s wall)")
+    print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
 
     def show(key, unit, fmt=".3g", ref=None):
         if key in b:

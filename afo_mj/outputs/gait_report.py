@@ -158,14 +158,15 @@ def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str) -> Non
 def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], reference,
                       record=None, scenario_text: str | None = None,
                       title: str | None = None, extra_tables: dict | None = None,
-                      extra_figures=None) -> Path:
+                      extra_files=None) -> Path:
     """Write the run's result files into ``out_dir`` atomically (see the module docstring).
 
     ``cycles``: the analysed cycles (:func:`afo_mj.analysis.gait_metrics.extract_cycles` or
     ``analyse_gait(...).cycles``); ``reference``: the reference gait the run was compared
     with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
     is used, for the figure title); ``extra_tables``: ``{file name: (CSV header, 2-D array)}``;
-    ``extra_figures``: a callable that writes more files into the directory it is given.
+    ``extra_files``: a callable that writes more files (figures, run information) into the
+    directory it is given.
     Returns the output directory path.
     A run that fell before any analysable cycle (``summary["fell"]`` true, no cycles) writes
     its outcome: ``summary.json`` (and ``scenario.toml``) only.
@@ -197,8 +198,8 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
                 raise ReportError(f"{fname}: non-finite values; nothing written")
             np.savetxt(tmp / fname, data, delimiter=",", header=header, comments="",
                        fmt="%.9g")
-        if extra_figures is not None:
-            extra_figures(tmp)
+        if extra_files is not None:
+            extra_files(tmp)
 
     try:
         return write_atomically(out, writer)

@@ -154,6 +154,8 @@ def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
     from afo_mj.scenarios.hafo_bench import run_bench
     res, series = run_bench(bs.params, bs.tests, bs.body_mass_kg, bs.height_m,
                             timestep_s=bs.timestep_s)
+    # wall time is not a result (it goes to run_info.json): a rerun gives the same summary
+    res.pop("wall_time_s", None)
     scalars = {k: v for k, v in res.items()
                if isinstance(v, (int, float)) and not isinstance(v, bool)}
     detail = {k: v for k, v in res.items() if k not in scalars and k != "published"}
