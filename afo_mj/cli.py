@@ -98,11 +98,8 @@ def _run_info_writer(wall_s: float):
 def _device_files_writer(results, reference, dsum, name, wall_s):
     """Writer of a device run's figures and ``run_info.json``."""
     def write(tmp: Path) -> None:
+        from afo_mj.outputs.device_figures import plot_device_run
         _run_info_writer(wall_s)(tmp)
-        try:
-            from afo_mj.outputs.device_figures import plot_device_run
-        except ImportError:            # figures module not present in this build
-            return
         plot_device_run(tmp, results, reference, dsum, name)
     return write
 
