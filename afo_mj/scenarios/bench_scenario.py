@@ -33,7 +33,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from afo_mj.hydraulics.params import ParameterError
+from afo_mj.scenarios.device_scenario import device_params
 from afo_mj.scenarios.walk_scenario import ScenarioError, apply_overrides
 
 TOP_KEYS = ("name", "description", "device", "bench")
@@ -77,7 +77,6 @@ def is_bench_document(text: str) -> bool:
 def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str = "bench",
                          source_path: Path | None = None, overrides=()) -> BenchScenario:
     """Validate a bench scenario; raises :class:`ScenarioError` naming key, value, allowed."""
-    from afo_mj.devices.hafo import PRESETS, hafo_params
     from afo_mj.scenarios.hafo_bench import BENCH_TESTS
 
     def fail(key, value, allowed):
@@ -106,16 +105,7 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
         for k in tbl:
             if k not in keys:
                 raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys))
-    preset = dev.get("preset", "hafo")
-    if preset not in PRESETS:
-        raise fail("device.preset", preset, " | ".join(PRESETS))
-    ov = dev.get("params", {})
-    if not isinstance(ov, dict):
-        raise fail("device.params", ov, "a table of dotted parameter names")
-    try:
-        params = hafo_params(ov, preset)
-    except ParameterError as exc:
-        raise ScenarioError(f"{origin}: device.params: {exc}") from None
+    preset, params, ov = device_params(dev, origin)
     tests = bench.get("tests", list(BENCH_TESTS))
     if (not isinstance(tests, list) or not tests or len(set(tests)) != len(tests)
             or any(t not in BENCH_TESTS for t in tests)):

@@ -37,7 +37,6 @@ DEVICE_KEYS = ("preset", "sides", "conditions", "params")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
                "points")
 CONDITIONS = ("no_device", "transparent", "assist")
-PRESETS = ("hafo", "hafo_gait")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,6 +46,25 @@ class DeviceConfig:
     sides: tuple[str, ...]
     conditions: tuple[str, ...]
     profile: np.ndarray | None
+
+
+def device_params(dev: dict, origin: str):
+    """``(preset, params, overrides)`` from a scenario's ``[device]`` table: the preset
+    (:data:`afo_mj.devices.hafo.PRESETS`) with its ``params`` dotted overrides, validated."""
+    from afo_mj.devices.hafo import PRESETS as DEVICE_PRESETS, hafo_params
+    preset = dev.get("preset", "hafo")
+    if preset not in DEVICE_PRESETS:
+        raise ScenarioError(f"{origin}: device.preset = {preset!r} is not allowed; allowed: "
+                            + " | ".join(DEVICE_PRESETS))
+    overrides = dev.get("params", {})
+    if not isinstance(overrides, dict):
+        raise ScenarioError(f"{origin}: device.params = {overrides!r} is not allowed; allowed: "
+                            "a table of dotted parameter names")
+    try:
+        params = hafo_params(overrides, preset)
+    except ParameterError as exc:
+        raise ScenarioError(f"{origin}: device.params: {exc}") from None
+    return preset, params, overrides
 
 
 def device_config(scenario) -> DeviceConfig | None:
@@ -67,9 +85,6 @@ def device_config(scenario) -> DeviceConfig | None:
     for k in ass:
         if k not in ASSIST_KEYS:
             raise fail(f"assistance.{k}", ass[k], "keys " + ", ".join(ASSIST_KEYS))
-    preset = dev.get("preset", "hafo")
-    if preset not in PRESETS:
-        raise fail("device.preset", preset, " | ".join(PRESETS))
     sides = dev.get("sides", ["right"])
     if (not isinstance(sides, list) or not sides or len(set(sides)) != len(sides)
             or any(s not in ("right", "left") for s in sides)):
@@ -78,14 +93,7 @@ def device_config(scenario) -> DeviceConfig | None:
     if (not isinstance(conds, list) or not conds or any(c not in CONDITIONS for c in conds)
             or len(set(conds)) != len(conds)):
         raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
-    overrides = dev.get("params", {})
-    if not isinstance(overrides, dict):
-        raise fail("device.params", overrides, "a table of dotted parameter names")
-    from afo_mj.devices.hafo import hafo_params
-    try:
-        params = hafo_params(overrides, preset)
-    except ParameterError as exc:
-        raise ScenarioError(f"{origin}: device.params: {exc}") from None
+    preset, params, _ = device_params(dev, origin)
     profile = None
     if "assist" in conds:
         kind = ass.get("profile", "zhang")
