@@ -371,37 +371,43 @@ class HafoDevice:
         self.side_index = np.array([SIDE_NAMES.index(s) for s in self.sides], dtype=np.int64)
         ns = len(self.sides)
         self.mode = mode
-        self.P = np.tile(pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage"
-                                         else pa.MODE_TORQUE), (ns, 1))
-        self.profile = (np.zeros(asst.TABLE_POINTS) if profile is None
-                        else np.ascontiguousarray(profile, dtype=float))
         self.transparent = profile is None and torque_fn is None
+        profile = (np.zeros(asst.TABLE_POINTS) if profile is None
+                   else np.ascontiguousarray(profile, dtype=float))
         self.torque_fn = torque_fn
         self.timestep_s = float(timestep_s)
+        # Every per-side float array is a view of one buffer, laid out by ``_meta``
+        # (pa.device_layout), so that the compiled step (pa.device_begin / pa.device_end)
+        # takes two arrays instead of a dozen: the call overhead grows with their number.
+        self._meta = pa.device_layout(ns, profile.shape[0], self.side_index)
+        self._buf = np.zeros(self._meta[pa.M_END])
+        (self.Y, self.P, self.W, self.S, self.phase_state, self.profile, self._V, self._out,
+         self._O) = pa.device_views(self._buf, self._meta)
+        self.P[:] = pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage"
+                                    else pa.MODE_TORQUE)
+        self.profile[:] = profile
         p0 = params.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
-        self.Y = np.zeros((ns, pa.N_Y))
         self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
-        self.W = np.zeros((ns, pa.N_W))
         self.W[:, pa.W_SOC] = params.initial_soc
         self.W[:, pa.W_TEMP_K] = params.ambient_temperature_k
         self.W[:, pa.W_P_MAX] = p0
-        self.S = np.zeros((ns, pa.N_SCRATCH, pa.N_F))
         self.S[:, 0, 0] = self.timestep_s
-        self.phase_state = asst.new_phase_state(ns)
+        self.phase_state[:] = asst.new_phase_state(ns)
         self.stride_limits = (float(min_stride_s), float(max_stride_s))
-        self._theta = np.zeros(ns)
-        self._thd = np.zeros(ns)
-        self._cmd = np.zeros(ns)
-        self._out = np.zeros((ns, 2))
-        self._tau = np.zeros(ns)
-        self._vnew = np.zeros(ns)
-        self.force2 = np.zeros(2)
-        self.damping2 = np.zeros(2)
-        self.delivered2 = np.zeros(2)
-        self.commanded2 = np.zeros(2)
-        self.phase2 = np.full(2, -1.0)
+        self._buf[self._meta[pa.M_LIM]:self._meta[pa.M_LIM] + 2] = self.stride_limits
+        # per-worn-side work rows and per-walker-side outputs: views of the rows of V and O
+        self._theta, self._thd, self._cmd = (self._V[pa.V_THETA], self._V[pa.V_THETA_DOT],
+                                             self._V[pa.V_TAU_CMD])
+        self._vnew, self._tau = self._V[pa.V_THETA_DOT_NEW], self._V[pa.V_TAU]
+        self._O[pa.O_PHASE] = -1.0
+        self.force2, self.damping2 = self._O[pa.O_FORCE], self._O[pa.O_DAMPING]
+        self.delivered2, self.commanded2 = self._O[pa.O_DELIVERED], self._O[pa.O_COMMANDED]
+        self.phase2 = self._O[pa.O_PHASE]
+        self._out2 = (self.force2, self.damping2)
         self.steps = 0
         self.log = _DeviceLog(max_steps, ns) if max_steps else None
+        self._log_data = (self.log.data if self.log is not None
+                          else np.zeros((0, len(pa.LOG_FIELDS), ns)))
         self.t_s = 0.0
 
     # -- masses ----------------------------------------------------------------------------
@@ -429,45 +435,42 @@ class HafoDevice:
     def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
         """Hold inputs, compute the commanded torque and linearise (see module docs of
         :mod:`~afo_mj.devices.pump_ankle_actuator`); returns views of the per-walker-side
-        joint force and extra damping (length 2)."""
+        joint force and extra damping (length 2). The arguments are numpy arrays indexed by
+        walker side (0 right, 1 left)."""
+        self.t_s = t
+        if self.torque_fn is None:
+            # phase estimate, profile lookup and linearisation in one compiled call
+            pa.device_begin(t, angle_rad, velocity_rad_s, stance, self._buf, self._meta)
+            return self._out2
         si = self.side_index
         th, thd, cmd = self._theta, self._thd, self._cmd
-        lo, hi = self.stride_limits
         for k in range(len(si)):
             s = si[k]
             th[k] = angle_rad[s]
             thd[k] = velocity_rad_s[s]
-            if self.torque_fn is not None:
-                cmd[k] = self.torque_fn(t, th[k], thd[k])
-            else:
-                ph = asst.phase_update(self.phase_state[k], t, bool(stance[s]), lo, hi)
-                cmd[k] = asst.table_lookup(self.profile, ph)
-                self.phase2[s] = ph
+            cmd[k] = self.torque_fn(t, th[k], thd[k])
         pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)
         f2, d2 = self.force2, self.damping2
         for k in range(len(si)):
             f2[si[k]] = self._out[k, 0]
             d2[si[k]] = self._out[k, 1]
             self.commanded2[si[k]] = cmd[k]
-        self.t_s = t
-        return f2, d2
+        return self._out2
 
     def end_step(self, velocity_new_rad_s):
         """Close the step with the ankle velocity MuJoCo produced; returns delivered torques
         (length 2, zero where not worn)."""
-        si = self.side_index
-        for k in range(len(si)):
-            self._vnew[k] = velocity_new_rad_s[si[k]]
-        ok = pa.finish_all(self.Y, self.P, self.W, self.S, self._vnew, self._tau)
-        if not ok:
+        k = self.steps
+        # finish_all, delivered torques and the log row in one compiled call
+        code = pa.device_end(velocity_new_rad_s, self._buf, self._meta, self._log_data, k,
+                             self.t_s + self.timestep_s)
+        if not code:
             raise FloatingPointError(
                 f"HAFO hydraulic state became non-finite at t = {self.t_s:.4f} s: "
                 f"{dict(zip(pa.STATE_NAMES, self.Y[0].tolist()))}")
-        for k in range(len(si)):
-            self.delivered2[si[k]] = self._tau[k]
-        if self.log is not None:
-            self.log.write(self.steps, self.t_s + self.timestep_s, self)
-        self.steps += 1
+        if code == 2:
+            self.log.n = k + 1
+        self.steps = k + 1
         return self.delivered2
 
     # -- results ---------------------------------------------------------------------------
@@ -504,40 +507,30 @@ class HafoDevice:
 
 
 class _DeviceLog:
-    """Preallocated per-step device signals (per worn side)."""
+    """Preallocated per-step device signals (per worn side): ``data[step, field, side]`` (one
+    step's signals side by side in memory), written by the compiled
+    :func:`~afo_mj.devices.pump_ankle_actuator.device_end`."""
 
-    FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
-              "phase", "motor_command_v", "motor_current_a", "motor_speed_rad_s",
-              "pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
-              "bus_voltage_v", "battery_current_a", "mechanical_power_w", "oil_temperature_k",
-              "ankle_velocity_rad_s")
+    FIELDS = pa.LOG_FIELDS
 
     def __init__(self, n: int, ns: int):
         self.n = 0
-        self.data = np.zeros((len(self.FIELDS), n, ns))
+        self.data = np.zeros((n, len(self.FIELDS), ns))
 
     def write(self, k: int, t: float, dev: HafoDevice) -> None:
-        if k >= self.data.shape[1]:
+        """Row ``k`` from the device's present state (what ``device_end`` writes)."""
+        if k >= self.data.shape[0]:
             return
-        d, W, Y = self.data, dev.W, dev.Y
-        d[0, k] = t
-        d[1, k] = W[:, pa.W_TAU_CMD]
-        d[2, k] = W[:, pa.W_TAU]
-        d[3, k] = W[:, pa.W_TAU_MEAS]
-        d[4, k] = dev.phase_state[:, asst.PH_PHASE]
-        d[5, k] = W[:, pa.W_V_CMD]
-        d[6, k] = Y[:, pa.Y_I]
-        d[7, k] = Y[:, pa.Y_W]
-        d[8, k] = Y[:, pa.Y_PPA]
-        d[9, k] = Y[:, pa.Y_PPB]
-        d[10, k] = Y[:, pa.Y_PCA]
-        d[11, k] = Y[:, pa.Y_PCB]
-        d[12, k] = W[:, pa.W_V_BUS]
-        d[13, k] = W[:, pa.W_I_BAT]
-        d[14, k] = W[:, pa.W_P_MECH]
-        d[15, k] = W[:, pa.W_TEMP_K]
-        d[16, k] = dev._vnew
+        d, W, Y = self.data[k], dev.W, dev.Y
+        cols = (W[:, pa.W_TAU_CMD], W[:, pa.W_TAU], W[:, pa.W_TAU_MEAS],
+                dev.phase_state[:, asst.PH_PHASE], W[:, pa.W_V_CMD], Y[:, pa.Y_I], Y[:, pa.Y_W],
+                Y[:, pa.Y_PPA], Y[:, pa.Y_PPB], Y[:, pa.Y_PCA], Y[:, pa.Y_PCB],
+                W[:, pa.W_V_BUS], W[:, pa.W_I_BAT], W[:, pa.W_P_MECH], W[:, pa.W_TEMP_K],
+                dev._vnew)
+        d[0] = t
+        for i, c in enumerate(cols, start=1):
+            d[i] = c
         self.n = k + 1
 
     def arrays(self) -> dict:
-        return {f: self.data[i, :self.n].copy() for i, f in enumerate(self.FIELDS)}
+        return {f: self.data[:self.n, i].copy() for i, f in enumerate(self.FIELDS)}

@@ -708,3 +708,136 @@ def battery_ocv(soc, P):
             u = (s - _OCV_SOC[k]) / (_OCV_SOC[k + 1] - _OCV_SOC[k])
             return P[P_BAT_NS] * (_OCV_V[k] + u * (_OCV_V[k + 1] - _OCV_V[k]))
     return P[P_BAT_NS] * _OCV_V[-1]
+
+
+# ---- the device's whole coupled step in two compiled calls ------------------------------------
+# (afo_mj.devices.hafo.HafoDevice.begin_step / end_step: one dispatch each per 1 ms step instead
+# of a Python loop over the sides with a compiled call per side and many small numpy writes;
+# the arithmetic is the same, so results are bit-identical; benchmarks/coupling.py). A call's
+# cost grows with its number of array arguments, so the device keeps all its per-side float
+# arrays as views of one buffer ``buf``, laid out by the int64 array ``meta`` (offsets M_*,
+# then the walker side of each worn side); :func:`device_views` cuts them out again.
+from afo_mj.control.assistance import (  # noqa: E402
+    N_PH as _N_PH, PH_PHASE as _PH_PHASE, phase_update as _phase_update,
+    table_lookup as _table_lookup)
+
+#: rows of the per-worn-side work array ``V`` (N_V, sides)
+V_THETA, V_THETA_DOT, V_TAU_CMD, V_THETA_DOT_NEW, V_TAU = range(5)
+N_V = 5
+#: rows of the per-walker-side output array ``O`` (N_O, 2)
+O_FORCE, O_DAMPING, O_DELIVERED, O_COMMANDED, O_PHASE = range(5)
+N_O = 5
+#: ``meta`` entries: buffer offsets of Y, P, W, S, phase state, profile, V, out (sides, 2), O,
+#: stride limits (min, max); then buffer length, worn sides, profile points; side indices follow
+(M_Y, M_P, M_W, M_S, M_PH, M_PROFILE, M_V, M_OUT, M_O, M_LIM, M_END, M_NS,
+ M_NPROF) = range(13)
+N_META = 13
+#: the device log's signals, in the order of its rows (``hafo._DeviceLog.FIELDS``)
+LOG_FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
+              "phase", "motor_command_v", "motor_current_a", "motor_speed_rad_s",
+              "pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
+              "bus_voltage_v", "battery_current_a", "mechanical_power_w", "oil_temperature_k",
+              "ankle_velocity_rad_s")
+
+
+def device_layout(sides: int, profile_points: int, side_index) -> np.ndarray:
+    """``meta`` for a device worn on ``sides`` sides (walker sides ``side_index``)."""
+    sizes = {M_Y: sides * N_Y, M_P: sides * N_P, M_W: sides * N_W,
+             M_S: sides * N_SCRATCH * N_F, M_PH: sides * _N_PH, M_PROFILE: profile_points,
+             M_V: N_V * sides, M_OUT: sides * 2, M_O: N_O * 2, M_LIM: 2}
+    meta = np.zeros(N_META + sides, dtype=np.int64)
+    off = 0
+    for m in range(M_END):
+        meta[m] = off
+        off += sizes[m]
+    meta[M_END], meta[M_NS], meta[M_NPROF] = off, sides, profile_points
+    meta[N_META:] = side_index
+    return meta
+
+
+@numba.njit(cache=True)
+def device_views(buf, meta):
+    """``(Y, P, W, S, phase_state, profile, V, out, O)``: views of the device buffer."""
+    ns = meta[M_NS]
+    Y = buf[meta[M_Y]:meta[M_Y] + ns * N_Y].reshape((ns, N_Y))
+    P = buf[meta[M_P]:meta[M_P] + ns * N_P].reshape((ns, N_P))
+    W = buf[meta[M_W]:meta[M_W] + ns * N_W].reshape((ns, N_W))
+    S = buf[meta[M_S]:meta[M_S] + ns * N_SCRATCH * N_F].reshape((ns, N_SCRATCH, N_F))
+    ph = buf[meta[M_PH]:meta[M_PH] + ns * _N_PH].reshape((ns, _N_PH))
+    prof = buf[meta[M_PROFILE]:meta[M_PROFILE] + meta[M_NPROF]]
+    V = buf[meta[M_V]:meta[M_V] + N_V * ns].reshape((N_V, ns))
+    out = buf[meta[M_OUT]:meta[M_OUT] + ns * 2].reshape((ns, 2))
+    O = buf[meta[M_O]:meta[M_O] + N_O * 2].reshape((N_O, 2))
+    return Y, P, W, S, ph, prof, V, out, O
+
+
+@numba.njit(cache=True)
+def device_begin(t, angle2, velocity2, stance2, buf, meta):
+    """First half of the coupled step of every worn side ``k`` (walker side
+    ``meta[N_META + k]``): gait-phase estimate from the foot switch, commanded torque from the
+    tabulated profile (:mod:`afo_mj.control.assistance`), then :func:`begin_step`. Writes the
+    joint force, extra damping, commanded torque and phase into rows ``O_*`` of ``O``
+    (walker sides)."""
+    Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
+    lo = buf[meta[M_LIM]]
+    hi = buf[meta[M_LIM] + 1]
+    ns = meta[M_NS]
+    th = V[V_THETA]
+    thd = V[V_THETA_DOT]
+    cmd = V[V_TAU_CMD]
+    for k in range(ns):
+        s = meta[N_META + k]
+        th[k] = angle2[s]
+        thd[k] = velocity2[s]
+        ph = _phase_update(phase_state[k], t, stance2[s] != 0, lo, hi)
+        cmd[k] = _table_lookup(profile, ph)
+        O[O_PHASE, s] = ph
+    begin_step(Y, P, W, S, th, thd, cmd, out)
+    for k in range(ns):
+        s = meta[N_META + k]
+        O[O_FORCE, s] = out[k, 0]
+        O[O_DAMPING, s] = out[k, 1]
+        O[O_COMMANDED, s] = cmd[k]
+
+
+@numba.njit(cache=True)
+def device_end(velocity2, buf, meta, log, k, t):
+    """Second half for every worn side: :func:`finish_all` with the new ankle velocities,
+    delivered torques into ``O[O_DELIVERED]`` and, when ``k < log.shape[0]``, row ``k`` of the
+    device log (steps × ``LOG_FIELDS`` × sides: one step's signals side by side in memory) at
+    time ``t``. Returns 0 when a state became
+    non-finite, 2 when the log row was written, 1 otherwise."""
+    Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
+    ns = meta[M_NS]
+    vnew = V[V_THETA_DOT_NEW]
+    tau = V[V_TAU]
+    for j in range(ns):
+        vnew[j] = velocity2[meta[N_META + j]]
+    ok = finish_all(Y, P, W, S, vnew, tau)
+    if not ok:
+        return 0
+    for j in range(ns):
+        O[O_DELIVERED, meta[N_META + j]] = tau[j]
+    if k >= log.shape[0]:
+        return 1
+    for j in range(ns):
+        Wj = W[j]
+        Yj = Y[j]
+        log[k, 0, j] = t
+        log[k, 1, j] = Wj[W_TAU_CMD]
+        log[k, 2, j] = Wj[W_TAU]
+        log[k, 3, j] = Wj[W_TAU_MEAS]
+        log[k, 4, j] = phase_state[j, _PH_PHASE]
+        log[k, 5, j] = Wj[W_V_CMD]
+        log[k, 6, j] = Yj[Y_I]
+        log[k, 7, j] = Yj[Y_W]
+        log[k, 8, j] = Yj[Y_PPA]
+        log[k, 9, j] = Yj[Y_PPB]
+        log[k, 10, j] = Yj[Y_PCA]
+        log[k, 11, j] = Yj[Y_PCB]
+        log[k, 12, j] = Wj[W_V_BUS]
+        log[k, 13, j] = Wj[W_I_BAT]
+        log[k, 14, j] = Wj[W_P_MECH]
+        log[k, 15, j] = Wj[W_TEMP_K]
+        log[k, 16, j] = vnew[j]
+    return 2

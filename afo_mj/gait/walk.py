@@ -366,7 +366,15 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     coupled = device is not None and getattr(device, "coupled", False)
     dof_damping = model.dof_damping
     base_damp = (float(dof_damping[dank_r]), float(dof_damping[dank_l]))
-    ang2, vel2, stance2 = np.zeros(2), np.zeros(2), np.zeros(2, dtype=bool)
+    stance2 = np.zeros(2, dtype=bool)
+    if coupled:
+        # the two ankles' angles and velocities as strided views of MuJoCo's state: the
+        # device reads them in place (no copies per step); base damping as Python floats
+        if ank_l <= ank_r or dank_l <= dank_r:
+            raise AssertionError("walker joints: the left ankle must follow the right one")
+        ang2 = qpos[ank_r:ank_l + 1:ank_l - ank_r]
+        vel2 = qvel[dank_r:dank_l + 1:dank_l - dank_r]
+        base_r, base_l = base_damp
     if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
         raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
                          f"MuJoCo timestep {dt}; allowed: equal")
@@ -393,17 +401,21 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         if coupled:
             # Hydraulic device: end-of-step torque = force − D·q̇_{n+1}, D integrated
             # implicitly by MuJoCo (afo_mj.devices.pump_ankle_actuator).
-            ang2[0], ang2[1] = qpos[ank_r], qpos[ank_l]
-            vel2[0], vel2[1] = qvel[dank_r], qvel[dank_l]
-            stance2[0], stance2[1] = swing[0] < 0.5, swing[1] < 0.5
+            # (scalars as Python floats: cheaper than numpy scalars, the same IEEE arithmetic)
+            stance2[0] = swing[0] < 0.5
+            stance2[1] = swing[1] < 0.5
             force2, extra2 = device.begin_step(t, ang2, vel2, stance2)
-            qfrc_applied[dank_r], qfrc_applied[dank_l] = force2
-            dof_damping[dank_r] = base_damp[0] + extra2[0]
-            dof_damping[dank_l] = base_damp[1] + extra2[1]
+            f_r, f_l = force2.tolist()
+            d_r, d_l = extra2.tolist()
+            qfrc_applied[dank_r] = f_r
+            qfrc_applied[dank_l] = f_l
+            dof_damping[dank_r] = base_r + d_r
+            dof_damping[dank_l] = base_l + d_l
             if adapt:
                 # the wearer anticipates the torque at the present ankle velocity
-                ctrl[ff_ank_r] -= adapt * (force2[0] - extra2[0] * vel2[0])
-                ctrl[ff_ank_l] -= adapt * (force2[1] - extra2[1] * vel2[1])
+                v_r, v_l = vel2.tolist()
+                ctrl[ff_ank_r] -= adapt * (f_r - d_r * v_r)
+                ctrl[ff_ank_l] -= adapt * (f_l - d_l * v_l)
         elif device is not None:
             device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
                                              phases.copy(), swing < 0.5)
@@ -417,8 +429,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
 
         mujoco.mj_step(model, data)
         if coupled:
-            vel2[0], vel2[1] = qvel[dank_r], qvel[dank_l]
-            device_torque = device.end_step(vel2)
+            device_torque = device.end_step(vel2)        # vel2 views the new q̇
 
         # --- record the raw state -------------------------------------------------------------
         buf.time[k] = data.time
