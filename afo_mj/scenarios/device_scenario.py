@@ -33,7 +33,7 @@ from afo_mj.control import assistance as asst
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.scenarios.walk_scenario import ScenarioError
 
-DEVICE_KEYS = ("preset", "sides", "conditions", "params")
+DEVICE_KEYS = ("preset", "sides", "conditions", "params", "variants")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
                "points")
 CONDITIONS = ("no_device", "transparent", "assist")
@@ -46,6 +46,9 @@ class DeviceConfig:
     sides: tuple[str, ...]
     conditions: tuple[str, ...]
     profile: np.ndarray | None
+    #: named design variants (``[device.variants.<name>]``: dotted overrides applied on top of
+    #: ``device.params``), each validated; ``afo-mj compare`` runs one row per variant
+    variants: dict = dataclasses.field(default_factory=dict)
 
 
 def device_params(dev: dict, origin: str):
@@ -93,7 +96,18 @@ def device_config(scenario) -> DeviceConfig | None:
     if (not isinstance(conds, list) or not conds or any(c not in CONDITIONS for c in conds)
             or len(set(conds)) != len(conds)):
         raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
-    preset, params, _ = device_params(dev, origin)
+    preset, params, base_overrides = device_params(dev, origin)
+    variants_doc = dev.get("variants", {})
+    if not isinstance(variants_doc, dict) or any(not isinstance(v, dict)
+                                                 for v in variants_doc.values()):
+        raise fail("device.variants", variants_doc,
+                   "a table of named tables of dotted parameter overrides")
+    variants = {}
+    for vname, vover in variants_doc.items():
+        merged = {**base_overrides, **vover}
+        _, vparams, _ = device_params({"preset": preset, "params": merged},
+                                      f"{origin}: device.variants.{vname}")
+        variants[vname] = vparams
     profile = None
     if "assist" in conds:
         kind = ass.get("profile", "zhang")
@@ -113,7 +127,7 @@ def device_config(scenario) -> DeviceConfig | None:
                 raise fail("assistance.profile", kind, '"zhang" | "spline"')
         except ParameterError as exc:
             raise ScenarioError(f"{origin}: {exc}") from None
-    return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile)
+    return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile, variants)
 
 
 def _per_stride(rec, side: int, first: int, last: int):
@@ -194,7 +208,20 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
         "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
         "newton_unconverged_steps": led["newton_unconverged_steps"],
     }
+    # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
+    stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
+    scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan
+    out["energy_per_stride"] = {
+        "stride_time_s": stride_s,
+        "electrical_in_j": drawn * scale,
+        "hydraulic_j": led["hydraulic_j"] * scale,
+        "mechanical_positive_out_j": mech_pos * scale,
+        "losses_j": {k: v * scale for k, v in led["losses_j"].items()},
+        "note": "whole-run ledger (start-up strides included) times mean analysed stride "
+                "time / run duration",
+    }
     out["energy"] = {
+        "run_duration_s": duration,
         "electrical_in_j": drawn,
         "electrical_regenerated_j": led["electrical_regenerated_j"],
         "hydraulic_j": led["hydraulic_j"],
