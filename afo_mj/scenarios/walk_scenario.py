@@ -5,8 +5,14 @@ Schema (every section and key optional except where said; unknown keys are error
     name = "walk_healthy"            # [A-Za-z0-9_.-]+, default: the file name without .toml
     description = "..."
     [walker]                         # any WalkerParams field (afo_mj.human.walker), SI units
+    body_preset = "child_8y"         # a named body size (afo_mj.human.body_presets: CDC 2000
+                                     # medians child_4y..child_14y[_boy|_girl], adult_male,
+                                     # adult_female): sets body_mass_kg and height_m; those
+                                     # two, if also given here, override the preset
     body_mass_kg = 75.0
     height_m = 1.75
+    timestep_s = 0.001               # default 1 ms, but 0.5 ms when the resulting height_m is
+                                     # below 1.3 m (body_presets.default_timestep_s)
     [gait]
     reference = "winter"             # "winter" | "schwartz2008" (default "winter")
     condition = "normal"             # winter: normal; schwartz2008: VerySlow|Slow|Free|Fast|VeryFast
@@ -211,17 +217,48 @@ def _controller_fields() -> dict[str, Any] | None:
 
 
 def _walker(ctx: _Ctx, walker_tbl: dict, imp_tbl: dict) -> WalkerParams:
+    """WalkerParams from ``[walker]`` and ``[impairment]``.
+
+    ``walker.body_preset`` names a body size of :mod:`afo_mj.human.body_presets` and supplies
+    ``body_mass_kg`` and ``height_m``; either of them given explicitly in ``[walker]`` overrides
+    the preset's value. Without ``walker.timestep_s``, a walker whose resulting ``height_m`` is
+    below 1.3 m gets 0.5 ms (:func:`afo_mj.human.body_presets.default_timestep_s`; faster
+    dynamics of a small body, see ``scenarios/walk_child_healthy.toml``), others the 1 ms
+    default.
+    """
+    from afo_mj.human.body_presets import (SMALL_BODY_HEIGHT_M, body_preset,
+                                           default_timestep_s, preset_names)
     fields = [f.name for f in dataclasses.fields(WalkerParams)]
-    ctx.unknown("walker", walker_tbl, fields)
+    ctx.unknown("walker", walker_tbl, ["body_preset"] + fields)
     ctx.unknown("impairment", imp_tbl, IMPAIRMENT_KEYS)
+    walker_tbl = dict(walker_tbl)
+    preset = None
+    if "body_preset" in walker_tbl:
+        raw = walker_tbl.pop("body_preset")
+        allowed = "one of " + ", ".join(preset_names())
+        name = ctx.string("walker.body_preset", raw, allowed)
+        try:
+            preset = body_preset(name)
+        except ParameterError:
+            raise ctx.fail("walker.body_preset", name, "is not a known body preset",
+                           allowed) from None
     kw: dict[str, Any] = {}
     dotted: dict[str, str] = {}
+    if preset is not None:
+        for k in ("body_mass_kg", "height_m"):
+            if k not in walker_tbl:
+                kw[k], dotted[k] = getattr(preset, k), f"walker.body_preset ({preset.name}).{k}"
     for section, tbl in (("walker", walker_tbl), ("impairment", imp_tbl)):
         for k, v in tbl.items():
             if k in kw:
                 raise ScenarioError(f"{ctx.origin}: {section}.{k} = {v!r} is also set as "
                                     f"{dotted[k]} = {kw[k]!r}; allowed: set it once")
             kw[k], dotted[k] = v, f"{section}.{k}"
+    height = kw.get("height_m", WalkerParams().height_m)
+    if ("timestep_s" not in kw and isinstance(height, (int, float))
+            and not isinstance(height, bool) and height < SMALL_BODY_HEIGHT_M):
+        kw["timestep_s"] = default_timestep_s(float(height))
+        dotted["timestep_s"] = f"walker.timestep_s (default for height_m = {height!r})"
     for k, v in kw.items():          # one field at a time, so the error names its key
         try:
             WalkerParams(**{k: v})
