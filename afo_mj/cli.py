@@ -319,6 +319,45 @@ def _run_bench(args) -> int:
     return 0
 
 
+def _compare(args) -> int:
+    """``afo-mj compare``: orthosis architectures side by side on one gait (usage:
+    :mod:`afo_mj.analysis.device_comparison`)."""
+    import platform
+
+    from afo_mj.analysis.device_comparison import (CompareError, load_compare_items,
+                                                   run_comparison)
+    from afo_mj.gait.walk import WalkNumericsError
+    from afo_mj.outputs.comparison_report import format_tables, write_comparison
+    from afo_mj.outputs.result_dir import ResultDirError
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+    try:
+        items = load_compare_items(args.scenarios, overrides=args.set or (),
+                                   strides=args.strides)
+    except (ScenarioError, CompareError) as exc:
+        print(f"afo-mj compare: invalid scenario: {exc}; nothing written", file=sys.stderr)
+        return 2
+    try:
+        comp = run_comparison(items, progress=lambda m: print(f"  running {m}", flush=True))
+    except (WalkNumericsError, FloatingPointError) as exc:
+        print(f"afo-mj compare: {exc}; nothing written", file=sys.stderr)
+        return 1
+    import mujoco
+    info = {"argv": {"scenarios": list(args.scenarios), "set": list(args.set or ()),
+                     "strides": args.strides},
+            "python": platform.python_version(), "numpy": np.__version__,
+            "mujoco": mujoco.__version__, "platform": platform.platform()}
+    try:
+        out = write_comparison(args.out, comp, info)
+    except (ResultDirError, OSError, ValueError) as exc:
+        print(f"afo-mj compare: {exc}; nothing written", file=sys.stderr)
+        return 1
+    print(f"afo_mj compare: {len(comp.rows)} devices, assist condition, per mean analysed "
+          f"stride ({comp.wall_time_s:.1f} s wall)")
+    print(format_tables(comp))
+    print(f"  results: {out}")
+    return 0
+
+
 def _build_models(args: argparse.Namespace) -> int:
     from afo_mj.human import test_stand, walker
     for path in (walker.write_default_xml(), test_stand.write_default_xml()):
@@ -342,6 +381,16 @@ def main(argv: list[str] | None = None) -> int:
                      help="override a scenario value by its dotted key, e.g. gait.strides=4 "
                           "or device.params.hose.length_m=2.2 (repeatable)")
     run.set_defaults(func=_run)
+    cmp_ = sub.add_parser("compare", help="compare orthosis architectures (device scenarios "
+                          "and their [device.variants]) on one gait")
+    cmp_.add_argument("scenarios", nargs="+", metavar="SCENARIO",
+                      help="walking scenarios with a [device] table")
+    cmp_.add_argument("--out", required=True, help="output directory (created or updated)")
+    cmp_.add_argument("--set", action="append", metavar="KEY=VALUE",
+                      help="override applied to every scenario, as for run (repeatable)")
+    cmp_.add_argument("--strides", type=int, default=None, metavar="N",
+                      help="simulate N strides, analyse [max(2, N-4), N]")
+    cmp_.set_defaults(func=_compare)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)

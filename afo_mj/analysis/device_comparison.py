@@ -1,0 +1,381 @@
+"""Orthosis architectures side by side on one gait: ``afo-mj compare``.
+
+Usage::
+
+    afo-mj compare SCENARIO.toml [SCENARIO.toml ...] --out DIR
+                   [--set KEY=VALUE ...] [--strides N]
+
+Each SCENARIO is a walking scenario with a ``[device]`` table (``scenarios/gait_assist_*.toml``).
+Only its ``assist`` condition is simulated. A scenario with ``[device.variants]`` gives one row
+per variant (the variant's dotted overrides on top of ``device.params``) instead of one row for
+its base parameters::
+
+    [device.variants.short_hose]
+    "hose.length_m" = 0.5
+    [device.variants.long_hose]
+    "hose.length_m" = 2.5
+
+Rows are labelled ``"<scenario name>"`` or ``"<scenario name>:<variant>"``. Once per distinct
+walker/gait (walker, reference gait, cadence, strides, controller, worn side) the walk is also
+run without a device, as the human reference (``human_ankle_positive_work_no_device_*``).
+
+Options:
+
+* ``--set KEY=VALUE`` (repeatable): a dotted override applied to every scenario, exactly as for
+  ``afo-mj run`` (``--set assistance.peak_torque_nm=30``, ``--set device.params.hose.length_m=2``).
+* ``--strides N``: simulate N strides and analyse strides ``[max(2, N - 4), N]`` (stride 1 for
+  N = 1); an explicit ``--set gait.strides=...``/``gait.analyse_strides=...`` wins over it.
+
+Output, written into DIR all at once (a failing run leaves DIR as it was, and creates nothing):
+
+* ``comparison.csv``: one row per device (variant); SI units in the column names; a value that
+  does not exist for a device (a loss its architecture does not have, a device that fell before
+  the analysed strides) is empty.
+* ``comparison.json``: the rows (``null`` for missing), the column list, the scenarios compared
+  (files, names, variants, overrides) and run information (wall time, versions).
+* ``comparison.png``: per row a stacked bar of the electrical energy drawn per stride split into
+  each named loss, the change of stored energy, the energy regenerated into the battery and the
+  net mechanical work delivered to the ankle, so the efficiency chain and where each device
+  loses its energy is visible at a glance; beside it torque-tracking RMSE, peak pressure and
+  mass.
+* ``comparison.md``: the headline table and the per-stride loss table.
+
+The same two tables are printed on stdout. Exit codes: 0 done; 1 a run could not be simulated or
+written (nothing written); 2 an invalid scenario or option (a walking scenario without
+``[device]``, a bench scenario, a device without the ``assist`` condition, two rows with the same
+label; nothing written).
+
+Columns (per stride = per mean analysed right-leg stride; the ledger is the whole run's, scaled
+by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``afo-mj run``):
+
+``scenario, variant, label, scenario_file, preset, sides, fell, fall_time_s``;
+``torque_tracking_rmse_nm, peak_torque_nm``; ``device_positive_work_j_per_stride`` and
+``device_negative_work_j_per_stride`` (the device's work on the ankle, i.e. delivered);
+``ankle_positive_work_j_per_stride`` and ``ankle_push_off_positive_work_j_per_stride`` (the whole
+joint, muscles + device); ``electrical_j_per_stride`` (battery energy drawn),
+``electrical_regenerated_j_per_stride``, ``electrical_net_j_per_stride``,
+``hydraulic_j_per_stride``, ``mechanical_j_per_stride`` (positive mechanical output),
+``mechanical_net_j_per_stride``, ``stored_j_per_stride`` (change of stored energy);
+``efficiency_total`` (positive mechanical out / electrical drawn),
+``efficiency_electrical_to_hydraulic``, ``efficiency_hydraulic_to_mechanical`` (net
+hydraulic work; empty where a stage's net energy flows backwards, i.e. the ankle drives it);
+``loss_<name>_j_per_stride`` for every loss any of the devices reports (the union, in ledger
+order; the names come from the device, none is assumed here); ``peak_pressure_mpa,
+fluid_temperature_rise_k, mass_total_kg, mass_at_ankle_kg, battery_runtime_h``;
+``human_ankle_positive_work_j_per_stride``, ``human_ankle_positive_work_no_device_j_per_stride``,
+``human_ankle_positive_work_change_j_per_stride``; ``speed_m_s``; ``energy_balance_error_rel``
+(the ledger residual / energy drawn); ``efficiency_rank_in_scenario`` (1 = best).
+
+The per-stride ledger closes: ``electrical_net = mechanical_net + stored + sum(loss_*)`` and
+``electrical = that + electrical_regenerated`` (to ``energy_balance_error_rel``). Within one
+scenario (file) the variant rows are ordered by ``efficiency_total``, best first; scenarios keep
+the order given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+__all__ = ["CompareError", "CompareItem", "Comparison", "FIXED_COLUMNS", "load_compare_items",
+           "strides_overrides", "run_comparison", "comparison_row", "order_rows",
+           "loss_columns", "all_columns"]
+
+
+class CompareError(ValueError):
+    """An invalid compare request (names the file, the key, the value and what is allowed)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CompareItem:
+    """One row to simulate: a scenario (file) and one of its variants (or its base)."""
+
+    index: int                 # position of the scenario on the command line
+    path: str
+    scenario: object           # WalkScenario
+    reference: object
+    cfg: object                # DeviceConfig with params of the variant, conditions ("assist",)
+    variant: str               # "" for the base parameters
+
+    @property
+    def label(self) -> str:
+        return f"{self.scenario.name}:{self.variant}" if self.variant else self.scenario.name
+
+
+@dataclasses.dataclass
+class Comparison:
+    rows: list
+    columns: list
+    scenarios: list
+    wall_time_s: float = math.nan
+
+
+#: the columns every row has, in table order (losses are inserted after ``efficiency_*``)
+HEAD_COLUMNS = (
+    "scenario", "variant", "label", "scenario_file", "preset", "sides", "fell", "fall_time_s",
+    "torque_tracking_rmse_nm", "peak_torque_nm",
+    "device_positive_work_j_per_stride", "device_negative_work_j_per_stride",
+    "ankle_positive_work_j_per_stride", "ankle_push_off_positive_work_j_per_stride",
+    "electrical_j_per_stride", "electrical_regenerated_j_per_stride",
+    "electrical_net_j_per_stride", "hydraulic_j_per_stride", "mechanical_j_per_stride",
+    "mechanical_net_j_per_stride", "stored_j_per_stride",
+    "efficiency_total", "efficiency_electrical_to_hydraulic",
+    "efficiency_hydraulic_to_mechanical")
+TAIL_COLUMNS = (
+    "peak_pressure_mpa", "fluid_temperature_rise_k", "mass_total_kg", "mass_at_ankle_kg",
+    "battery_runtime_h", "human_ankle_positive_work_j_per_stride",
+    "human_ankle_positive_work_no_device_j_per_stride",
+    "human_ankle_positive_work_change_j_per_stride", "speed_m_s", "energy_balance_error_rel",
+    "efficiency_rank_in_scenario")
+FIXED_COLUMNS = HEAD_COLUMNS + TAIL_COLUMNS
+
+
+def loss_column(name: str) -> str:
+    """``loss_<name>_j_per_stride`` for a ledger loss name (anything but ``[a-z0-9_]`` → ``_``)."""
+    return "loss_" + re.sub(r"[^a-z0-9_]", "_", str(name).lower()) + "_j_per_stride"
+
+
+def strides_overrides(n: int) -> list[str]:
+    """The ``--set`` overrides for ``--strides N``: N strides, the last ones analysed."""
+    first = min(max(2, n - 4), n)
+    return [f"gait.strides={n}", f"gait.analyse_strides=[{first}, {n}]"]
+
+
+def load_compare_items(paths, overrides=(), strides: int | None = None) -> list[CompareItem]:
+    """Validate every scenario and expand its variants; raises ScenarioError / CompareError
+    before anything is simulated."""
+    from afo_mj.scenarios.bench_scenario import is_bench_document
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+
+    if strides is not None and (isinstance(strides, bool) or not isinstance(strides, int)
+                                or strides < 1):
+        raise CompareError(f"--strides = {strides!r} is not allowed; allowed: an integer >= 1")
+    ov = (strides_overrides(strides) if strides is not None else []) + list(overrides or ())
+    if not paths:
+        raise CompareError("no scenario given; allowed: one or more walking scenario files "
+                           "with a [device] table")
+    items: list[CompareItem] = []
+    seen: dict[str, str] = {}
+    for i, path in enumerate(paths):
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            text = ""          # load_scenario reports it
+        if is_bench_document(text):
+            raise CompareError(f"{path}: is a bench scenario ([bench] table) and cannot be "
+                               "compared on a gait; allowed: a walking scenario with a "
+                               "[device] table")
+        scenario = load_scenario(path, overrides=ov)
+        cfg = device_config(scenario)
+        if cfg is None:
+            raise CompareError(f"{path}: device = (none): the walking scenario has no [device] "
+                               "table; allowed: a walking scenario with a [device] table, e.g. "
+                               "scenarios/gait_assist_hafo.toml")
+        if "assist" not in cfg.conditions or cfg.profile is None:
+            raise CompareError(f"{path}: device.conditions = {list(cfg.conditions)!r} is not "
+                               "allowed for compare; allowed: a list including 'assist' "
+                               "(compare runs the assist condition)")
+        reference = scenario.load_reference()
+        variants = dict(cfg.variants) or {"": cfg.params}
+        for vname, vparams in variants.items():
+            item = CompareItem(i, str(path), scenario, reference,
+                               dataclasses.replace(cfg, params=vparams, conditions=("assist",)),
+                               vname)
+            if item.label in seen:
+                raise CompareError(f"{path}: row label = {item.label!r} is also the label of a "
+                                   f"row of {seen[item.label]}; allowed: distinct scenario "
+                                   "names (or variant names)")
+            seen[item.label] = str(path)
+            items.append(item)
+    return items
+
+
+def _num(x):
+    """A float, NaN for None/missing."""
+    if x is None:
+        return math.nan
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _ratio(a, b):
+    """``a / b`` for a stage efficiency: NaN unless both are finite, ``b > 0`` and ``a >= 0``
+    (a negative net output means the energy flows backwards through that stage: the ankle
+    drives the device, and the stage has no efficiency)."""
+    a, b = _num(a), _num(b)
+    return a / b if math.isfinite(a) and math.isfinite(b) and b > 0 and a >= 0 else math.nan
+
+
+def _mean(entry):
+    return _num(entry.get("mean")) if isinstance(entry, dict) else _num(entry)
+
+
+def comparison_row(item: CompareItem, block: dict, record=None,
+                   human_no_device: float | None = None) -> dict:
+    """One table row from a condition block of
+    :func:`afo_mj.scenarios.device_scenario.condition_summary` (``device``, ``energy``,
+    ``energy_per_stride``, ``human``, ``ankle``, ``gait``); nothing device-specific assumed:
+    the losses are whatever ``energy_per_stride.losses_j`` names."""
+    dev = block.get("device") or {}
+    en = block.get("energy") or {}
+    eps = block.get("energy_per_stride") or {}
+    hum = block.get("human") or {}
+    ank = block.get("ankle") or {}
+    gait = block.get("gait") or {}
+    fall = None
+    if record is not None:
+        fall = getattr(getattr(record, "events", None), "fall_time_s", None)
+    row = {"scenario": item.scenario.name, "variant": item.variant, "label": item.label,
+           "scenario_file": item.path, "preset": item.cfg.preset,
+           "sides": "+".join(item.cfg.sides), "fell": fall is not None,
+           "fall_time_s": _num(fall)}
+    # scale of the whole-run ledger to one mean analysed stride (as energy_per_stride does)
+    duration = _num(en.get("run_duration_s"))
+    scale = _ratio(eps.get("stride_time_s"), duration)
+    elec = _num(eps.get("electrical_in_j"))
+    regen = _num(en.get("electrical_regenerated_j")) * scale
+    stored_d = en.get("stored_change_j")
+    stored = (sum(_num(v) for v in stored_d.values()) if isinstance(stored_d, dict)
+              else _num(stored_d)) * scale
+    hyd = _num(eps.get("hydraulic_j"))
+    mech = _num(eps.get("mechanical_positive_out_j"))
+    row.update({
+        "torque_tracking_rmse_nm": _num(dev.get("torque_tracking_rmse_nm")),
+        "peak_torque_nm": _num(dev.get("peak_torque_nm")),
+        "device_positive_work_j_per_stride": _num(dev.get("positive_work_j_per_stride")),
+        "device_negative_work_j_per_stride": _num(dev.get("negative_work_j_per_stride")),
+        "ankle_positive_work_j_per_stride": _num(ank.get("positive_work_j_per_stride")),
+        "ankle_push_off_positive_work_j_per_stride":
+            _num(ank.get("push_off_positive_work_j_per_stride")),
+        "electrical_j_per_stride": elec,
+        "electrical_regenerated_j_per_stride": regen,
+        "electrical_net_j_per_stride": elec - regen,
+        "hydraulic_j_per_stride": hyd,
+        "mechanical_j_per_stride": mech,
+        "mechanical_net_j_per_stride": _num(en.get("mechanical_out_j")) * scale,
+        "stored_j_per_stride": stored,
+        "efficiency_total": _ratio(mech, elec),
+        "efficiency_electrical_to_hydraulic": _ratio(hyd, elec),
+        "efficiency_hydraulic_to_mechanical": _ratio(mech, hyd),
+    })
+    for name, v in (eps.get("losses_j") or {}).items():
+        row[loss_column(name)] = _num(v)
+    human = _num(hum.get("ankle_positive_work_j_per_stride"))
+    ref = _num(human_no_device)
+    row.update({
+        "peak_pressure_mpa": _num(dev.get("peak_pressure_mpa")),
+        "fluid_temperature_rise_k": _num(dev.get("fluid_temperature_rise_k")),
+        "mass_total_kg": _num(dev.get("mass_total_kg")),
+        "mass_at_ankle_kg": _num(dev.get("mass_at_ankle_kg")),
+        "battery_runtime_h": _num(dev.get("battery_runtime_h")),
+        "human_ankle_positive_work_j_per_stride": human,
+        "human_ankle_positive_work_no_device_j_per_stride": ref,
+        "human_ankle_positive_work_change_j_per_stride": human - ref,
+        "speed_m_s": _mean(gait.get("speed_m_s")),
+        "energy_balance_error_rel": _num(en.get("balance_error_rel")),
+    })
+    # loss names in the order the devices list them (the ledger's chain order)
+    row["_loss_names"] = [loss_column(n) for n in (eps.get("losses_j") or {})]
+    return row
+
+
+def loss_columns(rows) -> list[str]:
+    """Union of the rows' loss columns, first-seen order (each device's ledger order)."""
+    out: list[str] = []
+    for r in rows:
+        for c in r.get("_loss_names") or [k for k in r if k.startswith("loss_")]:
+            if c not in out:
+                out.append(c)
+    return out
+
+
+def all_columns(rows) -> list[str]:
+    return list(HEAD_COLUMNS) + loss_columns(rows) + list(TAIL_COLUMNS)
+
+
+def order_rows(rows, group_key=lambda r: r["scenario_file"]) -> list[dict]:
+    """Rows grouped by scenario in first-seen order, each group by ``efficiency_total`` (best
+    first, missing last); sets ``efficiency_rank_in_scenario`` (1 = best)."""
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault(group_key(r), []).append(r)
+    out = []
+    for grp in groups.values():
+        def key(r):
+            e = _num(r.get("efficiency_total"))
+            return (0, -e) if math.isfinite(e) else (1, 0.0)
+        grp = sorted(grp, key=key)           # stable: ties keep the variant order
+        for rank, r in enumerate(grp, start=1):
+            r["efficiency_rank_in_scenario"] = rank
+        out.extend(grp)
+    return out
+
+
+def _walker_gait_key(item: CompareItem) -> str:
+    """What makes two no-device walks identical (walker, gait, controller, side)."""
+    d = item.scenario.as_dict()
+    for k in ("name", "description", "file"):
+        d.pop(k, None)
+    d["side"] = item.cfg.sides[0]
+    return json.dumps(d, sort_keys=True, default=str)
+
+
+def run_comparison(items, progress=None, human_reference: bool = True) -> Comparison:
+    """Simulate every item's assist condition (and the no-device reference once per walker/
+    gait); raises what :func:`run_device_scenario` raises (WalkNumericsError,
+    FloatingPointError) on a numerics failure."""
+    import time
+
+    from afo_mj.scenarios.device_scenario import run_device_scenario
+
+    t0 = time.perf_counter()
+    human_refs: dict[str, float] = {}
+    rows = []
+    for item in items:
+        ref = math.nan
+        if human_reference:
+            key = _walker_gait_key(item)
+            if key not in human_refs:
+                if progress:
+                    progress(f"{item.scenario.name}: no_device (human reference)")
+                cfg0 = dataclasses.replace(item.cfg, conditions=("no_device",))
+                s0, _ = run_device_scenario(item.scenario, item.reference, cfg0)
+                h0 = s0["device_conditions"]["no_device"]["human"]
+                human_refs[key] = _num(h0.get("ankle_positive_work_j_per_stride"))
+            ref = human_refs[key]
+        if progress:
+            progress(f"{item.label}: assist")
+        summary, results = run_device_scenario(item.scenario, item.reference, item.cfg)
+        rec = results["assist"][0]
+        rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec, ref))
+    rows = order_rows(rows)
+    columns = all_columns(rows)
+    scenarios = []
+    for item in items:
+        if scenarios and scenarios[-1]["index"] == item.index:
+            if item.variant:
+                scenarios[-1]["variants"].append(item.variant)
+            continue
+        scenarios.append({"index": item.index, "file": item.path, "name": item.scenario.name,
+                          "preset": item.cfg.preset, "sides": list(item.cfg.sides),
+                          "strides": item.scenario.strides,
+                          "analyse_strides": list(item.scenario.analyse_strides),
+                          "device": _plain(item.scenario.device),
+                          "assistance": _plain(item.scenario.assistance),
+                          "variants": [item.variant] if item.variant else []})
+    return Comparison(rows, columns, scenarios, time.perf_counter() - t0)
+
+
+def _plain(m):
+    """A mapping (possibly read-only, nested) as plain dicts."""
+    if hasattr(m, "items"):
+        return {str(k): _plain(v) for k, v in m.items()}
+    if isinstance(m, (list, tuple)):
+        return [_plain(v) for v in m]
+    return m

@@ -1,0 +1,236 @@
+"""Files and printed tables of ``afo-mj compare`` (see :mod:`afo_mj.analysis.device_comparison`).
+
+:func:`write_comparison` writes ``comparison.csv``, ``comparison.json``, ``comparison.png`` and
+``comparison.md`` into a result directory at once (:func:`afo_mj.outputs.result_dir.
+write_atomically`); :func:`format_tables` gives the text printed on stdout.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+__all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison"]
+
+#: (column, header with unit, format) of the headline tables: the energy chain, then the device
+#: and the walker
+CHAIN = (
+    ("label", "device", "s"),
+    ("preset", "preset", "s"),
+    ("efficiency_total", "eff total [%]", "pct"),
+    ("efficiency_electrical_to_hydraulic", "el->hyd [%]", "pct"),
+    ("efficiency_hydraulic_to_mechanical", "hyd->mech [%]", "pct"),
+    ("electrical_j_per_stride", "electrical [J/stride]", ".2f"),
+    ("hydraulic_j_per_stride", "hydraulic [J/stride]", ".2f"),
+    ("mechanical_j_per_stride", "mech + [J/stride]", ".2f"),
+    ("device_positive_work_j_per_stride", "delivered + [J/stride]", ".2f"),
+    ("energy_balance_error_rel", "balance err [%]", "pct3"),
+    ("efficiency_rank_in_scenario", "rank", "d"),
+)
+DEVICE = (
+    ("label", "device", "s"),
+    ("torque_tracking_rmse_nm", "tracking RMSE [N*m]", ".2f"),
+    ("peak_pressure_mpa", "peak p [MPa]", ".2f"),
+    ("fluid_temperature_rise_k", "dT oil [K]", ".3f"),
+    ("mass_total_kg", "mass [kg]", ".2f"),
+    ("mass_at_ankle_kg", "at ankle [kg]", ".2f"),
+    ("battery_runtime_h", "battery [h]", ".2f"),
+    ("human_ankle_positive_work_j_per_stride", "human ankle + [J/stride]", ".2f"),
+    ("human_ankle_positive_work_no_device_j_per_stride", "no device [J/stride]", ".2f"),
+    ("speed_m_s", "speed [m/s]", ".3f"),
+)
+HEADLINE = CHAIN + DEVICE[1:]
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _cell(v, fmt: str) -> str:
+    if fmt == "s":
+        return "" if v is None else str(v)
+    if not _finite(v):
+        return "-"
+    if fmt == "pct":
+        return f"{100 * v:.1f}"
+    if fmt == "pct3":
+        return f"{100 * v:.3f}"
+    if fmt == "d":
+        return f"{int(v)}"
+    return f"{v:{fmt}}"
+
+
+def headline_table(rows, spec=HEADLINE) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of a headline table (one row per device)."""
+    return ([h for _, h, _ in spec], [[_cell(r.get(c), f) for c, _, f in spec] for r in rows])
+
+
+def loss_table(rows, columns) -> tuple[list[str], list[list[str]]]:
+    """Where the energy drawn per stride goes (J/stride): one line per loss (and the stored
+    change, regeneration, net mechanical output, and their total), one column per device."""
+    lines = [("electrical_j_per_stride", "electrical drawn")]
+    lines += [(c, c[len("loss_"):-len("_j_per_stride")]) for c in columns
+              if c.startswith("loss_")]
+    lines += [("stored_j_per_stride", "stored (change)"),
+              ("electrical_regenerated_j_per_stride", "regenerated to battery"),
+              ("mechanical_net_j_per_stride", "mechanical out (net)"),
+              ("mechanical_j_per_stride", "mechanical out (positive)")]
+    header = ["J/stride"] + [r["label"] for r in rows]
+    body = [[name] + [_cell(r.get(c), ".3f") for r in rows] for c, name in lines]
+    return header, body
+
+
+def _text(header, body) -> str:
+    w = [max(len(str(x)) for x in col) for col in zip(header, *body)]
+    fmt = lambda cells: "  ".join(  # noqa: E731
+        (c.ljust(n) if i == 0 else c.rjust(n)) for i, (c, n) in enumerate(zip(cells, w)))
+    return "\n".join([fmt(header), "  ".join("-" * n for n in w)] + [fmt(b) for b in body])
+
+
+def _markdown(header, body) -> str:
+    esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
+    lines = ["| " + " | ".join(esc(h) for h in header) + " |",
+             "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+    lines += ["| " + " | ".join(esc(c) for c in b) + " |" for b in body]
+    return "\n".join(lines)
+
+
+def format_tables(comp) -> str:
+    """The two tables as printed on stdout."""
+    h2, b2 = loss_table(comp.rows, comp.columns)
+    return ("energy chain (per mean analysed stride; eff total = mech + / electrical drawn):\n"
+            + _text(*headline_table(comp.rows, CHAIN))
+            + "\n\ndevice and walker:\n" + _text(*headline_table(comp.rows, DEVICE))
+            + "\n\nwhere the electrical energy goes, per stride [J]:\n" + _text(h2, b2))
+
+
+def _markdown_report(comp) -> str:
+    h2, b2 = loss_table(comp.rows, comp.columns)
+    names = ", ".join(f"`{s['file']}`" for s in comp.scenarios)
+    return (f"# Device comparison\n\nScenarios: {names}; the `assist` condition, per mean "
+            "analysed stride; efficiency total = positive mechanical output / electrical "
+            "energy drawn. Full table: `comparison.csv`.\n\n## Energy chain\n\n"
+            + _markdown(*headline_table(comp.rows, CHAIN))
+            + "\n\n## Device and walker\n\n" + _markdown(*headline_table(comp.rows, DEVICE))
+            + "\n\n## Where the electrical energy goes (J/stride)\n\n" + _markdown(h2, b2)
+            + "\n\nelectrical drawn = losses + stored change + regenerated + net mechanical "
+              "output (to the energy balance error).\n")
+
+
+def _csv_value(v):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    return v
+
+
+def plot_comparison(comp, path: Path) -> None:
+    """``comparison.png``: energy split per device (left), tracking / pressure / mass (right)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    rows = comp.rows
+    n = len(rows)
+    labels = [r["label"] for r in rows]
+    loss_cols = [c for c in comp.columns if c.startswith("loss_")]
+    segs = [(c, c[len("loss_"):-len("_j_per_stride")]) for c in loss_cols]
+    segs += [("stored_j_per_stride", "stored (change)"),
+             ("electrical_regenerated_j_per_stride", "regenerated"),
+             ("mechanical_net_j_per_stride", "mechanical out (net; < 0: absorbed from the ankle)")]
+    cmap = plt.get_cmap("tab20")
+    colors = {c: cmap(i % 20) for i, (c, _) in enumerate(segs[:-3])}
+    colors["stored_j_per_stride"] = "0.75"
+    colors["electrical_regenerated_j_per_stride"] = "0.45"
+    colors["mechanical_net_j_per_stride"] = "#1a7f37"
+
+    fig = plt.figure(figsize=(16, 2.2 + 0.55 * n + 0.12 * len(segs)))
+    gs = fig.add_gridspec(1, 4, width_ratios=[3.4, 1, 1, 1], wspace=0.08)
+    ax = fig.add_subplot(gs[0])
+    y = np.arange(n)[::-1]
+    pos = np.zeros(n)
+    neg = np.zeros(n)
+    for c, name in segs:
+        v = np.array([r.get(c) if _finite(r.get(c)) else 0.0 for r in rows], dtype=float)
+        if not np.any(v != 0):
+            continue
+        left = np.where(v >= 0, pos, neg)
+        hatch = "//" if c == "mechanical_net_j_per_stride" else None
+        ax.barh(y, v, left=left, color=colors[c], edgecolor="white", linewidth=0.5,
+                hatch=hatch, label=name, height=0.62)
+        pos += np.clip(v, 0, None)
+        neg += np.clip(v, None, 0)
+    elec = np.array([r.get("electrical_j_per_stride") if _finite(r.get("electrical_j_per_stride"))
+                     else np.nan for r in rows], dtype=float)
+    ax.scatter(elec, y, marker="|", s=400, color="k", zorder=5, label="electrical drawn")
+    for yi, r, e, right in zip(y, rows, elec, pos):
+        eff = r.get("efficiency_total")
+        if np.isfinite(e):
+            ax.text(right, yi, f" {e:.1f} J drawn\n eff {100 * eff:.1f} %" if _finite(eff)
+                    else f" {e:.1f} J drawn", va="center", ha="left", fontsize=8)
+    lo, hi = float(neg.min()), float(np.nanmax(np.append(pos, elec)))
+    ax.set_xlim(min(lo * 1.05, 0.0), hi * 1.3 + 1e-9)
+    ax.set_yticks(y)
+    ax.set_yticklabels(labels)
+    ax.axvline(0, color="k", lw=0.6)
+    ax.set_xlabel("energy per stride [J] (electrical drawn = losses + stored + regenerated "
+                  "+ net mechanical)")
+    ax.set_title("Where the electrical energy goes (assist, per analysed stride)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=5, fontsize=7,
+              frameon=False)
+    ax.set_ylim(-0.7, n - 0.2)
+    for i, (col, title, unit, extra) in enumerate((
+            ("torque_tracking_rmse_nm", "torque tracking RMSE", "N*m", None),
+            ("peak_pressure_mpa", "peak pressure", "MPa", None),
+            ("mass_total_kg", "mass", "kg", "mass_at_ankle_kg"))):
+        a = fig.add_subplot(gs[i + 1], sharey=ax)
+        v = np.array([r.get(col) if _finite(r.get(col)) else np.nan for r in rows], float)
+        a.barh(y, v, color="#4c72b0", height=0.62, label="total" if extra else None)
+        if extra:
+            e = np.array([r.get(extra) if _finite(r.get(extra)) else np.nan for r in rows],
+                         float)
+            a.barh(y, e, color="#dd8452", height=0.62, label="at the ankle")
+            a.legend(fontsize=7, loc="lower right")
+        for yi, vi in zip(y, v):
+            if np.isfinite(vi):
+                a.text(vi, yi, f" {vi:.2f}", va="center", fontsize=7)
+        a.set_title(title, fontsize=10)
+        a.set_xlabel(unit)
+        a.tick_params(labelleft=False)
+        finite = v[np.isfinite(v)]
+        if finite.size:
+            a.set_xlim(0, 1.3 * max(float(finite.max()), 1e-9))
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def write_comparison(out_dir, comp, run_info: dict | None = None) -> Path:
+    """Write the four files into ``out_dir`` at once; returns the directory."""
+    from afo_mj.outputs.gait_report import json_ready
+    from afo_mj.outputs.result_dir import write_atomically
+
+    def writer(tmp: Path) -> None:
+        with (tmp / "comparison.csv").open("w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            w.writerow(comp.columns)
+            for r in comp.rows:
+                w.writerow([_csv_value(r.get(c)) for c in comp.columns])
+        doc = {"columns": comp.columns,
+               "rows": [{c: r.get(c) for c in comp.columns} for r in comp.rows],
+               "scenarios": comp.scenarios,
+               "run_info": {"wall_time_s": comp.wall_time_s, **(run_info or {})},
+               "note": "assist condition only; per stride = whole-run ledger scaled to the "
+                       "mean analysed stride; efficiency_total = mechanical positive output / "
+                       "electrical energy drawn; null = not applicable to that device"}
+        text = json.dumps(json_ready(doc), indent=2, allow_nan=False)
+        (tmp / "comparison.json").write_text(text + "\n", encoding="utf-8")
+        (tmp / "comparison.md").write_text(_markdown_report(comp), encoding="utf-8")
+        plot_comparison(comp, tmp / "comparison.png")
+
+    return write_atomically(out_dir, writer)
