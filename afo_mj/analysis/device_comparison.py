@@ -354,8 +354,8 @@ def run_comparison(items, progress=None, human_reference: bool = True) -> Compar
         summary, results = run_device_scenario(item.scenario, item.reference, item.cfg)
         rec = results["assist"][0]
         rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec, ref))
+    columns = all_columns(rows)     # loss columns in the order the scenarios were given
     rows = order_rows(rows)
-    columns = all_columns(rows)
     scenarios = []
     for item in items:
         if scenarios and scenarios[-1]["index"] == item.index:
