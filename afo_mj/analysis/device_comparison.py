@@ -57,8 +57,10 @@ joint, muscles + device); ``electrical_j_per_stride`` (battery energy drawn),
 ``hydraulic_j_per_stride``, ``mechanical_j_per_stride`` (positive mechanical output),
 ``mechanical_net_j_per_stride``, ``stored_j_per_stride`` (change of stored energy);
 ``efficiency_total`` (positive mechanical out / electrical drawn),
-``efficiency_electrical_to_hydraulic``, ``efficiency_hydraulic_to_mechanical`` (net
-hydraulic work; empty where a stage's net energy flows backwards, i.e. the ankle drives it);
+``efficiency_electrical_to_hydraulic`` (net hydraulic work leaving the pump / electrical
+drawn), ``efficiency_hydraulic_to_mechanical`` (net mechanical work / net hydraulic work: what
+the lines, valves, seals and leakage let through; empty where a stage's net energy flows
+backwards, i.e. the ankle drives it);
 ``loss_<name>_j_per_stride`` for every loss any of the devices reports (the union, in ledger
 order; the names come from the device, none is assumed here); ``peak_pressure_mpa,
 fluid_temperature_rise_k, mass_total_kg, mass_at_ankle_kg, battery_runtime_h``;
@@ -262,7 +264,10 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         "stored_j_per_stride": stored,
         "efficiency_total": _ratio(mech, elec),
         "efficiency_electrical_to_hydraulic": _ratio(hyd, elec),
-        "efficiency_hydraulic_to_mechanical": _ratio(mech, hyd),
+        # net through the stage: the ankle's negative work flows back through the lines,
+        # so positive mechanical output over net hydraulic work could exceed 1
+        "efficiency_hydraulic_to_mechanical": _ratio(_num(en.get("mechanical_out_j")) * scale,
+                                                     hyd),
     })
     for name, v in (eps.get("losses_j") or {}).items():
         row[loss_column(name)] = _num(v)
