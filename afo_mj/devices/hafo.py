@@ -354,6 +354,11 @@ class HafoDevice:
     """
 
     coupled = True
+    #: the compiled kernel module that steps it; a circuit with another kernel of the same
+    #: coupled-step API (:mod:`afo_mj.devices.valve_ankle_actuator`) subclasses this class
+    kernel = pa
+    #: the ledger's loss names, in the order of the kernel's ``LOSS_INDEX``
+    loss_names = pa.LOSS_NAMES
 
     def __init__(self, params: PumpAnkleParams = HAFO_ACTUATOR, sides=("right",),
                  profile: np.ndarray | None = None, timestep_s: float = 1e-3,
@@ -379,36 +384,47 @@ class HafoDevice:
         # Every per-side float array is a view of one buffer, laid out by ``_meta``
         # (pa.device_layout), so that the compiled step (pa.device_begin / pa.device_end)
         # takes two arrays instead of a dozen: the call overhead grows with their number.
-        self._meta = pa.device_layout(ns, profile.shape[0], self.side_index)
-        self._buf = np.zeros(self._meta[pa.M_END])
+        K = self.kernel
+        self._meta = K.device_layout(ns, profile.shape[0], self.side_index)
+        self._buf = np.zeros(self._meta[K.M_END])
         (self.Y, self.P, self.W, self.S, self.phase_state, self.profile, self._V, self._out,
-         self._O) = pa.device_views(self._buf, self._meta)
-        self.P[:] = pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage"
-                                    else pa.MODE_TORQUE)
+         self._O) = K.device_views(self._buf, self._meta)
+        self.P[:] = self._pack(params, mode)
         self.profile[:] = profile
         p0 = params.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
-        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
-        self.W[:, pa.W_SOC] = params.initial_soc
-        self.W[:, pa.W_TEMP_K] = params.ambient_temperature_k
-        self.W[:, pa.W_P_MAX] = p0
+        self._initial_state(p0)
+        self.W[:, K.W_SOC] = params.initial_soc
+        self.W[:, K.W_TEMP_K] = params.ambient_temperature_k
+        self.W[:, K.W_P_MAX] = p0
         self.S[:, 0, 0] = self.timestep_s
         self.phase_state[:] = asst.new_phase_state(ns)
         self.stride_limits = (float(min_stride_s), float(max_stride_s))
-        self._buf[self._meta[pa.M_LIM]:self._meta[pa.M_LIM] + 2] = self.stride_limits
+        self._buf[self._meta[K.M_LIM]:self._meta[K.M_LIM] + 2] = self.stride_limits
         # per-worn-side work rows and per-walker-side outputs: views of the rows of V and O
-        self._theta, self._thd, self._cmd = (self._V[pa.V_THETA], self._V[pa.V_THETA_DOT],
-                                             self._V[pa.V_TAU_CMD])
-        self._vnew, self._tau = self._V[pa.V_THETA_DOT_NEW], self._V[pa.V_TAU]
-        self._O[pa.O_PHASE] = -1.0
-        self.force2, self.damping2 = self._O[pa.O_FORCE], self._O[pa.O_DAMPING]
-        self.delivered2, self.commanded2 = self._O[pa.O_DELIVERED], self._O[pa.O_COMMANDED]
-        self.phase2 = self._O[pa.O_PHASE]
+        self._theta, self._thd, self._cmd = (self._V[K.V_THETA], self._V[K.V_THETA_DOT],
+                                             self._V[K.V_TAU_CMD])
+        self._vnew, self._tau = self._V[K.V_THETA_DOT_NEW], self._V[K.V_TAU]
+        self._O[K.O_PHASE] = -1.0
+        self.force2, self.damping2 = self._O[K.O_FORCE], self._O[K.O_DAMPING]
+        self.delivered2, self.commanded2 = self._O[K.O_DELIVERED], self._O[K.O_COMMANDED]
+        self.phase2 = self._O[K.O_PHASE]
         self._out2 = (self.force2, self.damping2)
         self.steps = 0
-        self.log = _DeviceLog(max_steps, ns) if max_steps else None
+        self.log = _DeviceLog(max_steps, ns, K.LOG_FIELDS) if max_steps else None
         self._log_data = (self.log.data if self.log is not None
-                          else np.zeros((0, len(pa.LOG_FIELDS), ns)))
+                          else np.zeros((0, len(K.LOG_FIELDS), ns)))
         self.t_s = 0.0
+
+    def _pack(self, params, mode: str) -> np.ndarray:
+        """The kernel's parameter row for ``params``."""
+        return pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage" else pa.MODE_TORQUE)
+
+    def _initial_state(self, p0: float) -> None:
+        """Every pressure node at ``p0`` (gauge), the rest at zero."""
+        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
+
+    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
+        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)
 
     # -- masses ----------------------------------------------------------------------------
     def worn_masses(self) -> list[WornMass]:
@@ -440,7 +456,8 @@ class HafoDevice:
         self.t_s = t
         if self.torque_fn is None:
             # phase estimate, profile lookup and linearisation in one compiled call
-            pa.device_begin(t, angle_rad, velocity_rad_s, stance, self._buf, self._meta)
+            self.kernel.device_begin(t, angle_rad, velocity_rad_s, stance, self._buf,
+                                     self._meta)
             return self._out2
         si = self.side_index
         th, thd, cmd = self._theta, self._thd, self._cmd
@@ -449,7 +466,7 @@ class HafoDevice:
             th[k] = angle_rad[s]
             thd[k] = velocity_rad_s[s]
             cmd[k] = self.torque_fn(t, th[k], thd[k])
-        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)
+        self._kernel_begin_step(th, thd, cmd, t)
         f2, d2 = self.force2, self.damping2
         for k in range(len(si)):
             f2[si[k]] = self._out[k, 0]
@@ -462,12 +479,12 @@ class HafoDevice:
         (length 2, zero where not worn)."""
         k = self.steps
         # finish_all, delivered torques and the log row in one compiled call
-        code = pa.device_end(velocity_new_rad_s, self._buf, self._meta, self._log_data, k,
+        code = self.kernel.device_end(velocity_new_rad_s, self._buf, self._meta, self._log_data, k,
                              self.t_s + self.timestep_s)
         if not code:
             raise FloatingPointError(
-                f"HAFO hydraulic state became non-finite at t = {self.t_s:.4f} s: "
-                f"{dict(zip(pa.STATE_NAMES, self.Y[0].tolist()))}")
+                f"{type(self).__name__} hydraulic state became non-finite at t = "
+                f"{self.t_s:.4f} s: {dict(zip(self.kernel.STATE_NAMES, self.Y[0].tolist()))}")
         if code == 2:
             self.log.n = k + 1
         self.steps = k + 1
@@ -476,33 +493,34 @@ class HafoDevice:
     # -- results ---------------------------------------------------------------------------
     def ledger(self, k: int = 0) -> dict:
         """Energy ledger of worn side ``k`` (J), with the balance residual."""
+        K = self.kernel
         W = self.W[k]
-        losses = {n: float(W[i]) for n, i in zip(pa.LOSS_NAMES, pa.LOSS_INDEX)}
-        stored = {"inductance": float(W[pa.W_E_STORE_L]), "rotor": float(W[pa.W_E_STORE_ROT]),
-                  "oil": float(W[pa.W_E_STORE_OIL]),
+        losses = {n: float(W[i]) for n, i in zip(self.loss_names, K.LOSS_INDEX)}
+        stored = {"inductance": float(W[K.W_E_STORE_L]), "rotor": float(W[K.W_E_STORE_ROT]),
+                  "oil": float(W[K.W_E_STORE_OIL]),
                   # the reservoir gives energy when it feeds the lines: its store falls
-                  "reservoir": float(W[pa.W_E_RESERVOIR])}
-        e_in = float(W[pa.W_E_CHEM])
-        e_out = float(W[pa.W_E_MECH])
+                  "reservoir": float(W[K.W_E_RESERVOIR])}
+        e_in = float(W[K.W_E_CHEM])
+        e_out = float(W[K.W_E_MECH])
         resid = e_in - e_out - sum(losses.values()) - sum(stored.values())
-        drawn = float(W[pa.W_E_CHEM_DRAWN])
+        drawn = float(W[K.W_E_CHEM_DRAWN])
         scale = max(drawn, 1e-12)
         return {"electrical_in_j": e_in, "electrical_drawn_j": drawn,
                 "electrical_regenerated_j": drawn - e_in, "mechanical_out_j": e_out,
                 "balance_error_rel": resid / scale,
-                "energy_throughput_j": float(W[pa.W_E_ABS_FLOW]),
-                "hydraulic_j": float(W[pa.W_E_HYD]), "losses_j": losses,
+                "energy_throughput_j": float(W[K.W_E_ABS_FLOW]),
+                "hydraulic_j": float(W[K.W_E_HYD]), "losses_j": losses,
                 "stored_change_j": stored, "residual_j": resid,
-                "heat_to_oil_j": float(W[pa.W_HEAT_TO_OIL]),
-                "peak_pressure_pa": float(W[pa.W_P_MAX]),
-                "peak_current_a": float(W[pa.W_I_PEAK]),
-                "temperature_rise_k": float(W[pa.W_TEMP_K] - self.params.ambient_temperature_k),
-                "soc": float(W[pa.W_SOC]), "pressure_floor_steps": int(W[pa.W_CLIP_STEPS]),
-                "newton_iterations": int(W[pa.W_NEWTON_ITERS]),
-                "newton_unconverged_steps": int(W[pa.W_NEWTON_FAIL]),
-                "substepped_steps": int(W[pa.W_SUBSTEPPED]),
-                "substeps": int(W[pa.W_SUBSTEPS]),
-                "coupling_torque_error_rms_nm": float(np.sqrt(W[pa.W_COUPLE_SQ]
+                "heat_to_oil_j": float(W[K.W_HEAT_TO_OIL]),
+                "peak_pressure_pa": float(W[K.W_P_MAX]),
+                "peak_current_a": float(W[K.W_I_PEAK]),
+                "temperature_rise_k": float(W[K.W_TEMP_K] - self.params.ambient_temperature_k),
+                "soc": float(W[K.W_SOC]), "pressure_floor_steps": int(W[K.W_CLIP_STEPS]),
+                "newton_iterations": int(W[K.W_NEWTON_ITERS]),
+                "newton_unconverged_steps": int(W[K.W_NEWTON_FAIL]),
+                "substepped_steps": int(W[K.W_SUBSTEPPED]),
+                "substeps": int(W[K.W_SUBSTEPS]),
+                "coupling_torque_error_rms_nm": float(np.sqrt(W[K.W_COUPLE_SQ]
                                                               / max(self.steps, 1)))}
 
 
@@ -513,8 +531,9 @@ class _DeviceLog:
 
     FIELDS = pa.LOG_FIELDS
 
-    def __init__(self, n: int, ns: int):
+    def __init__(self, n: int, ns: int, fields=pa.LOG_FIELDS):
         self.n = 0
+        self.FIELDS = tuple(fields)
         self.data = np.zeros((n, len(self.FIELDS), ns))
 
     def write(self, k: int, t: float, dev: HafoDevice) -> None:

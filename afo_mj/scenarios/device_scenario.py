@@ -35,7 +35,8 @@ from afo_mj.scenarios.walk_scenario import ScenarioError
 
 DEVICE_KEYS = ("preset", "sides", "conditions", "params", "variants")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
-               "points")
+               "points", "stiffness_nm_per_deg", "damping_nm_s_per_deg", "rest_angle_deg",
+               "clutched", "phases", "stiffnesses_nm_per_deg")
 CONDITIONS = ("no_device", "transparent", "assist")
 
 
@@ -49,12 +50,19 @@ class DeviceConfig:
     #: named design variants (``[device.variants.<name>]``: dotted overrides applied on top of
     #: ``device.params``), each validated; ``afo-mj compare`` runs one row per variant
     variants: dict = dataclasses.field(default_factory=dict)
+    #: impedance rows (phase_end, K N·m/rad, B N·m·s/rad, θ0 rad, clutched) replacing the
+    #: assistance profile (``[assistance] profile = "impedance"``), or None
+    impedance: list | None = None
+    #: stiffness sweep: condition name → impedance rows (conditions ``assist_k<K>``)
+    impedance_conditions: dict = dataclasses.field(default_factory=dict)
 
 
 def device_params(dev: dict, origin: str):
     """``(preset, params, overrides)`` from a scenario's ``[device]`` table: the preset
     (:data:`afo_mj.devices.hafo.PRESETS`) with its ``params`` dotted overrides, validated."""
-    from afo_mj.devices.hafo import PRESETS as DEVICE_PRESETS, hafo_params
+    from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS, hafo_params
+    from afo_mj.devices.valve_afo import VALVE_PRESETS, valve_params
+    DEVICE_PRESETS = {**HAFO_PRESETS, **VALVE_PRESETS}
     preset = dev.get("preset", "hafo")
     if preset not in DEVICE_PRESETS:
         raise ScenarioError(f"{origin}: device.preset = {preset!r} is not allowed; allowed: "
@@ -64,7 +72,8 @@ def device_params(dev: dict, origin: str):
         raise ScenarioError(f"{origin}: device.params = {overrides!r} is not allowed; allowed: "
                             "a table of dotted parameter names")
     try:
-        params = hafo_params(overrides, preset)
+        params = (hafo_params(overrides, preset) if preset in HAFO_PRESETS
+                  else valve_params(overrides, preset))
     except ParameterError as exc:
         raise ScenarioError(f"{origin}: device.params: {exc}") from None
     return preset, params, overrides
@@ -97,6 +106,7 @@ def device_config(scenario) -> DeviceConfig | None:
             or len(set(conds)) != len(conds)):
         raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
     preset, params, base_overrides = device_params(dev, origin)
+    impedance, sweep = None, []
     variants_doc = dev.get("variants", {})
     if not isinstance(variants_doc, dict) or any(not isinstance(v, dict)
                                                  for v in variants_doc.values()):
@@ -123,11 +133,74 @@ def device_config(scenario) -> DeviceConfig | None:
                                                     for p in pts):
                     raise fail("assistance.points", pts, "a list of [phase_pct, torque_nm]")
                 profile = asst.spline_profile([p[0] for p in pts], [p[1] for p in pts])
+            elif kind == "impedance":
+                impedance, sweep = _impedance_rows(ass, fail)
             else:
-                raise fail("assistance.profile", kind, '"zhang" | "spline"')
+                raise fail("assistance.profile", kind, '"zhang" | "spline" | "impedance"')
         except ParameterError as exc:
             raise ScenarioError(f"{origin}: {exc}") from None
-    return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile, variants)
+    if impedance is not None:
+        from afo_mj.devices.valve_afo import ValveAnkleParams, impedance_table
+        if not isinstance(params, ValveAnkleParams):
+            raise fail("assistance.profile", "impedance", "a valve-circuit device.preset "
+                       "(e.g. phafo) for impedance emulation")
+        for rows in [impedance] + [r for _, r in sweep]:
+            try:
+                impedance_table(rows)
+            except ParameterError as exc:
+                raise ScenarioError(f"{origin}: assistance: {exc}") from None
+        if sweep:
+            conds = [n for c in conds for n in ([n for n, _ in sweep] if c == "assist"
+                                                 else [c])]
+    return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile, variants,
+                        impedance, dict(sweep) if impedance is not None else {})
+
+
+def _impedance_rows(ass: dict, fail):
+    """Impedance rows (SI: phase_end, K N·m/rad, B N·m·s/rad, θ0 rad, clutched) from the
+    ``[assistance]`` table (``profile = "impedance"``) and the stiffness sweep, if any, as
+    ``[(condition_name, rows)]``.
+
+    Keys: ``stiffness_nm_per_deg`` (default 2.5), ``damping_nm_s_per_deg`` (0),
+    ``rest_angle_deg`` (0), ``clutched`` (false: a spring on both sides of the rest angle;
+    true: engaged only past it in dorsiflexion), or ``phases = [[end_pct, K_nm_per_deg,
+    B_nm_s_per_deg, rest_deg], …]`` (a per-phase impedance state machine over the stride,
+    the last ending at 100), and ``stiffnesses_nm_per_deg = [1, 2.5, 4.6]``: one condition
+    ``assist_k<K>`` per stiffness instead of ``assist``."""
+    deg = math.pi / 180.0
+    clutched = ass.get("clutched", False)
+    if not isinstance(clutched, bool):
+        raise fail("assistance.clutched", clutched, "true | false")
+    damping = ass.get("damping_nm_s_per_deg", 0.0)
+    rest = ass.get("rest_angle_deg", 0.0)
+
+    def single(k):
+        if not isinstance(k, (int, float)) or not 0.0 <= k <= 20.0:
+            raise fail("assistance.stiffness_nm_per_deg", k, "a number in 0 … 20 N*m/deg")
+        if not isinstance(damping, (int, float)) or not 0.0 <= damping <= 5.0:
+            raise fail("assistance.damping_nm_s_per_deg", damping, "a number in 0 … 5")
+        if not isinstance(rest, (int, float)) or not -40.0 <= rest <= 40.0:
+            raise fail("assistance.rest_angle_deg", rest, "a number in -40 … 40 deg")
+        return [(1e9, k / deg, damping / deg, rest * deg, 1.0 if clutched else 0.0)]
+
+    if "phases" in ass:
+        ph = ass["phases"]
+        if (not isinstance(ph, list) or not ph
+                or any(not isinstance(r, list) or len(r) != 4 for r in ph)):
+            raise fail("assistance.phases", ph, "a list of [end_pct, stiffness_nm_per_deg, "
+                       "damping_nm_s_per_deg, rest_angle_deg]")
+        rows = [(r[0] / 100.0 if i < len(ph) - 1 else 1e9, r[1] / deg, r[2] / deg, r[3] * deg,
+                 1.0 if clutched else 0.0) for i, r in enumerate(ph)]
+        base = rows
+    else:
+        base = single(ass.get("stiffness_nm_per_deg", 2.5))
+    sweep = []
+    if "stiffnesses_nm_per_deg" in ass:
+        ks = ass["stiffnesses_nm_per_deg"]
+        if not isinstance(ks, list) or not ks:
+            raise fail("assistance.stiffnesses_nm_per_deg", ks, "a non-empty list of N*m/deg")
+        sweep = [(f"assist_k{k:g}", single(k)) for k in ks]
+    return base, sweep
 
 
 def _per_stride(rec, side: int, first: int, last: int):
@@ -237,10 +310,29 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     return out
 
 
+def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int):
+    """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled) or a valve /
+    digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`), with the
+    assistance profile or the impedance rows when the condition is ``assist``."""
+    from afo_mj.devices.hafo import HafoDevice
+    from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
+    active = condition == "assist" or condition in cfg.impedance_conditions
+    if isinstance(cfg.params, ValveAnkleParams):
+        imp = cfg.impedance_conditions.get(condition, cfg.impedance)
+        return ValveAfoDevice(cfg.params, sides=cfg.sides,
+                              profile=cfg.profile if active and cfg.impedance is None else None,
+                              impedance=imp if active else None,
+                              timestep_s=timestep_s, max_steps=max_steps)
+    if cfg.impedance is not None:
+        raise ScenarioError(f"[impedance] needs a valve-circuit device; device.preset = "
+                            f"{cfg.preset!r} is pump-controlled")
+    return HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile if active else None,
+                      timestep_s=timestep_s, max_steps=max_steps)
+
+
 def run_device_scenario(scenario, reference, cfg: DeviceConfig):
     """Run every condition; returns ``(summary, per-condition (record, analysis, device))``."""
     from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
-    from afo_mj.devices.hafo import HafoDevice
     from afo_mj.gait.walk import run_walk
     T = scenario.cycle_time_s(reference)
     dt = scenario.walker.timestep_s
@@ -250,9 +342,7 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
         worn = ()
         if cond != "no_device":
             steps = int(((scenario.strides + 1.5) * T + 1.0) / dt) + 4
-            dev = HafoDevice(cfg.params, sides=cfg.sides,
-                             profile=cfg.profile if cond == "assist" else None,
-                             timestep_s=dt, max_steps=steps)
+            dev = make_device(cfg, cond, dt, steps)
             worn = dev.worn_masses()
         rec = run_walk(scenario.walker, reference, T, scenario.strides,
                        scenario.controller_params(), worn_masses=worn, device=dev)

@@ -1,0 +1,473 @@
+"""Valve-controlled, digital-valve and stiffness-emulating ankle orthoses (seed ch. 4, 5, 7).
+
+The same worn architecture as the HAFO (:mod:`afo_mj.devices.hafo`: power supply at the waist,
+two hoses, two antagonistic piston-cable cylinders on a 40 mm ankle pulley, the same oil,
+battery and driver), with the pump-controlled circuit replaced by a **valve-controlled** one
+(:mod:`afo_mj.devices.valve_ankle_actuator`): a unidirectional pump, a check valve, a rail
+with a gas accumulator, an unloading valve and a relief valve, and a 4/3 servo valve that
+meters the cylinders' flow by throttling. The seed's variants for intermittent duty are
+presets and ``supply_mode`` values:
+
+==========================  =================================================================
+``valve_no_accumulator``    constant-speed fixed pump, surplus flow over the relief valve
+``valve_accumulator``       the same with a 50 cm³ gas accumulator on the rail
+``valve`` (``unloading``)   accumulator + unloading valve: pump unloaded to tank when charged
+``valve_pressure_control``  motor speed follows the load: rail = load pressure + 1.5 MPa
+``valve_variable``          pressure-compensated variable-displacement pump, constant speed
+``digital``                 PWM on/off valve unloads the pump; a release valve vents port A
+``phafo``                   stiffness emulator: 14.1 MPa rail held by proportional
+                            flow-rate (motor-speed) control, servo valve, impedance control
+==========================  =================================================================
+
+Why these numbers (one side; none is a published part, each is reasoned):
+
+* **Pump and motor** — 0.3 cm³/rev gear pump (the library's small gear pump scaled) at a set
+  speed of 500 rad/s (4800 rpm): 1.43 L/min, the walker's peak push-off demand
+  ``A_e r θ̇ ≈ 6.5e-6 m³ × 3.8 rad/s ≈ 1.5 L/min``. At an 11 MPa rail it needs 0.58 N·m, so a
+  faster-wound motor than the HAFO's (K = 0.035 N·m/A, 0.12 Ω: 16.5 A, back-EMF 17.5 V on the
+  22.5 V pack) with a 25 A driver limit.
+* **Rail** — 40 N·m of assistance needs 6.1 MPa across the pistons (``A_e r = 6.545e-6 m³``);
+  the servo valve needs about 1–2 MPa across its two lands at the push-off flow, so the rail
+  works at 9.5–11 MPa: unloading valve cut-in 9.6 / cut-out 11.1 MPa abs, relief cracking
+  at 11.5 MPa above the tank.
+* **Accumulator** — 50 cm³ diaphragm type precharged to 6 MPa abs: between cut-in and
+  cut-out it holds ``50 (1 − (6/11.1)^(1/1.4)) − 50 (1 − (6/9.6)^(1/1.4)) ≈ 3.6 cm³``, more
+  than the ≈ 2.3 cm³ one push-off takes (``A_e r`` × 20°). 0.35 kg.
+* **Servo valve** — a miniature proportional/servo valve, 4 L/min at 7 MPa, 200 Hz spool
+  (first-order, τ = 0.8 ms), 0.05 L/min centre leakage at 21 MPa, 0.5 W coil.
+* **Tank** — a 0.5 MPa bootstrap reservoir (the pump's inlet and the make-up valves'
+  source; the pistons then sit at equal pressure with no torque).
+* **Digital** — two 2 mm² on/off valves of 2 ms switching time, 2 W holding and 0.05 J per
+  switch (:mod:`afo_mj.hydraulics.onoff_valve` defaults), PWM at 50 Hz (20 periods per
+  second at the 1 ms walker step; the on-fraction over each step is exact, so the duty is not
+  quantised). No accumulator: the pump's flow is metered in time instead.
+* **PHAFO** — the group's pediatric device: 14.1 MPa rail, up to 62 N·m, emulated springs of
+  1–4.6 N·m/deg, 1.5 kg worn (facts.md). Pulley 32 mm with the HAFO's cylinders
+  (``A_e r = 5.24e-6 m³``: 62 N·m at 11.8 MPa, so 2.3 MPa is left across the valve); the power
+  supply is tethered (a clinic tool), so nothing is worn at the waist; its 48 V bus (a 12S
+  pack in the model) drives the HAFO's 0.055 N·m/A motor, which holds the 14.1 MPa rail at
+  13–14 A instead of the 20 A the faster winding would draw.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.devices import valve_ankle_actuator as va
+from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleParams,
+                                 _hose_mass_kg, pack_parameters)
+from afo_mj.hydraulics.accumulator import GasAccumulatorParams
+from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA
+from afo_mj.hydraulics.onoff_valve import OnOffValveParams
+from afo_mj.hydraulics.params import ParameterError, Parameters, effect, param, replace_named
+from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL
+from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
+from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
+
+__all__ = ["ValveControlParams", "ValveAnkleParams", "VALVE_PRESETS", "valve_params",
+           "valve_mass_budget", "ValveAfoDevice", "impedance_table", "CIRCUITS",
+           "SUPPLY_MODES"]
+
+CIRCUITS = ("servo", "digital")
+SUPPLY_MODES = ("constant_speed", "unloading", "pressure_control", "variable_displacement")
+_SUPPLY_CODE = {"constant_speed": va.SUPPLY_CONSTANT_SPEED, "unloading": va.SUPPLY_UNLOADING,
+                "pressure_control": va.SUPPLY_PRESSURE_CONTROL,
+                "variable_displacement": va.SUPPLY_VARIABLE}
+
+
+@dataclasses.dataclass(frozen=True)
+class ValveControlParams(Parameters):
+    """Gains of the valve circuit's controllers (:func:`~afo_mj.devices.valve_ankle_actuator.
+    controller`)."""
+
+    valve_gain_per_pa: float = param(2e-8, unit="1/Pa", lo=0.0, hi=1e-4,
+                                     doc="k_v: valve command per unit pressure error")
+    valve_integral_gain_per_pa_s: float = param(1e-6, unit="1/(Pa s)", lo=0.0, hi=1.0,
+                                                doc="k_vi: valve command per ∫ pressure error")
+    valve_integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
+                                             doc="anti-windup clamp on ∫ pressure error")
+    speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
+                                          doc="motor speed loop: voltage per speed error")
+    speed_integral_gain_v_per_rad: float = param(0.5, unit="V/rad", lo=0.0, hi=1e3,
+                                                 doc="motor speed loop: voltage per ∫ error")
+    speed_integral_limit_rad: float = param(50.0, unit="rad", lo=0.0, hi=1e6,
+                                            doc="anti-windup clamp on ∫ speed error")
+    supply_gain_rad_s_per_pa: float = param(1e-4, unit="rad/s/Pa", lo=0.0, hi=1.0,
+                                            doc="rail pressure loop: speed per pressure error")
+    supply_integral_gain_rad_per_pa: float = param(1e-3, unit="rad/(Pa s)", lo=0.0, hi=10.0,
+                                                   doc="rail pressure loop: speed per ∫ error")
+    supply_integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
+                                              doc="anti-windup clamp on ∫ rail error")
+
+
+@dataclasses.dataclass(frozen=True)
+class ValveAnkleParams(PumpAnkleParams):
+    """One side of a valve-controlled (servo or digital) ankle orthosis.
+
+    Inherits the worn parts of the HAFO (fluid, motor, driver, pump, hoses, cylinders, relief,
+    battery, thermal); ``reservoir_pressure_pa`` is the tank; the flushing fields are unused.
+    """
+
+    circuit: str = "servo"
+    supply_mode: str = "unloading"
+    accumulator_enabled: bool = effect(True, doc="gas accumulator on the supply rail")
+    accumulator: GasAccumulatorParams = GasAccumulatorParams(
+        gas_volume_m3=50e-6, precharge_pressure_pa=6.0e6, max_pressure_pa=12.0e6)
+    accumulator_mass_kg: float = param(0.35, unit="kg", lo=0.0, hi=10.0)
+    accumulator_blend_pa: float = param(0.2e6, unit="Pa", lo=1e3, hi=5e6,
+                                        doc="band over which the gas spring engages at the "
+                                            "precharge pressure")
+    unloading: UnloadingValveParams = UnloadingValveParams(
+        cut_out_pressure_pa=11.1e6, cut_in_pressure_pa=9.6e6, switching_band_pa=0.3e6,
+        time_constant_s=2e-3)
+    servo_valve: ServoValveParams = ServoValveParams(leakage_flow_m3_s=0.05 / 60e3)
+    servo_coil_power_w: float = param(0.5, unit="W", lo=0.0, hi=100.0,
+                                      doc="servo valve torque-motor power")
+    switching_valve: OnOffValveParams = OnOffValveParams()
+    pwm_frequency_hz: float = param(50.0, unit="Hz", lo=1.0, hi=2000.0,
+                                    doc="PWM frequency of the digital circuit's on/off valves")
+    check_valve_conductance_m3_s_pa: float = param(1e-9, unit="m^3/(s Pa)", lo=1e-14, hi=1e-6,
+                                                   doc="pump check valve, open")
+    check_valve_cracking_pa: float = param(0.05e6, unit="Pa", lo=0.0, hi=5e6)
+    manifold_volume_m3: float = param(2e-6, unit="m^3", lo=1e-8, hi=1e-3,
+                                      doc="oil in the supply manifold (rail) besides the "
+                                          "accumulator")
+    motor_speed_rad_s: float = param(500.0, unit="rad/s", lo=0.0, hi=3000.0,
+                                     doc="set speed of a constant-speed supply; the top speed "
+                                         "of a pressure-controlled one")
+    supply_pressure_follows_demand: bool = effect(
+        True, doc="pressure_control: rail = load pressure + margin (False: fixed "
+                  "supply_pressure_set_pa, a regulated rail)")
+    supply_pressure_set_pa: float = param(14.1e6, unit="Pa", lo=0.0, hi=40e6,
+                                          doc="fixed rail set point (gauge)")
+    supply_pressure_margin_pa: float = param(1.5e6, unit="Pa", lo=0.0, hi=20e6,
+                                             doc="rail above the load pressure (following)")
+    supply_pressure_min_pa: float = param(2.0e6, unit="Pa", lo=0.0, hi=20e6,
+                                          doc="lowest rail set point (following)")
+    compensator_pressure_pa: float = param(11.0e6, unit="Pa", lo=0.0, hi=40e6,
+                                           doc="variable pump: rail at which displacement "
+                                               "reaches its minimum (gauge)")
+    compensator_band_pa: float = param(1.0e6, unit="Pa", lo=1e4, hi=20e6,
+                                       doc="variable pump: pressure band of full stroke")
+    min_displacement_fraction: float = param(0.03, unit="-", lo=0.0, hi=1.0,
+                                             doc="variable pump: smallest displacement")
+    initial_supply_pressure_pa: float = param(9.0e6, unit="Pa", lo=0.0, hi=40e6,
+                                              doc="rail at t = 0 (gauge; a charged "
+                                                  "accumulator), the other nodes at the tank")
+    max_torque_nm: float = param(70.0, unit="N m", lo=1.0, hi=500.0,
+                                 doc="commanded torque saturation")
+    valve_block_mass_kg: float = param(0.35, unit="kg", lo=0.0, hi=10.0,
+                                       doc="manifold with servo (or on/off) valves, check, "
+                                           "unloading and relief valves")
+    power_supply_worn: bool = effect(True, doc="battery, motor, pump and valves worn at the "
+                                               "waist (False: a tethered bench supply)")
+    valve_control: ValveControlParams = ValveControlParams()
+
+    def check(self) -> None:
+        super().check()
+        if self.circuit not in CIRCUITS:
+            self.fail("circuit", f"allowed: {', '.join(CIRCUITS)}")
+        if self.supply_mode not in SUPPLY_MODES:
+            self.fail("supply_mode", f"allowed: {', '.join(SUPPLY_MODES)}")
+        if self.circuit == "digital" and self.supply_mode != "constant_speed":
+            self.fail("supply_mode", "the digital circuit meters a constant-speed pump's flow "
+                      "by PWM: allowed: constant_speed")
+        if self.supply_mode == "unloading" and not self.accumulator_enabled:
+            self.fail("supply_mode", "an unloading valve needs the accumulator "
+                      "(accumulator_enabled = True)")
+        if self.pwm_frequency_hz * self.switching_valve.switching_time_s > 0.25:
+            self.fail("pwm_frequency_hz", "the valve's switching time must be under a quarter "
+                      f"of the PWM period (switching_time_s = "
+                      f"{self.switching_valve.switching_time_s})")
+
+    # -- derived --------------------------------------------------------------------------
+    @property
+    def servo_full_area_m2(self) -> float:
+        """Edge area of the servo valve at full stroke (beyond the lap), m²."""
+        sv = ServoValve(self.servo_valve)
+        return sv.area_gradient_m * (self.servo_valve.spool_max_m - sv.overlap_m)
+
+    @property
+    def nominal_pump_flow_m3_s(self) -> float:
+        return self.pump.displacement_m3_rev / (2 * math.pi) * self.motor_speed_rad_s
+
+
+_VALVE_MOTOR = HAFO_GAIT.motor.replace(torque_constant_nm_a=0.035, resistance_ohm=0.12,
+                                       inductance_h=0.04e-3)
+_VALVE_BASE = ValveAnkleParams(
+    **{f.name: getattr(HAFO_GAIT, f.name) for f in dataclasses.fields(PumpAnkleParams)}
+).replace(
+    pump=GEAR_PUMP_SMALL.replace(displacement_m3_rev=0.3e-6,
+                                 rotor_inertia_kg_m2=1.5 * GEAR_PUMP_SMALL.rotor_inertia_kg_m2),
+    pump_mass_kg=0.28, motor=_VALVE_MOTOR,
+    driver=HAFO_GAIT.driver.replace(current_limit_a=25.0),
+    relief=HAFO_GAIT.relief.replace(cracking_dp_pa=11.5e6, override_dp_pa=1.0e6,
+                                    max_area_m2=2.0e-6),
+    reservoir_pressure_pa=0.5e6)
+
+#: The valve-controlled presets (variants of the supply), the digital one and the PHAFO.
+VALVE_PRESETS = {
+    "valve": _VALVE_BASE,
+    "valve_no_accumulator": _VALVE_BASE.replace(supply_mode="constant_speed",
+                                                accumulator_enabled=False,
+                                                initial_supply_pressure_pa=0.5e6),
+    "valve_accumulator": _VALVE_BASE.replace(supply_mode="constant_speed"),
+    "valve_pressure_control": _VALVE_BASE.replace(
+        supply_mode="pressure_control", supply_pressure_min_pa=4.0e6,
+        accumulator=_VALVE_BASE.accumulator.replace(gas_volume_m3=4e-6,
+                                                    precharge_pressure_pa=1.5e6),
+        accumulator_mass_kg=0.10, initial_supply_pressure_pa=4.0e6),
+    "valve_variable": _VALVE_BASE.replace(supply_mode="variable_displacement",
+                                          accumulator_enabled=False,
+                                          pump_mass_kg=0.40),
+    "digital": _VALVE_BASE.replace(
+        circuit="digital", supply_mode="constant_speed", accumulator_enabled=False,
+        initial_supply_pressure_pa=0.5e6, servo_coil_power_w=0.0,
+        valve_control=ValveControlParams(valve_gain_per_pa=3e-8,
+                                         valve_integral_gain_per_pa_s=5e-7)),
+    "phafo": _VALVE_BASE.replace(
+        supply_mode="pressure_control", supply_pressure_follows_demand=False,
+        supply_pressure_set_pa=14.1e6, pulley_radius_m=0.032, max_torque_nm=62.0,
+        accumulator=_VALVE_BASE.accumulator.replace(precharge_pressure_pa=8.0e6,
+                                                    max_pressure_pa=16.0e6),
+        relief=_VALVE_BASE.relief.replace(cracking_dp_pa=15.5e6),
+        unloading=UnloadingValveParams(cut_out_pressure_pa=15.2e6, cut_in_pressure_pa=14.0e6),
+        initial_supply_pressure_pa=14.0e6, power_supply_worn=False,
+        motor=HAFO_GAIT.motor, battery=HAFO_GAIT.battery.replace(
+            name="tethered 48 V bench supply (modelled as a 12S pack)", cells_series=12.0),
+        motor_speed_rad_s=560.0),
+}
+
+
+def valve_params(overrides: dict | None = None, preset: str = "valve") -> ValveAnkleParams:
+    """A preset (:data:`VALVE_PRESETS`) with dotted-name overrides, validated."""
+    if preset not in VALVE_PRESETS:
+        raise ParameterError(f"device.preset = {preset!r}; allowed: {', '.join(VALVE_PRESETS)}")
+    base = VALVE_PRESETS[preset]
+    return replace_named(base, overrides or {}) if overrides else base
+
+
+def valve_mass_budget(p: ValveAnkleParams) -> tuple[HafoMassItem, ...]:
+    """Parts, masses and where they are worn (one side). The ankle parts are the HAFO's; the
+    PHAFO's are its published 1.5 kg worn; a tethered supply is not worn (site ``off_body``)."""
+    supply_site = "waist" if p.power_supply_worn else "off_body"
+    if p.power_supply_worn:
+        ankle = (
+            HafoMassItem("cylinders", 0.26, "shank_cuff", "two piston-cable cylinders"),
+            HafoMassItem("shank_cuff_struts", 0.31, "shank_cuff", "cuff, uprights, guides"),
+            HafoMassItem("pulley_bearings", 0.12, "ankle_axis", "pulley, axle, bearings"),
+            HafoMassItem("foot_plate", 0.28, "foot_plate", "carbon foot plate and stirrup"))
+    else:
+        ankle = (
+            HafoMassItem("cylinders", 0.30, "shank_cuff", "two piston-cable cylinders"),
+            HafoMassItem("shank_cuff_struts", 0.55, "shank_cuff",
+                         "cuff, uprights, guides, sensors"),
+            HafoMassItem("pulley_bearings", 0.25, "ankle_axis", "pulley, axle, bearings"),
+            HafoMassItem("foot_plate", 0.40, "foot_plate", "foot plate and shoe insert"))
+    items = list(ankle) + [
+        HafoMassItem("battery", p.battery.mass_kg, supply_site, p.battery.name),
+        HafoMassItem("motor", p.motor.mass_kg, supply_site, "brushless motor"),
+        HafoMassItem("pump", p.pump_mass_kg, supply_site,
+                     f"{p.pump.displacement_m3_rev * 1e6:.2g} cm³/rev pump"),
+        HafoMassItem("valve_block", p.valve_block_mass_kg, supply_site,
+                     ("servo" if p.circuit == "servo" else "two on/off")
+                     + " valve(s), check, unloading and relief valves, reservoir"),
+        HafoMassItem("electronics", 0.35, supply_site, "motor and valve drivers, sensors"),
+        HafoMassItem("enclosure_belt", 0.58, supply_site, "housing and waist belt"),
+        HafoMassItem("hoses", _hose_mass_kg(p), supply_site, "two hoses with oil")]
+    if p.accumulator_enabled:
+        items.append(HafoMassItem("accumulator", p.accumulator_mass_kg, supply_site,
+                                  f"{p.accumulator.gas_volume_m3 * 1e6:.0f} cm³ gas "
+                                  "accumulator"))
+    return tuple(items)
+
+
+def pack_valve_parameters(p: ValveAnkleParams) -> np.ndarray:
+    """The flat parameter row of :mod:`~afo_mj.devices.valve_ankle_actuator`: the HAFO
+    kernel's row for the shared components, then this circuit's."""
+    P = np.zeros(va.N_P)
+    base = p.replace(pump=p.pump.replace(variable_displacement_enabled=False))
+    P[:len(pack_parameters(base))] = pack_parameters(base)
+    P[va.P_CIRCUIT] = va.CIRCUIT_SERVO if p.circuit == "servo" else va.CIRCUIT_DIGITAL
+    P[va.P_SUPPLY] = _SUPPLY_CODE[p.supply_mode]
+    a = p.accumulator
+    P[va.P_ACC_ON] = 1.0 if p.accumulator_enabled else 0.0
+    P[va.P_ACC_V0] = a.gas_volume_m3
+    P[va.P_ACC_P0] = a.precharge_pressure_pa
+    P[va.P_ACC_N] = a.polytropic_index
+    P[va.P_ACC_BAND] = p.accumulator_blend_pa
+    u = p.unloading
+    P[va.P_UL_ON] = 1.0 if p.supply_mode == "unloading" else 0.0
+    P[va.P_UL_CUT_OUT] = u.cut_out_pressure_pa
+    P[va.P_UL_CUT_IN] = u.cut_in_pressure_pa
+    P[va.P_UL_AMAX] = u.max_area_m2
+    P[va.P_UL_ALEAK] = u.leakage_area_m2 if u.leakage_enabled else 0.0
+    P[va.P_UL_TAU] = u.time_constant_s
+    P[va.P_UL_BAND] = max(u.switching_band_pa, 1.0)
+    P[va.P_UL_HYST] = 1.0 if u.hysteresis_enabled else 0.0
+    P[va.P_UL_CD] = u.discharge_coefficient
+    P[va.P_UL_PCR] = u.transition_pressure_pa
+    sv = p.servo_valve
+    S = ServoValve(sv)
+    P[va.P_SV_AFULL] = p.servo_full_area_m2
+    P[va.P_SV_LAP] = S.overlap_m / sv.spool_max_m
+    P[va.P_SV_ALEAK] = S.leakage_area_m2
+    P[va.P_SV_TAU] = 1.0 / (2 * math.pi * sv.natural_frequency_hz)
+    P[va.P_SV_CD] = sv.discharge_coefficient
+    P[va.P_SV_PCR] = sv.transition_pressure_pa
+    P[va.P_SV_COIL_W] = p.servo_coil_power_w
+    sw = p.switching_valve
+    P[va.P_SW_AMAX] = sw.max_area_m2
+    P[va.P_SW_ALEAK] = sw.leakage_area_m2 if sw.leakage_enabled else 0.0
+    P[va.P_SW_TSW] = sw.switching_time_s
+    P[va.P_SW_TAUS] = sw.approach_time_constant_s
+    P[va.P_SW_ESW] = sw.switching_energy_j
+    P[va.P_SW_HOLD] = sw.holding_power_w
+    P[va.P_SW_CD] = sw.discharge_coefficient
+    P[va.P_SW_PCR] = sw.transition_pressure_pa
+    P[va.P_PWM_F] = p.pwm_frequency_hz
+    P[va.P_CV_G] = p.check_valve_conductance_m3_s_pa
+    P[va.P_CV_CRACK] = p.check_valve_cracking_pa
+    P[va.P_CV_BAND] = 2e4
+    P[va.P_V_MAN] = p.manifold_volume_m3
+    c = p.valve_control
+    P[va.P_W_SET] = p.motor_speed_rad_s
+    P[va.P_W_MAX] = p.motor_speed_rad_s
+    P[va.P_K_W_P] = c.speed_gain_v_s_per_rad
+    P[va.P_K_W_I] = c.speed_integral_gain_v_per_rad
+    P[va.P_WINT_LIM] = c.speed_integral_limit_rad
+    P[va.P_PS_FOLLOW] = 1.0 if p.supply_pressure_follows_demand else 0.0
+    P[va.P_PS_SET] = p.supply_pressure_set_pa
+    P[va.P_PS_MARGIN] = p.supply_pressure_margin_pa
+    P[va.P_PS_MIN] = p.supply_pressure_min_pa
+    P[va.P_K_PS_P] = c.supply_gain_rad_s_per_pa
+    P[va.P_K_PS_I] = c.supply_integral_gain_rad_per_pa
+    P[va.P_PSINT_LIM] = c.supply_integral_limit_pa_s
+    P[va.P_VD_P_COMP] = p.compensator_pressure_pa
+    P[va.P_VD_BAND] = p.compensator_band_pa
+    P[va.P_VD_EMIN] = p.min_displacement_fraction
+    P[va.P_K_V] = c.valve_gain_per_pa
+    P[va.P_K_VI] = c.valve_integral_gain_per_pa_s
+    P[va.P_VINT_LIM] = c.valve_integral_limit_pa_s
+    P[va.P_TAU_MAX] = p.max_torque_nm
+    P[va.P_CMD] = va.CMD_PROFILE
+    return P
+
+
+def impedance_table(rows) -> np.ndarray:
+    """Pack impedance rows ``(phase_end, K_nm_per_rad, B_nm_s_per_rad, theta0_rad, clutched)``
+    (phase_end: stride fraction at which the row ends, increasing, the last ≥ 1) into the
+    kernel's table (:func:`~afo_mj.devices.valve_ankle_actuator.impedance_torque`)."""
+    rows = [tuple(float(v) for v in r) for r in rows]
+    if not rows:
+        raise ParameterError("impedance = []; allowed: at least one row (phase_end, K, B, "
+                             "theta0, clutched)")
+    last = -1.0
+    for r in rows:
+        if len(r) != va.IMP_COLS:
+            raise ParameterError(f"impedance row = {r!r}; allowed: 5 numbers (phase_end, "
+                                 "stiffness_nm_per_rad, damping_nm_s_per_rad, rest_angle_rad, "
+                                 "clutched 0/1)")
+        if r[0] <= last or r[1] < 0 or r[2] < 0:
+            raise ParameterError(f"impedance row = {r!r}; allowed: phase_end increasing, "
+                                 "stiffness and damping ≥ 0")
+        last = r[0]
+    return np.array([float(len(rows))] + [v for r in rows for v in r])
+
+
+class ValveAfoDevice(HafoDevice):
+    """A :class:`ValveAnkleParams` orthosis worn on one or both ankles (the coupled-device
+    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`).
+
+    ``profile``: assistance torque vs stride phase, or ``impedance``: rows of
+    :func:`impedance_table` (passive-AFO emulation, clutched spring, per-phase impedance), or
+    ``torque_fn(t, θ, θ̇)`` (bench; with ``mode="valve_command"`` it returns the valve command
+    ``u ∈ [−1, 1]`` instead, open loop); none of them: transparent (zero torque commanded).
+    """
+
+    kernel = va
+
+    def __init__(self, params: ValveAnkleParams = VALVE_PRESETS["valve"], sides=("right",),
+                 profile=None, impedance=None, timestep_s: float = 1e-3, max_steps: int = 0,
+                 torque_fn=None, min_stride_s: float = 0.4, max_stride_s: float = 3.0,
+                 mode: str = "torque"):
+        if not isinstance(params, ValveAnkleParams):
+            raise ParameterError(f"device params = {type(params).__name__}; allowed: "
+                                 "ValveAnkleParams")
+        if mode not in ("torque", "valve_command"):
+            raise ParameterError(f"device.mode = {mode!r}; allowed: torque, valve_command "
+                                 "(torque_fn returns the valve command u in [-1, 1])")
+        if mode == "valve_command" and torque_fn is None:
+            raise ParameterError("device.mode = 'valve_command' needs a torque_fn giving u")
+        if impedance is not None and profile is not None:
+            raise ParameterError("device: both profile and impedance given; allowed: one")
+        self.impedance = impedance
+        prof = impedance_table(impedance) if impedance is not None else profile
+        self.loss_names = va.LOSS_NAMES if params.circuit == "servo" else va.LOSS_NAMES_DIGITAL
+        super().__init__(params, sides=sides, profile=prof, timestep_s=timestep_s,
+                         max_steps=max_steps, mode="torque", torque_fn=torque_fn,
+                         initial_pressure_pa=params.reservoir_pressure_pa,
+                         min_stride_s=min_stride_s, max_stride_s=max_stride_s)
+        if mode == "valve_command":
+            self.P[:, va.P_MODE] = va.MODE_VALVE_COMMAND
+        if impedance is not None:
+            self.P[:, va.P_CMD] = va.CMD_IMPEDANCE
+            self.transparent = False
+        self.W[:, va.W_PS_MAX] = self.Y[:, va.Y_PS]
+
+    def _pack(self, params, mode: str) -> np.ndarray:
+        return pack_valve_parameters(params)
+
+    def _initial_state(self, p0: float) -> None:
+        Y = self.Y
+        Y[:, :] = 0.0
+        for k in (va.Y_PP, va.Y_PVA, va.Y_PVB, va.Y_PCA, va.Y_PCB):
+            Y[:, k] = p0
+        ps = self.params.initial_supply_pressure_pa
+        Y[:, va.Y_PS] = max(ps, p0)
+        Y[:, va.Y_W] = (self.params.motor_speed_rad_s
+                        if self.params.supply_mode != "pressure_control" else 0.0)
+        if self.params.supply_mode == "unloading":
+            # a charged accumulator below cut-out: the unloading valve is shut
+            Y[:, va.Y_XU] = 0.0
+
+    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
+        va.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out, t)
+
+    def worn_masses(self):
+        from afo_mj.human.walker import WornMass
+        out = []
+        for side in self.sides:
+            suf = "r" if side == "right" else "l"
+            for it in valve_mass_budget(self.params):
+                if it.site == "off_body":
+                    continue
+                site = "waist" if it.site == "waist" else f"{it.site}_{suf}"
+                out.append(WornMass(site, it.mass_kg, f"valve_afo_{side}_{it.name}"))
+        return out
+
+    @property
+    def mass_total_kg(self) -> float:
+        """Worn mass, both sides (a tethered supply is not counted)."""
+        return len(self.sides) * sum(i.mass_kg for i in valve_mass_budget(self.params)
+                                     if i.site != "off_body")
+
+    @property
+    def mass_at_ankle_kg(self) -> float:
+        return sum(i.mass_kg for i in valve_mass_budget(self.params)
+                   if i.site not in ("waist", "off_body"))
+
+    def ledger(self, k: int = 0) -> dict:
+        out = super().ledger(k)
+        W = self.W[k]
+        out["peak_supply_pressure_pa"] = float(W[va.W_PS_MAX])
+        out["pump_volume_m3"] = float(W[va.W_Q_PUMP])
+        out["cylinder_volume_in_m3"] = float(W[va.W_Q_DELIVERED])
+        return out
+
+
+def _gauge_to_abs(p_pa: float) -> float:
+    return p_pa + ATMOSPHERIC_PRESSURE_PA
