@@ -127,6 +127,9 @@ class ValveAnkleParams(PumpAnkleParams):
     servo_coil_power_w: float = param(0.5, unit="W", lo=0.0, hi=100.0,
                                       doc="servo valve torque-motor power")
     switching_valve: OnOffValveParams = OnOffValveParams()
+    release_valve_area_m2: float = param(2.0e-6, unit="m^2", lo=1e-9, hi=1e-4,
+                                         doc="digital circuit: release valve's open area "
+                                             "(an on/off valve of switching_valve's timing)")
     pwm_frequency_hz: float = param(50.0, unit="Hz", lo=1.0, hi=2000.0,
                                     doc="PWM frequency of the digital circuit's on/off valves")
     check_valve_conductance_m3_s_pa: float = param(1e-9, unit="m^3/(s Pa)", lo=1e-14, hi=1e-6,
@@ -200,9 +203,9 @@ _VALVE_MOTOR = HAFO_GAIT.motor.replace(torque_constant_nm_a=0.035, resistance_oh
 _VALVE_BASE = ValveAnkleParams(
     **{f.name: getattr(HAFO_GAIT, f.name) for f in dataclasses.fields(PumpAnkleParams)}
 ).replace(
-    pump=GEAR_PUMP_SMALL.replace(displacement_m3_rev=0.3e-6,
-                                 rotor_inertia_kg_m2=1.5 * GEAR_PUMP_SMALL.rotor_inertia_kg_m2),
-    pump_mass_kg=0.28, motor=_VALVE_MOTOR,
+    pump=GEAR_PUMP_SMALL.replace(displacement_m3_rev=0.4e-6,
+                                 rotor_inertia_kg_m2=2.0 * GEAR_PUMP_SMALL.rotor_inertia_kg_m2),
+    pump_mass_kg=0.30, motor=_VALVE_MOTOR,
     driver=HAFO_GAIT.driver.replace(current_limit_a=25.0),
     relief=HAFO_GAIT.relief.replace(cracking_dp_pa=11.5e6, override_dp_pa=1.0e6,
                                     max_area_m2=2.0e-6),
@@ -226,7 +229,7 @@ VALVE_PRESETS = {
     "digital": _VALVE_BASE.replace(
         circuit="digital", supply_mode="constant_speed", accumulator_enabled=False,
         initial_supply_pressure_pa=0.5e6, servo_coil_power_w=0.0,
-        valve_control=ValveControlParams(valve_gain_per_pa=3e-8,
+        valve_control=ValveControlParams(valve_gain_per_pa=8e-8,
                                          valve_integral_gain_per_pa_s=5e-7)),
     "phafo": _VALVE_BASE.replace(
         supply_mode="pressure_control", supply_pressure_follows_demand=False,
@@ -329,6 +332,7 @@ def pack_valve_parameters(p: ValveAnkleParams) -> np.ndarray:
     P[va.P_SW_CD] = sw.discharge_coefficient
     P[va.P_SW_PCR] = sw.transition_pressure_pa
     P[va.P_PWM_F] = p.pwm_frequency_hz
+    P[va.P_RV_AMAX] = p.release_valve_area_m2
     P[va.P_CV_G] = p.check_valve_conductance_m3_s_pa
     P[va.P_CV_CRACK] = p.check_valve_cracking_pa
     P[va.P_CV_BAND] = 2e4

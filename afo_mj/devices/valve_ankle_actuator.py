@@ -96,7 +96,7 @@ _P_EXTRA = (
     "UL_CD", "UL_PCR",
     "SV_AFULL", "SV_LAP", "SV_ALEAK", "SV_TAU", "SV_CD", "SV_PCR", "SV_COIL_W",
     "SW_AMAX", "SW_ALEAK", "SW_TSW", "SW_TAUS", "SW_ESW", "SW_HOLD", "SW_CD", "SW_PCR",
-    "PWM_F",
+    "PWM_F", "RV_AMAX",
     "CV_G", "CV_CRACK", "CV_BAND", "V_MAN",
     "W_SET", "K_W_P", "K_W_I", "WINT_LIM",
     "PS_FOLLOW", "PS_SET", "PS_MARGIN", "PS_MIN", "K_PS_P", "K_PS_I", "PSINT_LIM", "W_MAX",
@@ -278,7 +278,9 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     if digital:
         dxv = _onoff_rate(xv, W[W_UV], P)
         q_pa = _orifice(ps - pva, af, cd, rho, pcr)
-        q_at = _orifice(pva - pt, _onoff_area(xv, P), P[P_SW_CD], rho, P[P_SW_PCR])
+        xr = min(max(xv, 0.0), 1.0)
+        a_rel = P[P_SW_ALEAK] + (P[P_RV_AMAX] - P[P_SW_ALEAK]) * xr
+        q_at = _orifice(pva - pt, a_rel, P[P_SW_CD], rho, P[P_SW_PCR])
         q_pb = 0.0
         q_bt = _orifice(pvb - pt, af, cd, rho, pcr)
     else:
@@ -519,7 +521,7 @@ def controller(y, P, W, tau_cmd, t, h):
     if digital:
         q_p = P[P_D] * P[P_W_SET]
         u_ff = q_ff / q_p if q_ff > 0.0 else q_ff / max(
-            P[P_SW_CD] * P[P_SW_AMAX] * math.sqrt(2.0 * max(y[Y_PCA] - pt, 2e5) / P[P_RHO]),
+            P[P_SW_CD] * P[P_RV_AMAX] * math.sqrt(2.0 * max(y[Y_PCA] - pt, 2e5) / P[P_RHO]),
             1e-12)
     else:
         dpe = max(0.5 * (ps - pt), 2e5)
