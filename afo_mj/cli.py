@@ -290,16 +290,28 @@ def _run_bench(args) -> int:
         text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
-        plot_bench(series, tmp)
+        if bs.bench_kind == "stiffness":
+            from afo_mj.scenarios.stiffness_bench import plot_stiffness_bench
+            plot_stiffness_bench(series, tmp)
+        else:
+            plot_bench(series, tmp)
 
     try:
         out = write_atomically(args.out, writer)
     except ResultDirError as exc:
         print(f"afo-mj run: {bs.name}: {exc}", file=sys.stderr)
         return 1
+    print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
+    if bs.bench_kind == "stiffness":
+        from afo_mj.scenarios.stiffness_bench import format_stiffness_summary
+        for line in format_stiffness_summary(summary):
+            print(line)
+        print(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy balance "
+              f"error {100 * summary['energy']['balance_error_rel']:.2e} %")
+        print(f"  results: {out}")
+        return 0
     b = summary["bench"]
     pub = summary["published"]
-    print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
 
     def show(key, unit, fmt=".3g", ref=None):
         if key in b:

@@ -21,6 +21,31 @@ A bench scenario is a TOML file with a ``[bench]`` table (and no ``[walker]``/``
 balance of the worst run (``energy.balance_error_rel``), the device masses, the published
 figures for comparison, and the bench PNGs. ``--set bench.tests='["torque_velocity"]'`` or
 ``--set device.params.hose.length_m=2.2`` override values as for walking scenarios.
+
+Bench kinds (``bench.kind``):
+
+* ``"hafo"`` (the default): the HAFO tests above (``tests``).
+* ``"stiffness"``: a clinical stiffness rig (:mod:`afo_mj.scenarios.stiffness_bench`) for a
+  valve-circuit orthosis that emulates springs (``device.preset = "phafo"``)::
+
+    [bench]
+    kind = "stiffness"
+    stiffnesses_nm_per_deg = [1.0, 2.5, 4.6]   # commanded springs, one sweep each, (0, 20]
+    amplitude_deg = 12.0            # imposed sinusoid about neutral, (0, 30]
+    frequency_hz = 0.25             # 0.01 … 5
+    cycles = 3                      # whole cycles, 2 … 20 (the first is dropped)
+    damping_nm_s_per_deg = 0.0      # optional commanded damping, 0 … 5
+    rest_angle_deg = 0.0            # optional rest angle of the spring, −20 … 20
+    timestep_s = 5e-4               # optional (default 0.5 ms)
+    body_mass_kg = 25.8             # the stand's foot
+    height_m = 1.28
+
+  ``summary.json`` holds ``stiffness.k<K>.*`` per commanded stiffness
+  (``stiffness.k2.5.emulated_nm_per_deg``, ``.error_rel``, ``.hysteresis_energy_j``,
+  ``.peak_torque_nm``, ``.peak_pressure_pa``, ``.electrical_in_j``,
+  ``.energy_balance_error_rel``, …), ``acceptance`` (every emulated stiffness within 10 % of
+  its command) and ``energy.balance_error_rel`` (the worst run); the PNG
+  ``stiffness_loops.png`` shows the torque–angle loops with the commanded lines.
 """
 
 from __future__ import annotations
@@ -39,6 +64,11 @@ from afo_mj.scenarios.walk_scenario import ScenarioError, apply_overrides
 TOP_KEYS = ("name", "description", "device", "bench")
 DEVICE_KEYS = ("preset", "params")
 BENCH_KEYS = ("tests", "timestep_s", "body_mass_kg", "height_m")
+#: ``bench.kind`` values: the HAFO tests, the stiffness rig
+BENCH_KINDS = ("hafo", "stiffness")
+STIFFNESS_BENCH_KEYS = ("kind", "stiffnesses_nm_per_deg", "amplitude_deg", "frequency_hz",
+                        "cycles", "damping_nm_s_per_deg", "rest_angle_deg", "timestep_s",
+                        "body_mass_kg", "height_m")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 
@@ -57,13 +87,31 @@ class BenchScenario:
     height_m: float
     source_path: Path | None = None
     text: str = ""
+    #: ``bench.kind``: ``"hafo"`` (the tests above) or ``"stiffness"`` (the stiffness rig)
+    bench_kind: str = "hafo"
+    #: the stiffness rig's sweep (``bench_kind == "stiffness"``), else None
+    stiffness: Any = None             # stiffness_bench.StiffnessSweepConfig
 
     def as_dict(self) -> dict:
+        if self.bench_kind == "stiffness":
+            c = self.stiffness
+            deg = math.pi / 180.0
+            r9 = lambda x: round(x, 9)  # noqa: E731  (undo the deg → rad → deg round trip)
+            bench = {"kind": "stiffness",
+                     "stiffnesses_nm_per_deg": [r9(k * deg) for k in c.stiffnesses_nm_per_rad],
+                     "amplitude_deg": r9(c.amplitude_rad / deg),
+                     "frequency_hz": c.frequency_hz, "cycles": c.cycles,
+                     "damping_nm_s_per_deg": r9(c.damping_nm_s_per_rad * deg),
+                     "rest_angle_deg": r9(c.rest_angle_rad / deg),
+                     "timestep_s": c.timestep_s, "body_mass_kg": c.body_mass_kg,
+                     "height_m": c.height_m}
+        else:
+            bench = {"tests": list(self.tests), "timestep_s": self.timestep_s,
+                     "body_mass_kg": self.body_mass_kg, "height_m": self.height_m}
         return {"name": self.name, "description": self.description, "kind": "bench",
                 "file": None if self.source_path is None else str(self.source_path),
                 "device": {"preset": self.preset, "params": dict(self.overrides)},
-                "bench": {"tests": list(self.tests), "timestep_s": self.timestep_s,
-                          "body_mass_kg": self.body_mass_kg, "height_m": self.height_m}}
+                "bench": bench}
 
 
 def is_bench_document(text: str) -> bool:
@@ -99,7 +147,16 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
         raise fail("description", description, "a string")
     dev = doc.get("device", {})
     bench = doc.get("bench", {})
-    for tbl, keys, label in ((dev, DEVICE_KEYS, "device"), (bench, BENCH_KEYS, "bench")):
+    if not isinstance(bench, dict):
+        raise fail("bench", bench, "a table")
+    kind = bench.get("kind", "hafo")
+    if kind not in BENCH_KINDS:
+        raise fail("bench.kind", kind, " | ".join(f'"{k}"' for k in BENCH_KINDS))
+    if kind == "stiffness":
+        return _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail,
+                                      source_path, text)
+    for tbl, keys, label in ((dev, DEVICE_KEYS, "device"),
+                             (bench, ("kind",) + BENCH_KEYS, "bench")):
         if not isinstance(tbl, dict):
             raise fail(label, tbl, "a table")
         for k in tbl:
@@ -128,6 +185,78 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
                          source_path=source_path, text=text)
 
 
+def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, source_path,
+                           text) -> BenchScenario:
+    """The ``bench.kind = "stiffness"`` table (module docstring), checked key by key in the
+    units the user writes (deg, N·m/deg), then converted to SI."""
+    from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAnkleParams
+    from afo_mj.scenarios.stiffness_bench import StiffnessBenchError, sweep_config
+    for tbl, keys, label in ((dev, DEVICE_KEYS, "device"),
+                             (bench, STIFFNESS_BENCH_KEYS, "bench")):
+        if not isinstance(tbl, dict):
+            raise fail(label, tbl, "a table")
+        for k in tbl:
+            if k not in keys:
+                raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys)
+                           + (' (bench.kind = "stiffness")' if label == "bench" else ""))
+    preset, params, ov = device_params(dev, origin)
+    if not isinstance(params, ValveAnkleParams):
+        raise fail("device.preset", preset, "a valve-circuit preset that emulates springs "
+                   '(bench.kind = "stiffness"): ' + " | ".join(VALVE_PRESETS))
+
+    def number(key, lo, hi, default, unit, lo_open=False):
+        v = bench.get(key, default)
+        bad_lo = (v <= lo if lo_open else v < lo) if isinstance(v, (int, float)) else True
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or bad_lo or v > hi:
+            raise fail(f"bench.{key}", v, f"a number in {'(' if lo_open else '['}{lo:g}, "
+                       f"{hi:g}]{unit}")
+        return float(v)
+
+    ks = bench.get("stiffnesses_nm_per_deg", [1.0, 2.5, 4.6])
+    if (not isinstance(ks, list) or not ks or len(set(ks)) != len(ks)
+            or any(isinstance(k, bool) or not isinstance(k, (int, float))
+                   or not math.isfinite(k) or not 0.0 < k <= 20.0 for k in ks)):
+        raise fail("bench.stiffnesses_nm_per_deg", ks,
+                   "a non-empty list of distinct numbers in (0, 20] N*m/deg")
+    amp = number("amplitude_deg", 0.0, 30.0, 12.0, " deg", lo_open=True)
+    f = number("frequency_hz", 0.01, 5.0, 0.25, " Hz")
+    cycles = bench.get("cycles", 3)
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 2 <= cycles <= 20:
+        raise fail("bench.cycles", cycles, "an integer in 2 … 20 (the first cycle is dropped "
+                   "as start-up)")
+    damping = number("damping_nm_s_per_deg", 0.0, 5.0, 0.0, " N*m*s/deg")
+    rest = number("rest_angle_deg", -20.0, 20.0, 0.0, " deg")
+    dt = number("timestep_s", 1e-5, 2e-3, 5e-4, " s")
+    if f * dt > 1.0 / 200.0:
+        raise fail("bench.timestep_s", bench.get("timestep_s", 5e-4),
+                   f"at most 1 / (200 x frequency_hz) = {1.0 / (200.0 * f):g} s (200 steps a "
+                   "cycle)")
+    mass = number("body_mass_kg", 10.0, 200.0, 25.8, " kg")
+    height = number("height_m", 0.8, 2.2, 1.28, " m")
+    # beyond the device's torque limit the sweep measures the saturation, not the spring
+    peak = max(ks) * (amp + abs(rest)) + damping * 2.0 * math.pi * f * amp
+    if peak > params.max_torque_nm:
+        raise fail("bench.amplitude_deg", amp,
+                   f"an amplitude at which the stiffest spring stays within the device's "
+                   f"max_torque_nm = {params.max_torque_nm:g} N*m (it asks {peak:.1f} N*m): "
+                   f"max stiffness x (amplitude + |rest angle|) + damping x 2 pi f x "
+                   f"amplitude <= {params.max_torque_nm:g}")
+    deg = math.pi / 180.0
+    try:
+        cfg = sweep_config([k / deg for k in ks], amplitude_rad=amp * deg, frequency_hz=f,
+                           cycles=cycles, damping_nm_s_per_rad=damping / deg,
+                           rest_angle_rad=rest * deg, timestep_s=dt, body_mass_kg=mass,
+                           height_m=height, max_torque_nm=params.max_torque_nm)
+    except StiffnessBenchError as exc:      # not reached after the checks above
+        raise ScenarioError(f"{origin}: bench: {exc}") from None
+    return BenchScenario(name=name, description=description, preset=preset, params=params,
+                         overrides=MappingProxyType(dict(ov)), tests=(),
+                         timestep_s=cfg.timestep_s, body_mass_kg=cfg.body_mass_kg,
+                         height_m=cfg.height_m, source_path=source_path, text=text,
+                         bench_kind="stiffness", stiffness=cfg)
+
+
 def load_bench_scenario(path, overrides=()) -> BenchScenario:
     p = Path(path)
     try:
@@ -139,7 +268,10 @@ def load_bench_scenario(path, overrides=()) -> BenchScenario:
 
 
 def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
-    """Run the bench; returns ``(summary, series)`` with the ``bench.*`` names of issue 4."""
+    """Run the bench; returns ``(summary, series)`` with the ``bench.*`` names of issue 4
+    (``bench.kind = "stiffness"``: the ``stiffness.*`` names, module docstring)."""
+    if bs.bench_kind == "stiffness":
+        return _run_stiffness_bench(bs)
     from afo_mj.devices.hafo import HafoDevice
     from afo_mj.scenarios.hafo_bench import run_bench
     res, series = run_bench(bs.params, bs.tests, bs.body_mass_kg, bs.height_m,
@@ -161,5 +293,30 @@ def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
         "energy": {"balance_error_rel": res["energy_error_max"],
                    "note": "largest |residual| / max(|electrical in|, |mechanical out|) "
                            "over every bench run"},
+    }
+    return summary, series
+
+
+def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
+    from afo_mj.devices.valve_afo import ValveAfoDevice
+    from afo_mj.scenarios.stiffness_bench import run_stiffness_bench
+    res, series = run_stiffness_bench(bs.params, bs.stiffness)
+    dev = ValveAfoDevice(bs.params)
+    worst = max(res["stiffness"].values(), key=lambda v: abs(v["energy_balance_error_rel"]))
+    summary = {
+        "format": "afo_mj stiffness bench summary v1",
+        "scenario": bs.as_dict(),
+        "stiffness": res["stiffness"],
+        "sweep": res["sweep"],
+        "acceptance": res["acceptance"],
+        "device": {"preset": bs.preset, "mass_total_kg": dev.mass_total_kg,
+                   "mass_at_ankle_kg": dev.mass_at_ankle_kg,
+                   "max_torque_nm": bs.params.max_torque_nm,
+                   "supply_pressure_set_pa": bs.params.supply_pressure_set_pa},
+        "energy": {"balance_error_rel": worst["energy_balance_error_rel"],
+                   "energy_error_max": res["energy_error_max"],
+                   "note": "balance_error_rel: the largest |ledger residual| / battery energy "
+                           "drawn over the sweeps; energy_error_max: the largest |residual| / "
+                           "max(|electrical in|, |mechanical out|)"},
     }
     return summary, series

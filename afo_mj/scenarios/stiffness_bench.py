@@ -1,0 +1,318 @@
+"""Stiffness bench: a stiffness-emulating orthosis (the PHAFO) on a clinical stiffness rig.
+
+Clinical AFO stiffness rigs rotate the ankle slowly through dorsiflexion and plantarflexion and
+record the orthosis torque against the angle (Bregman et al. 2009, *Gait Posture* 30:144,
+BRUCE; Shuman & Russell Esposito 2021, EMPIRE). This bench does the same on the ankle test
+stand (:class:`~afo_mj.human.test_stand.AnkleTestStand`, ``imposed`` load: a position-
+controlled drive) with a valve-circuit orthosis (:class:`~afo_mj.devices.valve_afo.
+ValveAfoDevice`) emulating a linear spring (and optional damper) about a rest angle:
+
+    τ_cmd = −K (θ − θ0) − B θ̇                 (+ dorsiflexion, the device's impedance mode)
+
+For each commanded stiffness ``K`` a fresh stand and device run the sweep
+``θ(t) = A sin(2π f t)`` for ``cycles`` periods (the foot starts at neutral moving into
+dorsiflexion; the rail starts charged at its initial pressure). The record (angle, delivered
+torque) is reduced by :func:`afo_mj.analysis.stiffness_metrics.sweep_stiffness` (least-squares
+slope over whole cycles, the first cycle dropped as start-up), and the device's ledger gives
+the pressures and energies.
+
+Figures per commanded stiffness (``summary["stiffness"]["k<K>"]``, K in N·m/deg as written in
+the scenario, e.g. ``k2.5``), SI unless the name says otherwise:
+
+* ``commanded_nm_per_rad`` / ``commanded_nm_per_deg``; ``emulated_nm_per_rad`` /
+  ``emulated_nm_per_deg`` (the fitted slope, restoring positive) and ``error_rel``
+  = emulated / commanded − 1;
+* ``r_squared``, ``rest_angle_rad`` (zero-torque crossing of the fit), branch stiffnesses
+  ``dorsiflexing_nm_per_rad`` / ``plantarflexing_nm_per_rad``;
+* ``hysteresis_energy_j`` (loop area per cycle, J), ``hysteresis_fraction`` (loop area / work
+  put in while loading), ``loss_factor``;
+* ``peak_torque_nm`` (largest |τ| over the analysed cycles) and, for comparison,
+  ``commanded_peak_torque_nm`` = K A (+ B 2π f A for a damper: the spring's peak at the
+  amplitude, an upper bound of the sum);
+* ``torque_tracking_rmse_nm`` (commanded vs delivered over the whole run);
+* ``peak_pressure_pa`` (highest node of the circuit, the rail included, gauge),
+  ``peak_chamber_pressure_pa`` (highest cylinder chamber, gauge), ``peak_load_pressure_pa``
+  (largest |chamber A − chamber B|: the pressure that makes the torque, ``|τ| / (A_e r)``),
+  ``peak_supply_pressure_pa`` (the rail);
+* ``electrical_in_j`` (battery energy drawn over the run), ``electrical_per_cycle_j``,
+  ``mean_electrical_power_w``, ``mechanical_out_j`` (work the device did on the ankle; < 0:
+  the rig did work on it), ``energy_balance_error_rel`` (ledger residual / energy drawn) and
+  ``energy_error`` (residual / max(|electrical in|, |mechanical out|), as the HAFO bench).
+
+``summary["acceptance"]``: every emulated stiffness within ``tolerance_rel`` (10 %, the
+issue's acceptance figure) of its command.
+
+Default sweep: ±12° at 0.25 Hz (15 deg/s peak, 12 s per stiffness for 3 cycles): slow enough
+for a quasi-static rig, the amplitude the stiffest 4.6 N·m/deg spring can reach below the
+PHAFO's 62 N·m (4.6 × 12 = 55.2 N·m).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from afo_mj.analysis.stiffness_metrics import sweep_stiffness
+from afo_mj.scenarios.hafo_bench import BenchError, energy_error
+
+__all__ = ["StiffnessBenchError", "StiffnessSweepConfig", "ACCEPTANCE_TOLERANCE_REL",
+           "sweep_config", "run_stiffness_sweep", "run_stiffness_bench",
+           "plot_stiffness_bench", "format_stiffness_summary", "stiffness_label"]
+
+#: The issue's acceptance figure: emulated stiffness within 10 % of the command.
+ACCEPTANCE_TOLERANCE_REL = 0.10
+_DEG = math.pi / 180.0
+
+
+class StiffnessBenchError(BenchError):
+    """A stiffness-bench argument outside what the bench allows."""
+
+
+@dataclasses.dataclass(frozen=True)
+class StiffnessSweepConfig:
+    """The sweep (SI). Build it with :func:`sweep_config`, which checks every value."""
+
+    stiffnesses_nm_per_rad: tuple[float, ...]
+    amplitude_rad: float = 12.0 * _DEG
+    frequency_hz: float = 0.25
+    cycles: int = 3
+    damping_nm_s_per_rad: float = 0.0
+    rest_angle_rad: float = 0.0
+    timestep_s: float = 5e-4
+    body_mass_kg: float = 25.8
+    height_m: float = 1.28
+
+    @property
+    def duration_s(self) -> float:
+        return self.cycles / self.frequency_hz
+
+
+def stiffness_label(stiffness_nm_per_rad: float) -> str:
+    """``k<K>`` with K in N·m/deg as ``:g`` prints it (``k1``, ``k2.5``, ``k4.6``): the key of
+    one stiffness in the summary (the same names as the walking sweep's ``assist_k<K>``)."""
+    return f"k{round(stiffness_nm_per_rad * _DEG, 9):g}"
+
+
+def _num(name: str, value, lo: float, hi: float, lo_open: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise StiffnessBenchError(f"{name} = {value!r} is not a number; allowed: a number in "
+                                  f"{'(' if lo_open else '['}{lo:g}, {hi:g}]")
+    v = float(value)
+    if not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+        raise StiffnessBenchError(f"{name} = {value!r} is out of range; allowed: "
+                                  f"{'(' if lo_open else '['}{lo:g}, {hi:g}]")
+    return v
+
+
+def sweep_config(stiffnesses_nm_per_rad: Sequence[float], amplitude_rad: float = 12.0 * _DEG,
+                 frequency_hz: float = 0.25, cycles: int = 3,
+                 damping_nm_s_per_rad: float = 0.0, rest_angle_rad: float = 0.0,
+                 timestep_s: float = 5e-4, body_mass_kg: float = 25.8, height_m: float = 1.28,
+                 max_torque_nm: float | None = None) -> StiffnessSweepConfig:
+    """A checked :class:`StiffnessSweepConfig` (SI; each bad value raises
+    :class:`StiffnessBenchError` naming the argument, the value and the allowed range). With
+    ``max_torque_nm`` (the device's torque limit) the stiffest spring's torque at the sweep's
+    end, ``K (A + |θ0|) + B ω A``, must stay within it: beyond it the device saturates and
+    the sweep measures the saturation, not the spring."""
+    try:
+        ks = tuple(stiffnesses_nm_per_rad)
+    except TypeError:
+        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = {stiffnesses_nm_per_rad!r}"
+                                  " is not a list; allowed: a non-empty list of distinct "
+                                  "positive stiffnesses") from None
+    if not ks:
+        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = []; allowed: a non-empty "
+                                  "list of distinct positive stiffnesses")
+    ks = tuple(_num(f"stiffnesses_nm_per_rad[{i}]", k, 0.0, 20.0 / _DEG, lo_open=True)
+               for i, k in enumerate(ks))
+    labels = [stiffness_label(k) for k in ks]
+    if len(set(labels)) != len(labels):
+        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = {list(stiffnesses_nm_per_rad)!r}"
+                                  " repeats a stiffness; allowed: distinct values")
+    amp = _num("amplitude_rad", amplitude_rad, 0.0, 30.0 * _DEG, lo_open=True)
+    f = _num("frequency_hz", frequency_hz, 0.01, 5.0)
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 2 <= cycles <= 20:
+        raise StiffnessBenchError(f"cycles = {cycles!r}; allowed: an integer in 2 … 20 "
+                                  "(the first cycle is dropped as start-up)")
+    b = _num("damping_nm_s_per_rad", damping_nm_s_per_rad, 0.0, 5.0 / _DEG)
+    rest = _num("rest_angle_rad", rest_angle_rad, -20.0 * _DEG, 20.0 * _DEG)
+    dt = _num("timestep_s", timestep_s, 1e-5, 2e-3)
+    if f * dt > 1.0 / 200.0:
+        raise StiffnessBenchError(f"timestep_s = {timestep_s!r} with "
+                                  f"frequency_hz = {frequency_hz!r} gives fewer than 200 "
+                                  "steps per cycle; allowed: timestep_s <= 1 / (200 f)")
+    mass = _num("body_mass_kg", body_mass_kg, 10.0, 200.0)
+    height = _num("height_m", height_m, 0.8, 2.2)
+    if max_torque_nm is not None:
+        peak = max(ks) * (amp + abs(rest)) + b * 2 * math.pi * f * amp
+        if peak > max_torque_nm:
+            raise StiffnessBenchError(
+                f"amplitude_rad = {amplitude_rad!r} asks the stiffest spring for "
+                f"{peak:.1f} N*m at the sweep's end, above the device's max_torque_nm = "
+                f"{max_torque_nm:g}; allowed: max stiffness x (amplitude + |rest angle|) + "
+                f"damping x 2 pi f amplitude <= {max_torque_nm:g} N*m")
+    return StiffnessSweepConfig(ks, amp, f, int(cycles), b, rest, dt, mass, height)
+
+
+def run_stiffness_sweep(params, stiffness_nm_per_rad: float,
+                        cfg: StiffnessSweepConfig) -> tuple[dict, dict]:
+    """One commanded stiffness on the stand: ``(figures, series)`` (module docstring)."""
+    from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
+    from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
+    if not isinstance(params, ValveAnkleParams):
+        raise StiffnessBenchError(f"params = {type(params).__name__}; allowed: ValveAnkleParams "
+                                  "(a valve-circuit preset such as phafo: impedance emulation)")
+    k = float(stiffness_nm_per_rad)
+    traj = ImposedTrajectory.sinusoid(cfg.amplitude_rad, cfg.frequency_hz)
+    stand = AnkleTestStand(body_mass_kg=cfg.body_mass_kg, height_m=cfg.height_m,
+                           load=StandLoad(kind="imposed", trajectory=traj),
+                           timestep_s=cfg.timestep_s)
+    n = int(round(cfg.duration_s / cfg.timestep_s))
+    dev = ValveAfoDevice(params, impedance=[(1e9, k, cfg.damping_nm_s_per_rad,
+                                             cfg.rest_angle_rad, 0.0)],
+                         timestep_s=cfg.timestep_s, max_steps=n)
+    rec = stand.run_device(dev, cfg.duration_s)
+    log = {name: v[:, 0] for name, v in dev.log.arrays().items()}
+    led = dev.ledger()
+    theta, tau = rec.angle_rad, rec.device_torque_nm
+    sw = sweep_stiffness(theta, tau, rec.velocity_rad_s)
+    w = 2 * math.pi * cfg.frequency_hz
+    cmd, dlv = log["commanded_torque_nm"], log["delivered_torque_nm"]
+    drawn = led["electrical_drawn_j"]
+    fig = {
+        "commanded_nm_per_rad": k,
+        "commanded_nm_per_deg": k * _DEG,
+        "emulated_nm_per_rad": sw.stiffness_nm_per_rad,
+        "emulated_nm_per_deg": sw.stiffness_nm_per_deg,
+        "error_rel": sw.stiffness_nm_per_rad / k - 1.0,
+        "r_squared": sw.r_squared,
+        "rest_angle_rad": sw.rest_angle_rad,
+        "dorsiflexing_nm_per_rad": sw.dorsiflexing_stiffness_nm_per_rad,
+        "plantarflexing_nm_per_rad": sw.plantarflexing_stiffness_nm_per_rad,
+        "hysteresis_energy_j": sw.hysteresis_energy_j,
+        "hysteresis_fraction": sw.hysteresis_fraction,
+        "loss_factor": sw.loss_factor,
+        "cycles_analysed": sw.n_cycles,
+        "angle_amplitude_rad": sw.angle_amplitude_rad,
+        "peak_torque_nm": sw.max_torque_nm,
+        "commanded_peak_torque_nm": k * cfg.amplitude_rad
+        + cfg.damping_nm_s_per_rad * w * cfg.amplitude_rad,
+        "torque_tracking_rmse_nm": float(np.sqrt(np.mean((cmd - dlv) ** 2))),
+        "peak_pressure_pa": led["peak_pressure_pa"],
+        "peak_chamber_pressure_pa": float(max(log["chamber_a_pa"].max(),
+                                              log["chamber_b_pa"].max())),
+        "peak_load_pressure_pa": float(np.max(np.abs(log["chamber_a_pa"]
+                                                     - log["chamber_b_pa"]))),
+        "peak_supply_pressure_pa": led["peak_supply_pressure_pa"],
+        "electrical_in_j": drawn,
+        "electrical_per_cycle_j": drawn / cfg.cycles,
+        "mean_electrical_power_w": drawn / cfg.duration_s,
+        "mechanical_out_j": led["mechanical_out_j"],
+        "losses_j": led["losses_j"],
+        "energy_balance_error_rel": led["balance_error_rel"],
+        "energy_error": energy_error(led),
+        "newton_unconverged_steps": led["newton_unconverged_steps"],
+    }
+    series = {"time_s": rec.time_s, "angle_rad": theta, "torque_nm": tau,
+              "commanded_torque_nm": cmd, "supply_pa": log["supply_pa"],
+              "stiffness_nm_per_rad": k, "rest_angle_rad": cfg.rest_angle_rad}
+    return fig, series
+
+
+def run_stiffness_bench(params, cfg: StiffnessSweepConfig,
+                        tolerance_rel: float = ACCEPTANCE_TOLERANCE_REL) -> tuple[dict, dict]:
+    """Every commanded stiffness of ``cfg``; returns ``(summary, series)``: summary keys
+    ``stiffness`` (per ``k<K>``, module docstring), ``sweep`` (the rig settings, SI),
+    ``acceptance`` and ``energy_error_max``; series ``stiffness_sweeps`` → ``k<K>`` → arrays."""
+    per, series = {}, {}
+    for k in cfg.stiffnesses_nm_per_rad:
+        lab = stiffness_label(k)
+        per[lab], series[lab] = run_stiffness_sweep(params, k, cfg)
+    worst = max(abs(v["error_rel"]) for v in per.values())
+    summary = {
+        "stiffness": per,
+        "sweep": {"amplitude_rad": cfg.amplitude_rad, "frequency_hz": cfg.frequency_hz,
+                  "cycles": cfg.cycles, "duration_s": cfg.duration_s,
+                  "damping_nm_s_per_rad": cfg.damping_nm_s_per_rad,
+                  "rest_angle_rad": cfg.rest_angle_rad, "timestep_s": cfg.timestep_s,
+                  "body_mass_kg": cfg.body_mass_kg, "height_m": cfg.height_m,
+                  "imposed": "theta(t) = amplitude sin(2 pi f t) from neutral; first cycle "
+                             "dropped as start-up"},
+        "acceptance": {"tolerance_rel": tolerance_rel, "worst_error_rel": worst,
+                       "passed": bool(worst <= tolerance_rel),
+                       "criterion": "|emulated / commanded stiffness - 1| <= tolerance_rel "
+                                    "for every commanded stiffness"},
+        "energy_error_max": max(v["energy_error"] for v in per.values()),
+    }
+    return summary, {"stiffness_sweeps": series}
+
+
+def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
+    """``stiffness_loops.png``: torque vs angle loops per commanded stiffness (solid) with the
+    commanded spring lines τ = −K (θ − θ0) (dashed); returns the paths written."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sweeps = series.get("stiffness_sweeps") if isinstance(series, Mapping) else None
+    if not sweeps:
+        raise StiffnessBenchError("series has no 'stiffness_sweeps'; allowed: the series of "
+                                  "run_stiffness_bench")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    for lab, s in sweeps.items():
+        th = np.degrees(s["angle_rad"])
+        line, = ax.plot(th, s["torque_nm"], lw=1.0,
+                        label=f"{lab.removeprefix('k')} N·m/deg emulated")
+        k_deg = s["stiffness_nm_per_rad"] * _DEG
+        x = np.array([th.min(), th.max()])
+        ax.plot(x, -k_deg * (x - math.degrees(s["rest_angle_rad"])), "--", color="k",
+                lw=0.8, zorder=3, label=f"{k_deg:g} N·m/deg commanded")
+    ax.axhline(0, color="0.6", lw=0.6)
+    ax.axvline(0, color="0.6", lw=0.6)
+    ax.set_xlabel("ankle angle [deg] (+ dorsiflexion)")
+    ax.set_ylabel("orthosis torque on the ankle [N·m] (+ dorsiflexing)")
+    ax.set_title("Stiffness emulation on the stiffness rig: torque vs angle")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    p = out / "stiffness_loops.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    return [p]
+
+
+def format_stiffness_summary(summary: Mapping) -> list[str]:
+    """Printed lines of a stiffness-bench summary (units stated; N·m/deg and deg for the
+    clinical reader)."""
+    sw = summary["sweep"]
+    lines = [f"  sweep ±{math.degrees(sw['amplitude_rad']):.3g} deg at {sw['frequency_hz']:g} Hz, "
+             f"{sw['cycles']} cycles (first dropped), stand foot {sw['body_mass_kg']:g} kg / "
+             f"{sw['height_m']:g} m, step {sw['timestep_s'] * 1e3:g} ms",
+             f"  {'commanded':>10s} {'emulated':>9s} {'error':>6s} {'r^2':>6s} "
+             f"{'loop area':>9s} {'hyst.':>6s} {'peak torque':>11s} {'(K A)':>7s} "
+             f"{'load/chamber/rail':>17s} {'electrical':>10s} {'mean':>5s} {'balance':>8s}",
+             f"  {'[N*m/deg]':>10s} {'[N*m/deg]':>9s} {'[%]':>6s} {'[-]':>6s} "
+             f"{'[J/cycle]':>9s} {'[-]':>6s} {'[N*m]':>11s} {'[N*m]':>7s} "
+             f"{'[MPa]':>17s} {'[J]':>10s} {'[W]':>5s} {'err [%]':>8s}"]
+    for v in summary["stiffness"].values():
+        pr = (f"{v['peak_load_pressure_pa'] / 1e6:.2f}/{v['peak_chamber_pressure_pa'] / 1e6:.2f}/"
+              f"{v['peak_supply_pressure_pa'] / 1e6:.2f}")
+        lines.append(
+            f"  {v['commanded_nm_per_deg']:10.3g} {v['emulated_nm_per_deg']:9.4g} "
+            f"{100 * v['error_rel']:+6.2f} {v['r_squared']:6.4f} "
+            f"{v['hysteresis_energy_j']:9.3f} {v['hysteresis_fraction']:6.3f} "
+            f"{v['peak_torque_nm']:11.2f} {v['commanded_peak_torque_nm']:7.2f} {pr:>17s} "
+            f"{v['electrical_in_j']:10.0f} {v['mean_electrical_power_w']:5.0f} "
+            f"{100 * v['energy_balance_error_rel']:8.1e}")
+    acc = summary["acceptance"]
+    lines.append(f"  acceptance (every emulated stiffness within "
+                 f"{100 * acc['tolerance_rel']:g} % of its command): "
+                 f"{'PASSED' if acc['passed'] else 'FAILED'}, worst "
+                 f"{100 * acc['worst_error_rel']:.2f} %")
+    return lines
