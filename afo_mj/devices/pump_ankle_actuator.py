@@ -311,7 +311,13 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
 @numba.njit(cache=True)
 def _solve6(M, rhs_mat, ncol):
     """Solve ``M X = rhs`` in place (6×6, partial pivoting); ``rhs_mat`` is 6×ncol."""
-    n = 6
+    solve_linear(M, rhs_mat, 6, ncol)
+
+
+@numba.njit(cache=True)
+def solve_linear(M, rhs_mat, n, ncol):
+    """Solve ``M X = rhs`` in place (``n×n``, Gaussian elimination with partial pivoting);
+    ``rhs_mat`` is ``n×ncol``."""
     for c in range(n):
         piv = c
         big = abs(M[c, c])
@@ -745,10 +751,13 @@ LOG_FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_
               "ankle_velocity_rad_s")
 
 
-def device_layout(sides: int, profile_points: int, side_index) -> np.ndarray:
-    """``meta`` for a device worn on ``sides`` sides (walker sides ``side_index``)."""
-    sizes = {M_Y: sides * N_Y, M_P: sides * N_P, M_W: sides * N_W,
-             M_S: sides * N_SCRATCH * N_F, M_PH: sides * _N_PH, M_PROFILE: profile_points,
+def device_layout(sides: int, profile_points: int, side_index, n_y: int = N_Y,
+                  n_p: int = N_P, n_w: int = N_W, n_scratch: int = N_SCRATCH,
+                  n_f: int = N_F) -> np.ndarray:
+    """``meta`` for a device worn on ``sides`` sides (walker sides ``side_index``); the sizes
+    default to this kernel's (another kernel of the same layout passes its own)."""
+    sizes = {M_Y: sides * n_y, M_P: sides * n_p, M_W: sides * n_w,
+             M_S: sides * n_scratch * n_f, M_PH: sides * _N_PH, M_PROFILE: profile_points,
              M_V: N_V * sides, M_OUT: sides * 2, M_O: N_O * 2, M_LIM: 2}
     meta = np.zeros(N_META + sides, dtype=np.int64)
     off = 0

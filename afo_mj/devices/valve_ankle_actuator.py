@@ -78,7 +78,7 @@ from afo_mj.control.assistance import (
 from afo_mj.devices import pump_ankle_actuator as _pa
 from afo_mj.devices.pump_ankle_actuator import (
     _bulk_modulus, _ramp_c1, _relief_flow, _seal_force, _smoothstep01, _soft_clip,
-    battery_ocv, viscosity_pa_s)
+    battery_ocv, solve_linear, viscosity_pa_s)
 
 # ---- state ---------------------------------------------------------------------------------
 Y_I, Y_W, Y_PP, Y_PS, Y_XV, Y_XU, Y_PVA, Y_PVB, Y_PCA, Y_PCB = range(10)
@@ -364,41 +364,6 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     F[F_CAP0 + 5] = c_cb
     F[F_HEAT_OIL] = (F[F_PVOL] + F[F_PMECH] + F[F_UNLOAD] + F[F_CHECK] + F[F_RELIEF]
                      + F[F_THROTTLE] + F[F_MAKEUP] + F[F_LINE] + F[F_SEAL] + F[F_LEAK])
-
-
-@numba.njit(cache=True)
-def solve_linear(M, R, n, ncol):
-    """Solve ``M X = R`` in place (``n×n``, partial pivoting); ``R`` is ``n×ncol``."""
-    for c in range(n):
-        piv = c
-        big = abs(M[c, c])
-        for r_ in range(c + 1, n):
-            if abs(M[r_, c]) > big:
-                big = abs(M[r_, c])
-                piv = r_
-        if piv != c:
-            for k in range(n):
-                tmp = M[c, k]
-                M[c, k] = M[piv, k]
-                M[piv, k] = tmp
-            for k in range(ncol):
-                tmp = R[c, k]
-                R[c, k] = R[piv, k]
-                R[piv, k] = tmp
-        inv = 1.0 / M[c, c]
-        for r_ in range(c + 1, n):
-            fac = M[r_, c] * inv
-            if fac != 0.0:
-                for k in range(c, n):
-                    M[r_, k] -= fac * M[c, k]
-                for k in range(ncol):
-                    R[r_, k] -= fac * R[c, k]
-    for c in range(n - 1, -1, -1):
-        for k in range(ncol):
-            s = R[c, k]
-            for j in range(c + 1, n):
-                s -= M[c, j] * R[j, k]
-            R[c, k] = s / M[c, c]
 
 
 # scratch rows
@@ -845,18 +810,10 @@ LOG_FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_
 
 
 def device_layout(sides: int, profile_points: int, side_index) -> np.ndarray:
-    """``meta`` for a device worn on ``sides`` sides (the HAFO's buffer layout, these sizes)."""
-    sizes = {M_Y: sides * N_Y, M_P: sides * N_P, M_W: sides * N_W,
-             M_S: sides * N_SCRATCH * N_F, M_PH: sides * _N_PH, M_PROFILE: profile_points,
-             M_V: N_V * sides, M_OUT: sides * 2, M_O: N_O * 2, M_LIM: 2}
-    meta = np.zeros(N_META + sides, dtype=np.int64)
-    off = 0
-    for m in range(M_END):
-        meta[m] = off
-        off += sizes[m]
-    meta[M_END], meta[M_NS], meta[M_NPROF] = off, sides, profile_points
-    meta[N_META:] = side_index
-    return meta
+    """``meta`` for a device worn on ``sides`` sides (the HAFO kernel's buffer layout with
+    this kernel's sizes)."""
+    return _pa.device_layout(sides, profile_points, side_index, N_Y, N_P, N_W, N_SCRATCH,
+                             N_F)
 
 
 @numba.njit(cache=True)
