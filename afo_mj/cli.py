@@ -245,7 +245,9 @@ def _run_device(args, scenario, reference, cfg) -> int:
         g = v["gait"]
         line = f"  {c:12s}: "
         if g is None:
-            line += "no analysable stride"
+            fall = results[c][0].events.fall_time_s
+            line += "no analysable stride" + ("" if fall is None
+                                              else f" (fell at t = {fall:.2f} s)")
         else:
             line += (f"ankle RMS {_fmt(g['ankle_angle_rms_error_deg'])} deg, speed "
                      f"{_fmt(g['speed_m_s'])} m/s, human ankle +work "
@@ -259,6 +261,24 @@ def _run_device(args, scenario, reference, cfg) -> int:
                      f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
                      f"balance error {100 * e['balance_error_rel']:.2f} %")
         print(line)
+        if g is not None:
+            # the foot-drop and push-off figures (gait: both legs pooled; push-off power:
+            # the whole ankle joint, muscles + device, of the first worn side's leg)
+            po = v.get("ankle", {}).get("push_off_peak_power_w")
+            toe = g.get("min_toe_clearance_m")
+            if isinstance(toe, dict) and toe.get("mean") is not None:     # printed in mm
+                toe = {**toe, "mean": 1e3 * toe["mean"],
+                       "sd": None if toe.get("sd") is None else 1e3 * toe["sd"]}
+            line = (f"  {'':12s}  swing ankle {_fmt(g.get('swing_mean_ankle_angle_deg'), '.1f')}"
+                    f" deg (mean over mid-swing), swing peak dorsiflexion "
+                    f"{_fmt(g.get('swing_peak_dorsiflexion_deg'), '.1f')} deg, min toe "
+                    f"clearance {_fmt(toe, '.1f')} mm, "
+                    f"push-off peak power {'-' if po is None else f'{po:.1f}'} W")
+            eps = v.get("energy_per_stride")
+            if eps is not None:
+                line += (f", device electrical {eps['electrical_in_j']:.1f} J/stride "
+                         f"({cfg.sides[0]} side)")
+            print(line)
     print(f"  results: {out}")
     return 0
 
