@@ -21,11 +21,11 @@ presets and ``supply_mode`` values:
 
 Why these numbers (one side; none is a published part, each is reasoned):
 
-* **Pump and motor** — 0.3 cm³/rev gear pump (the library's small gear pump scaled) at a set
-  speed of 500 rad/s (4800 rpm): 1.43 L/min, the walker's peak push-off demand
-  ``A_e r θ̇ ≈ 6.5e-6 m³ × 3.8 rad/s ≈ 1.5 L/min``. At an 11 MPa rail it needs 0.58 N·m, so a
-  faster-wound motor than the HAFO's (K = 0.035 N·m/A, 0.12 Ω: 16.5 A, back-EMF 17.5 V on the
-  22.5 V pack) with a 25 A driver limit.
+* **Pump and motor** — 0.4 cm³/rev gear pump (the library's small gear pump scaled) at a set
+  speed of 500 rad/s (4800 rpm): 1.9 L/min, 30 % over the walker's peak push-off demand
+  ``A_e r θ̇ ≈ 6.5e-6 m³ × 3.8 rad/s ≈ 1.5 L/min``. At an 11 MPa rail it needs 0.70 N·m, so a
+  faster-wound motor than the HAFO's (K = 0.035 N·m/A, 0.12 Ω: about 22 A, back-EMF 17.5 V on
+  the 22.5 V pack) with a 25 A driver limit.
 * **Rail** — 40 N·m of assistance needs 6.1 MPa across the pistons (``A_e r = 6.545e-6 m³``);
   the servo valve needs about 1–2 MPa across its two lands at the push-off flow, so the rail
   works at 9.5–11 MPa: unloading valve cut-in 9.6 / cut-out 11.1 MPa abs, relief cracking
@@ -45,8 +45,9 @@ Why these numbers (one side; none is a published part, each is reasoned):
   1–4.6 N·m/deg, 1.5 kg worn (facts.md). Pulley 32 mm with the HAFO's cylinders
   (``A_e r = 5.24e-6 m³``: 62 N·m at 11.8 MPa, so 2.3 MPa is left across the valve); the power
   supply is tethered (a clinic tool), so nothing is worn at the waist; its 48 V bus (a 12S
-  pack in the model) drives the HAFO's 0.055 N·m/A motor, which holds the 14.1 MPa rail at
-  13–14 A instead of the 20 A the faster winding would draw.
+  pack in the model) drives the HAFO's 0.055 N·m/A motor, which holds the 14.1 MPa rail
+  against the pump's and the servo valve's leakage at about 17 A (≈ 105 W at idle, measured
+  by the stiffness bench).
 """
 
 from __future__ import annotations
