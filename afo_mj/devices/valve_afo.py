@@ -190,9 +190,10 @@ class ValveAnkleParams(PumpAnkleParams):
     # -- derived --------------------------------------------------------------------------
     @property
     def servo_full_area_m2(self) -> float:
-        """Edge area of the servo valve at full stroke (beyond the lap), m²."""
+        """Servo edge area per unit of normalised spool opening, ``w x_max`` (m²): an edge
+        opened by ``x − lap`` (fractions of the stroke) has ``w x_max (x − lap)``."""
         sv = ServoValve(self.servo_valve)
-        return sv.area_gradient_m * (self.servo_valve.spool_max_m - sv.overlap_m)
+        return sv.area_gradient_m * self.servo_valve.spool_max_m
 
     @property
     def nominal_pump_flow_m3_s(self) -> float:

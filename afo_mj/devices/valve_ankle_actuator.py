@@ -35,8 +35,8 @@ cylinders, seals, relief valve and oil (entrained-air bulk modulus, seed eq. 2.5
 * orifices (:func:`afo_mj.hydraulics.orifice.orifice_flow_m3_s`):
   ``Q = C_d A √(2/ρ) Δp/(Δp² + p_cr²)^¼``;
 * servo valve (:mod:`afo_mj.hydraulics.servo_valve`), spool ``x ∈ [−1, 1]`` of full stroke,
-  first-order at its bandwidth ``τ ẋ = u − x``; edge areas ``A(x) = A_full ramp(x − lap) +
-  A_leak`` (``ramp`` rounded over 2 % of the stroke);
+  first-order at its bandwidth ``τ ẋ = u − x``; edge areas ``A(x) = w x_max ramp(x − lap) +
+  A_leak`` (``w`` the area gradient, ``ramp`` C¹-rounded over the first 2 % of the opening);
 * gas accumulator (:mod:`afo_mj.hydraulics.accumulator`), polytropic:
   ``V_f = V_0 (1 − (p_0/p)^{1/n})`` so ``dV_f/dp = V_0 p_0^{1/n} / (n p^{1+1/n})`` above the
   precharge ``p_0`` (abs), blended in over a small band; the rail capacitance is the
@@ -169,9 +169,14 @@ def _orifice(dp, area, cd, rho, pcr):
 
 
 @numba.njit(cache=True)
-def _smooth_ramp(x, eps):
-    """``max(x, 0)`` rounded by a hyperbola of half-width ``eps``."""
-    return 0.5 * (x + math.sqrt(x * x + eps * eps)) - 0.5 * eps
+def _smooth_ramp(x, b):
+    """``max(x, 0)`` rounded over ``0 … b`` (C¹, exact outside): 0 for ``x ≤ 0``,
+    ``2x²/b − x³/b²`` on ``[0, b]``, ``x`` beyond (never negative, never above ``x``)."""
+    if x <= 0.0:
+        return 0.0
+    if x >= b:
+        return x
+    return x * x * (2.0 / b - x / (b * b))
 
 
 @numba.njit(cache=True)
