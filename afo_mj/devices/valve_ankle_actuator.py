@@ -264,8 +264,8 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
                 down = _smoothstep01((P[P_UL_CUT_IN] + band - pil) / band)
             else:
                 down = 1.0 - up
-            # snap action: between the thresholds a valve that has travelled past half way
-            # goes on to its end (see the module docstring)
+            # snap action: between the thresholds a valve that has cracked open (past 2 to
+            # 12 % of its travel) goes on to its end (see the module docstring)
             latch = _smoothstep01((xu - 0.02) / 0.1)
             s_up = up + (1.0 - up) * (1.0 - down) * latch
             s_dn = down + (1.0 - down) * (1.0 - up) * (1.0 - latch)
