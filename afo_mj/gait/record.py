@@ -58,6 +58,12 @@ class GaitRecord:
     residual_moment_nm: np.ndarray          # (n,)  pelvis residual pitch moment
     gait_phase: np.ndarray                  # (n, 2) controller's phase estimate per leg, 0..1
     events: GaitEvents = dataclasses.field(default_factory=GaitEvents)
+    #: (n, nq) generalised positions of the MuJoCo model, for replaying the run in 3D
+    #: (recordings, videos); ``None`` when the run did not keep them
+    qpos: np.ndarray | None = None
+    #: the compiled walker's MJCF text (builtin textures only, no asset files), so the
+    #: model of ``qpos`` can be rebuilt with ``mujoco.MjModel.from_xml_string``
+    model_xml: str | None = None
 
     @classmethod
     def allocate(cls, n: int, body_mass_kg: float, height_m: float,

@@ -474,6 +474,8 @@ def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
         residual_force_n=buf.actuator_force[:n][:, phys.residual_act[:2]],
         residual_moment_nm=buf.actuator_force[:n][:, phys.residual_act[2]].copy(),
         gait_phase=buf.phase[:n].copy(),
+        qpos=q.copy(),
+        model_xml=phys.xml,
     )
     rec.events = events
     return rec
