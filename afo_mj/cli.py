@@ -104,6 +104,53 @@ def _device_files_writer(results, reference, dsum, name, wall_s):
     return write
 
 
+def _chain(*writers):
+    """One results-directory writer that calls ``writers`` (None entries skipped) in turn."""
+    def write(tmp: Path) -> None:
+        for w in writers:
+            if w is not None:
+                w(tmp)
+    return write
+
+
+def _recording_writer(scenario, runs, reference):
+    """Writer of ``recording.rrd`` into the results directory when the scenario's
+    ``[output] record`` is true (else None)."""
+    if not getattr(scenario, "record", False):
+        return None
+
+    def write(tmp: Path) -> None:
+        from afo_mj.outputs.gait_report import ReportError
+        from afo_mj.outputs.recording import RecordingError
+        try:
+            _write_rrd(tmp / "recording.rrd", scenario, runs, reference)
+        except RecordingError as exc:
+            raise ReportError(f"recording.rrd: {exc}") from None
+    return write
+
+
+def _write_rrd(path, scenario, runs, reference) -> dict:
+    from afo_mj.outputs.recording import write_recording
+    return write_recording(path, runs, reference, title=scenario.name,
+                           signal_rate_hz=getattr(scenario, "record_signal_rate_hz", 500.0),
+                           transform_rate_hz=getattr(scenario, "record_transform_rate_hz", 50.0))
+
+
+def _rrd_option(args, scenario, runs, reference) -> int:
+    """``--rrd FILE``: the recording written beside the results (0, or 1 on failure)."""
+    if not getattr(args, "rrd", None):
+        return 0
+    from afo_mj.outputs.recording import RecordingError
+    try:
+        info = _write_rrd(args.rrd, scenario, runs, reference)
+    except (RecordingError, OSError) as exc:
+        print(f"afo-mj: recording not written: {exc}", file=sys.stderr)
+        return 1
+    print(f"  recording: {info['path']} ({len(info['entities'])} entities; open with "
+          f"`afo-mj view {info['path']}`)")
+    return 0
+
+
 def _run(args: argparse.Namespace) -> int:
     from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
@@ -134,6 +181,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"afo-mj run: {scenario.name}: {exc}; nothing written", file=sys.stderr)
         return 1
     wall = time.perf_counter() - t0
+    from afo_mj.outputs.recording import RecordedRun
+    runs = [RecordedRun("walk", record)]
     try:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
     except GaitAnalysisError as exc:
@@ -149,11 +198,12 @@ def _run(args: argparse.Namespace) -> int:
                    "duration_s": float(record.time_s[-1]) if len(record.time_s) else 0.0,
                    "analysis": str(exc)}
         out = write_run_outputs(args.out, summary, [], reference, record, scenario.text,
-                                extra_files=_run_info_writer(wall))
+                                extra_files=_chain(_run_info_writer(wall), _recording_writer(
+                                    scenario, runs, reference)))
         print(f"afo_mj walk: {scenario.name}: FELL at t = {ev.fall_time_s:.2f} s after "
               f"{summary['completed_strides']} complete strides; {exc}")
         print(f"  results: {out}")
-        return 0
+        return _rrd_option(args, scenario, runs, reference)
     try:
         summary = {"scenario": scenario.as_dict(), **analysis.summary}
         if scenario.band_references:
@@ -163,7 +213,9 @@ def _run(args: argparse.Namespace) -> int:
                 f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
                 for src, cond in scenario.band_references}
         out = write_run_outputs(args.out, summary, analysis.cycles, reference, record,
-                                scenario.text, extra_files=_run_info_writer(wall))
+                                scenario.text, extra_files=_chain(
+                                    _run_info_writer(wall),
+                                    _recording_writer(scenario, runs, reference)))
     except (GaitAnalysisError, ReportError) as exc:
         print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
         return 1
@@ -194,7 +246,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  fraction of the cycle inside the ±1 SD band of {name}: " + ", ".join(
             f"{ch.split('_')[0]} {_fmt(v, '.2f')}" for ch, v in fractions.items()))
     print(f"  results: {out}")
-    return 0
+    return _rrd_option(args, scenario, runs, reference)
 
 
 def _run_device(args, scenario, reference, cfg) -> int:
@@ -231,11 +283,15 @@ def _run_device(args, scenario, reference, cfg) -> int:
         cols = [k for k in L]
         data = np.column_stack([L[k][:, 0] for k in cols])
         extra["device_timeseries.csv"] = (",".join(cols), data)
+    from afo_mj.outputs.recording import RecordedRun
+    runs = [RecordedRun(c, r, d) for c, (r, _a, d) in results.items()]
     try:
         out = write_run_outputs(args.out, summary, analysis.cycles, reference, rec,
                                 scenario.text, extra_tables=extra,
-                                extra_files=_device_files_writer(results, reference, dsum,
-                                                                 scenario.name, wall))
+                                extra_files=_chain(
+                                    _device_files_writer(results, reference, dsum,
+                                                         scenario.name, wall),
+                                    _recording_writer(scenario, runs, reference)))
     except ReportError as exc:
         print(f"afo-mj run: {scenario.name}: {exc}", file=sys.stderr)
         return 1
@@ -280,7 +336,7 @@ def _run_device(args, scenario, reference, cfg) -> int:
                          f"({cfg.sides[0]} side)")
             print(line)
     print(f"  results: {out}")
-    return 0
+    return _rrd_option(args, scenario, runs, reference)
 
 
 def _run_bench(args) -> int:
@@ -390,6 +446,44 @@ def _compare(args) -> int:
     return 0
 
 
+def _view(args) -> int:
+    """``afo-mj view FILE.rrd``: the rerun viewer (installed with rerun-sdk) on the file."""
+    import shutil
+    import subprocess
+    p = Path(args.rrd)
+    if p.suffix != ".rrd" or not p.is_file():
+        print(f"afo-mj view: {str(p)!r} is not an existing .rrd file (write one with "
+              f"`afo-mj run SCENARIO --out DIR --rrd FILE.rrd`)", file=sys.stderr)
+        return 2
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    cmd = [exe, str(p)]
+    if args.print_command:
+        print(" ".join(cmd))
+        return 0
+    if not Path(exe).exists():
+        print("afo-mj view: the rerun viewer executable is missing (pip install "
+              "rerun-sdk)", file=sys.stderr)
+        return 1
+    return subprocess.call(cmd)
+
+
+def _render(args) -> int:
+    """``afo-mj render SCENARIO --mp4 FILE``."""
+    from afo_mj.outputs.video import RenderError, render_scenario
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+    try:
+        info = render_scenario(args.scenario, args.mp4, overrides=args.set or (),
+                               condition=args.condition, fps=args.fps, width=args.width,
+                               height=args.height, max_seconds=args.max_seconds)
+    except (RenderError, ScenarioError) as exc:
+        print(f"afo-mj render: {exc}; nothing written", file=sys.stderr)
+        return 2
+    print(f"afo_mj render: {info['path']}: {info['frames']} frames at {info['fps']} fps, "
+          f"{info['width']}x{info['height']}, {info['duration_s']:.2f} s simulated "
+          f"(condition {info['condition']})")
+    return 0
+
+
 def _build_models(args: argparse.Namespace) -> int:
     from afo_mj.human import test_stand, walker
     for path in (walker.write_default_xml(), test_stand.write_default_xml()):
@@ -412,7 +506,30 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--set", action="append", metavar="KEY=VALUE",
                      help="override a scenario value by its dotted key, e.g. gait.strides=4 "
                           "or device.params.hose.length_m=2.2 (repeatable)")
+    run.add_argument("--rrd", metavar="FILE.rrd", default=None,
+                     help="also save a rerun recording of the run (3D body, orthosis, every "
+                          "signal on one timeline) to FILE.rrd; open it with `afo-mj view`")
     run.set_defaults(func=_run)
+    view = sub.add_parser("view", help="open a recording (.rrd) in the rerun viewer")
+    view.add_argument("rrd", metavar="FILE.rrd", help="a recording written by --rrd")
+    view.add_argument("--print-command", action="store_true",
+                      help="print the viewer command instead of starting it")
+    view.set_defaults(func=_view)
+    render = sub.add_parser("render", help="render a video of a walking scenario offscreen "
+                            "(MuJoCo renderer, MUJOCO_GL=egl), ankle torque shown")
+    render.add_argument("scenario", help="walking scenario file (with or without [device])")
+    render.add_argument("--mp4", required=True, metavar="FILE.mp4", help="video to write")
+    render.add_argument("--set", action="append", metavar="KEY=VALUE",
+                        help="override a scenario value, as for run (repeatable)")
+    render.add_argument("--condition", default=None,
+                        help="device scenarios: the condition to render (default: the last, "
+                             "e.g. assist)")
+    render.add_argument("--fps", type=int, default=30, help="frames per second (1..240)")
+    render.add_argument("--width", type=int, default=640, help="pixels (16..3840)")
+    render.add_argument("--height", type=int, default=480, help="pixels (16..3840)")
+    render.add_argument("--max-seconds", type=float, default=None, dest="max_seconds",
+                        help="render only the first N simulated seconds")
+    render.set_defaults(func=_render)
     cmp_ = sub.add_parser("compare", help="compare orthosis architectures (device scenarios "
                           "and their [device.variants]) on one gait")
     cmp_.add_argument("scenarios", nargs="+", metavar="SCENARIO",

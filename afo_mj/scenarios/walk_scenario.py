@@ -30,6 +30,12 @@ Schema (every section and key optional except where said; unknown keys are error
     [controller]                     # overrides of afo_mj.gait.walk.ControllerParams fields
     [device]                         # an orthosis (afo_mj.scenarios.device_scenario)
     [assistance]                     # its assistance profile (afo_mj.scenarios.device_scenario)
+    [output]                         # what a run writes besides summary.json and figures
+    record = false                   # true: a rerun recording, recording.rrd, in the results
+                                     # directory (afo_mj.outputs.recording; `--rrd FILE` on
+                                     # the command line writes one anywhere)
+    signal_rate_hz = 500.0           # recording: scalar signals sample rate, 1..100000 Hz
+    transform_rate_hz = 50.0         # recording: 3D body transforms sample rate, 1..10000 Hz
 
 Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
 file) raises one :class:`ScenarioError` naming the file, the dotted key, the value and what
@@ -64,7 +70,8 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
 """Keys of ``[impairment]``: the WalkerParams fields of the same names."""
 
 _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller", "device",
-             "assistance")
+             "assistance", "output")
+_OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
               "analyse_strides", "band_references", "reference_id_path")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
@@ -105,6 +112,10 @@ class WalkScenario:
     device: Mapping[str, Any] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
     assistance: Mapping[str, Any] = dataclasses.field(
         default_factory=lambda: MappingProxyType({}))
+    #: ``[output]``: write a rerun recording into the results directory, and its rates
+    record: bool = False
+    record_signal_rate_hz: float = 500.0
+    record_transform_rate_hz: float = 50.0
 
     def load_reference(self):
         """The reference gait (:class:`afo_mj.gait.reference.ReferenceGait`)."""
@@ -428,7 +439,17 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         bands.append((src, cond))
 
     controller = _controller(ctx, ctx.table(doc, "controller"))
-    return WalkScenario(band_references=tuple(bands), reference_id_path=reference_id_path, name=name, description=description, walker=walker,
+    out_tbl = ctx.table(doc, "output")
+    ctx.unknown("output", out_tbl, _OUTPUT_KEYS)
+    record = out_tbl.get("record", False)
+    if not isinstance(record, bool):
+        raise ctx.fail("output.record", record, "has the wrong type", "true | false")
+    sig_hz = ctx.number("output.signal_rate_hz", out_tbl.get("signal_rate_hz", 500.0),
+                        1.0, 1e5, "Hz")
+    tf_hz = ctx.number("output.transform_rate_hz", out_tbl.get("transform_rate_hz", 50.0),
+                       1.0, 1e4, "Hz")
+    return WalkScenario(record=record, record_signal_rate_hz=sig_hz,
+                        record_transform_rate_hz=tf_hz,band_references=tuple(bands), reference_id_path=reference_id_path, name=name, description=description, walker=walker,
                         reference=reference, condition=condition,
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),

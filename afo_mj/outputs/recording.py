@@ -1,0 +1,597 @@
+"""Rerun recordings (``.rrd``) of walking runs: the 3D body, the orthosis and every signal on
+one timeline, laid out by a blueprint so the file opens ready to read.
+
+One recording holds one or more *runs* (a plain walk is one run, ``walk``; a device scenario
+records each of its conditions, e.g. ``no_device``, ``transparent``, ``assist``, walking side
+by side in parallel lanes). Everything is logged column-wise (``send_columns``) after the
+simulation, from the arrays the run already keeps, so recording adds no work to the physics
+loop and costs little wall time (``benchmarks/recording.py``).
+
+Timeline ``time`` (a duration, seconds of simulated time). Entity paths (``<run>`` = run
+name, ``<side>`` = ``right`` / ``left``, ``<joint>`` = ``hip`` / ``knee`` / ``ankle``):
+
+3D (``world``, metres, z up, x forward; transforms at ``transform_rate_hz``)
+
+* ``world/floor`` -- the floor (static box);
+* ``world/<run>/body/<body>`` -- ``Transform3D`` of each MuJoCo body (world pose, lane offset
+  in y); its children ``world/<run>/body/<body>/<geom>`` are the body's geoms as rerun
+  primitives (boxes, capsules, ellipsoids, cylinders) in the body frame;
+* ``world/<run>/grf/<side>`` -- ``Arrows3D``: ground-reaction force at the foot's centre of
+  pressure (heel/ball spheres weighted by their normal force), 1 m per :data:`GRF_M_PER_N`⁻¹ N;
+* ``world/<run>/body/shank_<r|l>/afo/barrel_<a|b>`` and ``.../afo/oil_<a|b>`` -- the two
+  piston-cable cylinders of a worn orthosis along the shank: the barrel (static) and its oil
+  column, whose length follows the piston (``r θ`` from mid-stroke) and whose colour is the
+  chamber pressure (blue = 0 bar gauge, red = relief cracking pressure).
+
+Signals (``Scalars``, at ``signal_rate_hz``; each entity carries a static ``unit`` value and
+a series name; display units as the path says)
+
+==========================================================  =========================
+``signals/angle_deg/<joint>/<side>/<run>``                  joint angle [deg] (+ flexion /
+                                                            dorsiflexion)
+``signals/angle_deg/<joint>/normative/<mean|minus_1sd|plus_1sd>``  reference band [deg], on the
+                                                            last run's right-leg strides
+``signals/moment_nm/<joint>/<side>/<run>``                  human joint moment [N·m]
+``signals/joint_power_w/<joint>/<side>/<run>``              human joint power [W]
+``signals/grf_n/<vertical|forward>/<side>/<run>``           ground reaction force [N]
+``signals/gait_phase/<side>/<run>``                         gait phase [1], 0 at heel strike
+``signals/ankle_torque_nm/human/<side>/<run>``              human ankle moment [N·m]
+``signals/ankle_torque_nm/device_commanded/<side>/<run>``   orthosis torque command [N·m]
+``signals/ankle_torque_nm/device_delivered/<side>/<run>``   orthosis torque delivered [N·m]
+``signals/pressure_bar/<node>/<side>/<run>``                gauge pressure [bar]: ``line_a``,
+                                                            ``line_b`` (pump-controlled) or
+                                                            ``pump``, ``supply`` (valve
+                                                            circuit), ``chamber_a``,
+                                                            ``chamber_b``
+``signals/flow_l_min/<pump|cylinder>/<side>/<run>``         geometric pump flow, piston flow
+                                                            [L/min]
+``signals/piston_position_mm/<side>/<run>``                 piston from mid-stroke, r θ [mm]
+``signals/motor_current_a/<side>/<run>``                    motor current [A]
+``signals/motor_speed_rpm/<side>/<run>``                    motor speed [rpm]
+``signals/motor_voltage_v/<side>/<run>``                    motor voltage command [V]
+``signals/valve/<position|command|unloading>/<side>/<run>`` valve spool position, command
+                                                            (or PWM duty), unloading valve [1]
+``signals/fluid_temperature_c/<side>/<run>``                oil temperature [°C]
+``signals/device_power_w/<stage>/<side>/<run>``             power at ``electrical``,
+                                                            ``hydraulic``, ``ankle`` [W]
+``signals/running_efficiency/<side>/<run>``                 ∫P_ankle⁺ / ∫P_el⁺ so far [1]
+``events/<run>``                                            ``TextLog``: heel strikes, toe
+                                                            offs, swing toe contacts, fall
+==========================================================  =========================
+
+Units: the physics is SI; the recording shows angles in degrees, pressures in bar (gauge),
+flows in L/min and speeds in rpm, each stated in the path and in the entity's ``unit``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import uuid
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["RecordedRun", "RecordingError", "write_recording", "read_recording_index",
+           "GRF_M_PER_N", "SIGNAL_RATE_HZ", "TRANSFORM_RATE_HZ"]
+
+#: default sample rate of the scalar signals (every k-th simulation step) [Hz]
+SIGNAL_RATE_HZ = 500.0
+#: default sample rate of body transforms, force arrows and orthosis cylinders [Hz]
+TRANSFORM_RATE_HZ = 50.0
+#: length of a ground-reaction-force arrow per newton [m/N]
+GRF_M_PER_N = 1.0e-3
+#: lateral distance between the lanes of the runs of one recording [m]
+LANE_SPACING_M = 0.8
+
+_SIDES = ("right", "left")
+_JOINTS = ("hip", "knee", "ankle")
+_RUN_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40),
+                (148, 103, 189), (140, 86, 75), (227, 119, 194), (127, 127, 127))
+_RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
+_M3_S_TO_L_MIN = 6.0e4
+
+
+class RecordingError(ValueError):
+    """A recording could not be made (bad argument, unwritable path, non-finite data)."""
+
+
+@dataclasses.dataclass
+class RecordedRun:
+    """One run to record: its gait record and, when an orthosis was worn, the device (with
+    its log)."""
+
+    name: str
+    record: object                      # afo_mj.gait.record.GaitRecord
+    device: object | None = None        # HafoDevice / ValveAfoDevice, or None
+
+
+# -- helpers ------------------------------------------------------------------------------------
+def _run_colour(i: int, side: int = 0) -> tuple[int, int, int]:
+    c = _RUN_COLOURS[i % len(_RUN_COLOURS)]
+    if side == 1:                       # the left leg a lighter shade of the run's colour
+        c = tuple(int(v + 0.5 * (255 - v)) for v in c)
+    return c
+
+
+def _pressure_colours(p_pa: np.ndarray, p_max_pa: float) -> np.ndarray:
+    """RGBA (uint8) from blue (0 bar gauge) through white to red (``p_max_pa``)."""
+    s = np.clip(np.asarray(p_pa, dtype=float) / max(p_max_pa, 1.0), 0.0, 1.0)
+    lo = np.array([59.0, 76.0, 192.0])
+    mid = np.array([221.0, 221.0, 221.0])
+    hi = np.array([180.0, 4.0, 38.0])
+    a = np.where(s[:, None] < 0.5, lo + (mid - lo) * (2 * s[:, None]),
+                 mid + (hi - mid) * (2 * s[:, None] - 1))
+    rgba = np.empty((len(s), 4), dtype=np.uint8)
+    rgba[:, :3] = np.round(a).astype(np.uint8)
+    rgba[:, 3] = 255
+    return rgba
+
+
+def _xyzw(q_wxyz: np.ndarray) -> np.ndarray:
+    """MuJoCo quaternion(s) (w, x, y, z) → rerun's (x, y, z, w)."""
+    q = np.asarray(q_wxyz, dtype=float)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+
+
+def _quat_rotate(q_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vector ``v`` by unit quaternion ``q`` (w, x, y, z)."""
+    w, u = q_wxyz[0], np.asarray(q_wxyz[1:], dtype=float)
+    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+
+
+def _stride_phase(t: np.ndarray, strikes: Sequence[float]) -> np.ndarray:
+    """Phase 0..1 between consecutive heel strikes; NaN outside the measured strides."""
+    s = np.asarray(strikes, dtype=float)
+    ph = np.full(len(t), np.nan)
+    if len(s) < 2:
+        return ph
+    k = np.searchsorted(s, t, side="right") - 1
+    ok = (k >= 0) & (k < len(s) - 1)
+    kk = k[ok]
+    ph[ok] = (t[ok] - s[kk]) / (s[kk + 1] - s[kk])
+    return ph
+
+
+class _Writer:
+    """Column-wise logging into one recording stream, with the list of what was logged."""
+
+    def __init__(self, rr, stream):
+        self.rr, self.stream = rr, stream
+        self.index: dict[str, dict] = {}
+
+    def scalars(self, path: str, t: np.ndarray, values: np.ndarray, unit: str, name: str,
+                colour=None) -> None:
+        rr = self.rr
+        v = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(v)):
+            raise RecordingError(f"signal {path!r} has non-finite values; nothing written")
+        self.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                                 columns=rr.Scalars.columns(scalars=v))
+        style = rr.SeriesLines(names=name, colors=None if colour is None else [colour])
+        self.stream.log(path, style, rr.AnyValues(unit=unit), static=True)
+        self.index[path] = {"kind": "Scalars", "rows": int(len(v)), "unit": unit}
+
+
+def _log_gait_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
+    rec = run.record
+    t = rec.time_s[::step]
+    ang = np.degrees(rec.joint_angle_rad[::step])
+    mom = rec.joint_moment_nm[::step]
+    pw = (rec.joint_moment_nm * rec.joint_velocity_rad_s)[::step]
+    for s, side in enumerate(_SIDES):
+        col = _run_colour(i, s)
+        for j, joint in enumerate(_JOINTS):
+            w.scalars(f"signals/angle_deg/{joint}/{side}/{run.name}", t, ang[:, s, j], "deg",
+                      f"{joint} angle {side} ({run.name})", col)
+            w.scalars(f"signals/moment_nm/{joint}/{side}/{run.name}", t, mom[:, s, j], "N*m",
+                      f"{joint} moment {side} ({run.name})", col)
+            w.scalars(f"signals/joint_power_w/{joint}/{side}/{run.name}", t, pw[:, s, j], "W",
+                      f"{joint} power {side} ({run.name})", col)
+        w.scalars(f"signals/grf_n/vertical/{side}/{run.name}", t, rec.grf_n[::step, s, 1], "N",
+                  f"GRF vertical {side} ({run.name})", col)
+        w.scalars(f"signals/grf_n/forward/{side}/{run.name}", t, rec.grf_n[::step, s, 0], "N",
+                  f"GRF forward {side} ({run.name})", col)
+        w.scalars(f"signals/gait_phase/{side}/{run.name}", t, rec.gait_phase[::step, s], "1",
+                  f"gait phase {side} ({run.name})", col)
+        w.scalars(f"signals/ankle_torque_nm/human/{side}/{run.name}", t, mom[:, s, 2], "N*m",
+                  f"human ankle {side} ({run.name})", col)
+
+
+def _log_normative(w: _Writer, run: RecordedRun, reference, step: int) -> None:
+    """The reference mean ± 1 SD of each joint angle, mapped onto ``run``'s right strides."""
+    from afo_mj.analysis.gait_metrics import reference_band
+    if reference is None:
+        return
+    rec = run.record
+    t = rec.time_s[::step]
+    ph = _stride_phase(t, rec.events.heel_strikes_s[0])
+    ok = np.isfinite(ph)
+    if ok.sum() < 2:
+        return
+    grid = np.linspace(0.0, 1.0, 101)
+    for joint in _JOINTS:
+        band = reference_band(reference, f"{joint}_angle_rad")
+        if band is None:
+            continue
+        mean, sd = band
+        m = np.degrees(np.interp(ph[ok], grid, mean))
+        w.scalars(f"signals/angle_deg/{joint}/normative/mean", t[ok], m, "deg",
+                  f"{joint} normative mean", (0, 0, 0))
+        if sd is not None:
+            s = np.degrees(np.interp(ph[ok], grid, sd))
+            w.scalars(f"signals/angle_deg/{joint}/normative/minus_1sd", t[ok], m - s, "deg",
+                      f"{joint} normative −1 SD", (150, 150, 150))
+            w.scalars(f"signals/angle_deg/{joint}/normative/plus_1sd", t[ok], m + s, "deg",
+                      f"{joint} normative +1 SD", (150, 150, 150))
+
+
+def _log_device_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
+    from afo_mj.analysis.device_signals import device_signals
+    dev = run.device
+    if dev is None or getattr(dev, "log", None) is None or dev.log.n == 0:
+        return
+    L = dev.log.arrays()
+    sig = device_signals(dev)
+    t = L["time_s"][::step, 0]
+    valve = "pump_pa" in L
+    for k, side in enumerate(dev.sides):
+        s = _SIDES.index(side)
+        col = _run_colour(i, s)
+
+        def put(path, values, unit, label):
+            w.scalars(f"signals/{path}/{side}/{run.name}", t, values[::step, k], unit,
+                      f"{label} {side} ({run.name})", col)
+
+        put("ankle_torque_nm/device_commanded", L["commanded_torque_nm"], "N*m",
+            "device commanded")
+        put("ankle_torque_nm/device_delivered", L["delivered_torque_nm"], "N*m",
+            "device delivered")
+        nodes = (("pump", "pump_pa"), ("supply", "supply_pa")) if valve else \
+            (("line_a", "pressure_a_pa"), ("line_b", "pressure_b_pa"))
+        for node, key in nodes + (("chamber_a", "chamber_a_pa"), ("chamber_b", "chamber_b_pa")):
+            put(f"pressure_bar/{node}", L[key] / 1e5, "bar (gauge)", node)
+        put("flow_l_min/pump", sig["pump_flow_m3_s"].values * _M3_S_TO_L_MIN, "L/min",
+            "pump flow")
+        put("flow_l_min/cylinder", sig["cylinder_flow_m3_s"].values * _M3_S_TO_L_MIN,
+            "L/min", "piston flow")
+        put("motor_current_a", L["motor_current_a"], "A", "motor current")
+        put("motor_speed_rpm", L["motor_speed_rad_s"] * _RAD_S_TO_RPM, "rpm", "motor speed")
+        put("motor_voltage_v", L["motor_command_v"], "V", "motor voltage")
+        if valve:
+            put("valve/position", L["valve_position"], "1", "valve position")
+            put("valve/command", L["valve_command"], "1", "valve command")
+            put("valve/unloading", L["unloading_valve_position"], "1", "unloading valve")
+            angle = L["ankle_angle_rad"]
+        else:
+            rec = run.record
+            angle = np.column_stack([np.interp(L["time_s"][:, 0], rec.time_s,
+                                               rec.joint_angle_rad[:, _SIDES.index(sd), 2])
+                                     for sd in dev.sides])
+        put("piston_position_mm", angle * dev.params.pulley_radius_m * 1e3, "mm",
+            "piston r*theta")
+        put("fluid_temperature_c", L["oil_temperature_k"] - 273.15, "degC", "oil temperature")
+        put("device_power_w/electrical", sig["electrical_power_w"].values, "W", "electrical")
+        put("device_power_w/hydraulic", sig["hydraulic_power_w"].values, "W", "hydraulic")
+        put("device_power_w/ankle", sig["mechanical_power_w"].values, "W", "ankle")
+        put("running_efficiency", sig["running_efficiency"].values, "1", "running efficiency")
+
+
+def _log_events(w: _Writer, run: RecordedRun) -> None:
+    rr = w.rr
+    ev = run.record.events
+    items: list[tuple[float, str, str]] = []
+    for s, side in enumerate(_SIDES):
+        items += [(t, f"{side} heel strike", "INFO") for t in ev.heel_strikes_s[s]]
+        items += [(t, f"{side} toe off", "INFO") for t in ev.toe_offs_s[s]]
+    items += [(t, f"{_SIDES[s]} swing toe contact (scuff)", "WARN")
+              for t, s in ev.swing_toe_contacts]
+    if ev.fall_time_s is not None:
+        items.append((ev.fall_time_s, "FALL", "ERROR"))
+    if not items:
+        return
+    items.sort()
+    path = f"events/{run.name}"
+    w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=[x[0] for x in items])],
+                          columns=rr.TextLog.columns(text=[x[1] for x in items],
+                                                     level=[x[2] for x in items]))
+    w.index[path] = {"kind": "TextLog", "rows": len(items), "unit": ""}
+
+
+# -- 3D -----------------------------------------------------------------------------------------
+def _geom_archetype(rr, model, g: int):
+    """The rerun primitive of MuJoCo geom ``g`` in its body's frame (None for planes)."""
+    import mujoco
+    typ = int(model.geom_type[g])
+    size = model.geom_size[g]
+    pos = model.geom_pos[g].copy()
+    quat = model.geom_quat[g].copy()
+    rgba = model.geom_rgba[g]
+    if model.geom_matid[g] >= 0:
+        rgba = model.mat_rgba[model.geom_matid[g]]
+    colour = tuple(int(round(255 * c)) for c in rgba)
+    T = mujoco.mjtGeom
+    q = _xyzw(quat)
+    if typ == T.mjGEOM_SPHERE:
+        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], centers=[pos], colors=[colour],
+                               fill_mode="solid")
+    if typ == T.mjGEOM_ELLIPSOID:
+        return rr.Ellipsoids3D(half_sizes=[size[:3]], centers=[pos], quaternions=[q],
+                               colors=[colour], fill_mode="solid")
+    if typ == T.mjGEOM_CAPSULE:
+        start = pos - _quat_rotate(quat, np.array([0.0, 0.0, size[1]]))
+        return rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[start],
+                             quaternions=[q], colors=[colour])
+    if typ == T.mjGEOM_CYLINDER:
+        return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], centers=[pos],
+                              quaternions=[q], colors=[colour], fill_mode="solid")
+    if typ == T.mjGEOM_BOX:
+        return rr.Boxes3D(half_sizes=[size[:3]], centers=[pos], quaternions=[q],
+                          colors=[colour], fill_mode="solid")
+    return None
+
+
+def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
+    """Transforms of every body, geoms, force arrows and orthosis cylinders of one run;
+    returns the x extent walked (for the floor)."""
+    import mujoco
+    rr = w.rr
+    rec = run.record
+    if rec.qpos is None or rec.model_xml is None:
+        raise RecordingError(f"run {run.name!r}: the record kept no qpos/model for 3D replay")
+    model = mujoco.MjModel.from_xml_string(rec.model_xml)
+    data = mujoco.MjData(model)
+    idx = np.arange(0, len(rec.time_s), step)
+    t = rec.time_s[idx]
+    n = len(idx)
+    xpos = np.empty((n, model.nbody, 3))
+    xquat = np.empty((n, model.nbody, 4))
+    gpos = np.empty((n, model.ngeom, 3))
+    for k, i in enumerate(idx):
+        data.qpos[:] = rec.qpos[i]
+        mujoco.mj_kinematics(model, data)
+        xpos[k] = data.xpos
+        xquat[k] = data.xquat
+        gpos[k] = data.geom_xpos
+    xpos[:, :, 1] += lane_y
+    gpos[:, :, 1] += lane_y
+    root = f"world/{run.name}"
+    body_names = [model.body(b).name for b in range(model.nbody)]
+    for b in range(1, model.nbody):
+        path = f"{root}/body/{body_names[b]}"
+        w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                              columns=rr.Transform3D.columns(translation=xpos[:, b],
+                                                             quaternion=_xyzw(xquat[:, b])))
+        w.index[path] = {"kind": "Transform3D", "rows": n, "unit": "m"}
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        if b == 0:
+            continue                                     # the floor is drawn once for all runs
+        arch = _geom_archetype(rr, model, g)
+        if arch is None:
+            continue
+        name = model.geom(g).name or f"geom_{g}"
+        w.stream.log(f"{root}/body/{body_names[b]}/{name}", arch, static=True)
+    # ground reaction force arrows at the centre of pressure of heel/ball contact spheres
+    gid = {model.geom(g).name: g for g in range(model.ngeom)}
+    for s, side in enumerate(_SIDES):
+        heel, ball = gid.get(f"heel_{side[0]}"), gid.get(f"ball_{side[0]}")
+        if heel is None or ball is None:
+            continue
+        fn = rec.contact_force_n[idx, s]                   # (n, 2) heel, ball
+        wsum = fn.sum(axis=1)
+        wh = np.where(wsum > 1e-9, fn[:, 0] / np.where(wsum > 1e-9, wsum, 1.0), 0.5)
+        origin = wh[:, None] * gpos[:, heel] + (1 - wh[:, None]) * gpos[:, ball]
+        origin[:, 2] = 0.0
+        vec = np.zeros((n, 3))
+        vec[:, 0] = rec.grf_n[idx, s, 0] * GRF_M_PER_N
+        vec[:, 2] = rec.grf_n[idx, s, 1] * GRF_M_PER_N
+        path = f"{root}/grf/{side}"
+        w.stream.log(path, rr.Arrows3D.from_fields(radii=0.008, colors=[(230, 60, 30)]),
+                     static=True)
+        w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                              columns=rr.Arrows3D.columns(origins=origin, vectors=vec))
+        w.index[path] = {"kind": "Arrows3D", "rows": n, "unit": "N"}
+    if run.device is not None and getattr(run.device, "log", None) is not None:
+        _log_afo(w, run, model, root, body_names, t)
+    return {"x_min": float(xpos[:, 1:, 0].min()), "x_max": float(xpos[:, 1:, 0].max())}
+
+
+def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
+             t_body: np.ndarray) -> None:
+    """The worn orthosis's two cylinders along each worn shank (barrel + oil column), at the
+    log rows nearest to the body-transform times ``t_body``."""
+    from afo_mj.hydraulics.cylinder import Cylinder
+    rr = w.rr
+    dev = run.device
+    p = dev.params
+    L = dev.log.arrays()
+    if dev.log.n == 0:
+        return
+    t_all = L["time_s"][:, 0]
+    rec = run.record
+    rows = np.unique(np.clip(np.searchsorted(t_all, t_body), 0, len(t_all) - 1))
+    t = t_all[rows]
+    bore_r = math.sqrt(Cylinder(p.cylinder).area_a_m2 / math.pi)
+    stroke = p.cylinder.stroke_m
+    p_max = p.relief.cracking_dp_pa
+    for k, side in enumerate(dev.sides):
+        shank = f"shank_{side[0]}"
+        if shank not in body_names:
+            continue
+        b = body_names.index(shank)
+        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == b
+                 and model.geom(g).name == shank]
+        if not geoms:
+            continue
+        g = geoms[0]
+        gq = model.geom_quat[g]
+        axis = _quat_rotate(gq, np.array([0.0, 0.0, 1.0]))
+        perp = np.cross(np.array([0.0, 1.0, 0.0]), axis)
+        perp /= max(np.linalg.norm(perp), 1e-12)
+        radius = float(model.geom_size[g, 0])
+        if "ankle_angle_rad" in L:
+            theta = L["ankle_angle_rad"][rows, k]
+        else:
+            theta = np.interp(t, rec.time_s, rec.joint_angle_rad[:, _SIDES.index(side), 2])
+        x = np.clip(p.pulley_radius_m * theta, -stroke / 2, stroke / 2)
+        q = _xyzw(gq)
+        base = f"{root}/body/{shank}/afo"
+        for c, (name, sign, key) in enumerate((("a", 1.0, "chamber_a_pa"),
+                                                ("b", -1.0, "chamber_b_pa"))):
+            centre = model.geom_pos[g] + sign * perp * (radius + 1.5 * bore_r + 0.004)
+            w.stream.log(f"{base}/barrel_{name}",
+                         rr.Cylinders3D(lengths=[stroke], radii=[bore_r * 1.25],
+                                        centers=[centre], quaternions=[q],
+                                        colors=[(120, 120, 130, 90)], fill_mode="solid"),
+                         static=True)
+            length = np.clip(stroke / 2 + sign * x, 0.02 * stroke, stroke)
+            # oil column from the barrel's lower end up to the piston
+            low_end = centre - axis * stroke / 2
+            centres = low_end[None, :] + axis[None, :] * (length / 2)[:, None]
+            path = f"{base}/oil_{name}"
+            w.stream.log(path, rr.Cylinders3D.from_fields(radii=[bore_r], quaternions=[q],
+                                                          fill_mode="solid"), static=True)
+            w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                                  columns=rr.Cylinders3D.columns(
+                                      lengths=length, centers=centres,
+                                      colors=_pressure_colours(L[key][rows, k], p_max)))
+            w.index[path] = {"kind": "Cylinders3D", "rows": int(len(t)), "unit": "m"}
+
+
+# -- blueprint ----------------------------------------------------------------------------------
+def _blueprint(has_device: bool, has_valve: bool):
+    import rerun.blueprint as rrb
+
+    def ts(origin, name):
+        return rrb.TimeSeriesView(origin=origin, name=name)
+
+    gait = rrb.Grid(ts("signals/angle_deg/hip", "hip angle [deg]"),
+                    ts("signals/angle_deg/knee", "knee angle [deg]"),
+                    ts("signals/angle_deg/ankle", "ankle angle [deg]"),
+                    ts("signals/ankle_torque_nm", "ankle torque: human, device cmd / delivered "
+                                                  "[N·m]"),
+                    ts("signals/joint_power_w/ankle", "ankle power, human [W]"),
+                    ts("signals/grf_n/vertical", "vertical GRF [N]"),
+                    name="gait", grid_columns=2)
+    tabs = [gait]
+    if has_device:
+        hyd = [ts("signals/pressure_bar", "pressures [bar gauge]"),
+               ts("signals/flow_l_min", "flows [L/min]"),
+               ts("signals/motor_current_a", "motor current [A]"),
+               ts("signals/motor_speed_rpm", "motor speed [rpm]")]
+        if has_valve:
+            hyd.append(ts("signals/valve", "valve position / command [1]"))
+        hyd.append(ts("signals/piston_position_mm", "piston from mid-stroke [mm]"))
+        tabs.append(rrb.Grid(*hyd, name="hydraulics", grid_columns=2))
+        tabs.append(rrb.Grid(ts("signals/device_power_w", "device power by stage [W]"),
+                             ts("signals/running_efficiency", "running efficiency [1]"),
+                             ts("signals/fluid_temperature_c", "oil temperature [°C]"),
+                             ts("signals/gait_phase", "gait phase [1]"),
+                             name="energy", grid_columns=2))
+    else:
+        tabs.append(rrb.Grid(ts("signals/moment_nm", "joint moments [N·m]"),
+                             ts("signals/joint_power_w", "joint powers [W]"),
+                             ts("signals/gait_phase", "gait phase [1]"),
+                             ts("signals/grf_n/forward", "fore-aft GRF [N]"),
+                             name="joints", grid_columns=2))
+    left = rrb.Vertical(rrb.Spatial3DView(origin="world", name="walker"),
+                        rrb.TextLogView(origin="events", name="gait events"),
+                        row_shares=[3, 1])
+    return rrb.Blueprint(rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
+                         rrb.TimePanel(timeline="time"), collapse_panels=False)
+
+
+# -- public -------------------------------------------------------------------------------------
+def write_recording(path, runs: Sequence[RecordedRun], reference=None,
+                    title: str = "afo_mj run", signal_rate_hz: float = SIGNAL_RATE_HZ,
+                    transform_rate_hz: float = TRANSFORM_RATE_HZ) -> dict:
+    """Write ``runs`` into one rerun recording at ``path`` (written to a temporary file and
+    renamed, so a failure leaves nothing half-written). Returns ``{"path", "entities":
+    {entity path: {"kind", "rows", "unit"}}}``.
+
+    Raises :class:`RecordingError` for a bad rate, a run without 3D data, non-finite signals
+    or an unwritable path.
+    """
+    import rerun as rr
+    if not runs:
+        raise RecordingError("no runs to record")
+    for key, v, lo, hi in (("signal_rate_hz", signal_rate_hz, 1.0, 1e5),
+                           ("transform_rate_hz", transform_rate_hz, 1.0, 1e4)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+            raise RecordingError(f"{key} = {v!r}; allowed: a number in [{lo:g}, {hi:g}] Hz")
+    names = [r.name for r in runs]
+    if len(set(names)) != len(names):
+        raise RecordingError(f"run names must be unique, got {names}")
+    out = Path(path)
+    if out.suffix != ".rrd":
+        raise RecordingError(f"recording path = {str(out)!r}; allowed: a file name ending "
+                             f"in .rrd")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RecordingError(f"recording path = {str(out)!r}: {exc}") from None
+    tmp = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.tmp")
+    has_device = any(r.device is not None for r in runs)
+    has_valve = any(r.device is not None and r.device.log is not None
+                    and "pump_pa" in r.device.log.FIELDS for r in runs)
+    stream = rr.RecordingStream("afo_mj", recording_id=uuid.uuid4().hex)
+    try:
+        stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve))
+        stream.send_recording_name(title)
+        w = _Writer(rr, stream)
+        x_lo, x_hi = 0.0, 1.0
+        for i, run in enumerate(runs):
+            dt = run.record.sample_period_s
+            s_step = max(1, int(round(1.0 / (signal_rate_hz * dt))))
+            t_step = max(1, int(round(1.0 / (transform_rate_hz * dt))))
+            lane = (i - (len(runs) - 1)) * LANE_SPACING_M       # the last run at y = 0
+            ext = _log_body(w, run, lane, t_step)
+            x_lo, x_hi = min(x_lo, ext["x_min"]), max(x_hi, ext["x_max"])
+            _log_gait_signals(w, run, i, s_step)
+            _log_device_signals(w, run, i, s_step)
+            _log_events(w, run)
+        last = runs[-1]
+        _log_normative(w, last, reference,
+                       max(1, int(round(1.0 / (signal_rate_hz * last.record.sample_period_s)))))
+        y_lo = -(len(runs) - 1) * LANE_SPACING_M - 0.5
+        stream.log("world/floor", rr.Boxes3D(
+            mins=[[x_lo - 1.0, y_lo, -0.01]], sizes=[[x_hi - x_lo + 2.0, -y_lo + 0.5, 0.01]],
+            colors=[(205, 205, 195)], fill_mode="solid"), static=True)
+        stream.flush()
+        stream.disconnect()
+        os.replace(tmp, out)
+    except BaseException:
+        try:
+            stream.disconnect()
+        except Exception:                                # pragma: no cover
+            pass
+        tmp.unlink(missing_ok=True)
+        raise
+    return {"path": str(out), "entities": w.index}
+
+
+def read_recording_index(path) -> dict[str, dict]:
+    """What a ``.rrd`` file holds, read back with rerun's own reader: ``{entity path:
+    {"rows": temporal rows, "components": [...], "unit": static unit or None}}``."""
+    import rerun as rr
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    out: dict[str, dict] = {}
+    for ch in store.stream():
+        e = out.setdefault(ch.entity_path.lstrip("/"), {"rows": 0, "components": set(),
+                                                         "unit": None})
+        rb = ch.to_record_batch()
+        cols = [c for c in rb.schema.names if c not in ("rerun.controls.RowId", "time")]
+        e["components"].update(cols)
+        if ch.is_static:
+            if "unit" in rb.schema.names:
+                e["unit"] = rb.column("unit").to_pylist()[-1]
+                if isinstance(e["unit"], list):
+                    e["unit"] = e["unit"][0] if e["unit"] else None
+        else:
+            e["rows"] += ch.num_rows
+    for e in out.values():
+        e["components"] = sorted(e["components"])
+    return out

@@ -1,0 +1,208 @@
+"""Rerun recordings: a short run is recorded, read back with rerun's own reader
+(``rerun.chunk.RrdReader``) and checked for the entity paths the README documents, their
+sample counts and units, and values equal to the simulation's own arrays."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rr = pytest.importorskip("rerun")
+
+from afo_mj.cli import main  # noqa: E402
+from afo_mj.outputs.recording import (RecordedRun, RecordingError,  # noqa: E402
+                                      read_recording_index, write_recording)
+from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SHORT = ("gait.strides=3", "gait.analyse_strides=[2, 3]")
+
+
+def _scalars(path: Path, entity: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time_s, values) of one Scalars entity, read with rerun's reader."""
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    ts, vs = [], []
+    for ch in store.stream():
+        if ch.entity_path.lstrip("/") != entity or ch.is_static:
+            continue
+        rb = ch.to_record_batch()
+        t = rb.column("time").to_numpy()
+        ts.append(t.astype("timedelta64[ns]").astype(np.int64) / 1e9 if t.dtype.kind == "m"
+                  else np.asarray(t, dtype=float))
+        vs.append(np.array([x[0] for x in rb.column("Scalars:scalars").to_pylist()]))
+    order = np.argsort(np.concatenate(ts))
+    return np.concatenate(ts)[order], np.concatenate(vs)[order]
+
+
+@pytest.fixture(scope="module")
+def walk_recording(tmp_path_factory):
+    from afo_mj.gait.walk import simulate_walk
+    sc = load_scenario(ROOT / "scenarios" / "walk_healthy.toml", overrides=SHORT)
+    rec = simulate_walk(sc)
+    path = tmp_path_factory.mktemp("rec") / "walk.rrd"
+    info = write_recording(path, [RecordedRun("walk", rec)], sc.load_reference(),
+                           title=sc.name, signal_rate_hz=250.0, transform_rate_hz=40.0)
+    return rec, path, info, read_recording_index(path)
+
+
+def test_walk_recording_paths_counts_units(walk_recording):
+    rec, path, info, idx = walk_recording
+    n = len(rec.time_s)
+    dt = rec.sample_period_s
+    n_sig = math.ceil(n / round(1 / (250.0 * dt)))
+    n_tf = math.ceil(n / round(1 / (40.0 * dt)))
+    assert info["path"] == str(path) and path.stat().st_size > 10_000
+    # 3D: floor, every body's transform, its geoms as primitives, force arrows
+    assert any(c.startswith("Boxes3D") for c in idx["world/floor"]["components"])
+    for body in ("pelvis", "thigh_r", "shank_r", "foot_r", "thigh_l", "shank_l", "foot_l"):
+        e = idx[f"world/walk/body/{body}"]
+        assert e["rows"] == n_tf
+        assert "Transform3D:translation" in e["components"]
+        assert "Transform3D:quaternion" in e["components"]
+    assert any(c.startswith("Capsules3D") for c in idx["world/walk/body/shank_r/shank_r"]["components"])
+    assert any(c.startswith("Ellipsoids3D") for c in idx["world/walk/body/foot_r/heel_r"]["components"])
+    for side in ("right", "left"):
+        assert idx[f"world/walk/grf/{side}"]["rows"] == n_tf
+        assert "Arrows3D:vectors" in idx[f"world/walk/grf/{side}"]["components"]
+    # signals, with their units
+    expected_units = {"angle_deg/ankle/right/walk": "deg", "angle_deg/hip/left/walk": "deg",
+                      "moment_nm/knee/right/walk": "N*m", "joint_power_w/ankle/right/walk": "W",
+                      "grf_n/vertical/right/walk": "N", "gait_phase/right/walk": "1",
+                      "ankle_torque_nm/human/right/walk": "N*m"}
+    for p, unit in expected_units.items():
+        e = idx[f"signals/{p}"]
+        assert e["rows"] == n_sig, p
+        assert e["unit"] == unit, p
+    # the normative band is mapped onto the measured strides only (fewer samples)
+    band = idx["signals/angle_deg/ankle/normative/mean"]
+    assert 0 < band["rows"] < n_sig and band["unit"] == "deg"
+    # gait events as a text log: one row per heel strike, toe off, scuff and fall
+    ev = rec.events
+    n_ev = (sum(len(x) for x in ev.heel_strikes_s) + sum(len(x) for x in ev.toe_offs_s)
+            + len(ev.swing_toe_contacts) + (ev.fall_time_s is not None))
+    assert idx["events/walk"]["rows"] == n_ev
+    # a blueprint travels with the file
+    assert rr.chunk.RrdReader(str(path)).blueprints()
+
+
+def test_walk_recording_values_equal_the_record(walk_recording):
+    rec, path, _info, _idx = walk_recording
+    t, v = _scalars(path, "signals/angle_deg/ankle/right/walk")
+    step = round(1 / (250.0 * rec.sample_period_s))
+    np.testing.assert_allclose(t, rec.time_s[::step], atol=1e-9)
+    np.testing.assert_allclose(v, np.degrees(rec.joint_angle_rad[::step, 0, 2]), rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def device_recording(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dev")
+    rrd = out / "hafo.rrd"
+    args = ["run", str(ROOT / "scenarios" / "gait_assist_hafo.toml"), "--out",
+            str(out / "res"), "--rrd", str(rrd)]
+    for s in SHORT:
+        args += ["--set", s]
+    assert main(args) == 0
+    return out, rrd, read_recording_index(rrd)
+
+
+def test_device_recording_has_orthosis_and_chain(device_recording):
+    out, rrd, idx = device_recording
+    # every condition walks in its own lane
+    for cond in ("no_device", "transparent", "assist"):
+        assert f"world/{cond}/body/pelvis" in idx
+        assert f"signals/angle_deg/ankle/right/{cond}" in idx
+        assert f"events/{cond}" in idx
+    for cond in ("transparent", "assist"):
+        n = idx[f"signals/ankle_torque_nm/device_delivered/right/{cond}"]["rows"]
+        assert n > 100
+        units = {"ankle_torque_nm/device_commanded": "N*m", "pressure_bar/line_a": "bar (gauge)",
+                 "pressure_bar/chamber_b": "bar (gauge)", "flow_l_min/pump": "L/min",
+                 "flow_l_min/cylinder": "L/min", "motor_current_a": "A",
+                 "motor_speed_rpm": "rpm", "fluid_temperature_c": "degC",
+                 "device_power_w/electrical": "W", "device_power_w/hydraulic": "W",
+                 "device_power_w/ankle": "W", "running_efficiency": "1",
+                 "piston_position_mm": "mm"}
+        for p, unit in units.items():
+            e = idx[f"signals/{p}/right/{cond}"]
+            assert (e["rows"], e["unit"]) == (n, unit), p
+        for c in ("a", "b"):
+            oil = idx[f"world/{cond}/body/shank_r/afo/oil_{c}"]
+            assert oil["rows"] > 10 and "Cylinders3D:colors" in oil["components"]
+            assert f"world/{cond}/body/shank_r/afo/barrel_{c}" in idx
+    assert "signals/pressure_bar/line_a/right/no_device" not in idx
+    # pressures in the file are the device's own (gauge, bar) at the recorded times
+    import csv
+    with open(out / "res" / "device_timeseries.csv") as f:
+        rows = list(csv.DictReader(f))
+    t_csv = np.array([float(r["time_s"]) for r in rows])
+    p_csv = np.array([float(r["chamber_a_pa"]) for r in rows]) / 1e5
+    t, v = _scalars(rrd, "signals/pressure_bar/chamber_a/right/assist")
+    np.testing.assert_allclose(v, np.interp(t, t_csv, p_csv), rtol=1e-6, atol=1e-4)  # csv digits
+    # the running efficiency ends at the run's chain figure: positive ankle work / electrical
+    _, eta = _scalars(rrd, "signals/running_efficiency/right/assist")
+    e_pos = np.array([max(float(r["mechanical_power_w"]), 0.0) for r in rows])
+    p_el = np.array([max(float(r["bus_voltage_v"]) * float(r["battery_current_a"]), 0.0)
+                     for r in rows])
+    dt = np.diff(t_csv, prepend=t_csv[0])
+    assert eta[-1] == pytest.approx((e_pos * dt).sum() / (p_el * dt).sum(), rel=2e-2)
+
+
+def test_valve_recording_has_valve_signals(tmp_path):
+    rrd = tmp_path / "valve.rrd"
+    args = ["run", str(ROOT / "scenarios" / "gait_assist_valve.toml"), "--out",
+            str(tmp_path / "res"), "--rrd", str(rrd), "--set",
+            'device.conditions=["assist"]']
+    for s in SHORT:
+        args += ["--set", s]
+    rc = main(args)
+    if rc == 2:
+        pytest.skip("gait_assist_valve.toml has no device.conditions key")
+    assert rc == 0
+    idx = read_recording_index(rrd)
+    for p in ("valve/position", "valve/command", "valve/unloading", "pressure_bar/pump",
+              "pressure_bar/supply"):
+        assert idx[f"signals/{p}/right/assist"]["rows"] > 100, p
+
+
+def test_scenario_output_record_writes_into_results(tmp_path):
+    out = tmp_path / "res"
+    args = ["run", str(ROOT / "scenarios" / "walk_healthy.toml"), "--out", str(out),
+            "--set", "output.record=true", "--set", "output.signal_rate_hz=100",
+            "--set", "gait.strides=2", "--set", "gait.analyse_strides=[1, 2]"]
+    assert main(args) == 0
+    idx = read_recording_index(out / "recording.rrd")
+    n = len(idx)
+    assert n > 30 and "signals/angle_deg/knee/right/walk" in idx
+    assert not list(out.glob(".*tmp"))
+
+
+def test_recording_errors_leave_nothing(tmp_path, walk_recording):
+    rec = walk_recording[0]
+    with pytest.raises(RecordingError, match="signal_rate_hz"):
+        write_recording(tmp_path / "a.rrd", [RecordedRun("walk", rec)], signal_rate_hz=0.0)
+    with pytest.raises(RecordingError, match=r"\.rrd"):
+        write_recording(tmp_path / "a.txt", [RecordedRun("walk", rec)])
+    with pytest.raises(RecordingError, match="unique"):
+        write_recording(tmp_path / "a.rrd", [RecordedRun("w", rec), RecordedRun("w", rec)])
+    import dataclasses
+    bad = dataclasses.replace(rec, joint_angle_rad=rec.joint_angle_rad.copy())
+    bad.joint_angle_rad[4:40, 0, 2] = np.nan
+    with pytest.raises(RecordingError, match="non-finite"):
+        write_recording(tmp_path / "b.rrd", [RecordedRun("walk", bad)])
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ScenarioError, match="output.record"):
+        load_scenario(ROOT / "scenarios" / "walk_healthy.toml", overrides=["output.record=1"])
+    with pytest.raises(ScenarioError, match="output.colour"):
+        load_scenario(ROOT / "scenarios" / "walk_healthy.toml", overrides=["output.colour=1"])
+
+
+def test_view_command(tmp_path, walk_recording, capsys):
+    path = walk_recording[1]
+    assert main(["view", str(path), "--print-command"]) == 0
+    cmd = capsys.readouterr().out.strip().split()
+    assert cmd[-1] == str(path) and Path(cmd[0]).name == "rerun" and Path(cmd[0]).exists()
+    assert main(["view", str(tmp_path / "missing.rrd")]) == 2
+    assert "not an existing .rrd" in capsys.readouterr().err
