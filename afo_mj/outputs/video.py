@@ -77,11 +77,39 @@ class RenderError(ValueError):
     """A render request that cannot be carried out; the message names the key and value."""
 
 
+#: MUJOCO_GL as the user set it (None: unset, so this module chooses EGL)
+_USER_GL = os.environ.get("MUJOCO_GL")
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+
 def _mujoco():
     """Import MuJoCo, choosing the EGL offscreen backend unless one was chosen already."""
     os.environ.setdefault("MUJOCO_GL", "egl")
     import mujoco
     return mujoco
+
+
+def _make_renderer(mj, model, height: int, width: int):
+    """``mujoco.Renderer``. Without a display, when MuJoCo was imported before MUJOCO_GL was
+    set (it then picks GLFW, which needs one) and the user chose no backend, MuJoCo's EGL
+    context is used instead."""
+    if _USER_GL is None and not os.environ.get("DISPLAY"):
+        try:
+            from mujoco.egl import GLContext as EglContext
+            from mujoco.rendering.classic import gl_context
+            if getattr(gl_context, "GLContext", None) is not EglContext:
+                gl_context.GLContext = EglContext
+        except Exception:  # noqa: BLE001 -- leave MuJoCo's own choice
+            pass
+    try:
+        return mj.Renderer(model, height, width)
+    except Exception as exc:  # noqa: BLE001 -- GL/EGL failures come in many types
+        first = exc
+    raise RenderError(
+        f"no offscreen OpenGL context could be created (MUJOCO_GL="
+        f"{_USER_GL if _USER_GL is not None else 'egl (default)'}; {type(first).__name__}: "
+        f"{first}); allowed: MUJOCO_GL=egl (GPU or Mesa EGL) or MUJOCO_GL=osmesa, set before "
+        "MuJoCo is imported") from None
 
 
 # --------------------------------------------------------------------------- validation
@@ -212,14 +240,7 @@ class _WalkRenderer:
         self.opt = mj.MjvOption()
         self.opt.sitegroup[:] = 0      # no device-attachment sites
         self.data = mj.MjData(m)
-        try:
-            self.renderer = mj.Renderer(m, self.h, self.w)
-        except Exception as exc:  # noqa: BLE001 -- GL/EGL failures come in many types
-            raise RenderError(
-                f"no offscreen OpenGL context could be created (MUJOCO_GL="
-                f"{os.environ.get('MUJOCO_GL', '')!r}; {type(exc).__name__}: {exc}); allowed: "
-                "MUJOCO_GL=egl (GPU or Mesa) or MUJOCO_GL=osmesa, set before MuJoCo is "
-                "imported") from None
+        self.renderer = _make_renderer(mj, m, self.h, self.w)
 
         t = np.asarray(record.time_s, float)
         self.t = t
@@ -275,17 +296,22 @@ class _WalkRenderer:
         if not self.text:
             return
         side = _SIDES[self.plot_side]
-        items = [(self.left, 1, "\u2501 orthosis torque", _ORANGE / 255, "left", "top")
-                 if self.sides else (self.left, 1, "no orthosis", (0.8, 0.8, 0.8), "left", "top"),
-                 (self.left + 0.30 * w, 1, "\u2501 human ankle moment", _BLUE / 255, "left",
-                  "top"),
+        wide = w >= 560
+        grey = (0.85, 0.85, 0.85)
+        items = [(self.left, 1, "\u2501 orthosis torque" if wide else "\u2501 orthosis",
+                  _ORANGE / 255, "left", "top") if self.sides else
+                 (self.left, 1, "no orthosis", (0.8, 0.8, 0.8), "left", "top"),
+                 (self.left + (0.30 if wide else 0.27) * w, 1,
+                  "\u2501 human ankle moment" if wide else "\u2501 human", _BLUE / 255,
+                  "left", "top"),
                  (w - 4, 1, f"{side} ankle, N\u00b7m (+ plantarflexion), last "
-                  f"{STRIP_WINDOW_S:g} s", (0.85, 0.85, 0.85), "right", "top"),
-                 (self.left - 3, self.plot_top, f"{self.y_hi:+.0f}", (0.85, 0.85, 0.85),
-                  "right", "top"),
-                 (self.left - 3, self.plot_bot, f"{self.y_lo:+.0f}", (0.85, 0.85, 0.85),
-                  "right", "bottom"),
-                 (self.left - 3, self._row(0.0), "0", (0.85, 0.85, 0.85), "right", "center")]
+                  f"{STRIP_WINDOW_S:g} s" if wide else f"{side} ankle N\u00b7m, +PF",
+                  grey, "right", "top"),
+                 (self.left - 3, self.plot_top, f"{self.y_hi:+.0f}", grey, "right", "top"),
+                 (self.left - 3, self.plot_bot, f"{self.y_lo:+.0f}", grey, "right", "bottom")]
+        zero_row = float(self._row(0.0))
+        if min(zero_row - self.plot_top, self.plot_bot - zero_row) > 1.2 * line:
+            items.append((self.left - 3, zero_row, "0", grey, "right", "center"))
         self.strip_layer = _text_layer(w, hs, items, fs)
         if label:
             lh = line + 6
@@ -475,6 +501,9 @@ def render_record(record, mp4_path, fps: int = 30, width: int = 640, height: int
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".part.mp4",
                                    dir=path.parent)
         os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)          # mkstemp makes it 0600; keep the usual mode
         with av.open(tmp, "w", format="mp4") as container:
             stream, codec = _open_stream(container, fps, width, height)
             n = len(times)
