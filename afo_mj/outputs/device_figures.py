@@ -15,11 +15,31 @@
 * ``device_power_flow.png`` -- per device condition, the energy ledger of the whole run (J)
   as a waterfall: what entered the device (electrical energy drawn from the battery,
   mechanical energy the ankle did on the device, energy released from storage), then where
-  it went (each named loss, net energy stored, energy regenerated into the battery, positive
-  mechanical work done on the ankle); what is left at the end is the ledger's residual.
+  it went (each named loss, losses each below 0.5 % of the input as one bar, net energy
+  stored, energy regenerated into the battery, positive mechanical work done on the ankle);
+  what is left at the end is the ledger's residual. The top axis reads the same bars per
+  mean analysed stride (J/stride: the summary's ``energy_per_stride`` scaling);
+
+* ``gait_conditions.png`` -- the worn side's hip, knee and ankle (3×3: angle, moment,
+  power vs % gait cycle), one mean curve per condition (``no_device``, ``transparent``,
+  ``assist``, ``assist_k<K>``, ... those present) over the reference
+  mean ± 1 SD band, so walking with and without the device is on one figure. Moments and
+  powers are the human's (muscles); in the ankle column the whole joint (muscles + device)
+  is dashed for the device conditions. A condition that fell is named in the legend;
+* ``device_stride_hydraulics.png`` -- per device condition, one mean stride of the worn
+  side (heel strike to heel strike, % cycle; mean ± 1 SD over the analysed strides) of the
+  device log: commanded vs delivered torque (N·m, + plantarflexion); pressures (bar,
+  absolute as logged: the pump ports and cylinder chambers of the HAFO; the pump outlet,
+  supply rail and cylinder chambers of the valve circuits); pump (geometric) and cylinder
+  (piston) flows (L/min, :func:`afo_mj.analysis.device_signals.device_signals`); motor current
+  (A) and speed (rpm) for the HAFO, servo-valve spool position and command (normalised,
+  ± 1 = full stroke) for the valve circuits.
 
 A condition whose analysis is ``None`` (the walker fell before an analysable cycle) is left
-out of every figure; a figure with nothing to draw (no device condition) is not written.
+out of every figure (``gait_conditions.png`` names it in its legend); a figure with nothing
+to draw (no device condition) is not written.
+
+:data:`FIGURES_BY_KIND` lists the PNGs each kind of run writes next to its ``summary.json``.
 """
 
 from __future__ import annotations
@@ -31,15 +51,36 @@ import numpy as np
 
 from afo_mj.analysis.gait_metrics import PERCENT_CYCLE, curve_statistics, reference_band
 
-__all__ = ["plot_device_run", "DEVICE_FIGURES"]
+__all__ = ["plot_device_run", "DEVICE_FIGURES", "FIGURES_BY_KIND"]
 
-DEVICE_FIGURES = ("ankle_angle_conditions.png", "device_torque.png", "device_power_flow.png")
+#: Figures :func:`plot_device_run` writes (in this order) for a run with a device condition.
+DEVICE_FIGURES = ("ankle_angle_conditions.png", "gait_conditions.png", "device_torque.png",
+                  "device_stride_hydraulics.png", "device_power_flow.png")
+
+#: The PNGs each kind of run writes next to its ``summary.json`` (``afo-mj run``; ``compare``
+#: for ``afo-mj compare``). Walking runs write ``gait_curves.png``
+#: (:mod:`afo_mj.outputs.gait_report`); device walks add :data:`DEVICE_FIGURES`; the benches
+#: write :func:`afo_mj.scenarios.hafo_bench.plot_bench`'s and
+#: :func:`afo_mj.scenarios.stiffness_bench.plot_stiffness_bench`'s figures. A sample of each
+#: is in ``docs/figures/`` (README there).
+FIGURES_BY_KIND = {
+    "walk": ("gait_curves.png",),
+    "device_hafo": ("gait_curves.png",) + DEVICE_FIGURES,
+    "device_valve": ("gait_curves.png",) + DEVICE_FIGURES,
+    "device_stiffness_emulation": ("gait_curves.png",) + DEVICE_FIGURES,
+    "bench_hafo": ("hafo_torque_velocity.png", "hafo_isometric_steps.png", "hafo_bode.png",
+                   "hafo_position_step.png"),
+    "bench_stiffness": ("stiffness_loops.png", "stiffness_timeseries.png"),
+    "compare": ("comparison.png",),
+}
 
 _COLOURS = {"no_device": "C0", "transparent": "C1", "assist": "C2"}
 _LABELS = {"no_device": "no device", "transparent": "transparent (worn, 0 N·m)",
            "assist": "assist"}
 _DPI = 110
 _N_STRIDES_SHOWN = 3
+#: losses below this fraction of the energy in are drawn as one bar in the energy flow
+_SMALL_LOSS = 0.005
 
 
 def _figure(figsize):
@@ -58,6 +99,36 @@ def _colour(cond: str, i: int) -> str:
     return _COLOURS.get(cond, f"C{3 + i}")
 
 
+def _colour_map(conds) -> dict:
+    """One colour per condition, the same in every figure (fixed for the named conditions,
+    C3, C4, ... in run order for the others, e.g. the stiffness sweep's ``assist_k<K>``)."""
+    out, i = {}, 0
+    for c in conds:
+        if c in _COLOURS:
+            out[c] = _COLOURS[c]
+        else:
+            out[c] = f"C{3 + i}"
+            i += 1
+    return out
+
+
+def _label(cond: str) -> str:
+    """Legend name of a condition (``assist_k2.5`` → ``assist, K = 2.5 N·m/deg``)."""
+    if cond in _LABELS:
+        return _LABELS[cond]
+    if cond.startswith("assist_k"):
+        return f"assist, K = {cond.removeprefix('assist_k')} N·m/deg"
+    return cond
+
+
+def _device_column(summary: dict, side: int) -> int:
+    """Column of the device log (one per worn side, in ``device_sides`` order) of walker
+    side ``side`` (0 right, 1 left)."""
+    sides = list(summary.get("device_sides") or ["right"])
+    leg = ("right", "left")[side]
+    return sides.index(leg) if leg in sides else 0
+
+
 def _band(ax, x, mean, sd, scale, colour, label, alpha=0.22, ls="-", lw=1.8):
     ax.plot(x, scale * mean, color=colour, lw=lw, ls=ls, label=label)
     if sd is not None:
@@ -70,7 +141,9 @@ def _band(ax, x, mean, sd, scale, colour, label, alpha=0.22, ls="-", lw=1.8):
 # 1. ankle curves per condition
 # ------------------------------------------------------------------------------------------
 
-def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str) -> None:
+def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str,
+                     colours: dict | None = None) -> None:
+    colours = colours or {}
     leg = ("right", "left")[side]
     fig = _figure((8.5, 10.5))
     axes = fig.subplots(3, 1, sharex=True)
@@ -96,8 +169,8 @@ def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str) 
             if not cycles or ch not in cycles[0].curves:
                 continue
             mean, sd = curve_statistics(cycles, ch)
-            _band(ax, PERCENT_CYCLE, mean, sd, scale, _colour(cond, i),
-                  f"{_LABELS.get(cond, cond)}: n = {len(cycles)}, mean ± 1 SD")
+            _band(ax, PERCENT_CYCLE, mean, sd, scale, colours.get(cond, _colour(cond, i)),
+                  f"{_label(cond)}: n = {len(cycles)}, mean ± 1 SD")
         ax.axhline(0.0, color="0.7", lw=0.6)
         ax.set_ylabel(ylabel)
         ax.set_xlim(0, 100)
@@ -107,6 +180,195 @@ def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str) 
     axes[-1].set_xlabel(f"{leg} gait cycle [%] (heel strike to heel strike)")
     fig.suptitle(f"{title}\n{leg} ankle by condition: simulation mean ± 1 SD over the analysed "
                  "cycles;\nreference mean dashed (± 1 SD grey where the reference has one)")
+    fig.savefig(path, dpi=_DPI)
+
+
+# ------------------------------------------------------------------------------------------
+# 1b. hip, knee, ankle per condition (with and without the device on one figure)
+# ------------------------------------------------------------------------------------------
+
+def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title: str,
+                          colours: dict) -> None:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from afo_mj.analysis.gait_metrics import JOINTS
+    leg = ("right", "left")[side]
+    fig = _figure((13.0, 10.0))
+    axes = fig.subplots(3, 3, sharex=True)
+    ref_name = (f"{getattr(reference, 'source', 'reference')} "
+                f"{getattr(reference, 'condition', '')}").strip()
+    rows = (("angle_rad", math.degrees(1.0), "angle [deg]\n(+ flexion / dorsiflexion)"),
+            ("moment_nm_per_kg", -1.0, "moment, human [N·m/kg]\n(+ extensor / plantarflexor)"),
+            ("power_w_per_kg", 1.0, "power, human [W/kg]\n(+ generation)"))
+    device_total = {"moment_nm_per_kg": "ankle_device_moment_nm_per_kg",
+                    "power_w_per_kg": "ankle_device_power_w_per_kg"}
+    handles = [Line2D([], [], color="0.35", ls="--", lw=1.2)]
+    labels = [f"{ref_name} mean"]
+    if any((reference_band(reference, f"{j}_{k}") or (None, None))[1] is not None
+           for j in JOINTS for k in ("angle_rad", "moment_nm_per_kg", "power_w_per_kg")):
+        handles.append(Patch(color="0.5", alpha=0.25))
+        labels.append(f"{ref_name} ± 1 SD")
+    any_total = False
+    for cond, (rec, analysis, dev) in results.items():
+        col = colours.get(cond, "C7")
+        if analysis is None:
+            fall = getattr(rec.events, "fall_time_s", None)
+            handles.append(Line2D([], [], color=col, lw=0, marker="x", ms=7, mew=2))
+            labels.append(f"{_label(cond)}: no analysable stride"
+                          + ("" if fall is None else f" (fell at t = {fall:.2f} s)"))
+            continue
+        cycles = [c for c in analysis.cycles if c.side == side]
+        handles.append(Line2D([], [], color=col, lw=1.8))
+        labels.append(f"{_label(cond)}: mean of {len(cycles)} {leg} cycles")
+    for r, (kind, scale, ylabel) in enumerate(rows):
+        for c, joint in enumerate(JOINTS):
+            ax = axes[r, c]
+            ch = f"{joint}_{kind}"
+            band = reference_band(reference, ch)
+            if band is not None:
+                rmean, rsd = band
+                ax.plot(PERCENT_CYCLE, scale * rmean, color="0.35", lw=1.2, ls="--")
+                if rsd is not None:
+                    a, b = scale * (rmean - rsd), scale * (rmean + rsd)
+                    ax.fill_between(PERCENT_CYCLE, np.minimum(a, b), np.maximum(a, b),
+                                    color="0.5", alpha=0.25, lw=0)
+            for cond, (rec, analysis, dev) in results.items():
+                if analysis is None:
+                    continue
+                cycles = [cy for cy in analysis.cycles if cy.side == side]
+                if not cycles or ch not in cycles[0].curves:
+                    continue
+                col = colours.get(cond, "C7")
+                mean, _ = curve_statistics(cycles, ch)
+                ax.plot(PERCENT_CYCLE, scale * mean, color=col, lw=1.6)
+                dch = device_total.get(kind)
+                if joint == "ankle" and dch and dev is not None and dch in cycles[0].curves:
+                    dmean, _ = curve_statistics(cycles, dch)
+                    ax.plot(PERCENT_CYCLE, scale * (mean + dmean), color=col, lw=1.1,
+                            ls=(0, (4, 2)))
+                    any_total = True
+            ax.axhline(0.0, color="0.7", lw=0.6)
+            ax.set_xlim(0, 100)
+            ax.grid(True, color="0.92", lw=0.5)
+            ax.set_axisbelow(True)
+            if r == 0:
+                ax.set_title(f"{leg} {joint}")
+            if c == 0:
+                ax.set_ylabel(ylabel)
+            if r == 2:
+                ax.set_xlabel(f"{leg} gait cycle [%]")
+    if any_total:
+        handles.append(Line2D([], [], color="0.2", lw=1.1, ls=(0, (4, 2))))
+        labels.append("ankle: whole joint, human + device (device conditions)")
+    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize="small",
+               frameon=False)
+    fig.suptitle(f"{title}\n{leg} hip, knee and ankle by condition (with and without the "
+                 "device): simulation mean per condition over the reference band\n"
+                 "moments in the biomechanics convention (the negative of the record's sign); "
+                 "heel strike to heel strike")
+    fig.savefig(path, dpi=_DPI)
+
+
+# ------------------------------------------------------------------------------------------
+# 2b. one mean stride of the device: torque, pressures, flows, valve / motor
+# ------------------------------------------------------------------------------------------
+
+_L_MIN = 6.0e4          # m³/s → L/min
+_RPM = 60.0 / (2.0 * math.pi)
+
+
+def _stride_stack(t: np.ndarray, y: np.ndarray, windows) -> np.ndarray:
+    """``y(t)`` resampled on the 101-point % cycle grid of each (t0, t1) window: (n, 101)."""
+    return np.stack([np.interp(t0 + PERCENT_CYCLE / 100.0 * (t1 - t0), t, y)
+                     for t0, t1 in windows])
+
+
+def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, title: str,
+                            colours: dict) -> None:
+    from afo_mj.analysis.device_signals import device_signals
+    leg = ("right", "left")[side]
+    k = _device_column(summary, side)
+    n = len(devs)
+    fig = _figure((max(7.0, 5.6 * n), 12.0))
+    axes = np.asarray(fig.subplots(4, n, sharex=True, squeeze=False))
+    valve_any = False
+    for j, (cond, (rec, analysis, dev)) in enumerate(devs.items()):
+        L = dev.log.arrays()
+        t = L["time_s"][:, k]
+        windows = [(c.start_s, c.end_s) for c in analysis.cycles
+                   if c.side == side and c.end_s <= t[-1] + 1e-9]
+        col = colours.get(cond, "C2")
+        if not windows:
+            for r in range(4):
+                axes[r, j].text(0.5, 0.5, "no analysed stride inside the device log",
+                                ha="center", va="center", transform=axes[r, j].transAxes)
+            continue
+        sig = device_signals(dev)
+        valve = "pump_pa" in L
+        valve_any |= valve
+
+        def draw(ax, y, scale, colour, label, ls="-", lw=1.5):
+            st = scale * _stride_stack(t, y[:, k], windows)
+            _band(ax, PERCENT_CYCLE, st.mean(axis=0),
+                  st.std(axis=0, ddof=1) if len(windows) > 1 else None, 1.0, colour, label,
+                  alpha=0.18, ls=ls, lw=lw)
+
+        ax = axes[0, j]
+        draw(ax, L["commanded_torque_nm"], -1.0, "k", "commanded", ls="--", lw=1.3)
+        draw(ax, L["delivered_torque_nm"], -1.0, col, "delivered")
+        ax.set_title(f"{_label(cond)}: mean of {len(windows)} {leg} strides (± 1 SD)")
+        ax = axes[1, j]
+        if valve:
+            pres = (("pump_pa", "pump outlet", "C1"), ("supply_pa", "supply rail", "C0"),
+                    ("chamber_a_pa", "chamber A", "C4"), ("chamber_b_pa", "chamber B", "C5"))
+        else:
+            pres = (("pressure_a_pa", "pump port A", "C1"), ("pressure_b_pa", "pump port B", "C0"),
+                    ("chamber_a_pa", "chamber A", "C4"), ("chamber_b_pa", "chamber B", "C5"))
+        for name, lab, c2 in pres:
+            if name in L:
+                draw(ax, L[name], 1e-5, c2, lab, lw=1.2,
+                     ls="-" if name.startswith("chamber") else (0, (3, 1.5)))
+        ax = axes[2, j]
+        if "pump_flow_m3_s" in sig:
+            draw(ax, sig["pump_flow_m3_s"].values, _L_MIN, "C1",
+                 "pump, geometric D ω / 2π" + (" (full stroke)" if valve else ""), lw=1.3)
+        if "cylinder_flow_m3_s" in sig:
+            draw(ax, sig["cylinder_flow_m3_s"].values, _L_MIN, "C9",
+                 "cylinder (piston) A r dθ/dt, + dorsiflexion", lw=1.3)
+        ax = axes[3, j]
+        if valve:
+            draw(ax, L["valve_command"], 1.0, "k", "servo valve command", ls="--", lw=1.2)
+            draw(ax, L["valve_position"], 1.0, "C3", "servo valve spool position", lw=1.4)
+            if "unloading_valve_position" in L and np.ptp(L["unloading_valve_position"][:, k]) > 0:
+                draw(ax, L["unloading_valve_position"], 1.0, "C8",
+                     "unloading valve position (0 closed .. 1 open)", lw=1.0)
+            ax.set_ylim(-1.05, 1.05)
+        else:
+            draw(ax, L["motor_current_a"], 1.0, "C2", "motor current [A] (left axis)", lw=1.3)
+            ax2 = ax.twinx()
+            draw(ax2, L["motor_speed_rad_s"], _RPM, "C6", "motor speed [rpm] (right axis)",
+                 lw=1.1)
+            ax2.set_ylabel("motor speed [rpm]")
+            h1, l1 = ax.get_legend_handles_labels()
+            h2, l2 = ax2.get_legend_handles_labels()
+            ax.legend(h1 + h2, l1 + l2, fontsize="small", loc="upper left")
+        for r in range(4):
+            a = axes[r, j]
+            a.axhline(0.0, color="0.7", lw=0.6)
+            a.set_xlim(0, 100)
+            a.grid(True, color="0.92", lw=0.5)
+            a.set_axisbelow(True)
+            if r < 3 or valve:
+                a.legend(fontsize="small", loc="best")
+        axes[3, j].set_xlabel(f"{leg} gait cycle [%] (heel strike to heel strike)")
+        axes[3, j].set_ylabel("spool position / command\n[normalised, ± 1 = full stroke]"
+                              if valve else "motor current [A]")
+    axes[0, 0].set_ylabel("ankle torque [N·m]\n(+ plantarflexion)")
+    axes[1, 0].set_ylabel("pressure [bar] (absolute)")
+    axes[2, 0].set_ylabel("flow [L/min]")
+    fig.suptitle(f"{title}\ndevice over one mean stride ({leg} ankle): torque tracking, "
+                 "pressures, flows and " + ("valve" if valve_any else "motor"))
     fig.savefig(path, dpi=_DPI)
 
 
@@ -143,7 +405,7 @@ def _plot_torque(path: Path, devs: dict, side: int, title: str) -> None:
                 label="measured (sensor)")
         rmse = math.sqrt(float(np.mean((L["commanded_torque_nm"][m, 0]
                                         - L["delivered_torque_nm"][m, 0]) ** 2))) if tt.size else math.nan
-        ax.set_title(f"{_LABELS.get(cond, cond)}: last {max(len(hs) - 1, 0)} strides "
+        ax.set_title(f"{_label(cond)}: last {max(len(hs) - 1, 0)} strides "
                      f"(tracking RMSE {rmse:.1f} N·m)")
         ax = axes[1, j]
         ax.plot(tt, L["chamber_a_pa"][m, 0] / 1e5, color="C4", lw=1.3, label="chamber A")
@@ -175,9 +437,40 @@ def _plot_torque(path: Path, devs: dict, side: int, title: str) -> None:
 # 3. energy flow (waterfall of the whole-run ledger)
 # ------------------------------------------------------------------------------------------
 
-def _flow_items(energy: dict) -> tuple[list[tuple[str, float, str]], float]:
+def _energy_in(energy: dict) -> float:
+    """Energy into the device over the run (J): drawn, back-driven in, released from storage."""
+    drawn = float(energy.get("electrical_in_j") or 0.0)
+    mech_net = float(energy.get("mechanical_out_j") or 0.0)
+    mech_pos = float(energy.get("mechanical_positive_out_j") or 0.0)
+    stored = float(sum((energy.get("stored_change_j") or {}).values()))
+    return drawn + max(mech_pos - mech_net, 0.0) + max(-stored, 0.0)
+
+
+def _loss_layout(energies) -> tuple[list[str], set]:
+    """The loss rows shared by every condition's waterfall (the same rows in every panel, so
+    that they can share the y axis): loss names by decreasing total share, and those below
+    :data:`_SMALL_LOSS` of the energy in for every condition (drawn as one bar, if two or
+    more)."""
+    share: dict[str, float] = {}
+    small: set | None = None
+    for e in energies:
+        tot = max(_energy_in(e), 1e-12)
+        losses = {k: float(v) for k, v in (e.get("losses_j") or {}).items()}
+        for k, v in losses.items():
+            share[k] = share.get(k, 0.0) + abs(v) / tot
+        sm = {k for k, v in losses.items() if abs(v) < _SMALL_LOSS * tot}
+        small = sm if small is None else small & sm
+    small = small or set()
+    if len(small) < 2:
+        small = set()
+    return sorted(share, key=lambda k: -share[k]), small
+
+
+def _flow_items(energy: dict, order=None, small=frozenset()
+                ) -> tuple[list[tuple[str, float, str]], float]:
     """(label, signed amount J, colour) in waterfall order (+ into the device, − out of it),
-    and the ledger residual."""
+    and the ledger residual: electrical in, mechanical in, the losses (in ``order``; those in
+    ``small`` as one bar), net storage, regeneration, positive mechanical work on the ankle."""
     drawn = float(energy.get("electrical_in_j") or 0.0)
     regen = float(energy.get("electrical_regenerated_j") or 0.0)
     mech_net = float(energy.get("mechanical_out_j") or 0.0)
@@ -185,28 +478,35 @@ def _flow_items(energy: dict) -> tuple[list[tuple[str, float, str]], float]:
     mech_absorbed = max(mech_pos - mech_net, 0.0)      # negative work of the ankle on the device
     losses = {k: float(v) for k, v in (energy.get("losses_j") or {}).items()}
     stored = float(sum((energy.get("stored_change_j") or {}).values()))
+    if order is None:
+        order = sorted(losses, key=lambda k: -abs(losses[k]))
     items = [("electrical drawn from battery", drawn, "C2"),
              ("mechanical in (ankle back-drives device)", mech_absorbed, "C9")]
-    if stored < 0:
-        items.append(("released from storage (net)", -stored, "0.6"))
-    for k, v in sorted(losses.items(), key=lambda kv: -abs(kv[1])):
-        items.append((f"loss: {k.replace('_', ' ')}", -v, "C3"))
-    if stored >= 0:
-        items.append(("stored (oil, rotor, L, reservoir; net)", -stored, "0.6"))
+    for k in order:
+        if k not in small:
+            items.append((f"loss: {k.replace('_', ' ')}", -losses.get(k, 0.0), "C3"))
+    if small:
+        items.append((f"loss: {len(small)} others, each < {_SMALL_LOSS:.1%} of the input\n("
+                      + ", ".join(k.replace('_', ' ') for k in sorted(small)) + ")",
+                      -sum(losses.get(k, 0.0) for k in small), "#e8a0a0"))
+    items.append(("net stored (oil, rotor, L, reservoir;\nbar left) or released (right)",
+                  -stored, "0.6"))
     items.append(("regenerated into battery", -regen, "C0"))
     items.append(("mechanical positive out (to ankle)", -mech_pos, "C4"))
     residual = sum(v for _, v, _ in items)
     return items, residual
 
 
-def _plot_power_flow(path: Path, energies: dict, title: str, note: str) -> None:
+def _plot_power_flow(path: Path, energies: dict, title: str, note: str,
+                     per_stride: dict | None = None) -> None:
     n = len(energies)
-    rows = max(len(_flow_items(e)[0]) for e in energies.values())
+    order, small = _loss_layout(energies.values())
+    rows = max(len(_flow_items(e, order, small)[0]) for e in energies.values())
     fig = _figure((max(7.5, 6.4 * n), 1.2 + 0.42 * (rows + 2)))
     axes = np.asarray(fig.subplots(1, n, sharey=True, squeeze=False))[0]
     for j, (cond, energy) in enumerate(energies.items()):
         ax = axes[j]
-        items, residual = _flow_items(energy)
+        items, residual = _flow_items(energy, order, small)
         level = 0.0
         top = max(sum(v for _, v, _ in items if v > 0), 1e-12)
         labels = []
@@ -235,9 +535,20 @@ def _plot_power_flow(path: Path, energies: dict, title: str, note: str) -> None:
         ax.grid(True, axis="x", color="0.92", lw=0.5)
         eff = energy.get("efficiency_total")
         sub = f", mech. positive out / drawn = {eff:.0%}" if isinstance(eff, (int, float)) else ""
-        ax.set_title(f"{_LABELS.get(cond, cond)}: {top:.0f} J in{sub}", fontsize="medium")
-        ax.set_xlabel("energy, whole run [J] (cumulative: bars right = into device, "
+        ax.set_title(f"{_label(cond)}: {top:.0f} J in{sub}", fontsize="medium")
+        ax.set_xlabel("energy, whole run [J]\n(cumulative: bars right = into the device, "
                       "left = out of it)", fontsize="small")
+        eps = (per_stride or {}).get(cond)
+        drawn = float(energy.get("electrical_in_j") or 0.0)
+        if isinstance(eps, dict) and drawn > 0 and isinstance(eps.get("electrical_in_j"),
+                                                              (int, float)):
+            f = float(eps["electrical_in_j"]) / drawn      # per mean analysed stride
+            if math.isfinite(f) and f > 0:
+                sec = ax.secondary_xaxis("top", functions=(lambda x, f=f: x * f,
+                                                           lambda x, f=f: x / f))
+                sec.set_xlabel(f"per mean stride ({eps.get('stride_time_s', math.nan):.2f} s) "
+                               "[J/stride]", fontsize="small")
+                sec.tick_params(labelsize="small")
     fig.suptitle(f"{title}\ndevice energy flow, whole run ({note}); % of all energy in")
     fig.savefig(path, dpi=_DPI)
 
@@ -257,19 +568,28 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     side = _worn_side(summary)
+    colours = _colour_map(results)
     conds = {c: v for c, v in results.items() if v[1] is not None}
     written: list[Path] = []
     if not conds:
         return written
 
     p = out / "ankle_angle_conditions.png"
-    _plot_conditions(p, conds, reference, side, title)
+    _plot_conditions(p, conds, reference, side, title, colours)
     written.append(p)
+
+    if any(v[2] is not None for v in results.values()):
+        p = out / "gait_conditions.png"
+        _plot_gait_conditions(p, results, reference, side, title, colours)
+        written.append(p)
 
     devs = {c: v for c, v in conds.items() if v[2] is not None and v[2].log.n > 1}
     if devs:
         p = out / "device_torque.png"
         _plot_torque(p, devs, side, title)
+        written.append(p)
+        p = out / "device_stride_hydraulics.png"
+        _plot_stride_hydraulics(p, devs, summary, side, title, colours)
         written.append(p)
 
     dc = summary.get("device_conditions") or {}
@@ -281,7 +601,8 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
         n_hs = len(rec.events.heel_strikes_s[side])
         note = (f"{dur:.1f} s, {max(n_hs - 1, 0)} {('right', 'left')[side]} strides "
                 "incl. the start")
+        per_stride = {c: dc[c].get("energy_per_stride") for c in energies}
         p = out / "device_power_flow.png"
-        _plot_power_flow(p, energies, title, note)
+        _plot_power_flow(p, energies, title, note, per_stride)
         written.append(p)
     return written

@@ -642,10 +642,12 @@ def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
         for k in fr:
             s = series[k]
-            lab = k.removeprefix("frequency_response_")
+            lab = {"torque": "isometric torque (foot locked)",
+                   "velocity": "ankle velocity (free foot)"}.get(
+                       k.removeprefix("frequency_response_"), k)
             a1.semilogx(s["freq_hz"], s["gain_db"], "o-", label=lab)
             a2.semilogx(s["freq_hz"], s["phase_deg"], "o-", label=lab)
-        a1.axhline(-3.0, color="0.5", ls=":", lw=1)
+        a1.axhline(-3.0, color="0.5", ls=":", lw=1, label="−3 dB (bandwidth)")
         a1.set_ylabel("gain re low frequency [dB]")
         a1.set_title("Open-loop response to motor voltage")
         a1.legend(fontsize=8)
@@ -660,14 +662,14 @@ def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 5.5), sharex=True)
         a1.plot(s["time_s"], s["angle_deg"], label="ankle angle")
         a1.plot(s["time_s"], s["reference_deg"], "--", label="reference")
-        a1.set_ylabel("angle [deg]")
+        a1.set_ylabel("ankle angle [deg]\n(+ dorsiflexion)")
         a1.legend(fontsize=8)
         a2.plot(s["time_s"], s["torque_nm"], label="delivered")
         a2.plot(s["time_s"], s["command_nm"], "--", lw=0.8, label="commanded")
-        a2.set_ylabel("torque [N·m]")
+        a2.set_ylabel("device torque [N·m]\n(+ dorsiflexing)")
         a2.set_xlabel("time [s]")
         a2.legend(fontsize=8)
-        a1.set_title("Closed-loop position step")
+        a1.set_title("Closed-loop position step (PD + gravity compensation, torque mode)")
         for a in (a1, a2):
             a.grid(alpha=0.3)
         save(fig, "hafo_position_step.png")

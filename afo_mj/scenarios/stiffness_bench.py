@@ -219,7 +219,12 @@ def run_stiffness_sweep(params, stiffness_nm_per_rad: float,
     }
     series = {"time_s": rec.time_s, "angle_rad": theta, "torque_nm": tau,
               "commanded_torque_nm": cmd, "supply_pa": log["supply_pa"],
-              "stiffness_nm_per_rad": k, "rest_angle_rad": cfg.rest_angle_rad}
+              "stiffness_nm_per_rad": k, "rest_angle_rad": cfg.rest_angle_rad,
+              # the device log (its own time base) for stiffness_timeseries.png
+              "log_time_s": log["time_s"], "log_delivered_torque_nm": dlv,
+              "pump_pa": log["pump_pa"], "chamber_a_pa": log["chamber_a_pa"],
+              "chamber_b_pa": log["chamber_b_pa"], "valve_position": log["valve_position"],
+              "valve_command": log["valve_command"]}
     return fig, series
 
 
@@ -252,8 +257,17 @@ def run_stiffness_bench(params, cfg: StiffnessSweepConfig,
 
 
 def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
-    """``stiffness_loops.png``: torque vs angle loops per commanded stiffness (solid) with the
-    commanded spring lines τ = −K (θ − θ0) (dashed); returns the paths written."""
+    """Write the stiffness-rig figures into ``out_dir``; returns the paths written:
+
+    * ``stiffness_loops.png``: torque vs angle loops per commanded stiffness (solid) with the
+      commanded spring lines τ = −K (θ − θ0) (dashed);
+    * ``stiffness_timeseries.png`` (when the series carries the device log, as
+      :func:`run_stiffness_bench`'s does): one column per commanded stiffness against time:
+      commanded vs delivered torque (N·m, + dorsiflexing) with the imposed ankle angle (deg,
+      right axis); pressures (bar, absolute: supply rail, pump outlet, cylinder chambers A
+      and B); servo-valve spool position and command (normalised, ± 1 = full stroke). Shaded:
+      the first cycle, dropped from the stiffness fit as start-up.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -284,7 +298,83 @@ def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
     p = out / "stiffness_loops.png"
     fig.savefig(p, dpi=120)
     plt.close(fig)
-    return [p]
+    paths = [p]
+    if all("log_time_s" in s for s in sweeps.values()):
+        p = out / "stiffness_timeseries.png"
+        _plot_stiffness_timeseries(sweeps, p)
+        paths.append(p)
+    return paths
+
+
+def _plot_stiffness_timeseries(sweeps: Mapping, path: Path) -> None:
+    """``stiffness_timeseries.png`` (see :func:`plot_stiffness_bench`)."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    n = len(sweeps)
+    fig = Figure(figsize=(max(7.0, 5.2 * n), 9.0), layout="constrained")
+    axes = np.asarray(fig.subplots(3, n, sharex="col", sharey="row", squeeze=False))
+    for j, (lab, s) in enumerate(sweeps.items()):
+        t = np.asarray(s["log_time_s"])
+        k_deg = s["stiffness_nm_per_rad"] * _DEG
+        ax = axes[0, j]
+        ax.plot(t, s["commanded_torque_nm"], "--", color="k", lw=1.1, label="commanded")
+        ax.plot(t, s["log_delivered_torque_nm"], color="C3", lw=1.4, label="delivered")
+        ax.set_title(f"commanded spring {k_deg:g} N·m/deg")
+        axr = ax.twinx()
+        axr.plot(s["time_s"], np.degrees(s["angle_rad"]), color="C0", lw=0.9, alpha=0.6,
+                 label="ankle angle (imposed; right axis)")
+        axr.set_ylim(-1.6 * np.degrees(np.max(np.abs(s["angle_rad"]))),
+                     1.6 * np.degrees(np.max(np.abs(s["angle_rad"]))))
+        if j == n - 1:
+            axr.set_ylabel("ankle angle [deg] (+ dorsiflexion)", color="C0")
+        else:
+            axr.tick_params(labelright=False)
+        if j == 0:
+            h1, l1 = ax.get_legend_handles_labels()
+            h2, l2 = axr.get_legend_handles_labels()
+            handles, labels = h1 + h2, ["torque commanded", "torque delivered"] + l2
+        ax = axes[1, j]
+        for name, lbl, col, ls in (("supply_pa", "supply rail", "C0", "--"),
+                                   ("pump_pa", "pump outlet", "C1", ":"),
+                                   ("chamber_a_pa", "chamber A", "C4", "-"),
+                                   ("chamber_b_pa", "chamber B", "C5", "-")):
+            x = np.asarray(s[name])
+            ax.plot(t if x.size == t.size else s["time_s"], x / 1e5, ls, color=col, lw=1.2,
+                    label=lbl)
+        if j == 0:
+            h, lb = ax.get_legend_handles_labels()
+            handles, labels = handles + h, labels + [f"{x} pressure" for x in lb]
+        ax = axes[2, j]
+        ax.plot(t, s["valve_command"], "--", color="0.3", lw=1.0, label="valve command")
+        ax.plot(t, s["valve_position"], color="C2", lw=1.2, label="valve spool position")
+        if j == 0:
+            h, lb = ax.get_legend_handles_labels()
+            handles, labels = handles + h, labels + lb
+        ax.set_xlabel("time [s]")
+        # the first cycle: start-up, dropped from the fit (zero crossings of the imposed
+        # sinusoid: the cycle is the time to the second upward crossing)
+        th = np.asarray(s["angle_rad"])
+        ts = np.asarray(s["time_s"])
+        up = np.nonzero((th[:-1] <= 0.0) & (th[1:] > 0.0))[0]
+        if up.size >= 2:
+            for a in axes[:, j]:
+                a.axvspan(ts[0], ts[up[1]], color="0.9", lw=0, zorder=0)
+        for a in axes[:, j]:
+            a.axhline(0.0, color="0.7", lw=0.6)
+            a.grid(True, color="0.92", lw=0.5)
+            a.set_axisbelow(True)
+            a.set_xlim(float(t[0]), float(t[-1]))
+    fig.legend(handles, labels, loc="outside lower center", ncol=5, fontsize="small",
+               frameon=False)
+    axes[0, 0].set_ylabel("orthosis torque [N·m]\n(+ dorsiflexing)")
+    axes[1, 0].set_ylabel("pressure [bar] (absolute)")
+    axes[2, 0].set_ylabel("servo valve\n[normalised, ± 1 = full stroke]")
+    fig.suptitle("Stiffness emulation on the stiffness rig against time: torque tracking, "
+                 "circuit pressures, servo valve\n(shaded: the first cycle, dropped from the "
+                 "fit as start-up)")
+    fig.savefig(path, dpi=110)
 
 
 def format_stiffness_summary(summary: Mapping) -> list[str]:
