@@ -377,6 +377,7 @@ def _run_bench(args) -> int:
     except ResultDirError as exc:
         print(f"afo-mj run: {bs.name}: {exc}", file=sys.stderr)
         return 1
+    rc = _bench_rrd_option(args, bs, series)
     print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
     if bs.bench_kind == "stiffness":
         from afo_mj.scenarios.stiffness_bench import format_stiffness_summary
@@ -385,7 +386,7 @@ def _run_bench(args) -> int:
         print(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy balance "
               f"error {100 * summary['energy']['balance_error_rel']:.2e} %")
         print(f"  results: {out}")
-        return 0
+        return rc
     b = summary["bench"]
     pub = summary["published"]
 
@@ -404,6 +405,21 @@ def _run_bench(args) -> int:
           f"{summary['device']['mass_at_ankle_kg']:.2f} kg at the ankle; worst energy "
           f"balance error {100 * summary['energy']['balance_error_rel']:.3f} %")
     print(f"  results: {out}")
+    return rc
+
+
+def _bench_rrd_option(args, bs, series) -> int:
+    """``--rrd FILE`` for a bench run: its time-domain experiments, one after another."""
+    if not getattr(args, "rrd", None):
+        return 0
+    from afo_mj.outputs.recording import RecordingError, write_bench_recording
+    try:
+        info = write_bench_recording(args.rrd, series, title=bs.name)
+    except (RecordingError, OSError) as exc:
+        print(f"afo-mj: recording not written: {exc}", file=sys.stderr)
+        return 1
+    print(f"  recording: {info['path']} ({len(info['entities'])} entities; open with "
+          f"`afo-mj view {info['path']}`)")
     return 0
 
 
@@ -424,8 +440,10 @@ def _compare(args) -> int:
     except (ScenarioError, CompareError) as exc:
         print(f"afo-mj compare: invalid scenario: {exc}; nothing written", file=sys.stderr)
         return 2
+    kept: list | None = [] if args.rrd else None
     try:
-        comp = run_comparison(items, progress=lambda m: print(f"  running {m}", flush=True))
+        comp = run_comparison(items, progress=lambda m: print(f"  running {m}", flush=True),
+                              keep_runs=kept)
     except (WalkNumericsError, FloatingPointError) as exc:
         print(f"afo-mj compare: {exc}; nothing written", file=sys.stderr)
         return 1
@@ -443,6 +461,20 @@ def _compare(args) -> int:
           f"stride ({comp.wall_time_s:.1f} s wall)")
     print(format_tables(comp))
     print(f"  results: {out}")
+    if kept:
+        import re
+
+        from afo_mj.outputs.recording import RecordedRun, RecordingError, write_recording
+        runs = [RecordedRun(re.sub(r"[^A-Za-z0-9_]+", "_", label).strip("_") or f"run{i}",
+                               rec, dev) for i, (label, rec, dev) in enumerate(kept)]
+        try:
+            info = write_recording(args.rrd, runs, items[0].reference,
+                                   title="afo_mj compare")
+        except (RecordingError, OSError) as exc:
+            print(f"afo-mj compare: recording not written: {exc}", file=sys.stderr)
+            return 1
+        print(f"  recording: {info['path']} ({len(runs)} devices side by side; open with "
+              f"`afo-mj view {info['path']}`)")
     return 0
 
 
@@ -539,6 +571,9 @@ def main(argv: list[str] | None = None) -> int:
                       help="override applied to every scenario, as for run (repeatable)")
     cmp_.add_argument("--strides", type=int, default=None, metavar="N",
                       help="simulate N strides, analyse [max(2, N-4), N]")
+    cmp_.add_argument("--rrd", metavar="FILE.rrd", default=None,
+                      help="also save a rerun recording with every device's assist run "
+                           "walking side by side")
     cmp_.set_defaults(func=_compare)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)

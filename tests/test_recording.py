@@ -206,3 +206,58 @@ def test_view_command(tmp_path, walk_recording, capsys):
     assert cmd[-1] == str(path) and Path(cmd[0]).name == "rerun" and Path(cmd[0]).exists()
     assert main(["view", str(tmp_path / "missing.rrd")]) == 2
     assert "not an existing .rrd" in capsys.readouterr().err
+
+
+def test_bench_recording_lays_experiments_end_to_end(tmp_path):
+    from afo_mj.outputs.recording import BENCH_GAP_S, write_bench_recording
+    t1 = np.arange(0.0, 0.5, 1e-3)
+    t2 = np.arange(0.0, 0.2, 1e-3)
+    series = {"isometric_step_20nm": {"time_s": t1, "command_nm": -20.0 + 0 * t1,
+                                      "torque_nm": -20.0 * (1 - np.exp(-t1 / 0.03))},
+              "sweeps": {"k1": {"time_s": t2, "angle_rad": np.sin(t2), "chamber_a_pa": 1e6 + t2,
+                                "log_time_s": t2}},
+              "frequency_response_torque": {"freq_hz": np.array([1.0, 2.0]),
+                                            "gain": np.array([1.0, 0.5])}}
+    info = write_bench_recording(tmp_path / "b.rrd", series, title="bench")
+    idx = read_recording_index(tmp_path / "b.rrd")
+    assert idx["bench/isometric_step_20nm/torque_nm"]["rows"] == len(t1)
+    assert idx["bench/isometric_step_20nm/torque_nm"]["unit"] == "N*m"
+    assert idx["bench/sweeps/k1/angle_rad"]["unit"] == "rad"
+    assert idx["bench/sweeps/k1/chamber_a_pa"]["unit"] == "Pa"
+    assert "bench/sweeps/k1/log_time_s" not in idx
+    assert not any(k.startswith("bench/frequency_response") for k in idx)
+    assert idx["bench/experiments"]["rows"] == 2
+    t, v = _scalars(tmp_path / "b.rrd", "bench/sweeps/k1/angle_rad")
+    assert t[0] == pytest.approx(t1[-1] - t1[0] + BENCH_GAP_S)
+    np.testing.assert_allclose(v, np.sin(t2))
+    assert info["path"] == str(tmp_path / "b.rrd")
+    with pytest.raises(RecordingError, match="time-domain"):
+        write_bench_recording(tmp_path / "c.rrd", {"x": {"freq_hz": [1.0]}})
+    assert not (tmp_path / "c.rrd").exists()
+
+
+def test_compare_recording_puts_devices_side_by_side(tmp_path):
+    rrd = tmp_path / "cmp.rrd"
+    rc = main(["compare", str(ROOT / "scenarios" / "gait_assist_hafo.toml"),
+               str(ROOT / "scenarios" / "gait_assist_digital.toml"), "--strides", "3",
+               "--out", str(tmp_path / "cmp"), "--rrd", str(rrd)])
+    assert rc == 0
+    idx = read_recording_index(rrd)
+    for run in ("gait_assist_hafo", "gait_assist_digital"):
+        assert f"world/{run}/body/pelvis" in idx
+        assert idx[f"signals/ankle_torque_nm/device_delivered/right/{run}"]["rows"] > 100
+    assert idx["signals/valve/command/right/gait_assist_digital"]["unit"] == "1"
+
+
+def test_render_command(tmp_path, capsys):
+    pytest.importorskip("av")
+    mp4 = tmp_path / "walk.mp4"
+    rc = main(["render", str(ROOT / "scenarios" / "walk_healthy.toml"), "--mp4", str(mp4),
+               "--set", "gait.strides=1", "--set", "gait.analyse_strides=[1, 1]",
+               "--max-seconds", "0.3", "--width", "64", "--height", "48", "--fps", "10"])
+    if rc == 2 and "GL" in capsys.readouterr().err:
+        pytest.skip("no offscreen GL context")
+    assert rc == 0 and mp4.stat().st_size > 0
+    assert main(["render", str(ROOT / "scenarios" / "walk_healthy.toml"), "--mp4",
+                 str(tmp_path / "x.mp4"), "--fps", "0"]) == 2
+    assert "fps" in capsys.readouterr().err and not (tmp_path / "x.mp4").exists()

@@ -331,10 +331,12 @@ def _walker_gait_key(item: CompareItem) -> str:
     return json.dumps(d, sort_keys=True, default=str)
 
 
-def run_comparison(items, progress=None, human_reference: bool = True) -> Comparison:
+def run_comparison(items, progress=None, human_reference: bool = True,
+                   keep_runs: list | None = None) -> Comparison:
     """Simulate every item's assist condition (and the no-device reference once per walker/
     gait); raises what :func:`run_device_scenario` raises (WalkNumericsError,
-    FloatingPointError) on a numerics failure."""
+    FloatingPointError) on a numerics failure. ``keep_runs``, when a list, receives
+    ``(label, record, device)`` of every item's assist run (for a recording)."""
     import time
 
     from afo_mj.scenarios.device_scenario import run_device_scenario
@@ -358,6 +360,8 @@ def run_comparison(items, progress=None, human_reference: bool = True) -> Compar
             progress(f"{item.label}: assist")
         summary, results = run_device_scenario(item.scenario, item.reference, item.cfg)
         rec = results["assist"][0]
+        if keep_runs is not None:
+            keep_runs.append((item.label, rec, results["assist"][2]))
         rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec, ref))
     columns = all_columns(rows)     # loss columns in the order the scenarios were given
     rows = order_rows(rows)

@@ -74,7 +74,8 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["RecordedRun", "RecordingError", "write_recording", "read_recording_index",
+__all__ = ["RecordedRun", "RecordingError", "write_recording", "write_bench_recording",
+           "read_recording_index",
            "GRF_M_PER_N", "SIGNAL_RATE_HZ", "TRANSFORM_RATE_HZ"]
 
 #: default sample rate of the scalar signals (every k-th simulation step) [Hz]
@@ -560,6 +561,92 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
         stream.log("world/floor", rr.Boxes3D(
             mins=[[x_lo - 1.0, y_lo, -0.01]], sizes=[[x_hi - x_lo + 2.0, -y_lo + 0.5, 0.01]],
             colors=[(205, 205, 195)], fill_mode="solid"), static=True)
+        stream.flush()
+        stream.disconnect()
+        os.replace(tmp, out)
+    except BaseException:
+        try:
+            stream.disconnect()
+        except Exception:                                # pragma: no cover
+            pass
+        tmp.unlink(missing_ok=True)
+        raise
+    return {"path": str(out), "entities": w.index}
+
+
+#: unit of a bench series entry by the suffix of its key (SI as simulated)
+_SUFFIX_UNITS = (("_rad_s", "rad/s"), ("_deg_s", "deg/s"), ("_m3_s", "m^3/s"), ("_nm", "N*m"),
+                 ("_deg", "deg"), ("_rad", "rad"), ("_pa", "Pa"), ("_a", "A"), ("_v", "V"),
+                 ("_w", "W"), ("_k", "K"), ("_m", "m"), ("_s", "s"))
+#: pause between consecutive bench experiments on the recording's timeline [s]
+BENCH_GAP_S = 0.5
+
+
+def _suffix_unit(key: str) -> str:
+    for suffix, unit in _SUFFIX_UNITS:
+        if key.endswith(suffix):
+            return unit
+    return "1"
+
+
+def write_bench_recording(path, series: dict, title: str = "afo_mj bench") -> dict:
+    """A bench run's time-domain experiments (every ``series`` entry with a ``time_s`` array:
+    torque steps, position steps, stiffness sweeps, …) as one recording: the experiments one
+    after another on the ``time`` timeline (each shifted to start :data:`BENCH_GAP_S` after
+    the previous one ended), every array of the experiment's length as
+    ``bench/<experiment>/<key>`` with its unit (from the key's suffix, SI as simulated), and
+    a ``bench/experiments`` text log marking where each begins. Frequency sweeps (no
+    ``time_s``) are left to the Bode figure. Written atomically, like
+    :func:`write_recording`."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+    out = Path(path)
+    if out.suffix != ".rrd":
+        raise RecordingError(f"recording path = {str(out)!r}; allowed: a file name ending "
+                             f"in .rrd")
+    timed = {}
+    for name, entry in series.items():
+        if isinstance(entry, dict) and "time_s" in entry:
+            timed[name] = entry
+        elif isinstance(entry, dict):       # nested (e.g. per stiffness level)
+            for sub, e in entry.items():
+                if isinstance(e, dict) and "time_s" in e:
+                    timed[f"{name}/{sub}"] = e
+    if not timed:
+        raise RecordingError("the bench produced no time-domain series to record")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.tmp")
+    stream = rr.RecordingStream("afo_mj", recording_id=uuid.uuid4().hex)
+    ents = {name: "bench/" + "/".join(rr.escape_entity_path_part(p) for p in name.split("/"))
+            for name in timed}
+    views = [rrb.TimeSeriesView(origin=ent, name=name) for name, ent in ents.items()]
+    try:
+        stream.save(str(tmp), default_blueprint=rrb.Blueprint(
+            rrb.Vertical(rrb.Grid(*views, grid_columns=2),
+                         rrb.TextLogView(origin="bench/experiments", name="experiments"),
+                         row_shares=[5, 1]), rrb.TimePanel(timeline="time")))
+        stream.send_recording_name(title)
+        w = _Writer(rr, stream)
+        offset = 0.0
+        marks_t, marks = [], []
+        for i, (name, e) in enumerate(timed.items()):
+            t = np.asarray(e["time_s"], dtype=float).ravel()
+            ent = ents[name]
+            marks_t.append(offset)
+            marks.append(f"start of {name}")
+            for key, v in e.items():
+                if key.endswith("time_s"):
+                    continue
+                a = np.asarray(v, dtype=float) if np.ndim(v) else None
+                if a is None or a.ndim != 1 or len(a) != len(t):
+                    continue
+                w.scalars(f"{ent}/{key}", t - t[0] + offset, a, _suffix_unit(key),
+                          f"{name}: {key}", _run_colour(i))
+            offset += float(t[-1] - t[0]) + BENCH_GAP_S
+        stream.send_columns("bench/experiments",
+                            indexes=[rr.TimeColumn("time", duration=marks_t)],
+                            columns=rr.TextLog.columns(text=marks))
+        w.index["bench/experiments"] = {"kind": "TextLog", "rows": len(marks), "unit": ""}
         stream.flush()
         stream.disconnect()
         os.replace(tmp, out)
