@@ -285,7 +285,7 @@ def _stride_stack(t: np.ndarray, y: np.ndarray, windows) -> np.ndarray:
 
 
 def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, title: str,
-                            colours: dict) -> None:
+                            colours: dict, left_out=()) -> None:
     from afo_mj.analysis.device_signals import device_signals
     leg = ("right", "left")[side]
     k = _device_column(summary, side)
@@ -340,10 +340,14 @@ def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, ti
         if valve:
             draw(ax, L["valve_command"], 1.0, "k", "servo valve command", ls="--", lw=1.2)
             draw(ax, L["valve_position"], 1.0, "C3", "servo valve spool position", lw=1.4)
-            if "unloading_valve_position" in L and np.ptp(L["unloading_valve_position"][:, k]) > 0:
+            if ("unloading_valve_position" in L
+                    and np.ptp(L["unloading_valve_position"][:, k]) > 0.01):
                 draw(ax, L["unloading_valve_position"], 1.0, "C8",
                      "unloading valve position (0 closed .. 1 open)", lw=1.0)
-            ax.set_ylim(-1.05, 1.05)
+            peak = max(float(np.max(np.abs(L[f][:, k]))) for f in
+                       ("valve_command", "valve_position", "unloading_valve_position") if f in L)
+            lim = min(1.05, max(0.1, 1.2 * peak))
+            ax.set_ylim(-lim, lim)
         else:
             draw(ax, L["motor_current_a"], 1.0, "C2", "motor current [A] (left axis)", lw=1.3)
             ax2 = ax.twinx()
@@ -367,8 +371,10 @@ def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, ti
     axes[0, 0].set_ylabel("ankle torque [N·m]\n(+ plantarflexion)")
     axes[1, 0].set_ylabel("pressure [bar] (absolute)")
     axes[2, 0].set_ylabel("flow [L/min]")
+    note = ("" if not left_out else "\nnot shown (no analysable stride): "
+            + ", ".join(_label(c) for c in left_out))
     fig.suptitle(f"{title}\ndevice over one mean stride ({leg} ankle): torque tracking, "
-                 "pressures, flows and " + ("valve" if valve_any else "motor"))
+                 "pressures, flows and " + ("valve" if valve_any else "motor") + note)
     fig.savefig(path, dpi=_DPI)
 
 
@@ -589,7 +595,8 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
         _plot_torque(p, devs, side, title)
         written.append(p)
         p = out / "device_stride_hydraulics.png"
-        _plot_stride_hydraulics(p, devs, summary, side, title, colours)
+        fell = [c for c, v in results.items() if v[1] is None and v[2] is not None]
+        _plot_stride_hydraulics(p, devs, summary, side, title, colours, fell)
         written.append(p)
 
     dc = summary.get("device_conditions") or {}
