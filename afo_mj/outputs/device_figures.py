@@ -10,7 +10,7 @@
   convention of ``gait_curves.png``: the negative of the record's sign);
 * ``device_torque.png`` -- per device condition, the last (up to) 3 strides of the device
   log against time: commanded, delivered and measured torque (N·m, + plantarflexion),
-  actuator chamber pressures (bar, absolute as logged) and motor current (A); dotted
+  actuator chamber pressures (bar, gauge as logged) and motor current (A); dotted
   vertical lines are the worn side's heel strikes;
 * ``device_power_flow.png`` -- per device condition, the energy ledger of the whole run (J)
   as a waterfall: what entered the device (electrical energy drawn from the battery,
@@ -29,7 +29,7 @@
 * ``device_stride_hydraulics.png`` -- per device condition, one mean stride of the worn
   side (heel strike to heel strike, % cycle; mean ± 1 SD over the analysed strides) of the
   device log: commanded vs delivered torque (N·m, + plantarflexion); pressures (bar,
-  absolute as logged: the pump ports and cylinder chambers of the HAFO; the pump outlet,
+  gauge as logged: the pump ports and cylinder chambers of the HAFO; the pump outlet,
   supply rail and cylinder chambers of the valve circuits); pump (geometric) and cylinder
   (piston) flows (L/min, :func:`afo_mj.analysis.device_signals.device_signals`); motor current
   (A) and speed (rpm) for the HAFO, servo-valve spool position and command (normalised,
@@ -369,7 +369,7 @@ def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, ti
         axes[3, j].set_ylabel("spool position / command\n[normalised, ± 1 = full stroke]"
                               if valve else "motor current [A]")
     axes[0, 0].set_ylabel("ankle torque [N·m]\n(+ plantarflexion)")
-    axes[1, 0].set_ylabel("pressure [bar] (absolute)")
+    axes[1, 0].set_ylabel("pressure [bar] (gauge)")
     axes[2, 0].set_ylabel("flow [L/min]")
     note = ("" if not left_out else "\nnot shown (no analysable stride): "
             + ", ".join(_label(c) for c in left_out))

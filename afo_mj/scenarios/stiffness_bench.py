@@ -264,7 +264,7 @@ def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
     * ``stiffness_timeseries.png`` (when the series carries the device log, as
       :func:`run_stiffness_bench`'s does): one column per commanded stiffness against time:
       commanded vs delivered torque (N·m, + dorsiflexing) with the imposed ankle angle (deg,
-      right axis); pressures (bar, absolute: supply rail, pump outlet, cylinder chambers A
+      right axis); pressures (bar, gauge: supply rail, pump outlet, cylinder chambers A
       and B); servo-valve spool position and command (normalised, ± 1 = full stroke). Shaded:
       the first cycle, dropped from the stiffness fit as start-up.
     """
@@ -369,7 +369,7 @@ def _plot_stiffness_timeseries(sweeps: Mapping, path: Path) -> None:
     fig.legend(handles, labels, loc="outside lower center", ncol=5, fontsize="small",
                frameon=False)
     axes[0, 0].set_ylabel("orthosis torque [N·m]\n(+ dorsiflexing)")
-    axes[1, 0].set_ylabel("pressure [bar] (absolute)")
+    axes[1, 0].set_ylabel("pressure [bar] (gauge)")
     axes[2, 0].set_ylabel("servo valve\n[normalised, ± 1 = full stroke]")
     fig.suptitle("Stiffness emulation on the stiffness rig against time: torque tracking, "
                  "circuit pressures, servo valve\n(shaded: the first cycle, dropped from the "
