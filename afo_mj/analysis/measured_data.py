@@ -196,7 +196,7 @@ CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({s.name: s for s in (
 
 def _closest(name: str, known) -> str:
     near = difflib.get_close_matches(name, list(known), n=1, cutoff=0.5)
-    return f"; did you mean {near[0]!r}?" if near else ""
+    return f" (did you mean {near[0]!r}?)" if near else ""
 
 
 def _check_channel_name(path, where: str, name) -> None:
@@ -204,7 +204,7 @@ def _check_channel_name(path, where: str, name) -> None:
         raise MeasuredDataError(path, where, f"channel names are strings, got {name!r}")
     if name not in CHANNELS:
         raise MeasuredDataError(
-            path, where, f"unknown channel {name!r}{_closest(name, CHANNELS)} "
+            path, where, f"unknown channel {name!r}{_closest(name, CHANNELS)}. "
             f"Known channels: {', '.join(CHANNELS)}")
 
 
@@ -375,7 +375,7 @@ def _check_segments(path, seg, t: np.ndarray, dt: float) -> dict:
         raise MeasuredDataError(path, "segments", f"a table, got {seg!r}")
     for k in seg:
         if k not in _SEGMENT_KEYS:
-            raise MeasuredDataError(path, f"segments.{k}", f"unknown key{_closest(k, _SEGMENT_KEYS)}"
+            raise MeasuredDataError(path, f"segments.{k}", f"unknown key{_closest(k, _SEGMENT_KEYS)}."
                                     f" Allowed: {', '.join(_SEGMENT_KEYS)}")
     out = {}
     lo, hi = float(t[0]) - 0.01 * dt, float(t[-1]) + 1.01 * dt
@@ -578,7 +578,7 @@ def _check_source(path, source) -> dict[str, str]:
         raise MeasuredDataError(path, "source", f"a table, got {source!r}")
     for k, v in source.items():
         if k not in _SOURCE_KEYS:
-            raise MeasuredDataError(path, f"source.{k}", f"unknown key{_closest(k, _SOURCE_KEYS)}"
+            raise MeasuredDataError(path, f"source.{k}", f"unknown key{_closest(k, _SOURCE_KEYS)}."
                                     f" Allowed: {', '.join(_SOURCE_KEYS)}")
         if not isinstance(v, str) or not v.strip():
             raise MeasuredDataError(path, f"source.{k}", f"{v!r}: a non-empty string")
@@ -673,7 +673,7 @@ def _read_sidecar(path: Path) -> dict:
         raise MeasuredDataError(path, "sidecar", f"not valid TOML: {exc}") from exc
     for k in meta:
         if k not in _TOP_KEYS:
-            raise MeasuredDataError(path, k, f"unknown key{_closest(k, _TOP_KEYS)} Allowed: "
+            raise MeasuredDataError(path, k, f"unknown key{_closest(k, _TOP_KEYS)}. Allowed: "
                                     f"{', '.join(_TOP_KEYS)}")
     if meta.get("format") != FORMAT:
         raise MeasuredDataError(path, "format", f"{meta.get('format')!r}; this reader "
