@@ -155,9 +155,11 @@ CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({s.name: s for s in (
           True, True, -1.05, 1.05, "command", field="valve_command"),
     _spec("ankle_angle_rad", "rad", "ankle angle, dorsiflexion positive (bench: imposed)",
           True, True, -1.2, 1.2, "angle", both=True, field="ankle_angle_rad"),
-    _spec("load_torque_nm", "N·m", "external torque applied to the ankle by the bench/load",
+    _spec("load_torque_nm", "N·m",
+          "external torque on the ankle from the bench/load, dorsiflexion positive",
           True, False, -300.0, 300.0, "torque"),
-    _spec("commanded_torque_nm", "N·m", "the controller's torque reference",
+    _spec("commanded_torque_nm", "N·m",
+          "the controller's torque reference, dorsiflexion positive",
           True, True, -300.0, 300.0, "torque", field="commanded_torque_nm"),
     _spec("bus_voltage_v", "V", "supply (battery bus) voltage",
           True, True, 0.0, 100.0, "voltage", field="bus_voltage_v"),
@@ -174,7 +176,8 @@ CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({s.name: s for s in (
           False, True, _P_LO, _P_HI, "pressure", field="supply_pa"),
     _spec("pump_pressure_pa", "Pa", "gauge pressure at the pump outlet",
           False, True, _P_LO, _P_HI, "pressure", field="pump_pa"),
-    _spec("ankle_torque_nm", "N·m", "torque the device applies at the ankle (torque sensor)",
+    _spec("ankle_torque_nm", "N·m",
+          "device torque at the ankle (torque sensor), dorsiflexion positive",
           False, True, -300.0, 300.0, "torque", field="measured_torque_nm"),
     _spec("ankle_velocity_rad_s", "rad/s", "ankle angular velocity, dorsiflexion positive",
           False, True, -15.0, 15.0, "joint_velocity", field="ankle_velocity_rad_s"),
@@ -375,8 +378,9 @@ def _check_segments(path, seg, t: np.ndarray, dt: float) -> dict:
         raise MeasuredDataError(path, "segments", f"a table, got {seg!r}")
     for k in seg:
         if k not in _SEGMENT_KEYS:
-            raise MeasuredDataError(path, f"segments.{k}", f"unknown key{_closest(k, _SEGMENT_KEYS)}."
-                                    f" Allowed: {', '.join(_SEGMENT_KEYS)}")
+            raise MeasuredDataError(path, f"segments.{k}",
+                                    f"unknown key{_closest(k, _SEGMENT_KEYS)}. "
+                                    f"Allowed: {', '.join(_SEGMENT_KEYS)}")
     out = {}
     lo, hi = float(t[0]) - 0.01 * dt, float(t[-1]) + 1.01 * dt
     for key in ("cycle_starts_s", "boundaries_s"):
@@ -578,8 +582,9 @@ def _check_source(path, source) -> dict[str, str]:
         raise MeasuredDataError(path, "source", f"a table, got {source!r}")
     for k, v in source.items():
         if k not in _SOURCE_KEYS:
-            raise MeasuredDataError(path, f"source.{k}", f"unknown key{_closest(k, _SOURCE_KEYS)}."
-                                    f" Allowed: {', '.join(_SOURCE_KEYS)}")
+            raise MeasuredDataError(path, f"source.{k}",
+                                    f"unknown key{_closest(k, _SOURCE_KEYS)}. "
+                                    f"Allowed: {', '.join(_SOURCE_KEYS)}")
         if not isinstance(v, str) or not v.strip():
             raise MeasuredDataError(path, f"source.{k}", f"{v!r}: a non-empty string")
     if "scenario" not in source and "preset" not in source:
