@@ -296,6 +296,7 @@ def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndar
         P[pa.P_SEAL_VST] = ps._v_st
         P[pa.P_SEAL_VC] = ps._v_c
         P[pa.P_SEAL_FV] = ps._fv + 2 * rs._fv
+        P[pa.P_SEAL_CP] = ps._cp + 2 * rs._cp
     else:
         P[pa.P_SEAL_VST] = P[pa.P_SEAL_VC] = 1.0
     rv = p.relief

@@ -93,6 +93,10 @@ _P_NAMES = (
     "C_TH", "R_TH", "T_AMB", "WALTHER_B", "WALTHER_C", "RHO_T_COEF", "T_REF",
     # controller
     "K_PRESSURE", "K_SPEED", "K_INT", "INT_LIM", "MODE",
+    # calibration effects (afo_mj.analysis.effect_library), zero = off:
+    "SEAL_CP",       # pressure-dependent seal friction, N per Pa of |Δp| per cylinder (m²)
+    "SERIES_COMP",   # cable/series compliance as a differential capacitance r²A_e²/k (m³/Pa)
+    "PUMP_G_EXTRA",  # extra laminar leakage across the pump ports, Q = G Δp/μ (m³)
 )
 for _k, _n in enumerate(_P_NAMES):
     globals()["P_" + _n] = _k
@@ -202,13 +206,43 @@ def _relief_flow(dp, P):
 
 
 @numba.njit(cache=True)
-def _seal_force(v, P):
-    """Friction of one cylinder's seals at piston speed ``v`` (Stribeck form, seal module)."""
+def _seal_force(v, dp, P):
+    """Friction of one cylinder's seals at piston speed ``v`` (Stribeck form, seal module),
+    plus the pressure-dependent part ``c_p |Δp| tanh(v/v_C)`` of
+    :meth:`afo_mj.hydraulics.seal.OringSeal.friction_force_n` when ``SEAL_CP`` is set
+    (``dp`` the pressure across the piston, ``|Δp|`` rounded over 10 kPa for Newton)."""
     f = P[P_SEAL_FC] * math.tanh(v / P[P_SEAL_VC]) + P[P_SEAL_FV] * v
     if P[P_SEAL_STRIB] != 0.0:
         r = v / P[P_SEAL_VST]
         f += P[P_SEAL_STRIB] * math.exp(-r * r) * r
+    if P[P_SEAL_CP] != 0.0:
+        f += P[P_SEAL_CP] * math.sqrt(dp * dp + 1e8) * math.tanh(v / P[P_SEAL_VC])
     return f
+
+
+@numba.njit(cache=True)
+def chamber_rates(na, nb, c_ca, c_cb, xdot, ae, P):
+    """Chamber pressure rates ``(ṗ_a, ṗ_b)`` and the piston speed ``ẋ_p`` from the chambers'
+    net inflows ``na, nb`` (with the piston flow ``±A_e ẋ`` at the rigid-cable speed ``ẋ = r θ̇``)
+    and capacitances.
+
+    Rigid cable (``SERIES_COMP = 0``): ``ṗ = n/C`` and ``ẋ_p = ẋ``. A cable/series spring of
+    rotational stiffness ``k`` between pulley and pistons (:func:`afo_mj.hydraulics.
+    transmission.series_compliance_m3_pa`) stretches by the hydraulic torque
+    ``τ_h = −r A_e Δp``: ``θ_p = θ − r A_e Δp/k``, so the pistons move at
+    ``ẋ_p = ẋ − (c_s/A_e) Δṗ`` with ``c_s = r² A_e²/k`` and each chamber sees the other through
+    the differential capacitance ``c_s``:
+    ``(C_a + c_s) ṗ_a − c_s ṗ_b = n_a``, ``−c_s ṗ_a + (C_b + c_s) ṗ_b = n_b`` (massless cable,
+    stretch from the hydraulic torque only: the seal friction is a few per cent of it)."""
+    cs = P[P_SERIES_COMP]
+    if cs == 0.0:
+        return na / c_ca, nb / c_cb, xdot
+    caa = c_ca + cs
+    cbb = c_cb + cs
+    det = caa * cbb - cs * cs
+    dpa = (cbb * na + cs * nb) / det
+    dpb = (cs * na + caa * nb) / det
+    return dpa, dpb, xdot - cs / ae * (dpa - dpb)
 
 
 @numba.njit(cache=True)
@@ -228,7 +262,7 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     tf_m = P[P_TC_M] * math.tanh(w / P[P_WC_M]) + P[P_BV_M] * w
     # pump
     dpp = ppa - ppb
-    q_leak_p = P[P_CS] * P[P_D] * dpp / mu
+    q_leak_p = (P[P_CS] * P[P_D] + P[P_PUMP_G_EXTRA]) * dpp / mu
     q_pump = P[P_D] * w - q_leak_p
     sgn = math.tanh(w / P[P_WC_P])
     # |Δp| rounded over 10 kPa: the Coulomb term's kink at equal port pressures would stall
@@ -264,9 +298,6 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     if vb < P[P_V_DEAD]:
         vb = P[P_V_DEAD]
     q_lk = P[P_G_LEAK] * (pca - pcb) / mu
-    f_seal = P[P_N_CYL] * _seal_force(xdot, P)
-    tau_h = -r * ae * (pca - pcb)
-    tau = tau_h - r * f_seal
     # node capacitances
     vh2 = 0.5 * P[P_V_HOSE]
     cw = vh2 * P[P_KWALL_INV]
@@ -278,12 +309,16 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     net_pb = -q_pump - q_hb + q_rel + q_fb + q_mb
     net_ca = q_ha - q_lk + ae * xdot
     net_cb = q_hb + q_lk - ae * xdot
+    dpca, dpcb, xdp = chamber_rates(net_ca, net_cb, c_ca, c_cb, xdot, ae, P)
+    f_seal = P[P_N_CYL] * _seal_force(xdp, pca - pcb, P)
+    tau_h = -r * ae * (pca - pcb)
+    tau = tau_h - r * f_seal
     dy[Y_I] = di
     dy[Y_W] = dw
     dy[Y_PPA] = net_pa / c_pa
     dy[Y_PPB] = net_pb / c_pb
-    dy[Y_PCA] = net_ca / c_ca
-    dy[Y_PCB] = net_cb / c_cb
+    dy[Y_PCA] = dpca
+    dy[Y_PCB] = dpcb
     # power flows (W)
     F[F_VOLT] = volt
     F[F_PBUS] = volt * cur + P[P_R_ON] * cur * cur + P[P_P_Q]
@@ -295,7 +330,7 @@ def rhs(y, theta, theta_dot, v_cmd, v_bus, mu, P, dy, F):
     F[F_LINE] = (ppa - pca) * q_ha + (ppb - pcb) * q_hb
     F[F_FLUSH] = xa * (q_fa + q_ma) + xb * (q_fb + q_mb)
     F[F_RELIEF] = dpp * q_rel
-    F[F_SEAL] = r * f_seal * theta_dot
+    F[F_SEAL] = r * f_seal * theta_dot if xdp == xdot else f_seal * xdp
     F[F_LEAK] = (pca - pcb) * q_lk
     F[F_RES_Q] = q_fa + q_fb + q_ma + q_mb   # flow drawn from the reservoir (gauge p_r)
     F[F_TAU] = tau

@@ -78,6 +78,7 @@ from afo_mj.control.assistance import (
 from afo_mj.devices import pump_ankle_actuator as _pa
 from afo_mj.devices.pump_ankle_actuator import (
     _bulk_modulus, _ramp_c1, _relief_flow, _seal_force, _smoothstep01, _soft_clip,
+    chamber_rates,
     battery_ocv, solve_linear, viscosity_pa_s)
 
 # ---- state ---------------------------------------------------------------------------------
@@ -242,7 +243,7 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     eps = displacement_fraction(ps, P)
     d = eps * P[P_D]
     dpp = pp - pt
-    q_leak_p = P[P_CS] * P[P_D] * dpp / mu
+    q_leak_p = (P[P_CS] * P[P_D] + P[P_PUMP_G_EXTRA]) * dpp / mu
     q_pump = d * w - q_leak_p
     sgn = math.tanh(w / P[P_WC_P])
     abs_dp = math.sqrt(dpp * dpp + 1e8)
@@ -317,8 +318,6 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     if vb < P[P_V_DEAD]:
         vb = P[P_V_DEAD]
     q_lk = P[P_G_LEAK] * (pca - pcb) / mu
-    f_seal = P[P_N_CYL] * _seal_force(xdot, P)
-    tau = -r * ae * (pca - pcb) - r * f_seal
     # capacitances
     vh2 = 0.5 * P[P_V_HOSE]
     cw = vh2 * P[P_KWALL_INV]
@@ -328,6 +327,10 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     c_vb = (P[P_V_PORT] + vh2) / _bulk_modulus(pvb, P) + cw
     c_ca = (va + vh2) / _bulk_modulus(pca, P) + cw
     c_cb = (vb + vh2) / _bulk_modulus(pcb, P) + cw
+    dpca, dpcb, xdp = chamber_rates(q_ha - q_lk + ae * xdot, q_hb + q_lk - ae * xdot, c_ca,
+                                    c_cb, xdot, ae, P)
+    f_seal = P[P_N_CYL] * _seal_force(xdp, pca - pcb, P)
+    tau = -r * ae * (pca - pcb) - r * f_seal
     dy[Y_I] = di
     dy[Y_W] = dw
     dy[Y_PP] = (q_pump - q_rel - q_ul - q_cv) / c_pp
@@ -336,8 +339,8 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
     dy[Y_XU] = dxu
     dy[Y_PVA] = (q_pa - q_at - q_ha + q_ma) / c_va
     dy[Y_PVB] = (q_pb - q_bt - q_hb + q_mb) / c_vb
-    dy[Y_PCA] = (q_ha - q_lk + ae * xdot) / c_ca
-    dy[Y_PCB] = (q_hb + q_lk - ae * xdot) / c_cb
+    dy[Y_PCA] = dpca
+    dy[Y_PCB] = dpcb
     # power flows (W)
     F[F_VOLT] = volt
     F[F_COIL] = W[W_P_COIL]
@@ -354,7 +357,7 @@ def rhs(y, theta, theta_dot, W, P, dy, F):
                      + (pvb - pt) * q_bt)
     F[F_MAKEUP] = xa * q_ma + xb * q_mb
     F[F_LINE] = (pva - pca) * q_ha + (pvb - pcb) * q_hb
-    F[F_SEAL] = r * f_seal * theta_dot
+    F[F_SEAL] = r * f_seal * theta_dot if xdp == xdot else f_seal * xdp
     F[F_LEAK] = (pca - pcb) * q_lk
     F[F_RES_Q] = q_pump + q_ma + q_mb - q_rel - q_ul - q_at - q_bt
     F[F_TAU] = tau
