@@ -579,9 +579,10 @@ def _newton(y, yold, h, theta, theta_dot, P, W, scratch, first_matrix):
                 err = e
         if err < NEWTON_TOL:
             return True
-        if err > 1e4 * err_prev:
+        if err > 1e4 * err_prev or (it >= 8 and err > err_prev):
             # diverging (not merely non-monotone, which Newton often is after a large input
-            # change): halve the last step
+            # change), or still not contracting after 8 iterations (a cycle across a valve's
+            # or a friction law's switch): halve the last step (damped Newton)
             for k in range(N_Y):
                 step[k] *= 0.5
                 y[k] = ybest[k] + step[k]

@@ -607,7 +607,8 @@ def _newton(y, yold, h, theta, theta_dot, P, W, S, first_matrix):
                 err = e
         if err < NEWTON_TOL:
             return True
-        if err > 1e4 * err_prev:
+        if err > 1e4 * err_prev or (it >= 8 and err > err_prev):
+            # diverging, or cycling after 8 iterations: damped Newton (HAFO kernel)
             for k in range(N_Y):
                 step[k] *= 0.5
                 y[k] = ybest[k] + step[k]

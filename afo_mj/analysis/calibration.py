@@ -1,0 +1,590 @@
+"""Close the loop with measured data: replay, fit, find the missing effect, report the error.
+
+Method (``afo-mj calibrate``; issue 7):
+
+1. **Replay** the record's inputs through the device model on the bench
+   (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), starting from the **lean model**: the
+   preset with every effect of :mod:`afo_mj.analysis.effect_library` switched off, except the
+   effects the user declares.
+2. **Fit the declared parameters** (:func:`afo_mj.analysis.effect_library.declared_parameters`)
+   on the training part of the record by bounded robust nonlinear least squares
+   (``scipy.optimize.least_squares``, trust-region reflective, ``soft_l1`` loss: residuals
+   beyond ~3 noise σ count linearly, so a spike or a missing effect does not drag every
+   parameter). Residuals are per channel, normalised by the channel's standard deviation, so
+   each channel weighs as its NRMSE does. The held-out part is the record's last whole cycles or
+   segments (:meth:`afo_mj.analysis.measured_data.MeasuredData.split`); it is never fitted.
+   The first ``settle_s`` of the record (the unknown initial state) is left out of every error.
+3. **Analyse the residual** (:mod:`afo_mj.analysis.residual_analysis`): per channel NRMSE,
+   whiteness (Ljung–Box), noise level, cross-correlation with inputs and states, signature
+   correlations, phase average, dominant frequency.
+4. **Rank every candidate cheaply**: each effect is switched on at a few probe values and its
+   change of the outputs ``Δ`` is projected, together with the declared parameters'
+   sensitivities ``J``, onto the residual ``r``. The score is the fraction of ``|r|²`` that
+   ``[J, Δ]`` explains beyond ``J`` alone (a linearised score / Lagrange-multiplier test:
+   Rao 1948; Engle 1984). Effects whose probe must be scaled negatively to help (e.g. a
+   negative leakage) score zero.
+5. **Refit the top candidates** in the full model (declared + effect parameters) and keep the
+   best one if it pays on all of: the Bayesian information criterion falls by more than
+   ``bic_margin`` (Schwarz 1978; AIC is reported too), the held-out overall NRMSE falls by at
+   least ``min_error_drop`` (relative), and its parameters are identifiable (relative standard
+   error below ``max_relative_se`` and no correlation with another parameter above
+   ``max_correlation``, from the Gauss–Newton covariance ``s² (JᵀJ)⁻¹``). Repeat greedily
+   until no candidate pays or ``max_effects`` are in.
+6. **Verdict**: ``effect_found`` when at least one effect was added; otherwise
+   ``no_missing_effect`` when every held-out residual is white and within ``1.2×`` its noise,
+   else ``unexplained_residual`` with where the structure lives (channel, phase, input, lag,
+   frequency).
+
+NRMSE of a channel: ``RMS(measured − model)`` on the held-out part over the channel's standard
+deviation in the whole record (a fixed scale: a channel that happens to be quiet in the held-out
+cycles does not blow up). Overall NRMSE: the root mean square over the fitted output channels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from afo_mj.analysis import residual_analysis as ra
+from afo_mj.analysis.effect_library import (
+    DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
+    lean_setting)
+from afo_mj.analysis.measured_data import MeasuredData, MeasuredDataError
+from afo_mj.hydraulics.params import ParameterError
+from afo_mj.hydraulics.sensor import sensor_reading
+from afo_mj.scenarios.bench_replay import BenchReplay, ReplayError
+
+__all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
+           "model_outputs"]
+
+
+class CalibrationError(RuntimeError):
+    """The calibration cannot run on this record (and says why)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of :func:`calibrate` (defaults are what ``afo-mj calibrate`` uses)."""
+
+    held_out_fraction: float = 0.3
+    split_by: str = "auto"
+    settle_s: float = 0.3
+    max_effects: int = 3
+    refit_top: int = 3
+    min_error_drop: float = 0.10
+    bic_margin: float = 10.0
+    max_relative_se: float = 0.5
+    max_correlation: float = 0.995
+    max_nfev: int = 40
+    declared_effects: tuple[str, ...] = ()
+    candidates: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        def bad(key, allowed):
+            raise ParameterError(f"calibration.{key} = {getattr(self, key)!r}; allowed: "
+                                 f"{allowed}")
+        if not 0.0 < self.held_out_fraction < 1.0:
+            bad("held_out_fraction", "0 < f < 1")
+        if self.split_by not in ("auto", "cycles", "segments", "tail"):
+            bad("split_by", "auto, cycles, segments, tail")
+        if not self.settle_s >= 0.0:
+            bad("settle_s", ">= 0")
+        if not (isinstance(self.max_effects, int) and 0 <= self.max_effects <= 6):
+            bad("max_effects", "an integer 0…6")
+        if not (isinstance(self.refit_top, int) and 1 <= self.refit_top <= 20):
+            bad("refit_top", "an integer 1…20")
+        if not 0.0 < self.min_error_drop < 1.0:
+            bad("min_error_drop", "0 < drop < 1")
+        if not self.max_nfev >= 5:
+            bad("max_nfev", ">= 5")
+
+
+def model_outputs(replay: BenchReplay, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
+                  setting: ModelSetting, channels: Sequence[str]) -> dict[str, np.ndarray]:
+    """Replay with ``setting`` (kernel row, backlash, temperature drift) and read the outputs
+    ``channels`` through its sensor transforms."""
+    sim = replay.simulate(time_s, inputs, setting.row, setting.backlash_rad,
+                          setting.temperature_rate_k_s)
+    out = {c: sim[c] for c in channels}
+    for ch, gain, offset, delay in setting.sensors:
+        for c in (channels if ch == "*" else [ch]):
+            if c in out:
+                out[c] = sensor_reading(time_s, out[c], gain, offset, delay)
+    return out
+
+
+@dataclasses.dataclass
+class _Model:
+    """A model structure (declared parameters + effects, in order) and its fitted values."""
+
+    effects: list[Effect]
+    x: np.ndarray                       # normalised: declared factors, then effect values/scale
+    cost: float = math.inf             # ½ Σ ρ(r²) on the training part
+    sse: float = math.inf               # Σ r² on the training part
+    held_out: dict | None = None        # channel → NRMSE, "overall"
+    jac: np.ndarray | None = None
+    nfev: int = 0
+    cov: np.ndarray | None = None
+
+    def n_params(self) -> int:
+        return len(self.x)
+
+
+class Calibration:
+    """One record, one preset: the fit, the candidate search and the report's numbers."""
+
+    def __init__(self, data: MeasuredData, preset: str | None = None,
+                 options: CalibrationOptions = CalibrationOptions(),
+                 replay: BenchReplay | None = None):
+        self.data = data
+        self.options = options
+        preset = preset or data.source.get("preset")
+        if not preset:
+            raise CalibrationError("the record's sidecar names no source.preset and none was "
+                                   "given (--preset)")
+        self.replay = replay or BenchReplay(preset)
+        self.kind = self.replay.kind
+        try:
+            self.replay.check_inputs(data.channels)
+        except ReplayError as exc:
+            raise CalibrationError(str(exc)) from None
+        self.outputs = [c for c in data.outputs if c in self.replay.outputs]
+        skipped = [c for c in data.outputs if c not in self.replay.outputs]
+        if not self.outputs:
+            raise CalibrationError(f"none of the record's outputs {list(data.outputs)} is "
+                                   f"produced by the {self.kind} bench replay (allowed: "
+                                   f"{', '.join(self.replay.outputs)})")
+        self.skipped_outputs = skipped
+        self.t = np.asarray(data.time_s, dtype=float)
+        self.inputs = {c: np.asarray(data.channels[c], dtype=float)
+                       for c in self.replay.inputs}
+        if "fluid_temperature_k" in data.inputs:
+            self.inputs["fluid_temperature_k"] = np.asarray(
+                data.channels["fluid_temperature_k"], dtype=float)
+        self.meas = {c: np.asarray(data.channels[c], dtype=float) for c in self.outputs}
+        self.fs_hz = 1.0 / data.sample_period_s
+        # split: train before test, whole cycles/segments
+        by = options.split_by
+        if by == "auto":
+            by = ("cycles" if ("cycle_starts_s" in data.segments or "period_s" in data.segments)
+                  else "segments" if "boundaries_s" in data.segments else "tail")
+        self.split_by = by
+        train, test = data.split(options.held_out_fraction, by=by)
+        self.i_cut = int(np.searchsorted(self.t, test.time_s[0] - 1e-9))
+        self.i_end = len(self.t)
+        t_settle = self.t[0] + options.settle_s
+        self.train_idx = np.nonzero((self.t >= t_settle) & (np.arange(len(self.t))
+                                                            < self.i_cut))[0]
+        self.test_idx = np.arange(self.i_cut, self.i_end)
+        if len(self.train_idx) < 50 or len(self.test_idx) < 50:
+            raise CalibrationError(f"train {len(self.train_idx)} / held-out "
+                                   f"{len(self.test_idx)} samples; at least 50 each needed "
+                                   "(a longer record or another held_out_fraction)")
+        self.train_window = (float(self.t[self.train_idx[0]]), float(self.t[self.i_cut]))
+        self.test_window = (float(self.t[self.i_cut]), float(self.t[-1]))
+        self.scale = {}
+        for c in self.outputs:
+            s = float(np.std(self.meas[c]))
+            if not s > 1e-12 * max(1.0, abs(float(np.mean(self.meas[c])))):
+                raise CalibrationError(f"output channel {c} is constant in the record; it "
+                                       "cannot be fitted (drop it from outputs)")
+            self.scale[c] = s
+        self.noise = {}
+        for c in self.outputs:
+            sig = data.noise.get(c)
+            self.noise[c] = float(sig) if sig else ra.noise_sigma_estimate(self.meas[c])
+        base = self.replay.base_row
+        self.context = {"pulley_radius_m": float(base[self.replay.kernel.P_R_PULLEY]),
+                        "effective_area_m2": float(base[self.replay.kernel.P_A_E])}
+        self.declared = declared_parameters(self.kind)
+        spread = {c: 0.5 * self.scale[c] + abs(float(np.mean(self.meas[c])))
+                  for c in self.outputs}
+        self.library = effects_for(self.kind, self.outputs, spread)
+        names = [e.name for e in self.library]
+        for n in options.declared_effects + options.candidates:
+            if n not in names:
+                raise ParameterError(f"calibration effect {n!r}; allowed: {', '.join(names)}")
+        self.declared_effects = [e for e in self.library if e.name in options.declared_effects]
+        pool = [e for e in self.library if e.name not in options.declared_effects]
+        if options.candidates:
+            pool = [e for e in pool if e.name in options.candidates]
+        self.candidates = pool
+        noise_norm = [self.noise[c] / self.scale[c] for c in self.outputs]
+        self.f_scale = 3.0 * float(np.median(noise_norm))
+        self.evaluations = 0
+        self.log: list[str] = []
+
+    # ---------------------------------------------------------------- model evaluation
+    def _typical(self, e: Effect, p: EffectParameter) -> float:
+        if p.name == "current_limit_a" and "motor_current_a" in self.meas:
+            i_max = float(np.max(np.abs(self.meas["motor_current_a"])))
+            return float(np.clip(0.8 * i_max, p.lo, p.hi))
+        return p.typical
+
+    def _bounds(self, effects: Sequence[Effect]) -> tuple[np.ndarray, np.ndarray]:
+        lo = [d.lo_factor for d in self.declared]
+        hi = [d.hi_factor for d in self.declared]
+        for e in effects:
+            for p in e.parameters:
+                lo.append(p.lo / p.scale)
+                hi.append(p.hi / p.scale)
+        return np.array(lo), np.array(hi)
+
+    def setting(self, effects: Sequence[Effect], x: np.ndarray) -> ModelSetting:
+        """The :class:`ModelSetting` of a structure at normalised parameters ``x``."""
+        s = lean_setting(self.kind)
+        base = self.replay.base_row
+        for d, f in zip(self.declared, x):
+            s.row[d.index] = float(base[d.index] * f)
+        k = len(self.declared)
+        for e in effects:
+            vals = [float(x[k + j] * p.scale) for j, p in enumerate(e.parameters)]
+            e.apply(s, vals, self.context)
+            k += len(e.parameters)
+        return s
+
+    def physical(self, effects: Sequence[Effect], x: np.ndarray) -> dict[str, float]:
+        """Parameter name → value in SI of a structure at ``x``."""
+        out = {}
+        base = self.replay.base_row
+        for d, f in zip(self.declared, x):
+            out[d.name] = float(base[d.index] * f)
+        k = len(self.declared)
+        for e in effects:
+            for p in e.parameters:
+                out[f"{e.name}.{p.name}"] = float(x[k] * p.scale)
+                k += 1
+        return out
+
+    def simulate(self, effects: Sequence[Effect], x: np.ndarray, n: int | None = None
+                 ) -> dict[str, np.ndarray]:
+        n = self.i_end if n is None else n
+        self.evaluations += 1
+        setting = self.setting(effects, x)
+        inputs = {c: v[:n] for c, v in self.inputs.items()}
+        return model_outputs(self.replay, self.t[:n], inputs, setting, self.outputs)
+
+    def _residual_vector(self, out: Mapping[str, np.ndarray], idx: np.ndarray) -> np.ndarray:
+        return np.concatenate([(out[c][idx] - self.meas[c][idx]) / self.scale[c]
+                               for c in self.outputs])
+
+    def train_residuals(self, effects, x) -> np.ndarray:
+        try:
+            out = self.simulate(effects, x, self.i_cut)
+        except ReplayError:
+            # a parameter set the kernel cannot integrate: a large, finite residual steers
+            # the trust region away from it (never NaN)
+            return np.full(len(self.train_idx) * len(self.outputs), 1e3)
+        return self._residual_vector(out, self.train_idx)
+
+    def held_out_errors(self, effects, x) -> tuple[dict, dict[str, np.ndarray]]:
+        out = self.simulate(effects, x)
+        idx = self.test_idx
+        err = {c: float(np.sqrt(np.mean((out[c][idx] - self.meas[c][idx]) ** 2))
+                        / self.scale[c]) for c in self.outputs}
+        err["overall"] = float(math.sqrt(np.mean([err[c] ** 2 for c in self.outputs])))
+        return err, out
+
+    # ---------------------------------------------------------------- fitting
+    def fit(self, effects: Sequence[Effect], x0: np.ndarray, max_nfev: int | None = None
+            ) -> _Model:
+        lo, hi = self._bounds(effects)
+        x0 = np.clip(np.asarray(x0, dtype=float), lo, hi)
+        # keep the start strictly inside (trf needs an interior point)
+        span = hi - lo
+        x0 = np.clip(x0, lo + 1e-9 * span, hi - 1e-9 * span)
+        res = least_squares(lambda x: self.train_residuals(effects, x), x0, bounds=(lo, hi),
+                            method="trf", loss="soft_l1", f_scale=self.f_scale,
+                            diff_step=1e-2, x_scale=1.0,
+                            max_nfev=max_nfev or self.options.max_nfev)
+        r = res.fun
+        if not np.all(np.isfinite(r)):
+            raise CalibrationError("non-finite residual in the fit")
+        m = _Model(list(effects), res.x, cost=float(res.cost), sse=float(r @ r),
+                   jac=res.jac, nfev=int(res.nfev))
+        m.held_out, _ = self.held_out_errors(effects, res.x)
+        return m
+
+    def information(self, m: _Model) -> dict[str, float]:
+        """Gaussian AIC/BIC on the training residuals (normalised), ``m`` residuals,
+        ``p`` parameters: ``AIC = m ln(SSE/m) + 2p``, ``BIC = m ln(SSE/m) + p ln m``."""
+        n = len(self.train_idx) * len(self.outputs)
+        p = m.n_params()
+        ll = n * math.log(max(m.sse, 1e-300) / n)
+        return {"aic": ll + 2 * p, "bic": ll + p * math.log(n)}
+
+    def identifiability(self, m: _Model) -> dict:
+        """Relative standard errors and correlations of the parameters, from the Gauss–Newton
+        covariance ``s² (JᵀJ)⁻¹`` with ``s² = SSE/(m − p)`` (normalised parameters)."""
+        J = np.asarray(m.jac)
+        n, p = J.shape
+        jtj = J.T @ J
+        s2 = m.sse / max(n - p, 1)
+        try:
+            cov = s2 * np.linalg.pinv(jtj, rcond=1e-12)
+        except np.linalg.LinAlgError:
+            cov = np.full((p, p), np.inf)
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = cov / np.outer(sd, sd)
+        corr = np.nan_to_num(corr, nan=1.0)
+        rel = sd / np.maximum(np.abs(m.x), 1e-12)
+        m.cov = cov
+        return {"sd": sd, "relative_se": rel, "correlation": corr,
+                "rank_deficient": bool(np.linalg.matrix_rank(jtj) < p)}
+
+    # ---------------------------------------------------------------- ranking
+    def _declared_jacobian(self, m: _Model, f0: np.ndarray) -> np.ndarray:
+        cols = []
+        for j in range(len(self.declared)):
+            x = m.x.copy()
+            step = 0.01 * max(abs(x[j]), 0.1)
+            x[j] += step
+            cols.append((self.train_residuals(m.effects, x) - f0) / step)
+        return np.array(cols).T
+
+    def _probes(self, e: Effect) -> list[list[float]]:
+        typ = [self._typical(e, p) for p in e.parameters]
+        if e.name.startswith("sensor_gain_offset"):
+            return [typ]
+        probes = []
+        for f in (0.3, 1.0, 3.0):
+            v = list(typ)
+            v[0] = float(np.clip(typ[0] * f, e.parameters[0].lo, e.parameters[0].hi))
+            if e.parameters[0].name == "current_limit_a":
+                v[0] = float(np.clip(typ[0] * (0.7 + 0.3 * f), e.parameters[0].lo,
+                                     e.parameters[0].hi))
+            probes.append(v)
+        return probes
+
+    def rank(self, m: _Model, pool: Sequence[Effect]) -> list[dict]:
+        """Score every candidate by the linearised projection (module docstring, step 4)."""
+        f0 = self.train_residuals(m.effects, m.x)
+        J = self._declared_jacobian(m, f0)
+        r = -f0
+        rr = float(r @ r)
+        base_fit = _projected(J, r)
+        scores = []
+        for e in pool:
+            best = {"effect": e.name, "score": 0.0, "probe": None}
+            for probe in self._probes(e):
+                x = np.concatenate([m.x, [v / p.scale for v, p in zip(probe, e.parameters)]])
+                try:
+                    f1 = self.train_residuals(m.effects + [e], x)
+                except ParameterError:
+                    continue
+                if e.name.startswith("sensor_gain_offset"):
+                    # two directions: gain (∝ the model output) and offset (constant)
+                    k = self.outputs.index(e.channel)
+                    n1 = len(self.train_idx)
+                    col_g = np.zeros_like(f0)
+                    col_o = np.zeros_like(f0)
+                    y = (f0[k * n1:(k + 1) * n1] * self.scale[e.channel]
+                         + self.meas[e.channel][self.train_idx])
+                    col_g[k * n1:(k + 1) * n1] = y / self.scale[e.channel]
+                    col_o[k * n1:(k + 1) * n1] = 1.0
+                    gain = _projected(np.column_stack([J, col_g, col_o]), r) - base_fit
+                    alpha_ok = True
+                else:
+                    d = f1 - f0
+                    A = np.column_stack([J, d])
+                    coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+                    alpha_ok = coef[-1] > 0.0 or e.parameters[0].lo < 0.0
+                    gain = _projected(A, r) - base_fit if alpha_ok else 0.0
+                sc = max(gain, 0.0) / max(rr, 1e-300)
+                if sc > best["score"]:
+                    best = {"effect": e.name, "score": float(sc), "probe": probe}
+            scores.append(best)
+        scores.sort(key=lambda s: -s["score"])
+        return scores
+
+    # ---------------------------------------------------------------- the whole method
+    def run(self) -> dict:
+        t_start = time.perf_counter()
+        opts = self.options
+        structure = list(self.declared_effects)
+        x0 = np.concatenate([np.ones(len(self.declared))] + [
+            [self._typical(e, p) / p.scale for p in e.parameters] for e in structure])
+        preset_err, _ = self.held_out_errors([], np.ones(len(self.declared)))
+        current = self.fit(structure, x0)
+        declared_fit = current
+        before_err, before_out = self.held_out_errors(current.effects, current.x)
+        whiteness_before = self._whiteness(before_out)
+        steps = []
+        candidates_report: dict[str, dict] = {}
+        pool = list(self.candidates)
+        while len(current.effects) - len(structure) < opts.max_effects and pool:
+            ranking = self.rank(current, pool)
+            info_cur = self.information(current)
+            tried = []
+            for sc in ranking:
+                entry = candidates_report.setdefault(sc["effect"], {"scores": []})
+                entry["scores"].append(round(sc["score"], 6))
+            top = [s for s in ranking if s["score"] > 1e-4][:opts.refit_top]
+            for sc in top:
+                e = next(c for c in pool if c.name == sc["effect"])
+                xe = [v / p.scale for v, p in zip(sc["probe"], e.parameters)]
+                try:
+                    m = self.fit(current.effects + [e], np.concatenate([current.x, xe]))
+                except (CalibrationError, ReplayError) as exc:
+                    candidates_report[e.name]["refit_error"] = str(exc)
+                    continue
+                info = self.information(m)
+                ident = self.identifiability(m)
+                k0 = len(current.x)
+                rel = ident["relative_se"][k0:]
+                corr = ident["correlation"]
+                max_corr = float(max((abs(corr[i, j]) for i in range(k0, len(m.x))
+                                      for j in range(len(m.x)) if j != i), default=0.0))
+                drop = 1.0 - m.held_out["overall"] / current.held_out["overall"]
+                identifiable = bool(np.all(rel < opts.max_relative_se)
+                                    and max_corr < opts.max_correlation
+                                    and not ident["rank_deficient"])
+                d_bic = info["bic"] - info_cur["bic"]
+                pays = bool(d_bic < -opts.bic_margin and drop >= opts.min_error_drop
+                            and identifiable)
+                rec = {"round": len(steps) + 1, "score": sc["score"],
+                       "delta_bic": d_bic, "delta_aic": info["aic"] - info_cur["aic"],
+                       "held_out_overall": m.held_out["overall"], "held_out_drop": drop,
+                       "relative_se": [float(v) for v in rel], "max_correlation": max_corr,
+                       "identifiable": identifiable, "pays": pays,
+                       "parameters": {k: v for k, v in self.physical(m.effects, m.x).items()
+                                      if k.startswith(e.name + ".")}}
+                candidates_report[e.name].setdefault("refits", []).append(rec)
+                tried.append((m, e, rec, ident))
+            paying = [t for t in tried if t[2]["pays"]]
+            if not paying:
+                break
+            m, e, rec, ident = min(paying, key=lambda t: t[0].held_out["overall"])
+            k0 = len(current.x)
+            steps.append({"effect": e.name, "component": e.component,
+                          "equation": e.equation, "reference": e.reference,
+                          "parameters": rec["parameters"],
+                          "uncertainties": {f"{e.name}.{p.name}":
+                                            float(ident["sd"][k0 + j] * p.scale)
+                                            for j, p in enumerate(e.parameters)},
+                          "held_out_before": current.held_out["overall"],
+                          "held_out_after": m.held_out["overall"],
+                          "held_out_drop": rec["held_out_drop"],
+                          "delta_bic": rec["delta_bic"], "delta_aic": rec["delta_aic"]})
+            current = m
+            pool = [c for c in pool if c.name != e.name]
+        after_err, after_out = self.held_out_errors(current.effects, current.x)
+        whiteness_after = self._whiteness(after_out)
+        channels_before = self._channel_summaries(before_out)
+        channels_after = self._channel_summaries(after_out)
+        structured_after = [c for c, s in channels_after.items() if s["structured"]]
+        structured_before = [c for c, s in channels_before.items() if s["structured"]]
+        if steps:
+            verdict = "effect_found"
+        elif structured_before:
+            verdict = "unexplained_residual"
+        else:
+            verdict = "no_missing_effect"
+        where = ra.locate_structure(channels_after) if structured_after else None
+        ident = self.identifiability(current)
+        params = self.physical(current.effects, current.x)
+        sd_phys = {}
+        k = 0
+        for d in self.declared:
+            sd_phys[d.name] = float(ident["sd"][k] * self.replay.base_row[d.index])
+            k += 1
+        for e in current.effects:
+            for p in e.parameters:
+                sd_phys[f"{e.name}.{p.name}"] = float(ident["sd"][k] * p.scale)
+                k += 1
+        for name, entry in candidates_report.items():
+            entry["best_score"] = max(entry["scores"]) if entry["scores"] else 0.0
+            entry["selected"] = any(s["effect"] == name for s in steps)
+        return {
+            "kind": self.kind, "preset": self.replay.preset,
+            "outputs": list(self.outputs), "skipped_outputs": self.skipped_outputs,
+            "inputs": list(self.inputs), "split_by": self.split_by,
+            "train_window_s": list(self.train_window), "held_out_window_s":
+            list(self.test_window), "settle_s": self.options.settle_s,
+            "noise_sigma": dict(self.noise),
+            "declared_effects": [e.name for e in self.declared_effects],
+            "error_preset": preset_err,
+            "error_before": before_err, "error_after": after_err,
+            "error_drop": 1.0 - after_err["overall"] / before_err["overall"],
+            "declared_fit": self.physical(declared_fit.effects, declared_fit.x),
+            "effects_selected": steps,
+            "parameters": params, "parameter_sd": sd_phys,
+            "candidates": candidates_report,
+            "residual_whiteness_before": whiteness_before,
+            "residual_whiteness_after": whiteness_after,
+            "channels_before": channels_before, "channels_after": channels_after,
+            "verdict": verdict,
+            "unexplained_where": where if verdict == "unexplained_residual" or (
+                verdict == "effect_found" and structured_after) else None,
+            "evaluations": self.evaluations,
+            "wall_time_s": time.perf_counter() - t_start,
+            "_series": {"time_s": self.t, "measured": self.meas, "before": before_out,
+                        "after": after_out, "i_cut": self.i_cut},
+        }
+
+    # ---------------------------------------------------------------- residual analysis
+    def _whiteness(self, out: Mapping[str, np.ndarray]) -> dict:
+        idx = self.test_idx
+        return {c: ra.whiteness(self.meas[c][idx] - out[c][idx], self.noise[c], self.fs_hz)
+                for c in self.outputs}
+
+    def _channel_summaries(self, out: Mapping[str, np.ndarray]) -> dict:
+        idx = self.test_idx
+        t = self.t[idx]
+        ins = {c: v[idx] for c, v in self.inputs.items()}
+        ins["ankle_velocity_rad_s"] = np.gradient(self.inputs["ankle_angle_rad"], self.t)[idx]
+        states = {c: out[c][idx] for c in self.outputs}
+        cycles = []
+        try:
+            cycles = [(a, b) for a, b in self.data.cycles_s() if a >= t[0] - 1e-9
+                      and b <= t[-1] + 2 * self.data.sample_period_s]
+        except MeasuredDataError:
+            cycles = []
+        sig = _signatures(t, ins, states)
+        return {c: ra.analyse_channel(c, t, self.meas[c][idx], out[c][idx], ins, states, sig,
+                                      self.noise[c], cycles or None)
+                for c in self.outputs}
+
+
+def _projected(A: np.ndarray, r: np.ndarray) -> float:
+    """``|P_A r|²``: the part of ``|r|²`` the columns of ``A`` explain (least squares)."""
+    coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+    fit = A @ coef
+    return float(fit @ fit)
+
+
+def _signatures(t, inputs, states) -> dict[str, np.ndarray]:
+    """Candidate signatures of the issue: sign of velocity, velocity, low pressure, Δp across
+    the piston, time (drift) and the time derivative of each output (a time shift)."""
+    v = inputs["ankle_velocity_rad_s"]
+    sig = {"sign_velocity": np.tanh(v / (0.05 * (np.std(v) + 1e-12))), "velocity": v,
+           "time": t - t[0]}
+    if "chamber_a_pa" in states and "chamber_b_pa" in states:
+        dp = states["chamber_a_pa"] - states["chamber_b_pa"]
+    elif "pressure_a_pa" in states and "pressure_b_pa" in states:
+        dp = states["pressure_a_pa"] - states["pressure_b_pa"]
+    else:
+        dp = None
+    if dp is not None:
+        sig["delta_p"] = dp
+        sig["abs_delta_p_sign_velocity"] = np.abs(dp) * sig["sign_velocity"]
+    press = [states[c] for c in states if c.endswith("_pa")]
+    if press:
+        p_min = np.min(np.vstack(press), axis=0)
+        sig["low_pressure"] = 1.0 / (1.0 + np.maximum(p_min, 0.0) / 1e6)
+    for c, y in states.items():
+        sig[f"d_{c}_dt"] = np.gradient(y, t)
+    return sig
+
+
+def calibrate(data: MeasuredData, preset: str | None = None,
+              options: CalibrationOptions = CalibrationOptions()) -> dict:
+    """Run the whole method on a record; returns the report dictionary (see
+    :mod:`afo_mj.outputs.calibration_report` for what is written from it)."""
+    return Calibration(data, preset, options).run()

@@ -1,0 +1,324 @@
+"""Candidate effects for calibration: physical terms a model may lack, each switchable.
+
+Every effect is a named, physically parameterised term of a component: the kernels' cylinder,
+seal, hose, oil, pump, driver and valve (:mod:`afo_mj.devices.pump_ankle_actuator`,
+:mod:`afo_mj.devices.valve_ankle_actuator`), the cable transmission
+(:mod:`afo_mj.hydraulics.transmission`), the oil's temperature (viscosity, Walther/ASTM D341)
+and the sensors (:mod:`afo_mj.hydraulics.sensor`). The calibration
+(:mod:`afo_mj.analysis.calibration`) starts from the **lean model**, the preset with every
+effect of this library switched off (:func:`lean_setting`), adds effects one at a time and keeps
+those that pay.
+
+Each effect knows how to switch itself on in a :class:`ModelSetting` (:meth:`Effect.apply`):
+kernel parameter-row entries for the hydraulic terms, the backlash width and temperature drift
+of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a sensor transform applied
+to the replayed outputs.
+
+=========================  ==============================================================
+effect                      term (component: equation; source)
+=========================  ==============================================================
+stribeck_friction           seal: ``F_S exp(−(v/v_St)²) v/v_St`` (Stribeck peak; Simscape
+                            translational friction, facts.md)
+pressure_friction           seal: ``c_p |Δp| tanh(v/v_C)`` (seed §2.3, ref. [48])
+entrained_air               oil: bulk modulus with air fraction ``a`` (seed eq. 2.5)
+hose_wall_compliance        hose: ``C += V_h/(2 K_wall)`` per end (Merritt §2.5)
+piston_leakage              cylinder: ``Q = G_l Δp/μ`` across the piston (laminar gap)
+pump_leakage                pump: extra ``Q = G_p Δp/μ`` between the ports (worn port plate)
+motor_current_limit         driver: voltage clamped to ``Kω ± R I_max`` (current limit)
+series_compliance           cable: differential capacitance ``r²A_e²/k`` (transmission)
+backlash                    cable: play operator of width ``b`` on the kinematics
+viscosity_drift             oil: ``T = T_0 + Ṫ t`` → ``μ(T)`` (Walther, ASTM D341)
+sensor_delay                sensors: every output read ``d`` late
+sensor_gain_offset[ch]      sensor of channel ``ch``: ``g y + b``
+valve_overlap               servo valve: lap ``x_0`` of the spool (dead band)
+spool_lag                   servo valve: first-order spool ``τ ẋ = u − x``
+=========================  ==============================================================
+
+Fluid inertance is not in the library: the hoses' inertance needs flow states the kernels do not
+carry (a known gap; its signature, a line resonance in the pressures, is reported as
+``unexplained_residual`` with where it lives).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+import numpy as np
+
+from afo_mj.devices import pump_ankle_actuator as pa
+from afo_mj.devices import valve_ankle_actuator as va
+from afo_mj.hydraulics.params import ParameterError
+
+__all__ = ["EffectParameter", "Effect", "ModelSetting", "DeclaredParameter", "effects_for",
+           "lean_setting", "declared_parameters", "EFFECT_NAMES", "effect_by_name"]
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectParameter:
+    """One parameter of an effect (or a declared parameter): SI unit, bounds for the fit and a
+    typical value (the fit's start and the ranking's probe)."""
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    typical: float
+    doc: str = ""
+
+    def __post_init__(self):
+        if not (np.isfinite(self.lo) and np.isfinite(self.hi) and self.lo < self.hi):
+            raise ParameterError(f"{self.name}: bounds [{self.lo!r}, {self.hi!r}]; allowed: "
+                                 "finite with lo < hi")
+        if not self.lo <= self.typical <= self.hi:
+            raise ParameterError(f"{self.name}: typical = {self.typical!r}; allowed: within "
+                                 f"[{self.lo!r}, {self.hi!r}]")
+
+    @property
+    def scale(self) -> float:
+        """The magnitude the fit normalises by."""
+        return max(abs(self.typical), abs(self.hi - self.lo) * 1e-3, 1e-300)
+
+
+@dataclasses.dataclass
+class ModelSetting:
+    """What one replay runs with: kernel row entries, replay options and sensor transforms
+    (``(channel or "*", gain, offset, delay_s)``, applied in order)."""
+
+    row: dict[int, float] = dataclasses.field(default_factory=dict)
+    backlash_rad: float = 0.0
+    temperature_rate_k_s: float = 0.0
+    sensors: list[tuple[str, float, float, float]] = dataclasses.field(default_factory=list)
+
+    def copy(self) -> "ModelSetting":
+        return ModelSetting(dict(self.row), self.backlash_rad, self.temperature_rate_k_s,
+                            list(self.sensors))
+
+
+@dataclasses.dataclass(frozen=True)
+class Effect:
+    """A candidate effect: name, the component it belongs to, its equation and source, its
+    parameters and how to switch it on (``setter(setting, values, context)``)."""
+
+    name: str
+    component: str
+    equation: str
+    reference: str
+    parameters: tuple[EffectParameter, ...]
+    setter: Callable[[ModelSetting, Sequence[float], dict], None]
+    kinds: tuple[str, ...] = ("hafo", "valve")
+    signature: str = ""
+    channel: str = ""
+
+    def apply(self, setting: ModelSetting, values: Sequence[float], context: dict) -> None:
+        if len(values) != len(self.parameters):
+            raise ParameterError(f"effect {self.name}: {len(values)} values for parameters "
+                                 f"{[p.name for p in self.parameters]}")
+        self.setter(setting, values, context)
+
+
+@dataclasses.dataclass(frozen=True)
+class DeclaredParameter:
+    """A parameter of the declared model the calibration always fits: a kernel row entry,
+    bounded to ``[lo_factor, hi_factor]`` times the preset's value."""
+
+    name: str
+    unit: str
+    index: int
+    lo_factor: float
+    hi_factor: float
+    doc: str = ""
+
+
+# ---------------------------------------------------------------------------- the effects
+def _row(index):
+    def set_(s: ModelSetting, v, ctx):
+        s.row[index] = float(v[0])
+    return set_
+
+
+def _set_stribeck(s, v, ctx):
+    s.row[pa.P_SEAL_STRIB] = float(v[0])
+    s.row[pa.P_SEAL_VST] = float(v[1])
+
+
+def _set_current_limit(s, v, ctx):
+    s.row[pa.P_CUR_LIM_ON] = 1.0
+    s.row[pa.P_I_LIM] = float(v[0])
+
+
+def _set_series(s, v, ctx):
+    r, ae = ctx["pulley_radius_m"], ctx["effective_area_m2"]
+    s.row[pa.P_SERIES_COMP] = r * r * ae * ae * float(v[0])   # v = 1/k (rad/(N·m))
+
+
+def _set_backlash(s, v, ctx):
+    s.backlash_rad = float(v[0])
+
+
+def _set_drift(s, v, ctx):
+    s.temperature_rate_k_s = float(v[0])
+
+
+def _set_delay(s, v, ctx):
+    s.sensors.append(("*", 1.0, 0.0, float(v[0])))
+
+
+def _set_gain_offset(channel):
+    def set_(s, v, ctx):
+        s.sensors.append((channel, float(v[0]), float(v[1]), 0.0))
+    return set_
+
+
+def _common_effects() -> list[Effect]:
+    P = EffectParameter
+    return [
+        Effect("stribeck_friction", "seal",
+               "F_S exp(-(v/v_St)^2) v/v_St added to the seal friction of each cylinder",
+               "Stribeck breakaway peak; Simscape translational friction (facts.md)",
+               (P("stribeck_force_n", "N", 0.0, 500.0, 30.0, "Stribeck gain F_S per cylinder"),
+                P("stribeck_velocity_m_s", "m/s", 1e-3, 0.1, 0.01, "v_St")),
+               _set_stribeck, signature="torque residual odd in piston speed, peaked at low "
+                                        "speed (velocity reversals)"),
+        Effect("pressure_friction", "seal",
+               "c_p |Δp| tanh(v/v_C) per cylinder",
+               "seed §2.3 (pressure-energised seals, ref. [48]); afo_mj.hydraulics.seal",
+               (P("pressure_coefficient_m2", "m^2", 0.0, 5e-5, 2e-6,
+                  "friction force per Pa across the piston"),),
+               _row(pa.P_SEAL_CP), signature="torque residual ∝ |Δp|·sign(v)"),
+        Effect("entrained_air", "oil",
+               "B_eff(p) of seed eq. 2.5 with air fraction a at atmospheric pressure",
+               "seed eq. 2.5 (entrained air)",
+               (P("air_fraction", "-", 0.0, 0.1, 0.005, "free air volume fraction at 1 atm"),),
+               _row(pa.P_AIR), signature="pressure lag growing at low pressure"),
+        Effect("hose_wall_compliance", "hose",
+               "C += V_h/(2 K_wall) at each hose end",
+               "Merritt, Hydraulic Control Systems (1967) §2.5",
+               (P("wall_compliance_1_pa", "1/Pa", 0.0, 1e-7, 1e-9,
+                  "1/K_wall of the hose wall"),),
+               _row(pa.P_KWALL_INV), signature="pressure lag independent of pressure"),
+        Effect("piston_leakage", "cylinder",
+               "Q = G_l Δp/μ across the piston (laminar gap)",
+               "Merritt §3 (annular clearance flow); afo_mj.hydraulics.cylinder",
+               (P("leakage_conductance_m3", "m^3", 0.0, 1e-12, 2e-15, "G_l"),),
+               _row(pa.P_G_LEAK), signature="chamber Δp decays under load; residual ∝ ∫Δp"),
+        Effect("pump_leakage", "pump",
+               "Q = G_p Δp/μ between the pump ports (in addition to the slip coefficient)",
+               "Wilson slip flow, McCandlish & Dorey (1984); afo_mj.hydraulics.pump",
+               (P("extra_leakage_conductance_m3", "m^3", 0.0, 1e-12, 2e-15, "G_p"),),
+               _row(pa.P_PUMP_G_EXTRA), signature="speed/pressure residual ∝ Δp_pump"),
+        Effect("motor_current_limit", "driver",
+               "v clamped to K ω ± R I_max (the driver's current limit)",
+               "afo_mj.hydraulics.motor (driver)",
+               (P("current_limit_a", "A", 0.3, 40.0, 5.0, "I_max"),),
+               _set_current_limit, signature="current residual where |i| is large: a flat "
+                                             "top"),
+        Effect("series_compliance", "transmission",
+               "differential chamber capacitance r² A_e²/k (cable stiffness k)",
+               "afo_mj.hydraulics.transmission.series_compliance_m3_pa",
+               (P("compliance_rad_per_nm", "rad/(N m)", 0.0, 1e-2, 2e-4, "1/k"),),
+               _set_series, signature="torque/pressure lag ∝ dτ/dt"),
+        Effect("backlash", "transmission",
+               "play operator of total width b on the ankle angle the cylinders see",
+               "Tao & Kokotović (1996) ch. 3; afo_mj.hydraulics.transmission.play_operator",
+               (P("backlash_rad", "rad", 0.0, 0.2, 0.01, "b"),),
+               _set_backlash, signature="residual at velocity reversals ∝ sign(θ̇)"),
+        Effect("viscosity_drift", "oil",
+               "T = T_0 + Ṫ (t − t_0) sets μ(T) (Walther, ASTM D341)",
+               "ASTM D341; afo_mj.hydraulics.fluid",
+               (P("temperature_rate_k_s", "K/s", -2.0, 2.0, 0.2, "Ṫ"),),
+               _set_drift, signature="residual growing with time (leakage/line loss drift)"),
+        Effect("sensor_delay", "sensors",
+               "every output read late: y_meas(t) = y(t − d)",
+               "afo_mj.hydraulics.sensor (acquisition latency, filter group delay)",
+               (P("delay_s", "s", 0.0, 0.05, 0.003, "d"),),
+               _set_delay, signature="residual ∝ −d·dy/dt"),
+    ]
+
+
+def _gain_offset_effect(channel: str, spread: float) -> Effect:
+    P = EffectParameter
+    return Effect(f"sensor_gain_offset[{channel}]", "sensors",
+                  f"{channel}: y_meas = g y + b", "afo_mj.hydraulics.sensor (span and zero)",
+                  (P("gain", "-", 0.5, 2.0, 1.0, "g"),
+                   P("offset", _unit(channel), -spread, spread, 0.0, "b")),
+                  _set_gain_offset(channel), signature=f"{channel} residual ∝ y and constant",
+                  channel=channel)
+
+
+def _unit(channel: str) -> str:
+    from afo_mj.analysis.measured_data import CHANNELS
+    return CHANNELS[channel].unit if channel in CHANNELS else "-"
+
+
+def _valve_effects() -> list[Effect]:
+    P = EffectParameter
+    return [
+        Effect("valve_overlap", "servo valve",
+               "edge area w x_max ramp(|x| − x_0): no flow inside the lap x_0 (dead band)",
+               "afo_mj.hydraulics.servo_valve (Merritt §3.4, overlapped spool)",
+               (P("overlap", "-", 0.0, 0.4, 0.05, "lap x_0 as a fraction of the stroke"),),
+               _row(va.P_SV_LAP), kinds=("valve",),
+               signature="flow missing at small commands: residual where |u| < x_0"),
+        Effect("spool_lag", "servo valve",
+               "τ ẋ = u − x (the spool's first-order lag)",
+               "afo_mj.hydraulics.servo_valve (bandwidth f = 1/(2πτ))",
+               (P("spool_time_constant_s", "s", 1e-4, 0.1, 0.01, "τ"),),
+               _row(va.P_SV_TAU), kinds=("valve",),
+               signature="pressure residual ∝ −τ du/dt"),
+    ]
+
+
+#: names of the library's effects (per-channel sensor effects as ``sensor_gain_offset[ch]``)
+EFFECT_NAMES = tuple(e.name for e in _common_effects()) + ("sensor_gain_offset",) + tuple(
+    e.name for e in _valve_effects())
+
+#: the lean model's values of what the effects switch on (the HAFO row's shared entries)
+_LEAN_ROW = {pa.P_SEAL_STRIB: 0.0, pa.P_SEAL_CP: 0.0, pa.P_AIR: 0.0, pa.P_KWALL_INV: 0.0,
+             pa.P_G_LEAK: 0.0, pa.P_PUMP_G_EXTRA: 0.0, pa.P_CUR_LIM_ON: 0.0,
+             pa.P_SERIES_COMP: 0.0}
+#: the valve circuit's: critical-centre spool, and a fast one (0.5 ms: 320 Hz)
+_LEAN_VALVE = {va.P_SV_LAP: 0.0, va.P_SV_TAU: 5e-4}
+
+
+def effects_for(kind: str, outputs: Sequence[str],
+                output_spread: dict[str, float] | None = None) -> list[Effect]:
+    """The candidate effects for a ``kind`` (``"hafo"``/``"valve"``) replay whose record has
+    the output channels ``outputs`` (one gain/offset effect per output)."""
+    if kind not in ("hafo", "valve"):
+        raise ParameterError(f"kind = {kind!r}; allowed: hafo, valve")
+    out = [e for e in _common_effects() if kind in e.kinds]
+    if kind == "valve":
+        out += _valve_effects()
+    spread = output_spread or {}
+    for ch in outputs:
+        out.append(_gain_offset_effect(ch, float(spread.get(ch, 1.0))))
+    return out
+
+
+def effect_by_name(effects: Sequence[Effect], name: str) -> Effect:
+    for e in effects:
+        if e.name == name:
+            return e
+    raise ParameterError(f"effect = {name!r}; allowed: {', '.join(e.name for e in effects)}")
+
+
+def lean_setting(kind: str) -> ModelSetting:
+    """The lean model: every effect of the library off."""
+    row = dict(_LEAN_ROW)
+    if kind == "valve":
+        row.update(_LEAN_VALVE)
+    return ModelSetting(row=row)
+
+
+def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
+    """The declared model's parameters the calibration fits before looking for effects."""
+    D = DeclaredParameter
+    common = (D("seal_coulomb_force_n", "N", pa.P_SEAL_FC, 0.0, 20.0,
+                "Coulomb friction of one cylinder's seals"),
+              D("liquid_bulk_modulus_pa", "Pa", pa.P_B_L, 0.3, 2.0, "oil bulk modulus"))
+    if kind == "hafo":
+        return (D("motor_resistance_ohm", "ohm", pa.P_R, 0.5, 2.0, "winding resistance"),
+                D("torque_constant_nm_a", "N m/A", pa.P_K, 0.7, 1.4, "motor K")) + common
+    return (D("valve_full_area_m2", "m^2", va.P_SV_AFULL, 0.5, 2.0,
+              "servo valve metering area at full stroke"),) + common
