@@ -6,6 +6,11 @@
   A walker that falls before a complete stride is an outcome: ``summary.json`` says so with the
   fall time. Exit codes: 0 done (fall or not); 1 the run could not be simulated, analysed or
   written (numerics failure, nothing written); 2 invalid scenario (nothing written).
+* ``afo-mj calibrate --scenario S --data D --out DIR``: replay a measured bench record, fit the
+  declared parameters, search the effect library for what the model lacks and write
+  ``report.json``, ``report.md`` and figures (:mod:`afo_mj.analysis.calibration`).
+* ``afo-mj make-bench-record --kind hafo --effect NAME:PARAM=V --out FILE.csv``: a synthetic
+  bench record with undeclared effects (:mod:`afo_mj.analysis.synthetic_records`).
 * ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
 * ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
@@ -523,6 +528,107 @@ def _build_models(args: argparse.Namespace) -> int:
     return 0
 
 
+
+def _calibrate(args) -> int:
+    """``afo-mj calibrate``: exit 0 done (whatever the verdict), 1 the calibration failed
+    (nothing written), 2 bad input (nothing written)."""
+    import warnings
+
+    from afo_mj.analysis.calibration import (
+        CalibrationError, calibrate, load_calibration_setup)
+    from afo_mj.analysis.measured_data import MeasuredDataError, load_measured
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.outputs.calibration_report import write_calibration_report
+    from afo_mj.outputs.result_dir import ResultDirError, write_atomically
+    from afo_mj.scenarios.bench_replay import ReplayError
+
+    try:
+        preset, overrides, options = load_calibration_setup(args.scenario)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            data = load_measured(args.data)
+        for w in caught:
+            print(f"warning: {w.message}", file=sys.stderr)
+        if data.source.get("preset") and data.source["preset"] != preset:
+            print(f"warning: the record says source.preset = {data.source['preset']!r}; "
+                  f"calibrating {preset!r} (from --scenario)", file=sys.stderr)
+    except (ParameterError, MeasuredDataError, OSError) as exc:
+        print(f"afo-mj calibrate: {exc}", file=sys.stderr)
+        return 2
+    try:
+        report = calibrate(data, preset, options, overrides)
+    except (CalibrationError, ParameterError) as exc:
+        print(f"afo-mj calibrate: {exc}", file=sys.stderr)
+        return 2
+    except (ReplayError, FloatingPointError) as exc:
+        print(f"afo-mj calibrate: {exc}; nothing written", file=sys.stderr)
+        return 1
+    command = "afo-mj " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["calibrate"] else None
+    try:
+        write_atomically(args.out, lambda d: write_calibration_report(
+            report, d, data_path=args.data, command=command))
+    except (ResultDirError, ValueError, OSError) as exc:
+        print(f"afo-mj calibrate: {exc}; nothing written", file=sys.stderr)
+        return 1
+    eb, ea = report["error_before"]["overall"], report["error_after"]["overall"]
+    print(f"verdict: {report['verdict']}")
+    for s in report["effects_selected"]:
+        pars = ", ".join(f"{k.split('.', 1)[1]} = {v:.4g}" for k, v in s["parameters"].items())
+        print(f"  + {s['effect']} ({s['component']}): {pars}; held-out NRMSE "
+              f"{s['held_out_before']:.4f} -> {s['held_out_after']:.4f} "
+              f"({-100 * s['held_out_drop']:+.0f} %)")
+    if report.get("unexplained_where"):
+        print(f"  unexplained: {report['unexplained_where']}")
+    print(f"held-out NRMSE (overall): before {eb:.4f}, after {ea:.4f} "
+          f"({-100 * report['error_drop']:+.0f} %); {report['evaluations']} replays in "
+          f"{report['wall_time_s']:.1f} s")
+    print(f"wrote {args.out}/report.json, report.md and figures")
+    print(json.dumps({"verdict": report["verdict"],
+                      "effects": [s["effect"] for s in report["effects_selected"]],
+                      "error_before": eb, "error_after": ea}))
+    return 0
+
+
+def _make_bench_record(args) -> int:
+    """``afo-mj make-bench-record``: a synthetic bench record with undeclared effects."""
+    import warnings
+
+    from afo_mj.analysis.measured_data import MeasuredDataError
+    from afo_mj.analysis.synthetic_records import generate_record
+    from afo_mj.hydraulics.params import ParameterError
+
+    def pairs(items, what):
+        out = {}
+        for it in items or []:
+            k, sep, v = it.partition("=")
+            if not sep:
+                raise ParameterError(f"{what} {it!r}; allowed: NAME=VALUE")
+            try:
+                out[k.strip()] = float(v)
+            except ValueError:
+                raise ParameterError(f"{what} {it!r}: {v!r} is not a number") from None
+        return out
+
+    try:
+        effects = {}
+        for spec in args.effect or []:
+            name, _, rest = spec.partition(":")
+            effects[name.strip()] = pairs([p for p in rest.split(",") if p], "--effect")
+        mismatch = pairs(args.mismatch, "--mismatch")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            data = generate_record(args.out, args.kind, effects, mismatch,
+                                   noise_scale=args.noise_scale, duration_s=args.duration_s,
+                                   fs_hz=args.fs_hz, seed=args.seed, preset=args.preset,
+                                   torque_sensor_resonance_hz=args.resonance_hz)
+    except (ParameterError, MeasuredDataError, OSError) as exc:
+        print(f"afo-mj make-bench-record: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out} ({data.n_samples} samples) and its sidecar: "
+          f"{data.source['description']}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -575,6 +681,35 @@ def main(argv: list[str] | None = None) -> int:
                       help="also save a rerun recording with every device's assist run "
                            "walking side by side")
     cmp_.set_defaults(func=_compare)
+    cal = sub.add_parser("calibrate", help="replay a measured bench record, fit the model, "
+                         "find the effect it lacks and report the error before and after")
+    cal.add_argument("--scenario", required=True,
+                     help="a device preset name (hafo, valve, ...) or a TOML file with "
+                          "[device] preset/params and an optional [calibration] table")
+    cal.add_argument("--data", required=True, help="measured record (CSV or Parquet with its "
+                     "TOML sidecar; docs/measured_data.md)")
+    cal.add_argument("--out", required=True, help="output directory (report.json, report.md, "
+                     "PNGs)")
+    cal.set_defaults(func=_calibrate)
+    mk = sub.add_parser("make-bench-record", help="write a synthetic bench record with "
+                        "effects the lean model does not declare (test data for calibrate)")
+    mk.add_argument("--kind", choices=("hafo", "valve"), default="hafo")
+    mk.add_argument("--preset", default=None, help="device preset (default: hafo / valve)")
+    mk.add_argument("--effect", action="append", metavar="NAME[:PARAM=VALUE,...]",
+                    help="switch a library effect on, e.g. piston_leakage:"
+                         "leakage_conductance_m3=8e-15 (repeatable)")
+    mk.add_argument("--mismatch", action="append", metavar="PARAM=FACTOR",
+                    help="scale a declared parameter, e.g. seal_coulomb_force_n=1.5")
+    mk.add_argument("--resonance-hz", type=float, default=0.0, dest="resonance_hz",
+                    help="torque sensor seen through a resonance at this frequency (an "
+                         "effect outside the library)")
+    mk.add_argument("--duration-s", type=float, default=20.0, dest="duration_s")
+    mk.add_argument("--fs-hz", type=float, default=1000.0, dest="fs_hz")
+    mk.add_argument("--noise-scale", type=float, default=1.0, dest="noise_scale")
+    mk.add_argument("--seed", type=int, default=0)
+    mk.add_argument("--out", required=True, metavar="FILE.csv",
+                    help="data file (.csv or .parquet); the sidecar goes beside it")
+    mk.set_defaults(func=_make_bench_record)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)

@@ -584,7 +584,52 @@ def _signatures(t, inputs, states) -> dict[str, np.ndarray]:
 
 
 def calibrate(data: MeasuredData, preset: str | None = None,
-              options: CalibrationOptions = CalibrationOptions()) -> dict:
+              options: CalibrationOptions = CalibrationOptions(),
+              overrides: Mapping[str, object] | None = None) -> dict:
     """Run the whole method on a record; returns the report dictionary (see
-    :mod:`afo_mj.outputs.calibration_report` for what is written from it)."""
-    return Calibration(data, preset, options).run()
+    :mod:`afo_mj.outputs.calibration_report` for what is written from it). ``preset``
+    defaults to the record's ``source.preset``; ``overrides`` are dotted device parameters."""
+    preset = preset or data.source.get("preset")
+    replay = BenchReplay(preset, overrides) if preset else None
+    return Calibration(data, preset, options, replay=replay).run()
+
+
+#: keys of a scenario's ``[calibration]`` table (the fields of :class:`CalibrationOptions`)
+CALIBRATION_KEYS = tuple(f.name for f in dataclasses.fields(CalibrationOptions))
+
+
+def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions]:
+    """``(preset, overrides, options)`` from ``scenario``: a device preset name, or a TOML file
+    with ``[device] preset`` (and optional ``[device.params]`` dotted overrides) and an optional
+    ``[calibration]`` table of :class:`CalibrationOptions` fields."""
+    import tomllib
+    from pathlib import Path
+
+    from afo_mj.scenarios.bench_replay import kind_of_preset
+
+    path = Path(scenario)
+    if not path.suffix == ".toml":
+        kind_of_preset(scenario)          # raises with the allowed presets
+        return scenario, {}, CalibrationOptions()
+    if not path.is_file():
+        raise ParameterError(f"--scenario {scenario!r}: no such file (allowed: a .toml scenario "
+                             "or a device preset name)")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{path}: not valid TOML ({exc})") from None
+    dev = doc.get("device")
+    if not isinstance(dev, dict) or "preset" not in dev:
+        raise ParameterError(f"{path}: device.preset is missing; allowed: a device preset name")
+    preset = dev["preset"]
+    kind_of_preset(preset)
+    overrides = dict(dev.get("params", {}))
+    cal = doc.get("calibration", {})
+    if not isinstance(cal, dict):
+        raise ParameterError(f"{path}: calibration must be a table")
+    bad = [k for k in cal if k not in CALIBRATION_KEYS]
+    if bad:
+        raise ParameterError(f"{path}: calibration.{bad[0]} is not a setting; allowed: "
+                             f"{', '.join(CALIBRATION_KEYS)}")
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cal.items()}
+    return preset, overrides, CalibrationOptions(**kw)
