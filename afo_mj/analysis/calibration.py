@@ -498,6 +498,11 @@ class Calibration:
             for p in e.parameters:
                 sd_phys[f"{e.name}.{p.name}"] = float(ident["sd"][k] * p.scale)
                 k += 1
+        # an inestimable parameter's SD is reported as None (JSON null), never inf/NaN
+        sd_phys = {k: (v if math.isfinite(v) else None) for k, v in sd_phys.items()}
+        for st in steps:
+            st["uncertainties"] = {k: (v if math.isfinite(v) else None)
+                                   for k, v in st["uncertainties"].items()}
         for name, entry in candidates_report.items():
             entry["best_score"] = max(entry["scores"]) if entry["scores"] else 0.0
             entry["selected"] = any(s["effect"] == name for s in steps)
