@@ -56,8 +56,7 @@ DEFAULT_NOISE = {"pressure_a_pa": 2.0e4, "pressure_b_pa": 2.0e4, "chamber_a_pa":
 #: the outputs each kind of synthetic bench record carries
 RECORD_OUTPUTS = {"hafo": ("pressure_a_pa", "pressure_b_pa", "ankle_torque_nm",
                            "motor_current_a", "motor_speed_rad_s"),
-                  "valve": ("supply_pressure_pa", "chamber_a_pa", "chamber_b_pa",
-                            "ankle_torque_nm")}
+                  "valve": ("chamber_a_pa", "chamber_b_pa", "ankle_torque_nm")}
 DEFAULT_PRESET = {"hafo": "hafo", "valve": "valve"}
 #: encoder noise on the imposed angle (rad)
 ANGLE_NOISE_RAD = 2e-5
