@@ -144,8 +144,9 @@ def test_bad_setup_is_refused(tmp_path):
         load_calibration_setup(str(bad))
     with pytest.raises(ParameterError, match="held_out_fraction"):
         CalibrationOptions(held_out_fraction=1.5)
-    preset, ov, opts = load_calibration_setup(str(ROOT / "scenarios" / "calibrate_valve.toml"))
-    assert preset == "valve" and opts.max_effects == 3
+    for f in sorted((ROOT / "scenarios" / "calibration").glob("*.toml")):
+        preset, ov, opts = load_calibration_setup(str(f))
+        assert preset == f.stem and opts.max_effects == 3
 
 
 def test_cli_end_to_end(tmp_path):
@@ -159,7 +160,7 @@ def test_cli_end_to_end(tmp_path):
     assert r.returncode == 0, r.stderr
     out = tmp_path / "cal"
     r = subprocess.run([sys.executable, "-m", "afo_mj.cli", "calibrate", "--scenario",
-                        str(ROOT / "scenarios" / "calibrate_hafo.toml"), "--data", str(rec),
+                        str(ROOT / "scenarios" / "calibration" / "hafo.toml"), "--data", str(rec),
                         "--out", str(out)], capture_output=True, text=True, env=env, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout.strip().splitlines()[-1])["effects"][0] == "piston_leakage"
