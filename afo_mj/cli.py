@@ -11,6 +11,8 @@
   ``report.json``, ``report.md`` and figures (:mod:`afo_mj.analysis.calibration`).
 * ``afo-mj make-bench-record --kind hafo --effect NAME:PARAM=V --out FILE.csv``: a synthetic
   bench record with undeclared effects (:mod:`afo_mj.analysis.synthetic_records`).
+* ``afo-mj sweep STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS|local]``: run a
+  parameter study in parallel, resumably (:mod:`afo_mj.analysis.sweep`).
 * ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
 * ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
@@ -629,6 +631,46 @@ def _make_bench_record(args) -> int:
     return 0
 
 
+def _sweep(args) -> int:
+    """``afo-mj sweep``: exit 0 all runs done (failed runs recorded), 2 invalid study,
+    130 interrupted (finished runs kept: run again to resume)."""
+    from afo_mj.analysis.study import StudyError, load_study
+    from afo_mj.analysis.sweep import Sweep, SweepInterrupted
+
+    try:
+        study = load_study(args.study)
+        points = study.points()
+    except StudyError as exc:
+        print(f"afo-mj sweep: invalid study: {exc}", file=sys.stderr)
+        return 2
+    if args.workers is not None and args.workers < 1:
+        print(f"afo-mj sweep: --workers = {args.workers}; allowed: >= 1", file=sys.stderr)
+        return 2
+    sw = Sweep(study, args.out, workers=args.workers, scheduler=args.scheduler,
+               fmt=args.format, keep_runs=args.keep_runs, progress=not args.quiet)
+    where = (f"Dask scheduler {args.scheduler}" if args.scheduler and args.scheduler != "local"
+             else f"a local Dask cluster of {sw.workers} workers" if args.scheduler
+             else f"{sw.workers} local worker process(es)")
+    print(f"afo-mj sweep: {study.name}: {len(points)} runs ({study.design} design over "
+          f"{', '.join(p.key for p in study.parameters)}) on {where}")
+    t0 = time.perf_counter()
+    try:
+        rows = sw.run(points)
+    except SweepInterrupted as exc:
+        print(f"afo-mj sweep: {exc}", file=sys.stderr)
+        return 130
+    except ValueError as exc:
+        print(f"afo-mj sweep: {exc}", file=sys.stderr)
+        return 2
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"  {len(rows)} runs, {len(failed)} failed, {time.perf_counter() - t0:.1f} s wall; "
+          f"table: {sw.table_path}")
+    for r in failed[:5]:
+        print(f"  failed {r['run_id']}: {r['error']}")
+    print(json.dumps({"runs": len(rows), "failed": len(failed), "table": str(sw.table_path)}))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -710,6 +752,22 @@ def main(argv: list[str] | None = None) -> int:
     mk.add_argument("--out", required=True, metavar="FILE.csv",
                     help="data file (.csv or .parquet); the sidecar goes beside it")
     mk.set_defaults(func=_make_bench_record)
+    sw = sub.add_parser("sweep", help="run a parameter study (TOML) in parallel: local "
+                        "processes or a Dask cluster; resumable")
+    sw.add_argument("study", help="study file, e.g. scenarios/studies/hafo_peak_torque_timing.toml")
+    sw.add_argument("--out", required=True, help="sweep directory (rows/, results table); "
+                    "running again resumes")
+    sw.add_argument("--workers", type=int, default=None,
+                    help="worker processes (default: the machine's cores)")
+    sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="a Dask scheduler address (tcp://host:8786), or 'local' for a local "
+                         "Dask cluster of --workers processes")
+    sw.add_argument("--format", choices=("parquet", "csv"), default=None,
+                    help="results table format (default: the study's, parquet)")
+    sw.add_argument("--keep-runs", action="store_true", dest="keep_runs",
+                    help="keep every run's result directory under DIR/runs/")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw.set_defaults(func=_sweep)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)

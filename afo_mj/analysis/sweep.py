@@ -1,0 +1,419 @@
+"""Run a study's points in parallel, locally or on a Dask cluster, with results kept run by run.
+
+Each point is one ``afo-mj run`` of the base scenario with the point's ``--set`` overrides,
+executed in a worker process through the same code path as the command line
+(:func:`afo_mj.cli.main`), so a sweep's row holds exactly the metrics a single run would print
+to ``summary.json``. A row is: ``run_id``, ``status`` (``ok``/``failed``), ``exit_code``,
+``error`` (the run's last error line, empty when it succeeded), ``wall_time_s``, the inputs as
+``param:<dotted key>`` columns and every scalar of ``summary.json`` flattened to dotted names
+(``{"mean", "sd", "n"}`` statistics as ``key.mean``, ``key.sd``, ``key.n``; the scenario echo
+and the definitions are left out).
+
+Storage (``DIR``): ``study.json`` (the study as run), ``rows/<run_id>.json`` (one file per
+finished run, written atomically: the record of truth), and ``results.parquet`` (or
+``results.csv``), the table of all rows, rewritten atomically as runs finish and at the end.
+A sweep that is interrupted (SIGINT/SIGTERM, a crash, a lost cluster) resumes when it is run
+again with the same study and ``DIR``: runs whose row exists are not recomputed, runs in flight
+when it stopped are run again, and no row is duplicated (a row's file name is its run id). A
+run that raises or exits non-zero is recorded with its error and does not stop the sweep.
+
+Executors: local worker processes (:class:`concurrent.futures.ProcessPoolExecutor`, spawn
+start method) by default; a Dask ``distributed`` cluster when a scheduler address is given, or
+``"local"`` for a :class:`distributed.LocalCluster` of ``workers`` single-threaded processes
+on this machine (Dask's own scheduler does the placement, retries of lost workers and
+transfers; we only submit runs and collect rows).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import io
+import json
+import math
+import multiprocessing
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+from afo_mj.analysis.study import Study
+
+__all__ = ["run_point", "flatten_summary", "Sweep", "SweepInterrupted", "read_rows",
+           "write_table", "PARAM_PREFIX"]
+
+PARAM_PREFIX = "param:"
+_SKIP_TOP = ("scenario", "definitions", "format")
+
+
+class SweepInterrupted(RuntimeError):
+    """The sweep stopped on a signal; finished rows are kept (run it again to resume)."""
+
+
+def flatten_summary(summary: dict) -> dict[str, Any]:
+    """Every scalar of a ``summary.json`` under its dotted path (numbers as float, booleans
+    as bool, ``None`` as NaN); strings and lists are left out."""
+    out: dict[str, Any] = {}
+
+    def walk(d, prefix):
+        for k, v in d.items():
+            if not prefix and k in _SKIP_TOP:
+                continue
+            key = f"{prefix}{k}"
+            if isinstance(v, dict):
+                walk(v, key + ".")
+            elif isinstance(v, bool):
+                out[key] = v
+            elif isinstance(v, (int, float)):
+                out[key] = float(v)
+            elif v is None:
+                out[key] = math.nan
+    walk(summary, "")
+    return out
+
+
+def run_point(scenario_path: str, overrides: Sequence[str], run_id: str,
+              point: dict[str, Any], keep_dir: str | None = None) -> dict[str, Any]:
+    """One run in this process: ``afo-mj run SCENARIO --out TMP --set ...``; returns its row.
+    Never raises for a failing run (the error is in the row)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from afo_mj import cli
+
+    t0 = time.perf_counter()
+    tmp = Path(tempfile.mkdtemp(prefix=f"afo-sweep-{run_id}-"))
+    out_dir = tmp / "run"
+    argv = ["run", str(scenario_path), "--out", str(out_dir)]
+    for o in overrides:
+        argv += ["--set", o]
+    err = io.StringIO()
+    code = None
+    error = ""
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            code = cli.main(argv)
+    except SystemExit as exc:                       # argparse errors
+        code = exc.code if isinstance(exc.code, int) else 2
+    except BaseException as exc:                    # noqa: BLE001 - recorded, not raised
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        code = -1
+        error = f"{type(exc).__name__}: {exc}"
+        tb = traceback.format_exc(limit=3)
+        error += " | " + tb.strip().splitlines()[-2].strip() if tb else ""
+    row: dict[str, Any] = {"run_id": run_id, "exit_code": int(code if code is not None else -1)}
+    for k, v in point.items():
+        row[PARAM_PREFIX + k] = v
+    summary_path = out_dir / "summary.json"
+    if row["exit_code"] == 0 and summary_path.is_file():
+        try:
+            row.update(flatten_summary(json.loads(summary_path.read_text(encoding="utf-8"))))
+            row["status"] = "ok"
+        except (OSError, ValueError) as exc:
+            row["status"] = "failed"
+            error = f"summary.json unreadable: {exc}"
+    else:
+        row["status"] = "failed"
+        if not error:
+            lines = [ln for ln in err.getvalue().strip().splitlines() if ln.strip()]
+            error = lines[-1] if lines else f"exit code {row['exit_code']}"
+    row["error"] = error
+    row["wall_time_s"] = time.perf_counter() - t0
+    if keep_dir and out_dir.exists():
+        dest = Path(keep_dir) / run_id
+        shutil.rmtree(dest, ignore_errors=True)
+        shutil.move(str(out_dir), str(dest))
+    shutil.rmtree(tmp, ignore_errors=True)
+    return row
+
+
+def _write_json_atomic(path: Path, obj) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(obj, default=_json_default, allow_nan=True), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _json_default(o):
+    try:
+        return float(o)
+    except (TypeError, ValueError):
+        return str(o)
+
+
+def read_rows(out_dir) -> list[dict]:
+    """The finished rows of a sweep directory (``rows/*.json``), ordered by run order."""
+    rows = []
+    rdir = Path(out_dir) / "rows"
+    if not rdir.is_dir():
+        return rows
+    for p in rdir.glob("*.json"):
+        try:
+            rows.append(json.loads(p.read_text(encoding="utf-8")))
+        except (OSError, ValueError):
+            continue                                  # a torn file: the run is redone
+    rows.sort(key=lambda r: r.get("order", 0))
+    return rows
+
+
+def write_table(rows: Sequence[dict], path: Path, fmt: str) -> Path:
+    """All rows as one table (Parquet via pyarrow, or CSV), written atomically. Columns: the
+    fixed ones first, then the parameters, then the metrics in sorted order."""
+    fixed = ["order", "run_id", "status", "exit_code", "error", "wall_time_s"]
+    keys = set()
+    for r in rows:
+        keys.update(r)
+    params = sorted(k for k in keys if k.startswith(PARAM_PREFIX))
+    metrics = sorted(k for k in keys if k not in fixed and k not in params)
+    cols = [k for k in fixed if k in keys] + params + metrics
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    if fmt == "parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+        data = {}
+        for c in cols:
+            vals = [r.get(c) for r in rows]
+            if all(v is None or isinstance(v, bool) for v in vals):
+                data[c] = pa.array(vals, type=pa.bool_())
+            elif all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+                     for v in vals):
+                data[c] = pa.array([None if v is None else float(v) for v in vals],
+                                   type=pa.float64())
+            else:
+                data[c] = pa.array([None if v is None else str(v) for v in vals],
+                                   type=pa.string())
+        pq.write_table(pa.table(data), tmp)
+    else:
+        import csv
+        with open(tmp, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(cols)
+            for r in rows:
+                w.writerow(["" if r.get(c) is None else r.get(c) for c in cols])
+    os.replace(tmp, path)
+    return path
+
+
+class _Progress:
+    """A one-line progress report on stderr: runs done, failures, elapsed and time left."""
+
+    def __init__(self, total: int, already: int, stream=None, enabled: bool = True):
+        self.total, self.done, self.failed = total, already, 0
+        self.started = time.perf_counter()
+        self.new = 0
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self._last = 0.0
+
+    def update(self, failed: bool) -> None:
+        self.done += 1
+        self.new += 1
+        self.failed += int(failed)
+        self.show()
+
+    def show(self, final: bool = False) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if not (final or self.tty or now - self._last > 5.0 or self.done == self.total):
+            return
+        self._last = now
+        el = now - self.started
+        left = (self.total - self.done) * el / self.new if self.new else float("nan")
+        width = 30
+        fill = int(width * self.done / max(self.total, 1))
+        msg = (f"[{'#' * fill}{'-' * (width - fill)}] {self.done}/{self.total} runs, "
+               f"{self.failed} failed, {_hms(el)} elapsed"
+               + (f", ~{_hms(left)} left" if math.isfinite(left) and self.done < self.total
+                  else ""))
+        end = "\n" if (final or not self.tty) else ""
+        print(("\r" if self.tty else "") + msg, end=end, file=self.stream, flush=True)
+
+
+def _hms(s: float) -> str:
+    s = int(round(s))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+class Sweep:
+    """A study's runs into ``out_dir``: ``workers`` local processes, or a Dask scheduler
+    (``scheduler``: an address such as ``tcp://host:8786``, or ``"local"``)."""
+
+    def __init__(self, study: Study, out_dir, workers: int | None = None,
+                 scheduler: str | None = None, fmt: str | None = None,
+                 keep_runs: bool = False, progress: bool = True):
+        self.study = study
+        self.out_dir = Path(out_dir)
+        self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self.scheduler = scheduler
+        self.fmt = fmt or study.output_format
+        if self.fmt not in ("parquet", "csv"):
+            raise ValueError(f"format = {self.fmt!r}; allowed: parquet, csv")
+        self.keep_runs = keep_runs
+        self.progress = progress
+
+    @property
+    def table_path(self) -> Path:
+        return self.out_dir / f"results.{self.fmt}"
+
+    def _prepare(self) -> None:
+        (self.out_dir / "rows").mkdir(parents=True, exist_ok=True)
+        if self.keep_runs:
+            (self.out_dir / "runs").mkdir(exist_ok=True)
+        meta = self.out_dir / "study.json"
+        info = self.study.as_dict()
+        if meta.is_file():
+            old = json.loads(meta.read_text(encoding="utf-8"))
+            if old.get("scenario") != info["scenario"] or old.get("set") != info["set"]:
+                raise ValueError(f"{self.out_dir} holds a sweep of another study "
+                                 f"({old.get('name')!r}: scenario {old.get('scenario')}); "
+                                 "use another --out")
+        _write_json_atomic(meta, info)
+
+    def run(self, points: Sequence[dict] | None = None) -> list[dict]:
+        """Run every point that has no row yet; returns all rows of these points (in point
+        order). Raises :class:`SweepInterrupted` on SIGINT/SIGTERM after saving the table."""
+        self._prepare()
+        points = list(self.study.points() if points is None else points)
+        ids = [self.study.run_id(p) for p in points]
+        have = {r["run_id"]: r for r in read_rows(self.out_dir)}
+        order0 = 1 + max((r.get("order", 0) for r in have.values()), default=0)
+        todo = []
+        seen = set()
+        for i, (rid, p) in enumerate(zip(ids, points)):
+            if rid in have or rid in seen:
+                continue
+            seen.add(rid)
+            todo.append((i, rid, p))
+        prog = _Progress(len(set(ids)), len(set(ids)) - len(todo), enabled=self.progress)
+        stop = {"signal": None}
+
+        def handler(signum, frame):
+            stop["signal"] = signum
+            raise KeyboardInterrupt
+
+        old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        in_main = _is_main_thread()
+        if in_main:
+            for s in old:
+                signal.signal(s, handler)
+        new_rows = {}
+        last_write = time.perf_counter()
+        try:
+            for k, row in self._execute(todo):
+                row["order"] = order0 + k
+                _write_json_atomic(self.out_dir / "rows" / f"{row['run_id']}.json", row)
+                new_rows[row["run_id"]] = row
+                prog.update(row["status"] != "ok")
+                if time.perf_counter() - last_write > 2.0:
+                    write_table(read_rows(self.out_dir), self.table_path, self.fmt)
+                    last_write = time.perf_counter()
+        except KeyboardInterrupt:
+            write_table(read_rows(self.out_dir), self.table_path, self.fmt)
+            prog.show(final=True)
+            done = len(read_rows(self.out_dir))
+            raise SweepInterrupted(
+                f"interrupted ({signal.Signals(stop['signal']).name if stop['signal'] else 'SIGINT'})"
+                f": {done} runs saved in {self.out_dir}; run the same command again to resume")
+        finally:
+            if in_main:
+                for s, h in old.items():
+                    signal.signal(s, h)
+        rows = read_rows(self.out_dir)
+        write_table(rows, self.table_path, self.fmt)
+        prog.show(final=True)
+        by_id = {r["run_id"]: r for r in rows}
+        return [by_id[i] for i in ids if i in by_id]
+
+    # -- executors -------------------------------------------------------------------------
+    def _args(self, rid, p):
+        keep = str(self.out_dir / "runs") if self.keep_runs else None
+        return (str(self.study.scenario_path), self.study.overrides(p), rid, p, keep)
+
+    def _execute(self, todo) -> Iterable[tuple[int, dict]]:
+        if not todo:
+            return
+        if self.scheduler:
+            yield from self._execute_dask(todo)
+        elif self.workers == 1:
+            for k, (i, rid, p) in enumerate(todo):
+                yield k, run_point(*self._args(rid, p))
+        else:
+            yield from self._execute_local(todo)
+
+    def _execute_local(self, todo):
+        ctx = multiprocessing.get_context("spawn")
+        pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
+                                      initializer=_worker_init)
+        try:
+            futs = {pool.submit(run_point, *self._args(rid, p)): (i, rid, p)
+                    for i, rid, p in todo}
+            for k, fut in enumerate(cf.as_completed(futs)):
+                i, rid, p = futs[fut]
+                try:
+                    row = fut.result()
+                except Exception as exc:            # a worker that died
+                    row = _failed_row(rid, p, f"worker failed: {type(exc).__name__}: {exc}")
+                yield k, row
+        finally:
+            pool.shutdown(wait=False, cancel_futures=True)
+            _terminate_pool(pool)
+
+    def _execute_dask(self, todo):
+        from distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        if self.scheduler == "local":
+            cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            client = Client(cluster)
+        else:
+            client = Client(self.scheduler)
+        try:
+            futs = {}
+            for i, rid, p in todo:
+                f = client.submit(run_point, *self._args(rid, p), key=f"afo-run-{rid}",
+                                  pure=False)
+                futs[f] = (i, rid, p)
+            for k, fut in enumerate(as_completed(list(futs))):
+                i, rid, p = futs[fut]
+                try:
+                    row = fut.result()
+                except Exception as exc:
+                    row = _failed_row(rid, p, f"dask task failed: {type(exc).__name__}: {exc}")
+                yield k, row
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def _failed_row(rid, p, error) -> dict:
+    row = {"run_id": rid, "exit_code": -1, "status": "failed", "error": error,
+           "wall_time_s": math.nan}
+    for k, v in p.items():
+        row[PARAM_PREFIX + k] = v
+    return row
+
+
+def _worker_init() -> None:
+    """Workers ignore SIGINT: the parent decides when to stop (and terminates them)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def _terminate_pool(pool) -> None:
+    procs = getattr(pool, "_processes", None) or {}
+    for proc in list(procs.values()):
+        with contextlib.suppress(Exception):
+            if proc.is_alive():
+                proc.terminate()
+
+
+def _is_main_thread() -> bool:
+    import threading
+    return threading.current_thread() is threading.main_thread()
