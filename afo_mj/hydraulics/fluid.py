@@ -139,6 +139,8 @@ ISO_VG22 = FluidParams(name="ISO VG 22 mineral oil", density_kg_m3=865.0,
                        viscosity_low_m2_s=22.0e-6, viscosity_high_m2_s=4.3e-6)
 
 FLUID_PRESETS = {"ISO_VG22": ISO_VG22, "ISO_VG32": ISO_VG32, "ISO_VG46": ISO_VG46}
+#: presets by name, so a dotted override can pick one (``device.params.fluid = "ISO_VG22"``)
+FluidParams.PRESETS = FLUID_PRESETS
 
 
 class Fluid:

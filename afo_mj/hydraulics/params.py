@@ -150,6 +150,9 @@ def replace_named(obj: Parameters, changes: Mapping[str, Any]) -> Parameters:
     """A copy of ``obj`` with parameters changed by dotted name; every level is re-validated.
 
     >>> replace_named(circuit_params, {"cylinder.bore_m": 0.02, "pump.leakage_enabled": False})
+
+    A parameter set whose class has a ``PRESETS`` mapping can be replaced by a preset's name
+    (``{"fluid": "ISO_VG22", "fluid.air_fraction": 0.002}``: the preset, then its changes).
     """
     grouped: dict[str, dict[str, Any]] = {}
     direct: dict[str, Any] = {}
@@ -167,9 +170,20 @@ def replace_named(obj: Parameters, changes: Mapping[str, Any]) -> Parameters:
                                      f"cannot address {key!r}")
             grouped.setdefault(head, {})[rest] = value
         else:
-            if isinstance(getattr(obj, head), Parameters):
-                raise ParameterError(f"{key!r} names a parameter set, not a value")
+            cur = getattr(obj, head)
+            if isinstance(cur, Parameters):
+                # a named preset of that parameter set (e.g. fluid = "ISO_VG22")
+                presets = getattr(type(cur), "PRESETS", None)
+                if isinstance(value, str) and presets:
+                    if value not in presets:
+                        raise ParameterError(f"{key} = {value!r}; allowed: "
+                                             f"{', '.join(presets)}")
+                    direct[head] = presets[value]
+                    continue
+                raise ParameterError(f"{key!r} names a parameter set, not a value"
+                                     + (f" (or one of its presets: {', '.join(presets)})"
+                                        if presets else ""))
             direct[head] = value
     for head, sub_changes in grouped.items():
-        direct[head] = replace_named(getattr(obj, head), sub_changes)
+        direct[head] = replace_named(direct.get(head, getattr(obj, head)), sub_changes)
     return dataclasses.replace(obj, **direct)

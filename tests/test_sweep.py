@@ -1,0 +1,243 @@
+"""Parameter studies (issue 8): designs, the sweep runner, resume, failures and Dask.
+
+References: single ``afo-mj run`` calls with the same values (the sweep's rows must hold the
+same metrics), the definition of a Latin hypercube (one point per stratum and dimension), and
+the run-id bookkeeping (every run present exactly once after an interrupted sweep resumes)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from afo_mj import cli
+from afo_mj.analysis.study import StudyError, load_study, parse_study
+from afo_mj.analysis.sweep import PARAM_PREFIX, Sweep, flatten_summary, read_rows
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT / "scenarios" / "walk_healthy.toml"
+
+
+def _study(tmp_path, body, name="s"):
+    p = tmp_path / f"{name}.toml"
+    p.write_text(f'name = "{name}"\nscenario = "{WALK.as_posix()}"\n'
+                 'set = ["gait.strides=3", "gait.analyse_strides=[2, 3]"]\n' + body)
+    return load_study(p)
+
+
+GRID = '''
+[design]
+kind = "grid"
+[[parameter]]
+key = "walker.height_m"
+levels = [1.70, 1.80]
+[[parameter]]
+key = "controller.ankle_kp_nm_per_rad"
+range = [250.0, 350.0]
+points = 3
+'''
+
+
+def _single_run(study, point, tmp_path) -> dict:
+    out = tmp_path / f"single-{study.run_id(point)}"
+    argv = ["run", str(study.scenario_path), "--out", str(out)]
+    for o in study.overrides(point):
+        argv += ["--set", o]
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert cli.main(argv) == 0
+    return flatten_summary(json.loads((out / "summary.json").read_text()))
+
+
+def _metrics(row):
+    return {k: v for k, v in row.items()
+            if not k.startswith(PARAM_PREFIX) and k not in
+            ("order", "run_id", "status", "exit_code", "error", "wall_time_s")}
+
+
+def _same(a, b):
+    assert set(a) == set(b)
+    for k in a:
+        x, y = a[k], b[k]
+        if isinstance(x, float) and math.isnan(x):
+            assert isinstance(y, float) and math.isnan(y), k
+        else:
+            assert x == y, (k, x, y)
+
+
+@pytest.fixture(scope="module")
+def grid_sweep(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("grid")
+    study = _study(tmp, GRID)
+    rows = Sweep(study, tmp / "out", workers=2, progress=False).run()
+    return study, rows, tmp
+
+
+def test_grid_rows_equal_single_runs(grid_sweep, tmp_path):
+    study, rows, tmp = grid_sweep
+    assert len(rows) == 6 and all(r["status"] == "ok" for r in rows)
+    assert len({r["run_id"] for r in rows}) == 6
+    import pyarrow.parquet as pq
+    table = pq.read_table(tmp / "out" / "results.parquet")
+    assert table.num_rows == 6
+    assert {PARAM_PREFIX + "walker.height_m",
+            PARAM_PREFIX + "controller.ankle_kp_nm_per_rad"} <= set(table.column_names)
+    for point, row in zip(study.points(), rows):
+        assert row[PARAM_PREFIX + "walker.height_m"] == point["walker.height_m"]
+        _same(_metrics(row), _single_run(study, point, tmp_path))
+    # the parameters did act on the runs
+    assert len({r["speed_m_s.mean"] for r in rows}) > 1
+
+
+def test_dask_local_cluster_gives_the_same_table(grid_sweep, tmp_path):
+    pytest.importorskip("distributed")
+    study, rows, _ = grid_sweep
+    pts = study.points()[:4]
+    drows = Sweep(study, tmp_path / "dask", workers=2, scheduler="local",
+                  progress=False).run(pts)
+    assert [r["run_id"] for r in drows] == [r["run_id"] for r in rows[:4]]
+    for a, b in zip(drows, rows[:4]):
+        _same(_metrics(a), _metrics(b))
+
+
+def test_a_failing_run_is_recorded_and_the_rest_complete(tmp_path):
+    study = _study(tmp_path, '''
+[[parameter]]
+key = "walker.body_mass_kg"
+levels = [70.0, -5.0, 80.0]
+''')
+    rows = Sweep(study, tmp_path / "out", workers=1, progress=False).run()
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
+    bad = rows[1]
+    assert "body_mass_kg" in bad["error"] and bad["exit_code"] == 2
+    import pyarrow.parquet as pq
+    t = pq.read_table(tmp_path / "out" / "results.parquet").to_pydict()
+    assert sorted(t["status"]) == ["failed", "ok", "ok"]
+
+
+def test_interrupted_sweep_resumes_with_every_run_once(tmp_path):
+    study = _study(tmp_path, '''
+[design]
+kind = "lhs"
+samples = 6
+seed = 3
+[[parameter]]
+key = "controller.ankle_kp_nm_per_rad"
+range = [250.0, 350.0]
+''', name="resume")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "afo_mj.cli", "sweep", str(study.source_path), "--out",
+           str(out), "--workers", "1", "--quiet", "--format", "csv"]
+    env = dict(os.environ, MUJOCO_GL="egl")
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        if len(list((out / "rows").glob("*.json"))) >= 2 if (out / "rows").is_dir() else False:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "resume" in err
+    first = {p.name: p.read_text() for p in (out / "rows").glob("*.json")}
+    assert 2 <= len(first) < 6
+    assert (out / "results.csv").is_file()
+    r = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows = read_rows(out)
+    ids = [x["run_id"] for x in rows]
+    assert sorted(ids) == sorted(study.run_id(p) for p in study.points())
+    assert len(ids) == len(set(ids)) == 6
+    # the runs finished before the interruption were not recomputed
+    for name, text in first.items():
+        assert (out / "rows" / name).read_text() == text
+    import csv
+    with open(out / "results.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 6 and len({t["run_id"] for t in table}) == 6
+
+
+def test_designs(tmp_path):
+    lhs = _study(tmp_path, '''
+[design]
+kind = "lhs"
+samples = 8
+[[parameter]]
+key = "a.x"
+range = [0.0, 8.0]
+[[parameter]]
+key = "a.y"
+range = [1.0, 100.0]
+scale = "log"
+''', name="lhs")
+    pts = lhs.points()
+    assert len(pts) == 8
+    # one point in each of the 8 strata of each dimension (McKay et al. 1979)
+    assert sorted(int(p["a.x"]) for p in pts) == list(range(8))
+    u = [math.log(p["a.y"]) / math.log(100.0) for p in pts]
+    assert sorted(int(v * 8) for v in u) == list(range(8))
+    sob = _study(tmp_path, '''
+[design]
+kind = "sobol"
+samples = 16
+[[parameter]]
+key = "a.x"
+range = [2.0, 3.0]
+''', name="sob")
+    xs = [p["a.x"] for p in sob.points()]
+    assert len(xs) == 16 and all(2.0 <= x <= 3.0 for x in xs)
+    sal = _study(tmp_path, '''
+[design]
+kind = "saltelli"
+samples = 8
+[[parameter]]
+key = "a.x"
+range = [0.0, 1.0]
+[[parameter]]
+key = "a.y"
+range = [0.0, 1.0]
+''', name="sal")
+    assert len(sal.points()) == 8 * (2 + 2)           # N (D + 2) without second order
+    grid = _study(tmp_path, GRID, name="grid")
+    ids = [grid.run_id(p) for p in grid.points()]
+    assert len(set(ids)) == 6 and ids == [grid.run_id(p) for p in grid.points()]
+    assert grid.overrides(grid.points()[0])[-1].startswith("controller.ankle_kp_nm_per_rad=")
+
+
+@pytest.mark.parametrize("body,needle", [
+    ('[[parameter]]\nkey = "a.x"\nrange = [3.0, 1.0]\n', "range"),
+    ('[[parameter]]\nkey = "a.x"\nlevels = [1]\nrange = [0.0, 1.0]\n', "exactly one"),
+    ('[design]\nkind = "magic"\n[[parameter]]\nkey = "a.x"\nlevels = [1]\n', "design.kind"),
+    ('[[parameter]]\nkey = "a.x"\nlevels = [1]\nwhat = 3\n', "what"),
+    ('', "parameter"),
+])
+def test_bad_studies_are_refused(tmp_path, body, needle):
+    with pytest.raises(StudyError, match=needle):
+        _study(tmp_path, body)
+    with pytest.raises(StudyError, match="scenario"):
+        parse_study('scenario = "nope.toml"\n[[parameter]]\nkey = "a.x"\nlevels = [1]\n',
+                    base_dir=tmp_path)
+
+
+def test_shipped_studies_parse():
+    files = sorted((ROOT / "scenarios" / "studies").glob("*.toml"))
+    assert len(files) >= 3
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    for f in files:
+        s = load_study(f)
+        pts = s.points()
+        assert pts and s.description
+        for p in (pts[0], pts[-1]):         # every override is a valid scenario value
+            sc = load_scenario(s.scenario_path, overrides=s.overrides(p))
+            device_config(sc)
