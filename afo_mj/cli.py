@@ -13,6 +13,8 @@
   bench record with undeclared effects (:mod:`afo_mj.analysis.synthetic_records`).
 * ``afo-mj sweep STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS|local]``: run a
   parameter study in parallel, resumably (:mod:`afo_mj.analysis.sweep`).
+* ``afo-mj study DIR [--metric M]``: ranked table, plots, Pareto front and sensitivity indices
+  of a sweep; ``afo-mj optimize STUDY.toml --out DIR``: optimise a study's parameters.
 * ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
 * ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
@@ -671,6 +673,56 @@ def _sweep(args) -> int:
     return 0
 
 
+def _study(args) -> int:
+    """``afo-mj study DIR``: ranked table, plots and sensitivity indices of a sweep."""
+    from afo_mj.analysis.study_report import write_study_report
+
+    try:
+        rep = write_study_report(args.dir, metric=args.metric)
+    except (ValueError, OSError) as exc:
+        print(f"afo-mj study: {exc}", file=sys.stderr)
+        return 2
+    print(rep.get("text", ""))
+    return 0
+
+
+def _optimize(args) -> int:
+    """``afo-mj optimize STUDY.toml``: exit 0 done, 2 invalid study, 130 interrupted (the
+    runs and ``optimization.json`` are kept: run again to resume)."""
+    from afo_mj.analysis.optimize import optimize_study
+    from afo_mj.analysis.study import StudyError, load_study
+    from afo_mj.analysis.sweep import SweepInterrupted
+
+    if args.workers is not None and args.workers < 1:
+        print(f"afo-mj optimize: --workers = {args.workers}; allowed: >= 1", file=sys.stderr)
+        return 2
+    try:
+        study = load_study(args.study)
+        res = optimize_study(study, args.out, workers=args.workers, scheduler=args.scheduler,
+                             progress=not args.quiet)
+    except StudyError as exc:
+        print(f"afo-mj optimize: invalid study: {exc}", file=sys.stderr)
+        return 2
+    except SweepInterrupted as exc:
+        print(f"afo-mj optimize: {exc}", file=sys.stderr)
+        return 130
+    except ValueError as exc:
+        print(f"afo-mj optimize: {exc}", file=sys.stderr)
+        return 2
+    print(f"afo-mj optimize: {study.name}: {res['n_runs']} runs ({res['state']}); best "
+          f"{res['config']['metric'] if isinstance(res.get('config'), dict) else ''} = "
+          f"{res['best_metric']} ({'feasible' if res['best_feasible'] else 'INFEASIBLE'})")
+    for k, v in (res.get("best_point") or {}).items():
+        print(f"  {k} = {v}")
+    for k, v in (res.get("constraint_values") or {}).items():
+        print(f"  constraint {k} = {v}")
+    print(f"  {res.get('message', '')}; {args.out}/optimization.json")
+    print(json.dumps({k: res.get(k) for k in ("best_point", "best_metric", "best_feasible",
+                                              "constraint_values", "n_runs", "state",
+                                              "message")}, default=str))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -768,6 +820,21 @@ def main(argv: list[str] | None = None) -> int:
                     help="keep every run's result directory under DIR/runs/")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=_sweep)
+    st = sub.add_parser("study", help="rank, plot and analyse (Sobol'/Morris) a sweep's results")
+    st.add_argument("dir", help="a sweep directory (afo-mj sweep --out DIR)")
+    st.add_argument("--metric", default=None, help="metric to rank by (a results column); "
+                    "default: human ankle positive work change (device studies) or ankle "
+                    "angle RMS error")
+    st.set_defaults(func=_study)
+    op = sub.add_parser("optimize", help="optimise a study's parameters (e.g. the Zhang "
+                        "assistance profile) for a metric under constraints, in parallel")
+    op.add_argument("study", help="study file with an [optimize] table")
+    op.add_argument("--out", required=True, help="directory for the runs and optimization.json")
+    op.add_argument("--workers", type=int, default=None, help="worker processes")
+    op.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="Dask scheduler address, or 'local'")
+    op.add_argument("--quiet", action="store_true", help="no progress bar")
+    op.set_defaults(func=_optimize)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)

@@ -10,7 +10,9 @@ to ``summary.json``. A row is: ``run_id``, ``status`` (``ok``/``failed``), ``exi
 and the definitions are left out).
 
 Storage (``DIR``): ``study.json`` (the study as run), ``rows/<run_id>.json`` (one file per
-finished run, written atomically: the record of truth), and ``results.parquet`` (or
+finished run, written atomically: the record of truth; a row lost to the infrastructure, a
+worker process that died or a lost Dask task, is marked ``retry`` and run again on resume), and
+``results.parquet`` (or
 ``results.csv``), the table of all rows, rewritten atomically as runs finish and at the end.
 A sweep that is interrupted (SIGINT/SIGTERM, a crash, a lost cluster) resumes when it is run
 again with the same study and ``DIR``: runs whose row exists are not recomputed, runs in flight
@@ -162,7 +164,7 @@ def read_rows(out_dir) -> list[dict]:
 def write_table(rows: Sequence[dict], path: Path, fmt: str) -> Path:
     """All rows as one table (Parquet via pyarrow, or CSV), written atomically. Columns: the
     fixed ones first, then the parameters, then the metrics in sorted order."""
-    fixed = ["order", "run_id", "status", "exit_code", "error", "wall_time_s"]
+    fixed = ["order", "run_id", "status", "exit_code", "error", "wall_time_s", "retry"]
     keys = set()
     for r in rows:
         keys.update(r)
@@ -280,7 +282,9 @@ class Sweep:
         self._prepare()
         points = list(self.study.points() if points is None else points)
         ids = [self.study.run_id(p) for p in points]
-        have = {r["run_id"]: r for r in read_rows(self.out_dir)}
+        # rows of runs lost to the infrastructure (a worker that died, a lost Dask task) are
+        # not results: they are run again
+        have = {r["run_id"]: r for r in read_rows(self.out_dir) if not r.get("retry")}
         order0 = 1 + max((r.get("order", 0) for r in have.values()), default=0)
         todo = []
         seen = set()
@@ -394,7 +398,7 @@ class Sweep:
 
 def _failed_row(rid, p, error) -> dict:
     row = {"run_id": rid, "exit_code": -1, "status": "failed", "error": error,
-           "wall_time_s": math.nan}
+           "wall_time_s": math.nan, "retry": True}
     for k, v in p.items():
         row[PARAM_PREFIX + k] = v
     return row
