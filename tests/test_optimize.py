@@ -298,7 +298,7 @@ def test_shipped_study_parses():
         "assistance.fall_time_pct"]
     assert cfg.metric == "human.ankle_positive_work_j_per_stride" and cfg.budget == 40
     names = {c.metric: c for c in cfg.constraints}
-    assert names["device.peak_torque_nm"].max == 60.0
+    assert names["device.peak_torque_nm"].max == 35.0
     assert names["device.peak_pressure_mpa"].max == 14.0
 
 

@@ -241,3 +241,24 @@ def test_shipped_studies_parse():
         for p in (pts[0], pts[-1]):         # every override is a valid scenario value
             sc = load_scenario(s.scenario_path, overrides=s.overrides(p))
             device_config(sc)
+
+
+def test_study_and_optimize_commands(grid_sweep, tmp_path):
+    """``afo-mj study DIR`` on the grid sweep; ``afo-mj optimize`` refuses a bad study."""
+    _, rows, tmp = grid_sweep
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert cli.main(["study", str(tmp / "out")]) == 0
+    text = buf.getvalue()
+    best = min(rows, key=lambda r: r["ankle_angle_rms_error_deg.mean"])
+    assert best["run_id"] in text.split("Best run:")[1]
+    assert (tmp / "out" / "study" / "metric_vs_parameters.png").stat().st_size > 0
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        assert cli.main(["study", str(tmp / "out"), "--metric", "no_such_metric"]) == 2
+    assert "no_such_metric" in err.getvalue()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(f'scenario = "{WALK.as_posix()}"\n[[parameter]]\nkey = "a.x"\n'
+                   'range = [0.0, 1.0]\n[optimize]\nmethod = "magic"\n')
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        assert cli.main(["optimize", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "method" in err.getvalue()
