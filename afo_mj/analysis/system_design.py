@@ -82,6 +82,15 @@ SCREEN_SAMPLES = 32
 #: A design whose mass bound exceeds the lightest found at its pressure and oil by more than
 #: this fraction is not evaluated further (it cannot rank near the top).
 BOUND_SLACK = 0.03
+#: The screening keeps the pack this fraction of the allowed temperature rise below the limit.
+SCREEN_TEMPERATURE_MARGIN = 0.02
+#: Larger motors tried beside the screened one in the exact pass.
+MOTOR_ALTERNATIVES = 2
+#: Rounds and breadth of the local search around the lightest exact designs.
+REFINE_ROUNDS = 3
+REFINE_TOP = 6
+#: Corner radius of the compiled driver's voltage clamps (pump_ankle_actuator._soft_clip).
+DRIVER_CLAMP_CORNER_V = 0.05
 
 #: Constraint names, in chain order, with what each one checks.
 CONSTRAINTS = {
@@ -310,28 +319,35 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         ch_c = chain(duty.constraint_torque_nm, duty.constraint_velocity_rad_s, mu)
         tm = motor_torque(ch)
         tm_c = motor_torque(ch_c)
-        x_env = np.maximum(np.max(np.abs(tm_cold / km[col] ** 2 + cc["w_p"]), axis=1),
-                           np.max(np.abs(tm_c / km[col] ** 2 + ch_c["w_p"]), axis=1))
-        if req.profile != "corner":
-            x_env = np.maximum(x_env, np.max(np.abs(tm / km[col] ** 2 + ch["w_p"]), axis=1))
         t_peak = np.maximum(np.max(np.abs(tm_cold), axis=1), np.max(np.abs(tm_c), axis=1))
-        # battery and winding: the pack's resistance depends on its capacity (sized below)
+        # battery and winding: the pack's resistance depends on its capacity (sized below).
+        # The winding constant K is the largest that reaches every envelope point (cold and hot
+        # constraint points; the duty samples too for a profile) with the pack, at its lowest
+        # allowed charge, sagging under that point's own current: v = K (T/k_m² + ω) ≤
+        # duty_max (V_oc − R_b I_b).
         r_bat = a.battery_cell_resistance_ohm_ah * req.cells_series / cap
+        vmin = bat["v_oc_min"]
+        env = [(tm_cold, cc["w_p"]), (tm_c, ch_c["w_p"])]
+        if req.profile != "corner":
+            env.append((tm, ch["w_p"]))
+
+        def bus(tq, w, kt):
+            i_ = tq / kt[col]
+            p_ = np.maximum(tq * w + tq ** 2 / km[col] ** 2 + dr.on_resistance_ohm * i_ ** 2
+                            + dr.quiescent_power_w, 0.0)
+            disc = np.maximum(vmin ** 2 - 4.0 * r_bat[col] * p_, 0.0)
+            ib = 2.0 * p_ / (vmin + np.sqrt(disc))
+            return p_, ib, vmin - r_bat[col] * ib
+
         k_t = np.full(n, 0.05)
-        for _ in range(3):
-            k_t = np.minimum(k_t, 10.0)
-            i_c = tm_c / k_t[col]
-            p_bus_c = (tm_c * ch_c["w_p"] + tm_c ** 2 / km[col] ** 2
-                       + dr.on_resistance_ohm * i_c ** 2 + dr.quiescent_power_w)
-            i_d = tm / k_t[col]
-            p_bus_d = (tm * ch["w_p"] + tm ** 2 / km[col] ** 2
-                       + dr.on_resistance_ohm * i_d ** 2 + dr.quiescent_power_w)
-            p_peak = np.maximum(np.max(p_bus_c, axis=1), np.max(p_bus_d, axis=1))
-            vmin = bat["v_oc_min"]
-            disc = np.maximum(vmin ** 2 - 4.0 * r_bat * np.maximum(p_peak, 0.0), 0.0)
-            i_bat_peak = 2.0 * np.maximum(p_peak, 0.0) / (vmin + np.sqrt(disc))
-            v_avail = dr.max_duty * (vmin - r_bat * i_bat_peak)
-            k_t = v_avail / x_env
+        for _ in range(4):
+            cand = [np.min(dr.max_duty * bus(tq, w, k_t)[2]
+                           / np.maximum(np.abs(tq / km[col] ** 2 + w), 1e-12), axis=1)
+                    for tq, w in env]
+            k_t = np.minimum(np.minimum.reduce(cand), 10.0)
+        i_bat_peak = np.max(np.concatenate([bus(tq, w, k_t)[1] for tq, w in env]
+                                           + [bus(tm, ch["w_p"], k_t)[1]], axis=1), axis=1)
+        v_avail = dr.max_duty * (vmin - r_bat * i_bat_peak)
         r_w = (k_t / km) ** 2
         i_lim = t_peak / k_t
         # energies per stride (J)
@@ -642,11 +658,17 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
         pick.extend(order[first])
         if key == "pressure_pa":          # a few per pressure for the studies
             for v in np.unique(vals):
-                pick.extend(order[vals == v][:8])
+                pick.extend(order[vals == v][:16])
     pick = np.unique(np.asarray(pick, dtype=int))
-    spec_x = {k: v[pick] for k, v in spec_f.items()}
-    spec_x["motor_power_w"] = grids["motor_power_w"][best_m[pick]]
+    # each picked design with its screened motor and the next larger ones (the exact pass may
+    # find a little more heat than the screening: a larger motor sheds less copper loss)
+    nmot = grids["motor_power_w"].size
+    reps = [np.minimum(best_m[pick] + j, nmot - 1) for j in range(MOTOR_ALTERNATIVES + 1)]
+    spec_x = {k: np.concatenate([v[pick]] * len(reps)) for k, v in spec_f.items()}
+    spec_x["motor_power_w"] = grids["motor_power_w"][np.concatenate(reps)]
     ev = evaluate_designs(spec_x, req, duty, a, base)
+    ev = _refine(ev, grids, req, duty, a, base)
+    ev["feasible"] = ev["feasible"] & _lightest_motor_only(ev)
     feas = np.flatnonzero(ev["feasible"])
     if feas.size == 0:
         worst = {}
@@ -665,12 +687,100 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
                         screened=screened, wall_s=time.perf_counter() - t0, best_limits=limits)
 
 
+_AXES = ("pressure_pa", "bore_m", "arm_m", "hose_bore_m", "displacement_m3_rev",
+         "motor_power_w")
+
+
+def _hydraulic_key(spec: dict, i: int) -> tuple:
+    return tuple(round(float(spec[k][i]), 12) for k in _AXES[:-1]) + (int(spec["oil"][i]),)
+
+
+def _lightest_motor_only(ev: dict) -> np.ndarray:
+    """Mask keeping, per hydraulic design (everything but the motor), its lightest feasible
+    motor."""
+    sp = ev["spec"]
+    mass = np.where(ev["feasible"], ev["total_kg"], np.inf)
+    best: dict[tuple, int] = {}
+    for i in range(mass.size):
+        k = _hydraulic_key(sp, i)
+        if k not in best or mass[i] < mass[best[k]]:
+            best[k] = i
+    keep = np.zeros(mass.size, dtype=bool)
+    for i in best.values():
+        keep[i] = np.isfinite(mass[i])
+    return keep
+
+
+def _concat(x, y):
+    """Two :func:`evaluate_designs` outputs joined design-wise."""
+    if isinstance(x, dict):
+        return {k: _concat(x[k], y[k]) for k in x}
+    if isinstance(x, tuple):
+        return tuple(_concat(u, v) for u, v in zip(x, y))
+    if isinstance(x, np.ndarray) and x.ndim >= 1:
+        return np.concatenate([x, y])
+    return x
+
+
+def _refine(ev: dict, grids: dict, req, duty, a, base, rounds: int = REFINE_ROUNDS,
+            top: int = REFINE_TOP) -> dict:
+    """Local search around the lightest exactly evaluated designs: each design variable one
+    grid step either way (every other oil), evaluated exactly, for a few rounds or until the
+    lightest design stops improving (the screening's approximations can miss a neighbour)."""
+    seen = {tuple(_hydraulic_key(ev["spec"], i)) + (round(float(ev["spec"]["motor_power_w"][i]),
+                                                          9),)
+            for i in range(ev["total_kg"].size)}
+    gv = {k: np.asarray(grids[k]) for k in _AXES}
+    noil = len(grids["oil"])
+    for _ in range(rounds):
+        mass = np.where(ev["feasible"], ev["total_kg"], np.inf)
+        if not np.any(np.isfinite(mass)):
+            return ev
+        best_before = float(mass.min())
+        tops = np.argsort(mass, kind="stable")[:top]
+        tops = tops[np.isfinite(mass[tops])]
+        new = {k: [] for k in _AXES + ("oil",)}
+        for i in tops:
+            cur = {k: float(ev["spec"][k][i]) for k in _AXES}
+            cur["oil"] = int(ev["spec"]["oil"][i])
+            cands = []
+            for k in _AXES:
+                j = int(np.argmin(np.abs(gv[k] - cur[k])))
+                for dj in (-1, 1):
+                    if 0 <= j + dj < gv[k].size:
+                        c = dict(cur)
+                        c[k] = float(gv[k][j + dj])
+                        cands.append(c)
+            for o in range(noil):
+                if o != cur["oil"]:
+                    c = dict(cur)
+                    c["oil"] = o
+                    cands.append(c)
+            for c in cands:
+                key = tuple(round(c[k], 12) for k in _AXES[:-1]) + (c["oil"],) \
+                    + (round(c["motor_power_w"], 9),)
+                if key in seen:
+                    continue
+                seen.add(key)
+                for k in new:
+                    new[k].append(c[k])
+        if not new["oil"]:
+            return ev
+        spec_n = {k: np.asarray(v, dtype=int if k == "oil" else float) for k, v in new.items()}
+        ev = _concat(ev, evaluate_designs(spec_n, req, duty, a, base))
+        mass = np.where(ev["feasible"], ev["total_kg"], np.inf)
+        if float(mass.min()) >= best_before - 1e-9:
+            return ev
+    return ev
+
+
 def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     """Stages 2 and 3 (module docstring) on the actuator candidates ``act``.
 
     The line side (cylinders, hoses) depends on actuator × hose × oil, the pump side also on
-    the displacement: groups ``g`` (actuator, hose, oil) × ``K`` displacements. Cold oil
-    (ambient). The duty sums use at most :data:`SCREEN_SAMPLES` samples (every k-th, weighted
+    the displacement: groups ``g`` (actuator, hose, oil) × ``K`` displacements. Constraint
+    points with cold oil (ambient), the duty's energy with the oil at the skin-safe limit
+    (where the lightest designs end up). The duty sums use at most :data:`SCREEN_SAMPLES` samples (every k-th, weighted
     by its time). Designs are then evaluated in order of a lower bound on their mass (every
     part but motor and battery is known; the smallest motor; a battery holding at least the
     net ankle work plus the ankle-side losses for the runtime) and a design is skipped once its
@@ -682,6 +792,9 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     fluids = _fluids(req, a)
     pu, mo, dr = base.pump, base.motor, base.driver
     mu_o = np.array([oil_viscosity_pa_s(f, req.ambient_temperature_k) for f in fluids])
+    # the duty cycle's energy with the oil at the skin-safe limit, where the lightest designs
+    # end up (the thin oil's pump slip is the heat that limits them)
+    mu_hot = np.array([oil_viscosity_pa_s(f, req.max_surface_temperature_k) for f in fluids])
     rho_o = np.array([f.density_kg_m3 for f in fluids])
     na, nh, no = act["pressure_pa"].size, grids["hose_bore_m"].size, len(grids["oil"])
     disps = grids["displacement_m3_rev"]
@@ -702,7 +815,7 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     dt_d = duty.dt_s[::step] * (np.sum(duty.dt_s) / np.sum(duty.dt_s[::step]))
     ct, cv = duty.constraint_torque_nm[cidx], duty.constraint_velocity_rad_s[cidx]
 
-    def line(g, tau, vel):
+    def line(g, tau, vel, mu=mu_g):
         i = ia[g]
         return line_steady(tau[None, :], vel[None, :], r=act["arm_m"][i][col],
                            ae=geo["effective_area_m2"][i][col], n_cyl=base.cylinders,
@@ -710,7 +823,7 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
                                       for x in geo["seal"]),
                            g_leak=geo["leak_conductance_m3"][i][col],
                            hose_length_m=req.conduit_length_m, hose_bore_m=hb_g[g][col],
-                           mu=mu_g[g][col], rho=rho_g[g][col])
+                           mu=mu[g][col], rho=rho_g[g][col])
 
     def pump(q, dp, mu, d):
         return pump_steady(q, dp, mu=mu, d=d, cs=pu.slip_coefficient,
@@ -761,7 +874,8 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     waist_fix = fixed["manifold_reservoir_valves"] + fixed["electronics"] \
         + fixed["enclosure_belt"]
     gwant = np.unique(gsel)
-    ld = line(gwant, tau_d, vel_d)                                 # duty, line side
+    mu_gh = mu_hot[io]
+    ld = line(gwant, tau_d, vel_d, mu_gh)                          # duty, line side
     row_of = np.full(ia.size, -1)
     row_of[gwant] = np.arange(gwant.size)
     e_ankle = ((ld["p_mech"] + ld["p_line"] + ld["p_seal"] + ld["p_leak"]) @ dt_d)
@@ -805,7 +919,7 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
         if idx.size == 0:
             continue
         rows = row_of[gsel[idx]]
-        mu_i = mu_g[gsel[idx]][:, None]
+        mu_i = mu_gh[gsel[idx]][:, None]
         d_i = dk[ksel[idx]][:, None]
         pp_ = pump(ld["q"][rows], ld["dp_p"][rows], mu_i, d_i)
         tp, w = pp_["t_p"], pp_["w_p"]
@@ -883,6 +997,9 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
             + (1.0 - walk_frac) * dr.quiescent_power_w
         waists[:, m] = batt_kg + ms["mass_kg"] + pump_kg + waist_fix
     totals[totals > cap_kg[:, None]] = np.inf
+    # a little margin below the limit: the exact pass finds slightly more heat
+    t_limit = req.max_surface_temperature_k - SCREEN_TEMPERATURE_MARGIN * (
+        req.max_surface_temperature_k - req.ambient_temperature_k)
     best_mass = np.full(nf, np.inf)
     best_m = np.zeros(nf, dtype=int)
     cand = np.flatnonzero(np.isfinite(totals).any(axis=1))
@@ -899,7 +1016,7 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
                                              geom["exposed_area_m2"],
                                              req.ambient_temperature_k, a, iterations=3)
         t_min = min(t_min, float(t_s.min()))
-        passed = t_s <= req.max_surface_temperature_k
+        passed = t_s <= t_limit
         mfails["surface_temperature"] += int(np.count_nonzero(~passed))
         best_mass[cand[passed]] = tot[passed]
         best_m[cand[passed]] = m[passed]
@@ -931,14 +1048,15 @@ def _binding(counts: dict, names) -> list[str]:
 # ----------------------------------------------------------------------------------------------
 def _infeasible(req, a, duty, grids, counts, limits, binding, t0, screened) -> DesignResult:
     return DesignResult(requirements=req, assumptions=a, duty=duty, feasible=False, designs=None,
-                        order=None, explanation=explain(req, grids, counts, limits, binding),
+                        order=None, explanation=explain(req, grids, counts, limits, binding, a),
                         binding=list(binding), counts=counts,
                         grid={k: (list(map(float, v)) if k != "oil" else v)
                               for k, v in grids.items()},
                         screened=screened, wall_s=time.perf_counter() - t0, best_limits=limits)
 
 
-def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding) -> str:
+def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding,
+            a: DesignAssumptions) -> str:
     """A sentence per binding constraint, with the numbers that bind."""
     out = []
     plo, phi = req.pressure_range_pa
@@ -1037,7 +1155,12 @@ def design_overrides(row: dict, req: Requirements, a: DesignAssumptions | None =
         "motor.viscous_coefficient_nm_s_rad": float(ms["viscous_coefficient_nm_s_rad"]),
         "motor.max_speed_rad_s": a.motor_max_speed_rad_s,
         "motor.mass_kg": row["mass_kg"]["motor"],
-        "driver.current_limit_a": row["current_limit_a"],
+        # the kernel's driver clamp has rounded corners of 0.05 V (pump_ankle_actuator
+        # _soft_clip): held against the current limit it applies 0.025 V more, i.e.
+        # 0.025/R more current; the written limit takes that off so the stall is the design's
+        "driver.current_limit_a": max(row["current_limit_a"]
+                                      - 0.5 * DRIVER_CLAMP_CORNER_V / r_w,
+                                      0.5 * row["current_limit_a"]),
         "battery.name": f"{req.cells_series}S {cap:.2f} Ah Li-ion {chem.name}",
         "battery.capacity_ah": cap, "battery.cells_series": float(req.cells_series),
         "battery.internal_resistance_ohm": row["battery_resistance_ohm"],
@@ -1187,9 +1310,12 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
 # studies
 # ----------------------------------------------------------------------------------------------
 def hose_bore_study(result: DesignResult, k: int = 0, bores=None) -> dict:
-    """The best design with only its hose bore changed (motor and everything else kept; the
-    battery re-sized): total mass (the mass + loss objective: line loss costs battery),
-    line loss and feasibility per bore."""
+    """The hose bore trade-off of the ``k``-th best design: only the hose bore changes, the
+    battery is re-sized for the energy the line loss costs. ``total_kg`` holds the motor too
+    (the pure trade-off: hose wall and oil mass against the battery that pays for the viscous
+    loss, the mass + loss objective); ``total_reoptimised_kg`` lets each bore take its lightest
+    feasible motor of the grid (inf where none is feasible) and ``feasible`` says whether the
+    held-motor design meets every constraint."""
     ev, i = result.designs, int(result.order[k])
     req = result.requirements
     bores = np.asarray(bores if bores is not None else np.geomspace(
@@ -1197,11 +1323,18 @@ def hose_bore_study(result: DesignResult, k: int = 0, bores=None) -> dict:
     spec = {key: np.repeat(np.asarray(v)[i], bores.size) for key, v in ev["spec"].items()}
     spec["hose_bore_m"] = bores
     e2 = evaluate_designs(spec, req, result.duty, result.assumptions)
+    powers = np.asarray(result.grid["motor_power_w"])
+    spec_m = {key: np.repeat(v, powers.size) for key, v in spec.items()}
+    spec_m["motor_power_w"] = np.tile(powers, bores.size)
+    e3 = evaluate_designs(spec_m, req, result.duty, result.assumptions)
+    m3 = np.where(e3["feasible"], e3["total_kg"], np.inf).reshape(bores.size, powers.size)
     return {"hose_bore_m": bores, "total_kg": e2["total_kg"],
             "battery_kg": e2["mass"]["battery"], "hoses_kg": e2["mass"]["hoses"],
             "line_loss_j_per_stride": e2["energy_j"]["line"],
             "system_efficiency": e2["system_efficiency"], "feasible": e2["feasible"],
-            "peak_reynolds": e2["peak_reynolds"]}
+            "surface_temperature_k": e2["surface_temperature_k"],
+            "peak_reynolds": e2["peak_reynolds"], "total_reoptimised_kg": m3.min(axis=1),
+            "motor_reoptimised_w": powers[np.argmin(m3, axis=1)]}
 
 
 def _best_by(result: DesignResult, key: str) -> dict:
@@ -1330,6 +1463,7 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
         written = {"row": row, "overrides": ov, "params": params,
                    "predicted_bench": predict_bench(params),
                    "mass_check": mass_check(row, params)}
+        _validate_written(req, written)
         if verify:
             from afo_mj.scenarios.hafo_bench import torque_velocity
             s, _ = torque_velocity(params, velocities_deg_s=(0.0,))
@@ -1341,6 +1475,24 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
     write_design_report(out_dir, result, summary, written, study, hose, top=top)
     return {"feasible": result.feasible, "summary": summary,
             "text": summary_text(summary, out_dir), "out_dir": str(out_dir)}
+
+
+def _validate_written(req: Requirements, written: dict) -> None:
+    """Parse the scenarios about to be written as ``afo-mj run`` will (a failure here is a bug
+    of the tool, reported as such, not a bad requirement)."""
+    from afo_mj.analysis.design_requirements import toml_dumps
+    from afo_mj.outputs.design_report import bench_scenario, walk_scenario
+    from afo_mj.scenarios.bench_scenario import parse_bench_scenario
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
+    ov = written["overrides"]
+    try:
+        parse_bench_scenario(toml_dumps(bench_scenario(req, ov)), origin="design_bench.toml")
+        sc = parse_scenario(toml_dumps(walk_scenario(
+            req, ov, written["predicted_bench"]["stall_torque_nm"])), origin="design_walk.toml")
+        device_config(sc)
+    except ScenarioError as exc:
+        raise RuntimeError(f"afo-mj design wrote a scenario afo-mj run rejects: {exc}") from exc
 
 
 def _oil_resistance(row: dict) -> float:
