@@ -91,6 +91,8 @@ REFINE_ROUNDS = 3
 REFINE_TOP = 6
 #: Corner radius of the compiled driver's voltage clamps (pump_ankle_actuator._soft_clip).
 DRIVER_CLAMP_CORNER_V = 0.05
+#: Designs (lowest mass bounds) looked at in full to explain an infeasible motor stage.
+DIAGNOSE_DESIGNS = 3000
 
 #: Constraint names, in chain order, with what each one checks.
 CONSTRAINTS = {
@@ -640,14 +642,13 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
             else _pareto_samples(duty.constraint_torque_nm, duty.constraint_velocity_rad_s))
     sc = _screen(act, req, duty, a, base, grids, cidx, counts, limits)
     if sc is None:
-        binding = _binding(counts, ("pump_pressure", "pressure", "pump_speed", "laminar"))
-        return _infeasible(req, a, duty, grids, counts, limits, binding, t0, screened)
+        return _infeasible(req, a, duty, grids, counts, limits, limits["stage2_binding"], t0,
+                           screened)
     spec_f, best_m, best_mass = sc
     ok = np.isfinite(best_mass)
     if not np.any(ok):
-        binding = _binding(counts, ("driver_current", "motor_peak", "motor_thermal", "winding",
-                                    "surface_temperature"))
-        return _infeasible(req, a, duty, grids, counts, limits, binding, t0, screened)
+        return _infeasible(req, a, duty, grids, counts, limits,
+                           limits.get("motor_binding", []), t0, screened)
     # ---- stage 4: exact evaluation of the best (overall, per pressure, per oil) -------------
     cand = np.flatnonzero(ok)
     order = cand[np.argsort(best_mass[cand], kind="stable")]
@@ -848,6 +849,11 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
                                    "pump_speed": float(wm.min())}
     limits["speed"] = _speed_limit_info(req, duty, grids, a, base, geo, act)
     if not np.any(ok_gk):
+        passes = {"pump_pressure": np.broadcast_to(ok_pp[:, None], wm.shape),
+                  "pressure": np.broadcast_to((dpm <= 1.0)[:, None], wm.shape),
+                  "laminar": np.broadcast_to((rem <= 1.0)[:, None], wm.shape),
+                  "pump_speed": wm <= 1.0}
+        limits["stage2_binding"] = _drop_one(passes)
         return None
     gsel, ksel = np.nonzero(ok_gk)
     nf = gsel.size
@@ -904,6 +910,23 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
                              "surface_temperature")}
     gmot = lambda w: mo.coulomb_torque_nm * np.tanh(w / mo.smoothing_speed_rad_s) \
         + mo.viscous_coefficient_nm_s_rad * w  # noqa: E731  motor friction at P_ref
+    def chunk_inputs(idx):
+        """Duty sums and constraint-point pump torque/speed of designs ``idx``."""
+        rows = row_of[gsel[idx]]
+        mu_i = mu_gh[gsel[idx]][:, None]
+        d_i = dk[ksel[idx]][:, None]
+        pp_ = pump(ld["q"][rows], ld["dp_p"][rows], mu_i, d_i)
+        tp, w = pp_["t_p"], pp_["w_p"]
+        gm = gmot(w)
+        su = {"pp": (tp * tp) @ dt_d, "pg": (tp * gm) @ dt_d, "gg": (gm * gm) @ dt_d,
+              "pw": (tp * w) @ dt_d, "gw": (gm * w) @ dt_d,
+              "pumpline": (pp_["p_pump_vol"] + pp_["p_pump_mech"]) @ dt_d
+              + ld["p_line"][rows] @ dt_d,
+              "maxpw": np.max(tp * w, axis=1), "maxtp2": np.max(tp * tp, axis=1)}
+        tcw = cp["t_p"][gsel[idx], ksel[idx]]
+        ww = cp["w_p"][gsel[idx], ksel[idx]]
+        return su, tcw, ww, gmot(ww)
+
     chunk_max = max(256, int(2e6 // tau_d.size))
     chunk = 512
     pruned = 0
@@ -918,26 +941,21 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
         idx = idx[live]
         if idx.size == 0:
             continue
-        rows = row_of[gsel[idx]]
-        mu_i = mu_gh[gsel[idx]][:, None]
-        d_i = dk[ksel[idx]][:, None]
-        pp_ = pump(ld["q"][rows], ld["dp_p"][rows], mu_i, d_i)
-        tp, w = pp_["t_p"], pp_["w_p"]
-        gm = gmot(w)
-        su = {"pp": (tp * tp) @ dt_d, "pg": (tp * gm) @ dt_d, "gg": (gm * gm) @ dt_d,
-              "pw": (tp * w) @ dt_d, "gw": (gm * w) @ dt_d,
-              "pumpline": (pp_["p_pump_vol"] + pp_["p_pump_mech"]) @ dt_d
-              + ld["p_line"][rows] @ dt_d,
-              "maxpw": np.max(tp * w, axis=1), "maxtp2": np.max(tp * tp, axis=1)}
-        tcw = cp["t_p"][gsel[idx], ksel[idx]]
-        ww = cp["w_p"][gsel[idx], ksel[idx]]
-        bm, bmass, tmn = _motor_stage(su, tcw, ww, gmot(ww), base_kg[idx], pump_kg[idx],
+        bm, bmass, tmn = _motor_stage(*chunk_inputs(idx), base_kg[idx], pump_kg[idx],
                                       waist_fix, powers, req, a, dr, bat, chem, rt, stride,
                                       walk_frac, mfails,
                                       incumbent[group_key[idx]] * (1.0 + BOUND_SLACK))
         t_min = min(t_min, tmn)
         best_m[idx], best_mass[idx] = bm, bmass
         np.minimum.at(incumbent, group_key[idx], bmass)
+    if not np.any(np.isfinite(best_mass)):
+        # why: every motor of the grid for the designs with the lowest bounds, all constraints
+        idx = order[:DIAGNOSE_DESIGNS]
+        diag = _motor_stage(*chunk_inputs(idx), base_kg[idx], pump_kg[idx], waist_fix, powers,
+                            req, a, dr, bat, chem, rt, stride, walk_frac,
+                            {k: 0 for k in mfails}, np.full(idx.size, np.inf), diagnose=True)
+        limits["motor_binding"] = _drop_one(diag["passes"])
+        limits["motor_ratios"] = {k: float(np.min(v)) for k, v in diag["ratios"].items()}
     counts.update(mfails)
     counts["bound"] = pruned
     fin = np.isfinite(best_mass)
@@ -948,14 +966,18 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
 
 
 def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a, dr, bat,
-                 chem, rt, stride, walk_frac, mfails, cap_kg):
+                 chem, rt, stride, walk_frac, mfails, cap_kg, diagnose: bool = False):
     """Stage 3 for one chunk of designs: every motor of the grid (winding from the voltage
     envelope of the constraint points, battery from the duty energy), then the surface
     temperature motor by motor in order of mass until one passes; a motor that makes the design
     heavier than ``cap_kg`` (the bound of its group) is not looked at. Returns
-    ``(best motor index, best mass, lowest surface temperature seen)``."""
+    ``(best motor index, best mass, lowest surface temperature seen)``; with ``diagnose`` every
+    constraint of every (design, motor) instead: ``{"passes": {name: bool (n, motors)},
+    "ratios": {name: value / limit}}``."""
     nf = base_kg.size
     nm = powers.size
+    ratios = {k: np.zeros((nf, nm)) for k in ("driver_current", "motor_peak", "motor_thermal",
+                                               "winding", "surface_temperature")}
     totals = np.full((nf, nm), np.inf)
     heats = np.zeros((nf, nm))
     waists = np.zeros((nf, nm))
@@ -991,6 +1013,13 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
                        ("motor_thermal", c_th), ("winding", c_wd)):
             mfails[k_] += int(np.count_nonzero(~c_))
         good = c_drv & c_pk & c_th & c_wd
+        if diagnose:
+            ratios["driver_current"][:, m] = i_lim / a.driver_max_current_a
+            ratios["motor_peak"][:, m] = tpk2 / km ** 2 / (a.motor_peak_loss_ratio
+                                                           * ms["continuous_loss_w"])
+            ratios["motor_thermal"][:, m] = (e_cu + e_mf) / stride / ms["continuous_loss_w"]
+            ratios["winding"][:, m] = np.maximum(k_t / 10.0, r_w / 100.0)
+            good = np.ones(nf, dtype=bool)
         totals[:, m] = np.where(good, base_kg + ms["mass_kg"] + batt_kg, np.inf)
         heats[:, m] = walk_frac * ((e_chem - e_bus) + e_drv + e_cu + e_mf
                                    + sums["pumpline"]) / stride \
@@ -1000,6 +1029,15 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
     # a little margin below the limit: the exact pass finds slightly more heat
     t_limit = req.max_surface_temperature_k - SCREEN_TEMPERATURE_MARGIN * (
         req.max_surface_temperature_k - req.ambient_temperature_k)
+    if diagnose:
+        geom = pack_geometry(waists, a)
+        t_s, _ = pack_thermal_resistance_k_w(heats, geom["diameter_m"], geom["exposed_area_m2"],
+                                             req.ambient_temperature_k, a, iterations=3)
+        ratios["surface_temperature"][:] = (t_s - req.ambient_temperature_k) / (
+            req.max_surface_temperature_k - req.ambient_temperature_k)
+        passes = {k: v <= 1.0 for k, v in ratios.items()}
+        passes["surface_temperature"] = t_s <= t_limit
+        return {"passes": passes, "ratios": ratios, "surface_temperature_k": t_s}
     best_mass = np.full(nf, np.inf)
     best_m = np.zeros(nf, dtype=int)
     cand = np.flatnonzero(np.isfinite(totals).any(axis=1))
@@ -1037,10 +1075,25 @@ def _speed_limit_info(req, duty, grids, a, base, geo, spec) -> dict:
             "speed_limit_rad_s": speed_lim}
 
 
-def _binding(counts: dict, names) -> list[str]:
-    """The constraints of a stage ordered by how many designs each rules out."""
-    present = [(counts.get(n, 0), n) for n in names if counts.get(n, 0) > 0]
-    return [n for _, n in sorted(present, reverse=True)]
+def _drop_one(passes: dict) -> list[str]:
+    """The binding constraints of a stage where no design passes them all. ``passes``:
+    name → bool array (designs, alternatives), an alternative being e.g. a motor of the grid.
+    A constraint binds if dropping it alone would let some design through (ordered by how many);
+    if no single one does, those that fail in the closest design, the (design, alternative)
+    with the fewest failures."""
+    names = list(passes)
+    stack = np.stack([np.asarray(passes[n], dtype=bool) for n in names])   # (c, n, alt)
+    out = []
+    for j, n in enumerate(names):
+        others = np.delete(stack, j, axis=0).all(axis=0)
+        k = int(np.count_nonzero(others.any(axis=-1)))
+        if k:
+            out.append((k, n))
+    if out:
+        return [n for _, n in sorted(out, reverse=True)]
+    fails = (~stack).sum(axis=0)
+    i = np.unravel_index(int(np.argmin(fails)), fails.shape)
+    return [n for j, n in enumerate(names) if not stack[(j,) + i]]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1099,18 +1152,29 @@ def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding,
                        f"widen search.hose_bore_range_m [constraint: laminar]")
         elif name == "surface_temperature":
             tmin = limits.get("motor", {}).get("min_surface_temperature_k", math.nan)
-            out.append(f"the coolest design's pack surface reaches {tmin:.1f} K "
+            rr = limits.get("motor_ratios", {}).get(name)
+            if rr is not None:
+                tmin = req.ambient_temperature_k + rr * (req.max_surface_temperature_k
+                                                         - req.ambient_temperature_k)
+            out.append(f"even the coolest design and motor tried reach a pack surface of "
+                       f"{tmin:.1f} K "
                        f"({tmin - 273.15:.1f} °C) > the skin-safe "
                        f"{req.max_surface_temperature_k:.1f} K: the duty's losses cannot leave "
                        f"the pack by natural convection and radiation "
                        f"[constraint: surface_temperature]")
         elif name in ("motor_thermal", "motor_peak"):
-            out.append(f"no motor up to {grids['motor_power_w'].max():.0f} W carries the "
-                       f"{'mean' if name == 'motor_thermal' else 'peak'} copper loss of the "
-                       f"duty within its rating — widen search.motor_power_range_w "
+            rr = limits.get("motor_ratios", {}).get(name, math.nan)
+            what = ("mean loss over the duty cycle" if name == "motor_thermal"
+                    else "peak copper loss")
+            out.append(f"no motor of {grids['motor_power_w'].min():.0f}–"
+                       f"{grids['motor_power_w'].max():.0f} W sheds the {what} within its "
+                       f"rating: at best {rr:.2f} × the rating (the power asked, "
+                       f"{_rated_power(req):.0f} W, is too much for the motor range) — widen "
+                       f"search.motor_power_range_w or lower the requirement "
                        f"[constraint: {name}]")
         elif name == "driver_current":
-            out.append(f"the current limit would exceed the driver's "
+            rr = limits.get("motor_ratios", {}).get(name, math.nan)
+            out.append(f"the current limit would be at least {rr:.2f} × the driver's "
                        f"{a.driver_max_current_a:.0f} A [constraint: driver_current]")
         elif name == "winding":
             out.append("no realisable winding (K ≤ 10 N·m/A, R ≤ 100 Ω) [constraint: winding]")
