@@ -46,7 +46,7 @@ __all__ = ["DesignAssumptions", "BatteryChemistry", "CHEMISTRIES", "ORING_CROSS_
            "hose_wall_mass_kg_per_m", "cable_diameter_m", "oring_cross_section_m",
            "seal_coulomb_force_n", "cylinder_masses", "pulley_mass_kg",
            "oil_viscosity_pa_s", "soft_clip", "seal_force_n", "chain_steady", "line_steady",
-           "pump_steady",
+           "pump_steady", "SupplyFigures", "supply_steady",
            "pack_geometry", "pack_thermal_resistance_k_w", "radiation_h_w_m2_k"]
 
 STEFAN_BOLTZMANN_W_M2_K4 = 5.670374419e-8
@@ -399,6 +399,114 @@ def pump_steady(q, dp_p, *, mu, d, cs, cf, cv, t0, wc_pump) -> dict:
             "p_hyd_pump": dp_p * q, "p_shaft": t_p * w_p}
 
 
+@dataclasses.dataclass(frozen=True)
+class SupplyFigures:
+    """The valve circuits' figures the steady-state supply models use, read from the
+    simulator's presets (:data:`afo_mj.devices.valve_afo.VALVE_PRESETS`: ``valve_pressure_control``
+    for the servo valve, ``digital`` for the on/off valves) so a design is judged with the
+    components the simulator walks."""
+
+    margin_pa: float            # rail above the load pressure (pressure-following supply)
+    rail_min_pa: float          # lowest rail
+    servo_leak_m3_s: float      # servo centre leakage at servo_leak_dp_pa
+    servo_leak_dp_pa: float
+    servo_coil_w: float
+    onoff_area_m2: float        # open area of the digital circuit's on/off valve
+    onoff_cd: float
+    onoff_switch_s: float
+    onoff_switch_j: float       # electrical energy per switch
+    onoff_hold_w: float         # holding power when energised
+    pwm_hz: float
+    flow_margin: float          # digital: pump flow / peak demand (the valve preset's 30 %)
+    valve_block_kg: float
+    accumulator_kg: float       # the pressure-following supply's small accumulator
+
+    @classmethod
+    def from_presets(cls) -> "SupplyFigures":
+        from afo_mj.devices.valve_afo import VALVE_PRESETS
+        v, g = VALVE_PRESETS["valve_pressure_control"], VALVE_PRESETS["digital"]
+        sw = g.switching_valve
+        return cls(margin_pa=v.supply_pressure_margin_pa, rail_min_pa=v.supply_pressure_min_pa,
+                   servo_leak_m3_s=v.servo_valve.leakage_flow_m3_s,
+                   servo_leak_dp_pa=v.servo_valve.leakage_supply_dp_pa,
+                   servo_coil_w=v.servo_coil_power_w, onoff_area_m2=sw.max_area_m2,
+                   onoff_cd=sw.discharge_coefficient, onoff_switch_s=sw.switching_time_s,
+                   onoff_switch_j=sw.switching_energy_j, onoff_hold_w=sw.holding_power_w,
+                   pwm_hz=g.pwm_frequency_hz, flow_margin=1.3,
+                   valve_block_kg=v.valve_block_mass_kg, accumulator_kg=v.accumulator_mass_kg)
+
+
+def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,
+                  sf: SupplyFigures | None = None, w_set=None) -> dict:
+    """The supply side for line flow ``q`` (into port a) at the pressure difference
+    ``Δp_L`` the lines need at the pack (``line_steady``'s ``dp_p``), steady state.
+
+    * ``"pump"``: the bidirectional pump itself (:func:`pump_steady`); no valve.
+    * ``"valve"`` (servo valve, rail following the load, the ``valve_pressure_control``
+      preset's circuit): rail ``p_s = max(|Δp_L| + margin, p_min)``; a 4-way valve meters
+      ``|q|`` from the rail whatever the quadrant and throttles ``p_s |q| − Δp_L q``; its centre
+      leakage ``Q_l √(p_s/p_l)`` (orifice law) also comes from the rail; a unidirectional pump
+      delivers ``|q| + leakage`` at ``p_s``; the torque motor draws its coil power.
+    * ``"digital"`` (PWM unloading of a constant-speed pump, the ``digital`` preset): the pump
+      turns at ``w_set`` (delivering ``d w_set``); while the load takes power the on/off valve
+      sends the flow to it for the duty ``D = |q| / (d w_set − slip)`` and to tank (through the
+      open valve, ``Δp_u = ρ/2 (d w_set / (C_d A))²``) for the rest; each of the ``2 f``
+      switches a second holds the pump at the load pressure for half the switching time
+      without useful flow (a linear throttle, our estimate); when the load gives power back
+      the pump idles unloaded and the release valve throttles all of it. Coil power
+      ``P_hold D + E_sw 2 f``.
+
+    Returns the pump quantities of :func:`pump_steady` plus ``p_valve`` (hydraulic power the
+    valves turn into heat, W), ``p_valve_el`` (their electrical power, W) and ``p_required``
+    (the pump pressure the point needs, Pa: compared with the operating pressure).
+    """
+    q = np.asarray(q, dtype=float)
+    dp = np.asarray(dp_load, dtype=float)
+    kw = dict(mu=mu, d=d, cs=cs, cf=cf, cv=cv, t0=t0, wc_pump=wc_pump)
+    if arch == "pump":
+        out = pump_steady(q, dp, **kw)
+        out.update(p_valve=np.zeros_like(out["t_p"]), p_valve_el=np.zeros_like(out["t_p"]),
+                   p_required=np.abs(dp) + 0.0 * out["t_p"])
+        return out
+    if arch == "valve":
+        ps = np.maximum(np.abs(dp) + sf.margin_pa, sf.rail_min_pa)
+        q_lk = sf.servo_leak_m3_s * np.sqrt(ps / sf.servo_leak_dp_pa)
+        qp = np.abs(q) + q_lk
+        out = pump_steady(qp, ps, **kw)
+        out.update(p_valve=ps * qp - dp * q,
+                   p_valve_el=np.full_like(out["t_p"], sf.servo_coil_w),
+                   p_required=np.abs(dp) + sf.margin_pa + 0.0 * out["t_p"])
+        return out
+    if arch != "digital":
+        raise ParameterError(f"architecture = {arch!r}; allowed: pump, valve, digital")
+    w = np.asarray(w_set, dtype=float) + 0.0 * q
+    adp = np.abs(dp)
+    q_open = d * w
+    q_dlv = np.maximum(q_open - cs * d * adp / mu, 1e-30)
+    motoring = dp * q > 0.0
+    duty = np.where(motoring, np.clip(np.abs(q) / q_dlv, 0.0, 1.0), 0.0)
+    switching = (duty > 0.0) & (duty < 1.0)
+    d_hold = np.minimum(duty + np.where(switching, sf.onoff_switch_s * sf.pwm_hz, 0.0), 1.0)
+    dp_u = 0.5 * rho * (q_open / (sf.onoff_cd * sf.onoff_area_m2)) ** 2
+    th = np.tanh(w / wc_pump)
+
+    def torque(p_):
+        fr = (cf * d * np.sqrt(p_ * p_ + 1e8) + t0) * th + cv * d * mu * w
+        return d * p_ + fr, fr
+
+    t_on, f_on = torque(adp)
+    t_off, f_off = torque(dp_u)
+    t_p = d_hold * t_on + (1.0 - d_hold) * t_off
+    vol = d_hold * cs * d * adp ** 2 / mu + (1.0 - d_hold) * cs * d * dp_u ** 2 / mu
+    mech = (d_hold * f_on + (1.0 - d_hold) * f_off) * w
+    p_hyd = t_p * w - vol - mech
+    return {"w_p": w, "t_p": t_p, "p_pump_vol": vol, "p_pump_mech": mech, "p_hyd_pump": p_hyd,
+            "p_shaft": t_p * w, "p_valve": p_hyd - dp * q,
+            "p_valve_el": sf.onoff_hold_w * duty + np.where(
+                switching, sf.onoff_switch_j * 2.0 * sf.pwm_hz, 0.0),
+            "p_required": adp + 0.0 * t_p}
+
+
 def chain_steady(torque_nm, velocity_rad_s, *, r, ae, n_cyl, seal, g_leak, hose_length_m,
                  hose_bore_m, mu, rho, d, cs, cf, cv, t0, wc_pump) -> dict:
     """Steady state of the hydraulic chain for a delivered ankle torque ``τ`` at ankle velocity
@@ -424,267 +532,6 @@ def chain_steady(torque_nm, velocity_rad_s, *, r, ae, n_cyl, seal, g_leak, hose_
     out.update(pump_steady(out["q"], out["dp_p"], mu=mu, d=d, cs=cs, cf=cf, cv=cv, t0=t0,
                            wc_pump=wc_pump))
     return out
-
-
-# -- thermal ------------------------------------------------------------------------------
-    pack_mean_density_kg_m3: float = param(800.0, unit="kg/m^3", lo=100.0, hi=5000.0,
-                                           doc="waist pack mass / its enclosed volume (our "
-                                               "assumption for a packed enclosure)")
-    pack_exposed_fraction: float = param(0.5, unit="-", lo=0.05, hi=1.0,
-                                         doc="share of the pack surface open to the air (the "
-                                             "rest lies against the body and clothing)")
-    pack_emissivity: float = param(0.85, unit="-", lo=0.0, hi=1.0,
-                                   doc="anodised or painted enclosure (Incropera Table A.11)")
-    metal_specific_heat_j_kg_k: float = param(900.0, unit="J/(kg K)", lo=100.0, hi=5000.0,
-                                              doc="aluminium")
-    # -- circuit ------------------------------------------------------------------------------
-    relief_margin: float = param(1.03, unit="-", lo=1.0, hi=2.0,
-                                 doc="relief cracking / operating pressure")
-    relief_override_pa: float = param(1.0e6, unit="Pa", lo=1e4, hi=1e7,
-                                      doc="pressure override of the relief (preset)")
-    reservoir_pressure_pa: float = param(1.5e6, unit="Pa", lo=0.0, hi=5e6,
-                                         doc="charge pressure of the closed loop (preset)")
-    air_fraction: float = param(0.001, unit="-", lo=0.0, hi=0.5,
-                                doc="entrained air after bleeding (preset)")
-
-
-@dataclasses.dataclass(frozen=True)
-class BatteryChemistry:
-    """Cell figures of one lithium-ion chemistry.
-
-    Specific energies are mid-range cell-level datasheet figures of cylindrical cells (NMC
-    18650/21700: 220–270 Wh/kg; NCA: 240–270 Wh/kg); the pack factor of
-    :class:`DesignAssumptions` turns them into pack figures (0.7 × 240 = 168 Wh/kg, the HAFO
-    pack's 170 Wh/kg). ``max_c_rate_per_h`` is the continuous discharge rating of
-    power-oriented cells (our assumption: high-drain 18650 cells are rated 6–10 C). Both use the
-    NMC open-circuit table of :mod:`afo_mj.hydraulics.battery`, which the compiled simulator
-    holds (an approximation for NCA, whose curve spans the same 3.0–4.2 V); chemistries with
-    another voltage curve (LFP) are left out because the simulator could not walk them.
-    """
-
-    name: str
-    cell_specific_energy_wh_kg: float
-    max_c_rate_per_h: float
-
-
-CHEMISTRIES = {
-    "NMC": BatteryChemistry("NMC", 240.0, 8.0),
-    "NCA": BatteryChemistry("NCA", 255.0, 6.0),
-}
-
-
-# -- sizing laws ------------------------------------------------------------------------------
-def motor_scaling(rated_power_w, a: DesignAssumptions) -> dict:
-    """Motor figures at rated power ``P`` (catalogue-style power laws, our assumption).
-
-    * mass ``m = P / s`` with the specific power ``s`` (constant over 20–1000 W, as for the
-      high-power-density brushless motors of 16–40 mm);
-    * motor constant ``k_m = K/√R = k_ref (P/P_ref)^α`` (the winding-independent figure of a
-      catalogue, "motor constant"; copper loss at torque ``T`` is ``(T/k_m)²`` whatever the
-      winding);
-    * friction ``T_c, b ∝ (P/P_ref)^β``; rotor inertia ``J ∝ (P/P_ref)^γ``.
-
-    Example: ``P = 100 W`` → 0.143 kg, ``k_m`` = 0.071 N·m/√W (the HAFO motor);
-    ``P = 200 W`` → 0.286 kg, ``k_m`` = 0.119 (``hafo_gait``: 0.30 kg, 0.123).
-    """
-    p = np.asarray(rated_power_w, dtype=float)
-    s = p / a.motor_reference_power_w
-    return {"mass_kg": p / a.motor_specific_power_w_kg,
-            "motor_constant_nm_per_sqrt_w": a.motor_constant_ref_nm_per_sqrt_w
-            * s ** a.motor_constant_exponent,
-            "coulomb_torque_nm": a.motor_coulomb_ref_nm * s ** a.motor_friction_exponent,
-            "viscous_coefficient_nm_s_rad": a.motor_viscous_ref_nm_s_rad
-            * s ** a.motor_friction_exponent,
-            "rotor_inertia_kg_m2": a.motor_inertia_ref_kg_m2 * s ** a.motor_inertia_exponent,
-            "continuous_loss_w": a.motor_continuous_loss_fraction * p}
-
-
-def pump_mass_kg(displacement_m3_rev, a: DesignAssumptions):
-    """``m = m_ref (D/D_ref)^κ`` (our assumption through the two presets' pumps:
-    0.2 cm³/rev 0.25 kg, 0.6 cm³/rev 0.35 kg). Example: 0.1 cm³/rev → 0.203 kg."""
-    return a.pump_reference_mass_kg * (np.asarray(displacement_m3_rev, dtype=float)
-                                       / a.pump_reference_displacement_m3_rev) \
-        ** a.pump_mass_exponent
-
-
-def pump_inertia_kg_m2(displacement_m3_rev, reference_inertia_kg_m2: float,
-                       a: DesignAssumptions):
-    """Gear rotor inertia proportional to displacement (the ``hafo_gait`` preset's 3× for 3×)."""
-    return reference_inertia_kg_m2 * np.asarray(displacement_m3_rev, dtype=float) \
-        / a.pump_reference_displacement_m3_rev
-
-
-def hose_wall_thickness_m(bore_m, design_pressure_pa, a: DesignAssumptions):
-    """Wall thickness ``t = t_min + S p D / (2 σ)``: the thin-wall (Barlow) hoop stress
-    ``σ = p D / (2 t)`` of the reinforcement at the burst pressure ``S p`` (``S`` the burst
-    factor of ISO 1436 / SAE J517 hydraulic hoses, 4), plus liner and cover ``t_min``.
-
-    Example: 3.2 mm bore, 16.5 MPa → 0.42 + 1.65 = 2.07 mm.
-    """
-    d = np.asarray(bore_m, dtype=float)
-    p = np.asarray(design_pressure_pa, dtype=float)
-    return a.hose_min_wall_m + a.hose_burst_safety_factor * p * d / (2.0 * a.hose_wall_strength_pa)
-
-
-def hose_wall_mass_kg_per_m(bore_m, design_pressure_pa, a: DesignAssumptions):
-    """Wall mass per metre, ``ρ_w π (D + t) t`` (annulus of thickness ``t`` on bore ``D``).
-
-    Example: 3.2 mm bore at 16.5 MPa → 1300 · π · 5.27e-3 · 2.07e-3 ≈ 0.0446 kg/m (the HAFO
-    budget counts 0.045 kg/m).
-    """
-    d = np.asarray(bore_m, dtype=float)
-    t = hose_wall_thickness_m(d, design_pressure_pa, a)
-    return a.hose_wall_density_kg_m3 * math.pi * (d + t) * t
-
-
-def cable_diameter_m(max_cable_force_n, a: DesignAssumptions):
-    """Smallest cable with ``S F ≤ σ_b π d²/4`` (breaking load over nominal area), at least the
-    minimum diameter. Example: 1.14 kN (the HAFO at 14 MPa) → 2.0 mm."""
-    f = np.asarray(max_cable_force_n, dtype=float)
-    return np.maximum(np.sqrt(4.0 * a.cable_safety_factor * f / (math.pi * a.cable_strength_pa)),
-                      a.cable_min_diameter_m)
-
-
-def oring_cross_section_m(bore_m):
-    """Piston O-ring cross-section for a bore: the usual AS568 choice grows with the gland
-    (≤ 6 mm: 1.02 mm, ≤ 25 mm: 1.78 mm, ≤ 50 mm: 2.62 mm, ≤ 100 mm: 3.53 mm, else 5.33 mm);
-    the HAFO's 10.4 mm bore takes 1.78 mm."""
-    d = np.asarray(bore_m, dtype=float)
-    cs = ORING_CROSS_SECTIONS_M
-    return np.select([d <= 6e-3, d <= 25e-3, d <= 50e-3, d <= 100e-3], list(cs[:4]), cs[4])
-
-
-def seal_coulomb_force_n(sliding_diameter_m, cross_section_m, squeeze_ratio: float,
-                         friction_coefficient: float, elastic_modulus_pa: float,
-                         coulomb_scale: float = 1.0):
-    """Coulomb friction of one O-ring, seed eq. 2.7 as :class:`afo_mj.hydraulics.seal.
-    OringSeal` writes it: ``F_C = s μ_f E π D d λ^1.5``.
-
-    Example (nitrile, μ_f 0.4, E 3.5 MPa, λ 0.12): 10.4 mm bore, 1.78 mm ring → 3.39 N.
-    """
-    return (coulomb_scale * friction_coefficient * elastic_modulus_pa * math.pi
-            * np.asarray(sliding_diameter_m, dtype=float)
-            * np.asarray(cross_section_m, dtype=float) * squeeze_ratio ** 1.5)
-
-
-def cylinder_masses(bore_m, stroke_m, cable_m, design_pressure_pa, oil_density_kg_m3,
-                    dead_volume_m3: float, a: DesignAssumptions) -> dict:
-    """Mass of one piston-cable cylinder, part by part (kg).
-
-    * barrel: aluminium tube, wall ``t = max(t_min, S p D / (2 σ_y))`` (thin-wall hoop stress
-      at the design pressure with safety factor ``S`` on yield), length stroke + piston
-      + two end caps;
-    * end caps: two discs of the barrel's outer diameter;
-    * piston: aluminium disc of the bore, piston length long;
-    * oil: swept volume ``π/4 (D² − d_c²) s`` plus both dead volumes;
-    * hardware: ports, fittings and mounts (constant).
-
-    Example (the HAFO's 10.4 mm, 45 mm stroke, 2 mm cable, 15.6 MPa, VG 32): 0.130 kg each,
-    0.260 kg for two (budget: 0.26 kg).
-    """
-    d = np.asarray(bore_m, dtype=float)
-    s = np.asarray(stroke_m, dtype=float)
-    c = np.asarray(cable_m, dtype=float)
-    p = np.asarray(design_pressure_pa, dtype=float)
-    rho = a.cylinder_density_kg_m3
-    t = np.maximum(a.cylinder_min_wall_m,
-                   a.cylinder_safety_factor * p * d / (2.0 * a.cylinder_yield_strength_pa))
-    length = s + a.cylinder_piston_length_m + 2.0 * a.cylinder_end_cap_m
-    barrel = rho * math.pi * (d + t) * t * length
-    caps = 2.0 * rho * math.pi / 4.0 * (d + 2.0 * t) ** 2 * a.cylinder_end_cap_m
-    piston = rho * math.pi / 4.0 * d ** 2 * a.cylinder_piston_length_m
-    swept = math.pi / 4.0 * (d ** 2 - c ** 2) * s
-    oil = np.asarray(oil_density_kg_m3, dtype=float) * (swept + 2.0 * dead_volume_m3)
-    total = barrel + caps + piston + oil + a.cylinder_hardware_kg
-    return {"barrel_kg": barrel, "caps_kg": caps, "piston_kg": piston, "oil_kg": oil,
-            "hardware_kg": np.full_like(total, a.cylinder_hardware_kg), "total_kg": total,
-            "wall_m": t, "outer_diameter_m": d + 2.0 * t}
-
-
-def pulley_mass_kg(radius_m, a: DesignAssumptions):
-    """Lightened aluminium disc ``ρ π r² w φ`` plus axle and bearings. Example: 40 mm → 0.120 kg."""
-    r = np.asarray(radius_m, dtype=float)
-    return a.cylinder_density_kg_m3 * math.pi * r ** 2 * a.pulley_width_m * a.pulley_solidity \
-        + a.pulley_fixed_kg
-
-
-# -- oil, smoothing ---------------------------------------------------------------------------
-def oil_viscosity_pa_s(fluid: FluidParams, temperature_k):
-    """Dynamic viscosity as the simulator computes it (:func:`afo_mj.devices.
-    pump_ankle_actuator.viscosity_pa_s`): Walther/ASTM D341 kinematic viscosity through the
-    oil's two datasheet points times ``ρ0 / (1 + β (T − T0))``.
-
-    Example: ISO VG 32 at 298.15 K → 0.0568 Pa s.
-    """
-    fl = Fluid(fluid)
-    t = np.asarray(temperature_k, dtype=float)
-    rho = fluid.density_kg_m3 / (1.0 + fluid.thermal_expansion_per_k
-                                 * (t - fluid.reference_temperature_k))
-    return rho * fl.kinematic_viscosity_m2_s(t)
-
-
-def soft_clip(x, lo, hi, r):
-    """The driver's voltage clamp with rounded corners (radius ``r``), as the kernel's
-    ``_soft_clip``: ``min(max(x, lo), hi)`` exact away from the corners, C¹ at them."""
-    a_ = x - lo
-    x = lo + 0.5 * (a_ + np.sqrt(a_ * a_ + r * r)) - 0.5 * r
-    b = hi - x
-    return hi - 0.5 * (b + np.sqrt(b * b + r * r)) + 0.5 * r
-
-
-def seal_force_n(velocity_m_s, coulomb_n, stribeck_gain_n, v_stribeck_m_s, v_coulomb_m_s,
-                 viscous_n_s_m):
-    """Seal friction of one cylinder (the kernel's ``_seal_force`` without the optional
-    pressure term): ``F_C tanh(v/v_C) + f_v v + g_S exp(−(v/v_St)²) v/v_St``."""
-    v = np.asarray(velocity_m_s, dtype=float)
-    r = v / v_stribeck_m_s
-    return coulomb_n * np.tanh(v / v_coulomb_m_s) + viscous_n_s_m * v \
-        + stribeck_gain_n * np.exp(-r * r) * r
-
-
-# -- the chain in steady state ----------------------------------------------------------------
-def chain_steady(torque_nm, velocity_rad_s, *, r, ae, n_cyl, seal, g_leak, hose_length_m,
-                 hose_bore_m, mu, rho, d, cs, cf, cv, t0, wc_pump) -> dict:
-    """Steady state of the hydraulic chain for a delivered ankle torque ``τ`` at ankle velocity
-    ``θ̇`` (+ dorsiflexion both; all arguments broadcast).
-
-    With the time derivatives of the kernel's states zero:
-
-    * hydraulic torque ``τ_h = τ + r n F_seal(r θ̇)``, chamber difference ``Δp_c = −τ_h/(r A_e)``;
-    * line a flow (into the pump's port a) ``q = G_l Δp_c/μ − A_e r θ̇``; hose loss
-      ``Δp_h = R_lam q φ(Re)`` on each hose (the return carries ``−q``), so the pump sees
-      ``Δp_p = Δp_c + 2 Δp_h``;
-    * pump speed ``ω = (q + C_s d Δp_p/μ)/d`` and shaft torque ``T_p`` (module docstring).
-
-    ``seal`` is ``(F_C, g_S, v_St, v_C, f_v)`` per cylinder (:func:`seal_force_n`). Returns
-    arrays ``dp_c``, ``q``, ``dp_line`` (one hose), ``dp_p``, ``w_p``, ``t_p``, ``reynolds``,
-    the powers (W) ``p_mech`` (τ θ̇, delivered), ``p_seal``, ``p_leak``, ``p_line`` (both
-    hoses), ``p_pump_vol``, ``p_pump_mech``, ``p_hyd_pump`` (Δp_p q), ``p_shaft`` (T_p ω).
-    """
-    tau = np.asarray(torque_nm, dtype=float)
-    thd = np.asarray(velocity_rad_s, dtype=float)
-    xdot = r * thd
-    f_seal = n_cyl * seal_force_n(xdot, *seal)
-    tau_h = tau + r * f_seal
-    dp_c = -tau_h / (r * ae)
-    q_lk = g_leak * dp_c / mu
-    q = q_lk - ae * xdot
-    area = math.pi / 4.0 * hose_bore_m ** 2
-    nu = mu / rho
-    re = np.abs(q) / area * hose_bore_m / nu
-    r_lam = 128.0 * mu * hose_length_m / (math.pi * hose_bore_m ** 4)
-    dp_line = r_lam * q * friction_factor_ratio(re)
-    dp_p = dp_c + 2.0 * dp_line
-    q_slip = cs * d * dp_p / mu
-    w_p = (q + q_slip) / d
-    abs_dp = np.sqrt(dp_p * dp_p + 1e8)
-    t_fric = (cf * d * abs_dp + t0) * np.tanh(w_p / wc_pump) + cv * d * mu * w_p
-    t_p = d * dp_p + t_fric
-    return {"dp_c": dp_c, "q": q, "dp_line": dp_line, "dp_p": dp_p, "w_p": w_p, "t_p": t_p,
-            "reynolds": re, "f_seal": f_seal,
-            "p_mech": tau * thd, "p_seal": f_seal * xdot, "p_leak": dp_c * q_lk,
-            "p_line": 2.0 * dp_line * q, "p_pump_vol": dp_p * q_slip,
-            "p_pump_mech": t_fric * w_p, "p_hyd_pump": dp_p * q, "p_shaft": t_p * w_p}
 
 
 # -- thermal ------------------------------------------------------------------------------------

@@ -550,6 +550,5 @@ def toml_dumps(doc: dict, _prefix: str = "") -> str:
         name = f"{_prefix}{_toml_key(k)}"
         body = toml_dumps(v, name + ".")
         head = f"[{name}]"
-        sub = [ln for ln in body.split("\n")] if body else []
         out += ("\n\n" if out else "") + head + ("\n" + body if body else "")
     return out + ("\n" if not _prefix and not out.endswith("\n") else "")

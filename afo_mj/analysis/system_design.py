@@ -51,14 +51,13 @@ from typing import Any
 
 import numpy as np
 
-from afo_mj.analysis.design_models import (CHEMISTRIES, DesignAssumptions, cable_diameter_m,
-                                           chain_steady, cylinder_masses, line_steady,
-                                           pump_steady,
-                                           hose_wall_mass_kg_per_m, motor_scaling,
+from afo_mj.analysis.design_models import (CHEMISTRIES, DesignAssumptions, SupplyFigures,
+                                           cable_diameter_m, chain_steady, cylinder_masses,
+                                           hose_wall_mass_kg_per_m, line_steady, motor_scaling,
                                            oil_viscosity_pa_s, oring_cross_section_m,
                                            pack_geometry, pack_thermal_resistance_k_w,
                                            pulley_mass_kg, pump_inertia_kg_m2, pump_mass_kg,
-                                           seal_coulomb_force_n, soft_clip)
+                                           seal_coulomb_force_n, soft_clip, supply_steady)
 from afo_mj.analysis.design_requirements import (DesignError, DutyCycle, Requirements,
                                                  duty_cycle, load_requirements,
                                                  parse_requirements)
@@ -93,6 +92,9 @@ REFINE_TOP = 6
 DRIVER_CLAMP_CORNER_V = 0.05
 #: Designs (lowest mass bounds) looked at in full to explain an infeasible motor stage.
 DIAGNOSE_DESIGNS = 3000
+#: Up to this many constraint points the screening's motor stage checks each exactly; a
+#: profile's many points are screened through per-design envelope bounds.
+ENVELOPE_EXACT_POINTS = 8
 
 #: Constraint names, in chain order, with what each one checks.
 CONSTRAINTS = {
@@ -118,14 +120,41 @@ def _base():
     return PRESETS["hafo"]
 
 
-def _budget_fixed(base) -> dict:
+def _budget_fixed(base, arch: str = "pump") -> dict:
     """Masses of the brace and pack parts the tool does not size, from the HAFO's
-    :func:`~afo_mj.devices.hafo.mass_budget` (by item name)."""
+    :func:`~afo_mj.devices.hafo.mass_budget` (by item name); the valve circuits carry the
+    valve presets' valve block (and, pressure-following, accumulator) instead of the HAFO's
+    manifold (:func:`~afo_mj.devices.valve_afo.valve_mass_budget`)."""
     from afo_mj.devices.hafo import mass_budget
     items = {it.name: it for it in mass_budget(base)}
-    return {k: items[k].mass_kg for k in ("shank_cuff_struts", "foot_plate",
-                                          "manifold_reservoir_valves", "electronics",
-                                          "enclosure_belt")}
+    out = {k: items[k].mass_kg for k in ("shank_cuff_struts", "foot_plate", "electronics",
+                                         "enclosure_belt")}
+    if arch == "pump":
+        out["manifold_reservoir_valves"] = items["manifold_reservoir_valves"].mass_kg
+    else:
+        sf = _supply_figures()
+        out["valve_block"] = sf.valve_block_kg
+        if arch == "valve":
+            out["accumulator"] = sf.accumulator_kg
+    return out
+
+
+_SUPPLY = None
+
+
+def _supply_figures():
+    global _SUPPLY
+    if _SUPPLY is None:
+        _SUPPLY = SupplyFigures.from_presets()
+    return _SUPPLY
+
+
+#: Names of the supply's valve losses per architecture (ledger style).
+VALVE_LOSS_NAME = {"valve": "servo_throttling", "digital": "switching_valves"}
+
+
+def _waist_fixed(fixed: dict) -> float:
+    return sum(v for k, v in fixed.items() if k not in ("shank_cuff_struts", "foot_plate"))
 
 
 def _grids(req: Requirements) -> dict:
@@ -228,7 +257,7 @@ def _battery_figures(req: Requirements) -> dict:
 def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = None,
                      a: DesignAssumptions | None = None, base=None,
                      temperature_iterations: int = 3) -> dict:
-    """Every figure of the pump-controlled designs in ``spec`` (arrays of equal length:
+    """Every figure of the designs in ``spec`` (arrays of equal length:
     ``pressure_pa, bore_m, arm_m, hose_bore_m, displacement_m3_rev, oil`` (index into
     ``req.oil_grades``), ``motor_power_w``).
 
@@ -236,7 +265,8 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     limit, battery, energies per stride by loss name (the simulator ledger's names),
     stage efficiencies over the stride, system efficiency (positive ankle work / chemical
     energy), heat, steady oil/surface temperature, runtime, the constraint margins and
-    ``feasible``. Equations: :func:`~afo_mj.analysis.design_models.chain_steady` per sample,
+    ``feasible``. Equations: :func:`~afo_mj.analysis.design_models.line_steady` and
+    :func:`~afo_mj.analysis.design_models.supply_steady` (the architecture's supply) per sample,
     motor ``v = R i + K ω``, driver ``R_on i² + P_q``, battery Rint per sample, pack thermal
     resistance from natural convection and radiation, oil viscosity at the steady temperature
     (fixed point, ``temperature_iterations`` sweeps).
@@ -248,7 +278,9 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     bat = _battery_figures(req)
     chem = bat["chemistry"]
     rt = _runtime(req, duty.stride_time_s)
-    fixed = _budget_fixed(base)
+    arch = req.architecture
+    sf = _supply_figures() if arch != "pump" else None
+    fixed = _budget_fixed(base, arch)
     dr, mo, pu = base.driver, base.motor, base.pump
     p_op = np.asarray(spec["pressure_pa"], dtype=float)
     n = p_op.size
@@ -276,15 +308,24 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
                                               else temp)
         return out
 
+    def line(tau, vel, mu):
+        return line_steady(tau[None, :], vel[None, :], r=r[col], ae=geo["effective_area_m2"][col],
+                           n_cyl=base.cylinders, seal=tuple(np.asarray(s)[col] if np.ndim(s)
+                                                            else s for s in geo["seal"]),
+                           g_leak=geo["leak_conductance_m3"][col],
+                           hose_length_m=req.conduit_length_m, hose_bore_m=hb[col],
+                           mu=mu[col], rho=rho[col])
+
+    w_set = None
+
     def chain(tau, vel, mu):
-        return chain_steady(tau[None, :], vel[None, :], r=r[col], ae=geo["effective_area_m2"][col],
-                            n_cyl=base.cylinders, seal=tuple(np.asarray(s)[col] if np.ndim(s)
-                                                             else s for s in geo["seal"]),
-                            g_leak=geo["leak_conductance_m3"][col],
-                            hose_length_m=req.conduit_length_m, hose_bore_m=hb[col],
-                            mu=mu[col], rho=rho[col], d=d[col], cs=pu.slip_coefficient,
-                            cf=pu.coulomb_coefficient, cv=pu.viscous_coefficient,
-                            t0=pu.drag_torque_nm, wc_pump=pu.smoothing_speed_rad_s)
+        out = line(tau, vel, mu)
+        out.update(supply_steady(arch, out["q"], out["dp_p"], mu=mu[col], rho=rho[col],
+                                 d=d[col], cs=pu.slip_coefficient, cf=pu.coulomb_coefficient,
+                                 cv=pu.viscous_coefficient, t0=pu.drag_torque_nm,
+                                 wc_pump=pu.smoothing_speed_rad_s, sf=sf,
+                                 w_set=None if w_set is None else w_set[col]))
+        return out
 
     def motor_torque(ch):
         w = ch["w_p"]
@@ -300,8 +341,7 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     pump_kg = pump_mass_kg(disp, a)
     motor_kg = ms["mass_kg"]
     ankle_fixed = fixed["shank_cuff_struts"] + fixed["foot_plate"]
-    waist_fixed = fixed["manifold_reservoir_valves"] + fixed["electronics"] \
-        + fixed["enclosure_belt"]
+    waist_fixed = _waist_fixed(fixed)
     oil_volume = (2.0 * math.pi / 4.0 * hb ** 2 * req.conduit_length_m
                   + base.cylinders * (geo["effective_area_m2"] / base.cylinders * geo["stroke_m"]
                                       + 2.0 * base.cylinder.dead_volume_a_m3)
@@ -310,6 +350,12 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
 
     # -- cold constraint points ----------------------------------------------------------------
     mu_cold = mu_at(req.ambient_temperature_k)
+    if arch == "digital":   # constant pump speed: the peak flow with the preset's margin
+        q_pk = np.maximum(
+            np.max(np.abs(line(duty.constraint_torque_nm, duty.constraint_velocity_rad_s,
+                               mu_cold)["q"]), axis=1),
+            np.max(np.abs(line(duty.torque_nm, duty.velocity_rad_s, mu_cold)["q"]), axis=1))
+        w_set = sf.flow_margin * q_pk / d
     cc = chain(duty.constraint_torque_nm, duty.constraint_velocity_rad_s, mu_cold)
     tm_cold = motor_torque(cc)
     t_oil = np.full(n, req.ambient_temperature_k + 5.0)
@@ -336,11 +382,12 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         def bus(tq, w, kt):
             i_ = tq / kt[col]
             p_ = np.maximum(tq * w + tq ** 2 / km[col] ** 2 + dr.on_resistance_ohm * i_ ** 2
-                            + dr.quiescent_power_w, 0.0)
+                            + dr.quiescent_power_w + valve_el_peak[:, None], 0.0)
             disc = np.maximum(vmin ** 2 - 4.0 * r_bat[col] * p_, 0.0)
             ib = 2.0 * p_ / (vmin + np.sqrt(disc))
             return p_, ib, vmin - r_bat[col] * ib
 
+        valve_el_peak = np.max(ch["p_valve_el"], axis=1)
         k_t = np.full(n, 0.05)
         for _ in range(4):
             cand = [np.min(dr.max_duty * bus(tq, w, k_t)[2]
@@ -359,7 +406,7 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         mfric = (tm - ch["t_p"]) * ch["w_p"]
         drv = dr.on_resistance_ohm * i_d ** 2 + dr.quiescent_power_w
         p_motor_in = tm * ch["w_p"] + copper
-        p_bus = p_motor_in + drv
+        p_bus = p_motor_in + drv + ch["p_valve_el"]
         vmid = bat["v_oc_mid"]
         pmax_b = vmid ** 2 / (4.0 * r_bat)
         pb = np.minimum(p_bus, pmax_b[col])
@@ -370,6 +417,9 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
             ("motor_friction", mfric), ("pump_volumetric", ch["p_pump_vol"]),
             ("pump_mechanical", ch["p_pump_mech"]), ("line", ch["p_line"]),
             ("seal_friction", ch["p_seal"]), ("leakage", ch["p_leak"]))}
+        if arch != "pump":
+            e[VALVE_LOSS_NAME[arch]] = np.sum(ch["p_valve"] * dt, axis=1)
+            e["valve_coils"] = np.sum(ch["p_valve_el"] * dt, axis=1)
         e_chem = np.sum(p_chem * dt, axis=1)
         e_bus = np.sum(p_bus * dt, axis=1)
         # runtime energy and the pack it needs
@@ -384,9 +434,11 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         walk_frac = rt["walking_s"] / rt["total_s"]
         heat_walk = (e["battery_internal"] + e["driver"] + e["motor_copper"]
                      + e["motor_friction"] + e["pump_volumetric"] + e["pump_mechanical"]
-                     + e["line"]) / stride
+                     + e["line"] + e.get(VALVE_LOSS_NAME.get(arch, ""), 0.0)
+                     + e.get("valve_coils", 0.0)) / stride
         heat_oil_walk = (e["pump_volumetric"] + e["pump_mechanical"] + e["line"]
-                         + e["seal_friction"] + e["leakage"]) / stride
+                         + e["seal_friction"] + e["leakage"]
+                         + e.get(VALVE_LOSS_NAME.get(arch, ""), 0.0)) / stride
         heat = walk_frac * heat_walk + (1.0 - walk_frac) * dr.quiescent_power_w
         heat_oil = walk_frac * heat_oil_walk
         waist_kg = battery_kg + motor_kg + pump_kg + waist_fixed
@@ -397,11 +449,14 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         t_oil = t_surf
     # -- efficiencies over the stride: each stage's output over its input where the input is
     # positive (motoring), system: positive ankle work / chemical energy ----------------------
-    stages = (("battery", p_chem, p_bus), ("driver", p_bus, p_motor_in),
+    p_to_lines = ch["p_hyd_pump"] - ch["p_valve"]          # Δp_L q, what the lines receive
+    stages = [("battery", p_chem, p_bus), ("driver", p_bus, p_motor_in),
               ("motor", p_motor_in, ch["t_p"] * ch["w_p"]),
-              ("pump", ch["t_p"] * ch["w_p"], ch["p_hyd_pump"]),
-              ("lines", ch["p_hyd_pump"], ch["p_hyd_pump"] - ch["p_line"]),
-              ("cylinders", ch["p_hyd_pump"] - ch["p_line"], ch["p_mech"]))
+              ("pump", ch["t_p"] * ch["w_p"], ch["p_hyd_pump"])]
+    if arch != "pump":
+        stages.append(("valves", ch["p_hyd_pump"], p_to_lines))
+    stages += [("lines", p_to_lines, p_to_lines - ch["p_line"]),
+               ("cylinders", p_to_lines - ch["p_line"], ch["p_mech"])]
     eff = {}
     for name, pin, pout in stages:
         m = pin > 0
@@ -416,12 +471,13 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     w_max = np.maximum(np.max(np.abs(cc["w_p"]), axis=1), np.max(np.abs(ch_c["w_p"]), axis=1))
     if req.profile != "corner":
         w_max = np.maximum(w_max, np.max(np.abs(ch["w_p"]), axis=1))
-    dp_max = np.maximum(np.max(np.abs(cc["dp_p"]), axis=1), np.max(np.abs(ch_c["dp_p"]), axis=1))
+    dp_max = np.maximum(np.max(cc["p_required"], axis=1), np.max(ch_c["p_required"], axis=1))
     re_max = np.maximum(np.max(cc["reynolds"], axis=1), np.max(ch_c["reynolds"], axis=1))
     speed_lim = min(pu.max_speed_rad_s, a.motor_max_speed_rad_s)
     margins = {  # ≥ 0 where met (relative)
         "cable": 1.0 - geo["cable_m"] / (0.5 * np.asarray(spec["bore_m"], dtype=float)),
-        "torque": geo["torque_per_pressure_m3"] * p_op
+        "torque": geo["torque_per_pressure_m3"] * (p_op - (sf.margin_pa if arch == "valve"
+                                                           else 0.0))
         / float(np.max(np.abs(duty.constraint_torque_nm))) - 1.0,
         "pump_pressure": 1.0 - p_op / a.pump_max_pressure_pa,
         "pressure": 1.0 - dp_max / p_op,
@@ -451,9 +507,8 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
             "shank_cuff_struts"]), "pulley_bearings": geo["pulley_kg"],
                  "foot_plate": np.full(n, fixed["foot_plate"]), "battery": battery_kg,
                  "motor": motor_kg, "pump": pump_kg,
-                 "manifold_reservoir_valves": np.full(n, fixed["manifold_reservoir_valves"]),
-                 "electronics": np.full(n, fixed["electronics"]),
-                 "enclosure_belt": np.full(n, fixed["enclosure_belt"]),
+                 **{k: np.full(n, v) for k, v in fixed.items()
+                    if k not in ("shank_cuff_struts", "foot_plate")},
                  "hoses": hoses_kg},
         "mass_detail": {"hose_wall_kg": hose_wall_kg, "hose_oil_kg": hose_oil_kg,
                         "cylinder_oil_kg": base.cylinders * cyl["oil_kg"],
@@ -476,6 +531,7 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         "peak_pump_pressure_pa": dp_max, "peak_pump_speed_rad_s": w_max,
         "peak_reynolds": re_max, "margins": margins, "feasible": feasible,
         "motor_mean_loss_w": mot_loss_mean,
+        "pump_speed_set_rad_s": w_set if w_set is not None else np.full(n, np.nan),
     })
     return out
 
@@ -551,7 +607,8 @@ def _row(ev: dict, i: int, req: Requirements) -> dict:
     r["oil_thermal_resistance_k_w"] = _oil_resistance(r)
     hyd_kg = (r["mass_kg"]["motor"] + r["mass_kg"]["pump"] + r["mass_kg"]["hoses"]
               + r["mass_kg"]["cylinders"] + r["mass_kg"]["pulley_bearings"]
-              + r["mass_kg"]["manifold_reservoir_valves"])
+              + sum(r["mass_kg"].get(k, 0.0) for k in ("manifold_reservoir_valves",
+                                                       "valve_block", "accumulator")))
     r["hydraulic_system_kg"] = hyd_kg
     r["rated_output_power_w"] = _rated_power(req)
     r["hydraulic_power_density_w_kg"] = r["rated_output_power_w"] / hyd_kg
@@ -574,11 +631,12 @@ def _rated_power(req: Requirements, duty: DutyCycle | None = None) -> float:
 
 
 def _pareto_samples(tau: np.ndarray, vel: np.ndarray) -> np.ndarray:
-    """Indices of the samples that can hold the maximum of any function that, within a sign
-    quadrant of ``(τ, θ̇)``, is monotone in ``|τ|`` and in ``|θ̇|`` (either way): the union
-    over quadrants of the Pareto fronts in all four orientations. The chain's pump pressure,
-    flow, speed and the motor's voltage are such functions, so the constraints need only these
-    samples."""
+    """Indices of the samples the screening checks a profile's constraints at: per sign
+    quadrant of ``(τ, θ̇)``, the Pareto fronts maximising ``(|τ|, |θ̇|)`` and ``(|τ|, −|θ̇|)``.
+    Within a quadrant the pump pressure, flow, pump speed and motor current are monotone in
+    ``|τ|`` and ``|θ̇|`` (rising in both where the ankle takes power; where it gives power back,
+    rising in ``|τ|`` and falling in ``|θ̇|`` for the pressure), so their maxima lie on these
+    fronts. The exact pass (:func:`evaluate_designs`) checks every sample."""
     keep = set()
     q = (np.sign(tau) >= 0).astype(int) * 2 + (np.sign(vel) >= 0).astype(int)
     for quad in range(4):
@@ -586,13 +644,12 @@ def _pareto_samples(tau: np.ndarray, vel: np.ndarray) -> np.ndarray:
         if idx.size == 0:
             continue
         at, av = np.abs(tau[idx]), np.abs(vel[idx])
-        for sx in (1.0, -1.0):
-            for sy in (1.0, -1.0):
-                x, y = sx * at, sy * av
-                for j in range(idx.size):
-                    dom = (x >= x[j]) & (y >= y[j]) & ((x > x[j]) | (y > y[j]))
-                    if not np.any(dom):
-                        keep.add(int(idx[j]))
+        for sy in (1.0, -1.0):
+            x, y = at, sy * av
+            for j in range(idx.size):
+                dom = (x >= x[j]) & (y >= y[j]) & ((x > x[j]) | (y > y[j]))
+                if not np.any(dom):
+                    keep.add(int(idx[j]))
     return np.array(sorted(keep), dtype=int)
 
 
@@ -602,9 +659,6 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
     docstring). ``architecture = "valve" | "digital"`` goes to :func:`_size_valve`."""
     t0 = time.perf_counter()
     a = assumptions or DesignAssumptions()
-    if req.architecture != "pump":
-        from afo_mj.analysis.design_valve import size_valve_system
-        return size_valve_system(req, a)
     base = _base()
     duty = duty_cycle(req)
     grids = _grids(req)
@@ -615,7 +669,9 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
     P, B, R = np.meshgrid(grids["pressure_pa"], grids["bore_m"], grids["arm_m"], indexing="ij")
     geo = actuator_geometry(P, B, R, req.range_of_motion_rad, a, base)
     ok_cable = geo["cable_m"] <= 0.5 * B
-    cap = np.where(ok_cable, geo["torque_per_pressure_m3"] * P, 0.0)
+    # the servo valve needs its margin on top of the load pressure
+    p_load = P - (_supply_figures().margin_pa if req.architecture == "valve" else 0.0)
+    cap = np.where(ok_cable, geo["torque_per_pressure_m3"] * p_load, 0.0)
     ok_t = ok_cable & (cap >= t_need)
     counts["cable"] = int(np.count_nonzero(~ok_cable))
     counts["torque"] = int(np.count_nonzero(ok_cable & ~ok_t))
@@ -626,7 +682,8 @@ def size_system(req: Requirements, assumptions: DesignAssumptions | None = None,
                         "at_cable_m": float(geo["cable_m"].flat[j]),
                         "max_torque_per_pressure_m3": float(
                             geo["torque_per_pressure_m3"].flat[j]),
-                        "needed_torque_per_pressure_m3": t_need / float(P.flat[j])}
+                        "needed_torque_per_pressure_m3": t_need / float(p_load.flat[j]),
+                        "load_pressure_pa": float(p_load.flat[j])}
     if not np.any(ok_t):
         return _infeasible(req, a, duty, grids, counts, limits, ["torque"], t0, 0)
     aer = np.where(ok_t, geo["torque_per_pressure_m3"], np.inf)
@@ -826,20 +883,40 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
                            hose_length_m=req.conduit_length_m, hose_bore_m=hb_g[g][col],
                            mu=mu[g][col], rho=rho_g[g][col])
 
-    def pump(q, dp, mu, d):
-        return pump_steady(q, dp, mu=mu, d=d, cs=pu.slip_coefficient,
-                           cf=pu.coulomb_coefficient, cv=pu.viscous_coefficient,
-                           t0=pu.drag_torque_nm, wc_pump=pu.smoothing_speed_rad_s)
+    arch = req.architecture
+    sf = _supply_figures() if arch != "pump" else None
 
+    def pump(q, dp, mu, d, rho, w_set=None):
+        return supply_steady(arch, q, dp, mu=mu, rho=rho, d=d, cs=pu.slip_coefficient,
+                             cf=pu.coulomb_coefficient, cv=pu.viscous_coefficient,
+                             t0=pu.drag_torque_nm, wc_pump=pu.smoothing_speed_rad_s, sf=sf,
+                             w_set=w_set)
+
+    mu_gh = mu_hot[io]
+    ld = line(slice(None), tau_d, vel_d, mu_gh)                    # duty, line side (hot)
     # ---- stage 2: constraint points -----------------------------------------------------------
     ok_pp = p_g <= a.pump_max_pressure_pa
     cl = line(slice(None), ct, cv)
-    dpm = np.max(np.abs(cl["dp_p"]), axis=1) / p_g
+    margin = sf.margin_pa if arch == "valve" else 0.0
+    dpm = (np.max(np.abs(cl["dp_p"]), axis=1) + margin) / p_g
     rem = np.max(cl["reynolds"], axis=1) / RE_LAMINAR
     ok_g = ok_pp & (dpm <= 1.0) & (rem <= 1.0)
-    cp = pump(cl["q"][:, None, :], cl["dp_p"][:, None, :], mu_g[:, None, None],
-              dk[None, :, None])
-    wm = np.max(np.abs(cp["w_p"]), axis=2) / speed_lim           # (G, K)
+    # digital: a constant pump speed giving the peak flow with the preset's margin
+    w_set_gk = (sf.flow_margin * np.maximum(np.max(np.abs(cl["q"]), axis=1),
+                                            np.max(np.abs(ld["q"]), axis=1))[:, None]
+                / dk[None, :]) if arch == "digital" else None
+    # pump speed at the constraint points (the supply's flow over the displacement, plus slip)
+    if arch == "digital":
+        wm = w_set_gk / speed_lim
+    else:
+        if arch == "valve":
+            ps = np.maximum(np.abs(cl["dp_p"]) + sf.margin_pa, sf.rail_min_pa)
+            qs = np.abs(cl["q"]) + sf.servo_leak_m3_s * np.sqrt(ps / sf.servo_leak_dp_pa)
+        else:
+            ps, qs = cl["dp_p"], cl["q"]
+        slip = pu.slip_coefficient * ps / mu_g[:, None]                 # (G, S)
+        wm = np.max(np.abs(qs[:, None, :] / dk[None, :, None] + slip[:, None, :]),
+                    axis=2) / speed_lim                                  # (G, K)
     ok_gk = ok_g[:, None] & (wm <= 1.0)
     counts.update({"pump_pressure": int(np.count_nonzero(~ok_pp)) * nk,
                    "pressure": int(np.count_nonzero(dpm > 1.0)) * nk,
@@ -864,10 +941,10 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     bat = _battery_figures(req)
     chem = bat["chemistry"]
     rt = _runtime(req, duty.stride_time_s)
-    fixed = _budget_fixed(base)
     stride = duty.stride_time_s
     walk_frac = rt["walking_s"] / rt["total_s"]
     rho_f = rho_o[spec_f["oil"]]
+    fixed = _budget_fixed(base, arch)
     gi = ia[gsel]
     cyl = cylinder_masses(spec_f["bore_m"], geo["stroke_m"][gi], geo["cable_m"][gi],
                           geo["wall_pressure_pa"][gi], rho_f, base.cylinder.dead_volume_a_m3, a)
@@ -877,13 +954,8 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     pump_kg = pump_mass_kg(spec_f["displacement_m3_rev"], a)
     base_kg = (base.cylinders * cyl["total_kg"] + geo["pulley_kg"][gi] + hoses + pump_kg
                + sum(fixed.values()))
-    waist_fix = fixed["manifold_reservoir_valves"] + fixed["electronics"] \
-        + fixed["enclosure_belt"]
-    gwant = np.unique(gsel)
-    mu_gh = mu_hot[io]
-    ld = line(gwant, tau_d, vel_d, mu_gh)                          # duty, line side
-    row_of = np.full(ia.size, -1)
-    row_of[gwant] = np.arange(gwant.size)
+    waist_fix = _waist_fixed(fixed)
+    row_of = np.arange(ia.size)
     e_ankle = ((ld["p_mech"] + ld["p_line"] + ld["p_seal"] + ld["p_leak"]) @ dt_d)
     e_lb = rt["strides"] * np.maximum(e_ankle[row_of[gsel]], 0.0)
     kg_per_j = 1.0 / bat["usable_j_per_ah"] * bat["full_j_per_ah"] / 3600.0 \
@@ -891,7 +963,33 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     powers = grids["motor_power_w"]
     # the smallest motor whose short-time copper rating carries the peak pump torque:
     # (T/k_m)² ≤ ratio · frac · P with k_m = k_ref s^α, P = P_ref s  →  s^(1+2α) ≥ …
-    t_pk2 = np.max(cp["t_p"][gsel, ksel] ** 2, axis=1)
+    if ct.size <= ENVELOPE_EXACT_POINTS:
+        cp_f = pump(cl["q"][gsel], cl["dp_p"][gsel], mu_g[gsel][:, None], dk[ksel][:, None],
+                    rho_g[gsel][:, None],
+                    None if w_set_gk is None else w_set_gk[gsel, ksel][:, None])
+        t_pk2 = np.max(cp_f["t_p"] ** 2, axis=1)
+    else:
+        # a profile: the motor is screened against per-design bounds of its envelope (the
+        # exact pass checks every sample). Pump torque d Δp + (C_f d |Δp| + T_0) + C_v d μ ω
+        # rises with |Δp| and |ω|: the largest pressure and speed bound it from above, and
+        # with the friction taken off, from below (for the mass bound).
+        if arch == "valve":
+            p_need = np.max(np.maximum(np.abs(cl["dp_p"]) + sf.margin_pa, sf.rail_min_pa),
+                            axis=1)
+        else:
+            p_need = np.max(np.abs(cl["dp_p"]), axis=1)
+        pf = p_need[gsel]
+        d_f, mu_f = dk[ksel], mu_g[gsel]
+        w_f = wm[gsel, ksel] * speed_lim
+        if arch == "digital":
+            q_open = d_f * w_f
+            pf = np.maximum(pf, 0.5 * rho_g[gsel] * (q_open / (sf.onoff_cd
+                                                              * sf.onoff_area_m2)) ** 2)
+        cf_, t0_, cv_ = pu.coulomb_coefficient, pu.drag_torque_nm, pu.viscous_coefficient
+        t_ub = d_f * pf + cf_ * d_f * (pf + 1e4) + t0_ + cv_ * d_f * mu_f * w_f
+        t_lb = np.maximum(d_f * pf * (1.0 - cf_) - t0_ - cv_ * d_f * mu_f * w_f, 0.0)
+        cp_f = {"t_p": t_ub[:, None], "w_p": w_f[:, None]}
+        t_pk2 = t_lb ** 2
     s_min = (t_pk2 / (a.motor_constant_ref_nm_per_sqrt_w ** 2 * a.motor_peak_loss_ratio
                       * a.motor_continuous_loss_fraction * a.motor_reference_power_w)) \
         ** (1.0 / (1.0 + 2.0 * a.motor_constant_exponent))
@@ -899,8 +997,8 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     lb = base_kg + p_lb / a.motor_specific_power_w_kg + np.maximum(
         e_lb * kg_per_j, a.battery_min_capacity_ah * bat["full_j_per_ah"] / 3600.0
         / (chem.cell_specific_energy_wh_kg * a.battery_pack_factor))
-    group_key = np.unique(np.stack([spec_f["pressure_pa"], spec_f["oil"]]), axis=1,
-                          return_inverse=True)[1].ravel()
+    group_key = (np.searchsorted(grids["pressure_pa"], spec_f["pressure_pa"]) * no
+                 + spec_f["oil"])
     incumbent = np.full(group_key.max() + 1, np.inf)
     # ---- stage 3 in order of the bound --------------------------------------------------------
     order = np.argsort(lb, kind="stable")
@@ -915,16 +1013,17 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
         rows = row_of[gsel[idx]]
         mu_i = mu_gh[gsel[idx]][:, None]
         d_i = dk[ksel[idx]][:, None]
-        pp_ = pump(ld["q"][rows], ld["dp_p"][rows], mu_i, d_i)
+        pp_ = pump(ld["q"][rows], ld["dp_p"][rows], mu_i, d_i, rho_g[gsel[idx]][:, None],
+                   None if w_set_gk is None else w_set_gk[gsel[idx], ksel[idx]][:, None])
         tp, w = pp_["t_p"], pp_["w_p"]
         gm = gmot(w)
         su = {"pp": (tp * tp) @ dt_d, "pg": (tp * gm) @ dt_d, "gg": (gm * gm) @ dt_d,
               "pw": (tp * w) @ dt_d, "gw": (gm * w) @ dt_d,
-              "pumpline": (pp_["p_pump_vol"] + pp_["p_pump_mech"]) @ dt_d
-              + ld["p_line"][rows] @ dt_d,
+              "pumpline": (pp_["p_pump_vol"] + pp_["p_pump_mech"] + pp_["p_valve"]) @ dt_d
+              + ld["p_line"][rows] @ dt_d, "valve_el": pp_["p_valve_el"] @ dt_d,
               "maxpw": np.max(tp * w, axis=1), "maxtp2": np.max(tp * tp, axis=1)}
-        tcw = cp["t_p"][gsel[idx], ksel[idx]]
-        ww = cp["w_p"][gsel[idx], ksel[idx]]
+        tcw = cp_f["t_p"][idx]
+        ww = cp_f["w_p"][idx]
         return su, tcw, ww, gmot(ww)
 
     chunk_max = max(256, int(2e6 // tau_d.size))
@@ -996,7 +1095,7 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
         e_cu = quad / km ** 2
         e_mf = cfr * sums["gw"]
         e_drv = dr.on_resistance_ohm * quad / k_t ** 2 + dr.quiescent_power_w * stride
-        e_bus = sums["pw"] + e_mf + e_cu + e_drv
+        e_bus = sums["pw"] + e_mf + e_cu + e_drv + sums["valve_el"]
         e_chem = e_bus / 0.97
         e_run = rt["strides"] * e_chem + rt["idle_s"] * dr.quiescent_power_w
         p_peak = sums["maxpw"] + sums["maxtp2"] / km ** 2 + dr.quiescent_power_w
@@ -1022,7 +1121,7 @@ def _motor_stage(sums, tcw, ww, gcw, base_kg, pump_kg, waist_fix, powers, req, a
             good = np.ones(nf, dtype=bool)
         totals[:, m] = np.where(good, base_kg + ms["mass_kg"] + batt_kg, np.inf)
         heats[:, m] = walk_frac * ((e_chem - e_bus) + e_drv + e_cu + e_mf
-                                   + sums["pumpline"]) / stride \
+                                   + sums["pumpline"] + sums["valve_el"]) / stride \
             + (1.0 - walk_frac) * dr.quiescent_power_w
         waists[:, m] = batt_kg + ms["mass_kg"] + pump_kg + waist_fix
     totals[totals > cap_kg[:, None]] = np.inf
@@ -1116,10 +1215,13 @@ def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding,
     for name in binding[:3]:
         if name == "torque":
             t = limits["torque"]
+            pl = t.get("load_pressure_pa", phi)
+            via = ("" if pl == phi else f" ({phi / 1e6:.1f} MPa less the servo valve's "
+                   f"{(phi - pl) / 1e6:.1f} MPa margin)")
             out.append(
                 f"torque {t['torque_nm']:.0f} N·m needs A_e r ≥ "
-                f"{t['torque_nm'] / phi:.3g} m³ at {phi / 1e6:.1f} MPa (the highest operating "
-                f"pressure allowed); the largest bore {grids['bore_m'].max() * 1e3:.1f} mm "
+                f"{t['torque_nm'] / pl:.3g} m³ at {pl / 1e6:.1f} MPa{via} (the highest "
+                f"operating pressure allowed); the largest bore {grids['bore_m'].max() * 1e3:.1f} mm "
                 f"(with a {t['at_cable_m'] * 1e3:.1f} mm cable) and arm "
                 f"{grids['arm_m'].max() * 1e3:.0f} mm give A_e r = "
                 f"{t['max_torque_per_pressure_m3']:.3g} m³, {t['max_torque_nm']:.0f} N·m at most"
@@ -1133,9 +1235,10 @@ def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding,
                        f"{a.pump_max_pressure_pa / 1e6:.1f} MPa [constraint: pump_pressure]")
         elif name == "pressure":
             r_ = limits.get("stage2_best_ratio", {}).get("pressure", math.nan)
-            out.append(f"at speed, seal friction and line loss add to the load: the best design "
-                       f"needs {r_:.2f} × the operating pressure at a constraint point "
-                       f"[constraint: pressure]")
+            out.append(f"at speed, seal friction and line loss (and a servo valve's margin) add "
+                       f"to the load: the best design needs {r_:.3f} × the operating pressure "
+                       f"at a constraint point — widen search.cylinder_bore_range_m or "
+                       f"moment_arm_m [constraint: pressure]")
         elif name == "pump_speed":
             s = limits["speed"]
             out.append(
@@ -1521,7 +1624,7 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
     hose = hose_bore_study(result) if result.feasible else None
     bench = None
     written = None
-    if result.feasible:
+    if result.feasible and req.architecture == "pump":
         row = result.row(0)
         ov, params = design_params(row, req, result.assumptions)
         written = {"row": row, "overrides": ov, "params": params,
