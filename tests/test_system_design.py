@@ -373,3 +373,45 @@ def test_toml_writer_round_trips():
     doc = {"name": "x", "a": 1.5e-7, "b": [1, 2.5], "c": {"d.e": "s\"q", "f": True,
                                                             "g": {"h": 3}}}
     assert tomllib.loads(toml_dumps(doc)) == doc
+
+
+# -- architectures -------------------------------------------------------------------------------
+def test_architectures_rank_as_the_simulator_compares_them():
+    """At a light duty every circuit is feasible; the pump-controlled one is the most efficient
+    and the servo valve's throttling is its largest loss (README's `afo-mj compare` order:
+    pump 59 %, digital 21 %, pressure-following valve 18 %). At the HAFO duty the valve circuit
+    cannot keep its pack skin-safe."""
+    text = (ROOT / "scenarios" / "design" / "valve_requirements.toml").read_text()
+    rows = {}
+    for arch in ("pump", "valve", "digital"):
+        req = parse_requirements(text).with_changes(architecture=arch)
+        res = size_system(req)
+        assert res.feasible, (arch, res.explanation)
+        rows[arch] = res.row(0)
+    eta = {k: r["system_efficiency"] for k, r in rows.items()}
+    assert eta["pump"] > eta["digital"] > eta["valve"]
+    v = rows["valve"]["losses_j_per_stride"]
+    assert max(v, key=v.get) == "servo_throttling"
+    assert rows["valve"]["efficiency"]["valves"] < 0.5
+    assert "valves" not in rows["pump"]["efficiency"]
+    for r in rows.values():     # the stride's energy balance closes for every circuit
+        assert r["chemical_j_per_stride"] == pytest.approx(
+            r["net_work_j_per_stride"] + sum(r["losses_j_per_stride"].values()), rel=1e-9)
+    hafo = parse_requirements(HAFO_REQ.read_text()).with_changes(architecture="valve")
+    res = size_system(hafo)
+    assert not res.feasible and res.binding == ["surface_temperature"]
+
+
+def test_valve_supply_against_hand_calculation():
+    """Rail = load + margin; the valve turns p_s |q| − Δp_L q into heat; the pump delivers
+    |q| + centre leakage at the rail (Wilson slip)."""
+    sf = dm.SupplyFigures.from_presets()
+    mu, d = 0.04, 0.4e-6 / (2 * math.pi)
+    for q, dp in ((2e-5, 6e6), (-2e-5, 6e6), (1e-5, -1e6)):
+        out = dm.supply_steady("valve", q, dp, mu=mu, rho=870.0, d=d, cs=1.2e-7, cf=0.05,
+                               cv=1.8e4, t0=0.002, wc_pump=1.0, sf=sf)
+        ps = max(abs(dp) + sf.margin_pa, sf.rail_min_pa)
+        qp = abs(q) + sf.servo_leak_m3_s * math.sqrt(ps / sf.servo_leak_dp_pa)
+        assert float(out["p_valve"]) == pytest.approx(ps * qp - dp * q, rel=1e-12)
+        assert float(out["w_p"]) == pytest.approx((qp + 1.2e-7 * d * ps / mu) / d, rel=1e-12)
+        assert float(out["p_valve"]) >= 0.0

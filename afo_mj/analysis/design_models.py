@@ -577,10 +577,3 @@ def pack_thermal_resistance_k_w(heat_w, diameter_m, area_m2, ambient_k, a: Desig
         ts = ambient_k + q * r
     return ts, r
 
-
-def check_positive(name: str, value: float) -> float:
-    """``value`` as float if finite and > 0, else :class:`ParameterError` naming it."""
-    v = float(value)
-    if not (math.isfinite(v) and v > 0):
-        raise ParameterError(f"{name} = {value!r}; allowed: a finite number > 0")
-    return v

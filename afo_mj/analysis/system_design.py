@@ -1544,12 +1544,20 @@ def guideline_studies(req: Requirements, assumptions: DesignAssumptions | None =
     speed, or profile torque, scaled by ``power_factors``), the lightest feasible design's
     mass, efficiencies, hydraulic power density (rated output power / mass of motor, pump,
     manifold, hoses, cylinders and pulley) and system energy density (positive work over the
-    runtime / total mass). Returns ``{"pressure": [rows], "oil": [rows], "power": [rows]}``.
+    runtime / total mass). The studies search a coarser grid than the design itself (at most
+    12 motors, 7 arms, 60 duty samples). Returns
+    ``{"pressure": [rows], "oil": [rows], "power": [rows]}``.
     """
     a = assumptions or DesignAssumptions()
     out = {"pressure": [], "oil": [], "power": []}
+    g = req.search
+    coarse = dataclasses.replace(                 # the studies' grid: coarser than the design's
+        g, motor_power_points=min(g.motor_power_points, 12),
+        moment_arm_points=min(g.moment_arm_points, 7),
+        duty_samples=min(g.duty_samples, 60))
+    req = req.with_changes(search=coarse)
     sweep = req.with_changes(pressure_range_pa=tuple(pressure_range_pa),
-                             search=dataclasses.replace(req.search,
+                             search=dataclasses.replace(coarse,
                                                         pressure_points=pressure_points))
     res = size_system(sweep, a, n_exact=120)
     if res.feasible:
