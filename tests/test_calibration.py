@@ -155,12 +155,17 @@ def test_cli_end_to_end(tmp_path):
     rec = tmp_path / "bench.csv"
     r = subprocess.run([sys.executable, "-m", "afo_mj.cli", "make-bench-record", "--kind",
                         "hafo", "--effect", "piston_leakage:leakage_conductance_m3=1e-14",
-                        "--duration-s", "6", "--out", str(rec)], capture_output=True,
+                        "--duration-s", "5", "--out", str(rec)], capture_output=True,
                        text=True, env=env, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     out = tmp_path / "cal"
+    # the plumbing, not the search (the acceptance cases above search the whole library):
+    # a setup file that narrows the candidates
+    setup = tmp_path / "setup.toml"
+    setup.write_text('[device]\npreset = "hafo"\n[calibration]\ncandidates = '
+                     '["piston_leakage", "pump_leakage", "sensor_delay"]\n')
     r = subprocess.run([sys.executable, "-m", "afo_mj.cli", "calibrate", "--scenario",
-                        str(ROOT / "scenarios" / "calibration" / "hafo.toml"), "--data", str(rec),
+                        str(setup), "--data", str(rec),
                         "--out", str(out)], capture_output=True, text=True, env=env, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout.strip().splitlines()[-1])["effects"][0] == "piston_leakage"
