@@ -1647,7 +1647,8 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
                      "energy_error_max": s["energy_error_max"]}
     wall = time.perf_counter() - t0
     summary = build_summary(result, written, study, hose, bench, wall)
-    write_design_report(out_dir, result, summary, written, study, hose, top=top)
+    write_design_report(out_dir, result, summary, written, study, hose, top=top,
+                        requirements_text=text)
     return {"feasible": result.feasible, "summary": summary,
             "text": summary_text(summary, out_dir), "out_dir": str(out_dir)}
 

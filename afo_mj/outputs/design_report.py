@@ -456,19 +456,23 @@ def _pct(v) -> str:
 
 
 def write_design_report(out_dir, result, summary: dict, written: dict | None,
-                        study: dict | None, hose: dict | None, top: int = 10) -> Path:
-    """Write every file of the module docstring into ``out_dir`` at once; returns its path."""
+                        study: dict | None, hose: dict | None, top: int = 10,
+                        requirements_text: str | None = None) -> Path:
+    """Write every file of the module docstring into ``out_dir`` at once; returns its path.
+    ``requirements_text``: the requirements as read (with any ``--set`` applied)."""
     req = result.requirements
 
     def writer(tmp: Path) -> None:
         files = ["design.json", "design.md"]
-        if req.source_path is not None:
+        text = requirements_text
+        if text is None and req.source_path is not None:
             try:
-                (tmp / "requirements.toml").write_text(
-                    Path(req.source_path).read_text(encoding="utf-8"), encoding="utf-8")
-                files.append("requirements.toml")
+                text = Path(req.source_path).read_text(encoding="utf-8")
             except OSError:
-                pass
+                text = None
+        if text is not None:
+            (tmp / "requirements.toml").write_text(text, encoding="utf-8")
+            files.append("requirements.toml")
         if result.feasible:
             rows = [_flat(result.row(k)) for k in range(min(len(result.order), max(top, 50)))]
             _write_csv(tmp / "designs.csv", rows)
