@@ -15,6 +15,8 @@
   parameter study in parallel, resumably (:mod:`afo_mj.analysis.sweep`).
 * ``afo-mj study DIR [--metric M]``: ranked table, plots, Pareto front and sensitivity indices
   of a sweep; ``afo-mj optimize STUDY.toml --out DIR``: optimise a study's parameters.
+* ``afo-mj design REQUIREMENTS.toml --out DIR [--verify]``: size a minimum-weight hydraulic
+  orthosis from requirements (:mod:`afo_mj.analysis.system_design`).
 * ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
 * ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
@@ -723,6 +725,24 @@ def _optimize(args) -> int:
     return 0
 
 
+def _design(args) -> int:
+    """``afo-mj design``: exit 0 a feasible design written, 1 infeasible (the binding
+    constraint printed and written), 2 invalid requirements (nothing written)."""
+    from afo_mj.analysis.system_design import DesignError, run_design
+
+    if args.top < 1:
+        print(f"afo-mj design: --top = {args.top}; allowed: >= 1", file=sys.stderr)
+        return 2
+    try:
+        out = run_design(args.requirements, args.out, overrides=args.set or (),
+                         studies=not args.no_studies, verify=args.verify, top=args.top)
+    except DesignError as exc:
+        print(f"afo-mj design: {exc}", file=sys.stderr)
+        return 2
+    print(out["text"])
+    return 0 if out["feasible"] else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -835,6 +855,22 @@ def main(argv: list[str] | None = None) -> int:
                     help="Dask scheduler address, or 'local'")
     op.add_argument("--quiet", action="store_true", help="no progress bar")
     op.set_defaults(func=_optimize)
+    de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "
+                        "requirements and write it as scenarios afo-mj run accepts")
+    de.add_argument("requirements", help="requirements file, e.g. "
+                    "scenarios/design/hafo_requirements.toml")
+    de.add_argument("--out", required=True, help="output directory (design.json, design.md, "
+                    "designs.csv, design_bench.toml, design_walk.toml, studies)")
+    de.add_argument("--set", action="append", metavar="KEY=VALUE",
+                    help="override a requirement by its dotted key, e.g. "
+                         "requirement.runtime_h=3 (repeatable)")
+    de.add_argument("--verify", action="store_true",
+                    help="also run the written design on the simulated torque-velocity bench "
+                         "and report it against the prediction")
+    de.add_argument("--no-studies", action="store_true", dest="no_studies",
+                    help="skip the design-guideline studies")
+    de.add_argument("--top", type=int, default=10, help="designs to list (default 10)")
+    de.set_defaults(func=_design)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
     args = parser.parse_args(argv)

@@ -415,3 +415,25 @@ def test_valve_supply_against_hand_calculation():
         assert float(out["p_valve"]) == pytest.approx(ps * qp - dp * q, rel=1e-12)
         assert float(out["w_p"]) == pytest.approx((qp + 1.2e-7 * d * ps / mu) / d, rel=1e-12)
         assert float(out["p_valve"]) >= 0.0
+
+
+def test_design_command_exit_codes(tmp_path):
+    """``afo-mj design``: 1 with the binding constraint for infeasible requirements, 2 for an
+    invalid file (nothing written)."""
+    import contextlib
+    import io
+
+    from afo_mj import cli
+
+    root = Path(__file__).resolve().parents[1]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["design", str(root / "scenarios" / "design" /
+                                       "infeasible_torque_requirements.toml"),
+                         "--out", str(tmp_path / "inf"), "--no-studies"])
+    assert code == 1 and "binding: torque" in buf.getvalue()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[requirement]\npeak_torque_nm = -5.0\n")
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        assert cli.main(["design", str(bad), "--out", str(tmp_path / "bad")]) == 2
+    assert "peak_torque_nm" in err.getvalue() and not (tmp_path / "bad").exists()
