@@ -40,7 +40,7 @@ def main() -> None:
                                          "liquid_bulk_modulus_pa": 0.8},
                                duration_s=duration, fs_hz=1000.0, seed=3)
         rep = BenchReplay(data.source["preset"])
-        inputs = {c: data.channels[c] for c in rep.inputs}
+        inputs = {c: data.channels[c] for c in rep.check_inputs(data.channels)}
         t0 = time.perf_counter()
         rep.simulate(data.time_s, inputs)
         replay_s = time.perf_counter() - t0

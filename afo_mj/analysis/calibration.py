@@ -150,7 +150,7 @@ class Calibration:
         self.replay = replay or BenchReplay(preset)
         self.kind = self.replay.kind
         try:
-            self.replay.check_inputs(data.channels)
+            input_names = self.replay.check_inputs(data.channels)
         except ReplayError as exc:
             raise CalibrationError(str(exc)) from None
         self.outputs = [c for c in data.outputs if c in self.replay.outputs]
@@ -161,8 +161,7 @@ class Calibration:
                                    f"{', '.join(self.replay.outputs)})")
         self.skipped_outputs = skipped
         self.t = np.asarray(data.time_s, dtype=float)
-        self.inputs = {c: np.asarray(data.channels[c], dtype=float)
-                       for c in self.replay.inputs}
+        self.inputs = {c: np.asarray(data.channels[c], dtype=float) for c in input_names}
         if "fluid_temperature_k" in data.inputs:
             self.inputs["fluid_temperature_k"] = np.asarray(
                 data.channels["fluid_temperature_k"], dtype=float)

@@ -16,7 +16,11 @@ Inputs (channel names of :data:`afo_mj.analysis.measured_data.CHANNELS`):
 * ``ankle_angle_rad`` (required): imposed angle. The velocity is its Savitzky–Golay derivative
   (cubic, 21-sample window: encoder noise is not differentiated into the flow ``A_e r θ̇``).
 * ``motor_voltage_v`` (HAFO, open loop: the driver's voltage command), or ``valve_command``
-  (valve circuits, open loop: the spool command ``u ∈ [−1, 1]``, or the digital valve's duty).
+  (valve circuits, open loop: the spool command ``u ∈ [−1, 1]``, or the digital valve's duty);
+  or, for either, ``commanded_torque_nm``: the torque reference of the device's own low-level
+  torque controller, which then runs in the replay on the model's pressures (closed loop: a
+  device tracking a profile on the bench, or in a walk whose measured ankle kinematics are
+  replayed as the imposed angle).
 * ``fluid_temperature_k`` (optional): the oil temperature, which sets the viscosity
   (Walther, ASTM D341). Without it the temperature is prescribed as ``T_0 + ṫ (t − t_0)``
   (``temperature_rate_k_s``, 0 by default: isothermal at the preset's ambient temperature).
@@ -62,9 +66,13 @@ REPLAY_OUTPUTS = {
               "chamber_a_pa", "chamber_b_pa", "valve_position", "ankle_torque_nm",
               "motor_current_a", "motor_speed_rad_s", "fluid_temperature_k"),
 }
-#: the command input of each kind (besides the imposed ankle angle)
+#: the open-loop command input of each kind (besides the imposed ankle angle)
 REPLAY_INPUTS = {"hafo": ("motor_voltage_v", "ankle_angle_rad"),
                  "valve": ("valve_command", "ankle_angle_rad")}
+#: the command channels each kind accepts, in order of preference: the open-loop command, or
+#: the torque reference of the device's own low-level torque controller (closed loop)
+REPLAY_COMMANDS = {"hafo": ("motor_voltage_v", "commanded_torque_nm"),
+                   "valve": ("valve_command", "commanded_torque_nm")}
 
 _HAFO_COLS = np.array([pa.Y_PPA, pa.Y_PPB, pa.Y_PCA, pa.Y_PCB], dtype=np.int64)
 _VALVE_COLS = np.array([va.Y_PP, va.Y_PS, va.Y_PVA, va.Y_PVB, va.Y_PCA, va.Y_PCB, va.Y_XV],
@@ -208,11 +216,15 @@ class BenchReplay:
         self.ambient_temperature_k = float(params.ambient_temperature_k)
         self.max_step_s = 1e-3
 
-    def check_inputs(self, channels: Mapping[str, np.ndarray]) -> None:
-        missing = [c for c in self.inputs if c not in channels]
-        if missing:
-            raise ReplayError(f"the {self.kind} bench replay needs input channel(s) "
-                              f"{missing}; the record has {sorted(channels)}")
+    def check_inputs(self, channels) -> tuple[str, str]:
+        """The record's command channel and the imposed angle: ``(command, "ankle_angle_rad")``
+        (the open-loop command when the record has it, else ``commanded_torque_nm``)."""
+        cmds = [c for c in REPLAY_COMMANDS[self.kind] if c in channels]
+        if not cmds or "ankle_angle_rad" not in channels:
+            raise ReplayError(f"the {self.kind} bench replay needs ankle_angle_rad and one of "
+                              f"{list(REPLAY_COMMANDS[self.kind])}; the record has "
+                              f"{sorted(channels)}")
+        return cmds[0], "ankle_angle_rad"
 
     def simulate(self, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
                  row_changes: Mapping[int, float] | None = None, backlash_rad: float = 0.0,
@@ -223,7 +235,7 @@ class BenchReplay:
         ``backlash_rad``: total play of the cable on the pulley; ``temperature_rate_k_s``: oil
         temperature drift when the record has no temperature input. Raises
         :class:`ReplayError` when a state becomes non-finite (never returns NaN)."""
-        self.check_inputs(inputs)
+        cmd_name = self.check_inputs(inputs)[0]
         t = np.asarray(time_s, dtype=float)
         n = len(t)
         dt = float(np.median(np.diff(t)))
@@ -233,7 +245,6 @@ class BenchReplay:
         if backlash_rad > 0.0:
             theta = play_operator(theta, backlash_rad)
         theta_dot = ankle_velocity(theta, dt)
-        cmd_name = self.inputs[0]
         u = np.ascontiguousarray(inputs[cmd_name], dtype=float)
         if "fluid_temperature_k" in inputs:
             temp = np.ascontiguousarray(inputs["fluid_temperature_k"], dtype=float)
@@ -242,6 +253,8 @@ class BenchReplay:
         buf = self._buf0.copy()
         K = self.kernel
         Y, P, W, S = K.device_views(buf, self._meta)[:4]
+        K_open = pa.MODE_VOLTAGE if self.kind == "hafo" else va.MODE_VALVE_COMMAND
+        P[0, K.P_MODE] = K_open if cmd_name != "commanded_torque_nm" else K.MODE_TORQUE
         if row_changes:
             for i, v in row_changes.items():
                 P[0, i] = v
