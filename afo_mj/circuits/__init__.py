@@ -1,0 +1,1 @@
+"""Hydraulic circuits described from components and compiled by code generation (issue 18)."""

@@ -1,0 +1,385 @@
+"""The one coupled stepper and replay loop of every circuit (source template).
+
+These functions are written once, here, as plain Python. :mod:`afo_mj.circuits.codegen`
+copies their source into each circuit's generated module beneath that circuit's straight-line
+right-hand side ``rhs`` and compiles the module with numba (cached on disk): so every circuit
+is stepped by this code, and the compiled call to ``rhs`` is direct (numba cannot cache a
+function that takes another compiled function as an argument). The globals they use
+(``rhs``, ``controller``, ``close_extra``, ``begin_extra``, ``N_Y``, ``Y_TYP``, ``F_*``, ``W_*``,
+``N_LOSS``, ``N_SRATE``, ``clip_floor``) are the generated module's.
+
+Method (for a circuit driving one joint; MuJoCo supplies the joint's motion)
+---------------------------------------------------------------------------
+The state ``y`` (node pressures, shaft speeds, motor currents, valve positions) is advanced by
+backward Euler over each MuJoCo step ``h`` with the joint velocity at the *end* of the step as
+an input. First a linearly implicit (Rosenbrock) prediction
+``(I − h J_y) Δy = h f(y_n, θ̇_n) + h J_θ̇ (θ̇_{n+1} − θ̇_n)``, i.e. ``Δy = a + b Δθ̇``, makes
+the end-of-step joint torque affine in the unknown velocity, ``τ_{n+1} = τ_0 + G Δθ̇``
+(``G ≤ 0``). MuJoCo's Euler/implicitfast integrators treat joint damping implicitly, so the
+joint force ``τ_0 − G θ̇_n`` with extra damping ``−G`` integrates the end-of-step torque together
+with the body: the torque never lags a step and a kHz hydraulic spring is stable with the foot.
+After ``mj_step`` the new velocity closes the step: Newton iterations on
+``y − y_n − h f(y, θ̇_{n+1}) = 0`` from the prediction; where they do not converge the step is
+redone as adaptive sub-steps (halved on failure, doubled after success, down to
+``MIN_SUBSTEP_FRACTION``) with the velocity ramped linearly, each a converged backward-Euler
+step. Jacobians are forward differences of ``rhs``; systems are solved by Gaussian elimination
+with partial pivoting (:func:`solve_linear`).
+
+Energy ledger: the input (battery chemistry ``∫V_oc I`` or the supply's ``∫P_bus``) equals the
+joint's mechanical output, every named loss (right-point rule, consistent with backward Euler),
+the stores' discrete work ``Σ c_k y_{k,n+1} (y_{k,n+1} − y_{k,n})`` (``c_k`` the state's
+capacitance, inductance or inertia at ``y_{n+1}``) and the work done on the stores that are
+not states (fixed-pressure reservoirs, springs, end stops), booked by the right-point rule. So
+the balance residual measures only the Newton tolerance.
+"""
+
+from __future__ import annotations
+
+#: Newton tolerance on the backward-Euler residual, per state, in units of ``Y_TYP``.
+NEWTON_TOL = 1e-9
+#: Smallest sub-step, as a fraction of the MuJoCo step, before a step is accepted unconverged.
+MIN_SUBSTEP_FRACTION = 1.0 / 1024.0
+
+# scratch rows of the per-side scratch array S (``N_SCRATCH`` rows × ``S_WIDTH``):
+# 0: [h]; 1: f at the Newton iterate; 2: its power flows F; 3: y_old; 4: y_best; 5: Newton
+# step; 6: f0; 7: F0; 8: y perturbed; 9: f perturbed; 10: F perturbed; 11: dτ/dy; 12: y_start;
+# 13 … 13+N_Y: matrix; then its copy; then N_Y rows of right-hand sides (2 columns)
+
+
+def solve_linear(M, rhs_mat, n, ncol):
+    """Solve ``M X = rhs`` in place (``n×n``, Gaussian elimination with partial pivoting);
+    ``rhs_mat`` is ``n×ncol``."""
+    for c in range(n):
+        piv = c
+        big = abs(M[c, c])
+        for r_ in range(c + 1, n):
+            if abs(M[r_, c]) > big:
+                big = abs(M[r_, c])
+                piv = r_
+        if piv != c:
+            for k in range(n):
+                tmp = M[c, k]
+                M[c, k] = M[piv, k]
+                M[piv, k] = tmp
+            for k in range(ncol):
+                tmp = rhs_mat[c, k]
+                rhs_mat[c, k] = rhs_mat[piv, k]
+                rhs_mat[piv, k] = tmp
+        inv = 1.0 / M[c, c]
+        for r_ in range(c + 1, n):
+            fac = M[r_, c] * inv
+            if fac != 0.0:
+                for k in range(c, n):
+                    M[r_, k] -= fac * M[c, k]
+                for k in range(ncol):
+                    rhs_mat[r_, k] -= fac * rhs_mat[c, k]
+    for c in range(n - 1, -1, -1):
+        for k in range(ncol):
+            s = rhs_mat[c, k]
+            for j in range(c + 1, n):
+                s -= M[c, j] * rhs_mat[j, k]
+            rhs_mat[c, k] = s / M[c, c]
+
+
+def scratch_views(S):
+    """Named views of one side's scratch array: ``(f1, F1, yold, ybest, step, f0, F0, yp, fp,
+    Fp, dtau, ystart, M, Mcopy, R)``."""
+    n = N_Y
+    return (S[1, :n], S[2], S[3, :n], S[4, :n], S[5, :n], S[6, :n], S[7], S[8, :n], S[9, :n],
+            S[10], S[11, :n], S[12, :n], S[13:13 + n, :n], S[13 + n:13 + 2 * n, :n],
+            S[13 + 2 * n:13 + 3 * n, :2])
+
+
+def jacobian(y, theta, theta_dot, h, U, P, S, M):
+    """``M = I − h ∂f/∂y`` at ``(y, θ̇)`` by forward differences."""
+    (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mc,
+     R) = scratch_views(S)
+    rhs(y, theta, theta_dot, U, P, f0, F0)
+    for j in range(N_Y):
+        for k in range(N_Y):
+            yp[k] = y[k]
+        d = 1e-7 * max(abs(y[j]), Y_TYP[j])
+        yp[j] = y[j] + d
+        rhs(yp, theta, theta_dot, U, P, fp, Fp)
+        for k in range(N_Y):
+            M[k, j] = -h * (fp[k] - f0[k]) / d
+        M[j, j] += 1.0
+
+
+def linearise(y, P, W, S):
+    """The prediction of the step ``h = S[0, 0]`` with the inputs held in ``W``: fills
+    ``W[W_A + k]``, ``W[W_B + k]``, ``W[W_TAU0]``, ``W[W_G]``."""
+    h = S[0, 0]
+    U = W[W_U:W_U + N_U]
+    theta, thd = W[W_THETA], W[W_THETA_DOT]
+    (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, M, Mc,
+     R) = scratch_views(S)
+    rhs(y, theta, thd, U, P, f0, F0)
+    tau0 = F0[F_TAU]
+    for j in range(N_Y):
+        for k in range(N_Y):
+            yp[k] = y[k]
+        d = 1e-7 * max(abs(y[j]), Y_TYP[j])
+        yp[j] = y[j] + d
+        rhs(yp, theta, thd, U, P, fp, Fp)
+        for k in range(N_Y):
+            M[k, j] = -h * (fp[k] - f0[k]) / d
+        M[j, j] += 1.0
+        dtau[j] = (Fp[F_TAU] - tau0) / d
+    dv = 1e-7 * max(abs(thd), 1.0)
+    rhs(y, theta, thd + dv, U, P, fp, Fp)
+    dtau_dv = (Fp[F_TAU] - tau0) / dv
+    for k in range(N_Y):
+        R[k, 0] = h * f0[k]
+        R[k, 1] = h * (fp[k] - f0[k]) / dv
+    for j in range(N_Y):
+        for k in range(N_Y):
+            Mc[j, k] = M[j, k]
+    solve_linear(M, R, N_Y, 2)
+    g = dtau_dv
+    t0 = tau0
+    for k in range(N_Y):
+        W[W_A + k] = R[k, 0]
+        W[W_B + k] = R[k, 1]
+        t0 += dtau[k] * R[k, 0]
+        g += dtau[k] * R[k, 1]
+    W[W_TAU0] = t0
+    W[W_G] = g
+
+
+def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
+    """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place); the
+    first iterations reuse the prediction's matrix while they contract tenfold (chord), then
+    fresh Jacobians; a diverging or cycling iteration halves its last step (damped Newton).
+    Leaves ``f`` and the power flows at the solution in scratch rows 1–2."""
+    (f1, F1, yo_, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mcopy,
+     R) = scratch_views(S)
+    rv = R[:, :1]
+    err_prev = 1e300
+    chord = first_matrix
+    for it in range(24):
+        rhs(y, theta, theta_dot, U, P, f1, F1)
+        err = 0.0
+        for k in range(N_Y):
+            r_ = y[k] - yold[k] - h * f1[k]
+            rv[k, 0] = -r_
+            e = abs(r_) / Y_TYP[k]
+            if e > err:
+                err = e
+        if err < NEWTON_TOL:
+            return True
+        if err > 1e4 * err_prev or (it >= 8 and err > err_prev):
+            for k in range(N_Y):
+                step[k] *= 0.5
+                y[k] = ybest[k] + step[k]
+            continue
+        if chord and it > 0 and err > 0.1 * err_prev:
+            chord = False
+        err_prev = err
+        W[W_NEWTON_ITERS] += 1.0
+        if chord:
+            for j in range(N_Y):
+                for k in range(N_Y):
+                    Mw[j, k] = Mcopy[j, k]
+        else:
+            jacobian(y, theta, theta_dot, h, U, P, S, Mw)
+        solve_linear(Mw, rv, N_Y, 1)
+        for k in range(N_Y):
+            ybest[k] = y[k]
+            step[k] = rv[k, 0]
+            y[k] += rv[k, 0]
+        for k in range(N_Y):
+            if not math.isfinite(y[k]):
+                return False
+    return False
+
+
+def close_substep(y, yold, h, theta_dot, P, W, S):
+    """Accept the backward-Euler (sub-)step ``y_old → y`` of length ``h`` (power flows at
+    ``y`` in scratch row 2): pressure floor, right-point ledger, then the circuit's own
+    closing (battery, heat, monitors: ``close_extra``)."""
+    f1 = S[1, :N_Y]
+    F1 = S[2]
+    U = W[W_U:W_U + N_U]
+    if clip_floor(y, P):
+        W[W_CLIP_STEPS] += 1.0
+        rhs(y, W[W_THETA], theta_dot, U, P, f1, F1)
+    tau = F1[F_TAU]
+    W[W_E_MECH] += h * tau * theta_dot
+    for k in range(N_LOSS):
+        W[W_E_LOSS + k] += h * F1[F_LOSS + k]
+    for k in range(N_SRATE):
+        W[W_E_SRATE + k] += h * F1[F_SRATE + k]
+    for k in range(N_Y):
+        W[W_E_STORE + k] += F1[F_CAP + k] * y[k] * (y[k] - yold[k])
+    W[W_HEAT_TO_OIL] += h * F1[F_HEAT]
+    close_extra(y, h, theta_dot, P, W, F1)
+    W[W_E_ABS_FLOW] += h * abs(tau * theta_dot)
+
+
+def finish_step(y, P, W, theta_dot_new, S):
+    """Second half of the coupled step: the new joint velocity closes it (module docstring).
+    Returns the torque MuJoCo integrated (the prediction ``τ_0 + G Δθ̇``)."""
+    h = S[0, 0]
+    U = W[W_U:W_U + N_U]
+    thd0 = W[W_THETA_DOT]
+    dthd = theta_dot_new - thd0
+    theta = W[W_THETA]
+    f1 = S[1, :N_Y]
+    F1 = S[2]
+    yold = S[3, :N_Y]
+    ystart = S[12, :N_Y]
+    for k in range(N_Y):
+        yold[k] = y[k]
+        ystart[k] = y[k]
+        y[k] += W[W_A + k] + W[W_B + k] * dthd
+    tau = W[W_TAU0] + W[W_G] * dthd
+    if newton(y, yold, h, theta, theta_dot_new, U, P, W, S, True):
+        close_substep(y, yold, h, theta_dot_new, P, W, S)
+    else:
+        W[W_SUBSTEPPED] += 1.0
+        for k in range(N_Y):
+            y[k] = ystart[k]
+        pos = 0.0
+        frac = 0.25
+        while pos < 1.0 - 1e-12:
+            if frac > 1.0 - pos:
+                frac = 1.0 - pos
+            for k in range(N_Y):
+                yold[k] = y[k]
+            thd = thd0 + (pos + frac) * dthd
+            ok = newton(y, yold, frac * h, theta, thd, U, P, W, S, False)
+            if not ok and frac > MIN_SUBSTEP_FRACTION:
+                for k in range(N_Y):
+                    y[k] = yold[k]
+                frac *= 0.5
+                continue
+            if not ok:
+                W[W_NEWTON_FAIL] += 1.0
+                for k in range(N_Y):
+                    if not math.isfinite(y[k]):
+                        y[k] = yold[k]
+                rhs(y, theta, thd, U, P, f1, F1)
+            W[W_SUBSTEPS] += 1.0
+            close_substep(y, yold, frac * h, thd, P, W, S)
+            pos += frac
+            if ok:
+                frac *= 2.0
+    W[W_TAU] = tau
+    W[W_TAU_END] = F1[F_TAU]
+    W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
+    W[W_P_MECH] = F1[F_TAU] * theta_dot_new
+    return tau
+
+
+def begin_step(Y, P, W, S, theta, theta_dot, cmd, out):
+    """First half of the coupled step for every side ``s``: hold the inputs (viscosity, bus
+    voltage), run the controller, linearise. ``out[s] = (τ_0 − G θ̇_n, −G)``: the joint force
+    and the extra joint damping for MuJoCo. A positive ``G`` (a rising friction branch) is
+    never handed over as negative damping: it is applied at the current velocity."""
+    for s in range(Y.shape[0]):
+        Ws = W[s]
+        Ps = P[s]
+        h = S[s, 0, 0]
+        Ws[W_THETA] = theta[s]
+        Ws[W_THETA_DOT] = theta_dot[s]
+        begin_extra(Y[s], Ps, Ws)
+        Ws[W_CMD] = cmd[s]
+        Ws[W_U] = controller(Y[s], theta[s], theta_dot[s], cmd[s], h, Ps, Ws)
+        linearise(Y[s], Ps, Ws, S[s])
+        g = Ws[W_G]
+        if g > 0.0:
+            Ws[W_G] = 0.0
+            out[s, 0] = Ws[W_TAU0]
+            out[s, 1] = 0.0
+        else:
+            out[s, 0] = Ws[W_TAU0] - g * theta_dot[s]
+            out[s, 1] = -g
+
+
+def finish_all(Y, P, W, S, theta_dot_new, tau_out):
+    """Second half for every side; ``tau_out[s]`` gets the delivered torque. Returns False
+    when a state became non-finite."""
+    ok = True
+    for s in range(Y.shape[0]):
+        tau_out[s] = finish_step(Y[s], P[s], W[s], theta_dot_new[s], S[s])
+        for k in range(N_Y):
+            if not math.isfinite(Y[s, k]):
+                ok = False
+    return ok
+
+
+def run_load(Y, P, W, S, theta0, theta_dot0, inertia, stiffness, damping, rest_angle,
+             cmd, ext_torque, log):
+    """The replay/bench loop with the joint load simulated: a rigid inertia ``J`` on a
+    torsional spring ``k`` (rest angle ``θ_r``) and damper ``c`` driven by the circuit and an
+    external torque, integrated like MuJoCo integrates the walker (semi-implicit Euler with the
+    device damping, the load's damping and the spring implicit):
+    ``(J + h(c + D + h k)) θ̇_{n+1} = J θ̇_n + h(F − k(θ_n − θ_r) + τ_ext)``,
+    ``θ_{n+1} = θ_n + h θ̇_{n+1}``. ``cmd[n]`` is the controller's command per step. ``log``
+    (steps × columns) gets ``t, θ, θ̇, τ, u`` then every state. Returns the steps done
+    (fewer when a state became non-finite)."""
+    n = cmd.shape[0]
+    h = S[0, 0, 0]
+    th = np.zeros(1)
+    thd = np.zeros(1)
+    c1 = np.zeros(1)
+    out = np.zeros((1, 2))
+    vnew = np.zeros(1)
+    tau = np.zeros(1)
+    th[0] = theta0
+    thd[0] = theta_dot0
+    for i in range(n):
+        c1[0] = cmd[i]
+        begin_step(Y, P, W, S, th, thd, c1, out)
+        f = out[0, 0]
+        d = out[0, 1]
+        num = inertia * thd[0] + h * (f - stiffness * (th[0] - rest_angle) + ext_torque[i])
+        vnew[0] = num / (inertia + h * (damping + d + h * stiffness))
+        if not finish_all(Y, P, W, S, vnew, tau):
+            return i
+        th[0] += h * vnew[0]
+        thd[0] = vnew[0]
+        log[i, 0] = (i + 1) * h
+        log[i, 1] = th[0]
+        log[i, 2] = thd[0]
+        log[i, 3] = tau[0]
+        log[i, 4] = W[0, W_U]
+        for k in range(N_Y):
+            log[i, 5 + k] = Y[0, k]
+    return n
+
+
+def run_imposed(Y, P, W, S, theta, theta_dot, cmd, log):
+    """The replay loop with the joint motion imposed (a recorded angle and its velocity per
+    step, e.g. a bench record): the same coupled step with the measured velocity as the end
+    velocity. ``log`` as in :func:`run_load`. Returns the steps done."""
+    n = cmd.shape[0]
+    h = S[0, 0, 0]
+    th = np.zeros(1)
+    thd = np.zeros(1)
+    c1 = np.zeros(1)
+    out = np.zeros((1, 2))
+    vnew = np.zeros(1)
+    tau = np.zeros(1)
+    for i in range(n):
+        th[0] = theta[i]
+        thd[0] = theta_dot[i]
+        c1[0] = cmd[i]
+        begin_step(Y, P, W, S, th, thd, c1, out)
+        vnew[0] = theta_dot[i + 1] if i + 1 < theta_dot.shape[0] else theta_dot[i]
+        if not finish_all(Y, P, W, S, vnew, tau):
+            return i
+        log[i, 0] = (i + 1) * h
+        log[i, 1] = theta[i + 1] if i + 1 < theta.shape[0] else theta[i]
+        log[i, 2] = vnew[0]
+        log[i, 3] = W[0, W_TAU_END]
+        log[i, 4] = W[0, W_U]
+        for k in range(N_Y):
+            log[i, 5 + k] = Y[0, k]
+    return n
+
+
+#: the template functions, in the order the generated module defines them
+TEMPLATE = (solve_linear, scratch_views, jacobian, linearise, newton, close_substep,
+            finish_step, begin_step, finish_all, run_load, run_imposed)
