@@ -437,10 +437,9 @@ class PulleyCylinders(Component):
         vb0 = g.param(self, "dead_b", cy.dead_volume_b_m3)
         gl = g.param(self, "leak_g", cyl.leakage_conductance_m3 if cy.internal_leakage_enabled
                      else 0.0)
-        ks = g.param(self, "stop_k", cy.end_stop_stiffness_n_m if cy.end_stops_enabled
-                     else 0.0)
-        cs = g.param(self, "stop_c", cy.end_stop_damping_n_s_m if cy.end_stops_enabled
-                     else 0.0)
+        k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
+        ks = g.param(self, "stop_k", k_stop if cy.end_stops_enabled else 0.0)
+        cs = g.param(self, "stop_c", c_stop if cy.end_stops_enabled else 0.0)
         seal = _seal_params(g, self, cy, cyl, rods=2)
         ps = cy.piston_seal
         drag_on = g.param(self, "dragout_on", 1.0 if ps.leakage_enabled else 0.0)
@@ -545,10 +544,9 @@ class SpringReturnCylinder(Component):
         k = g.param(self, "spring_k", p.spring_rate_n_m)
         f0 = g.param(self, "spring_f0", p.spring_preload_n)
         x0 = g.param(self, "x0", p.neutral_position_m)
-        ks = g.param(self, "stop_k", cy.end_stop_stiffness_n_m if cy.end_stops_enabled
-                     else 0.0)
-        cs = g.param(self, "stop_c", cy.end_stop_damping_n_s_m if cy.end_stops_enabled
-                     else 0.0)
+        k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
+        ks = g.param(self, "stop_k", k_stop if cy.end_stops_enabled else 0.0)
+        cs = g.param(self, "stop_c", c_stop if cy.end_stops_enabled else 0.0)
         seal = _seal_params(g, self, cy, cyl, rods=1)
         pa = g.p(self, "a")
         x, xd, f_s, f_e = (g.local(self, n) for n in ("x", "xd", "fseal", "fstop"))

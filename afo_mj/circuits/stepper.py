@@ -12,7 +12,9 @@ Method (for a circuit driving one joint; MuJoCo supplies the joint's motion)
 ---------------------------------------------------------------------------
 The state ``y`` (node pressures, shaft speeds, motor currents, valve positions) is advanced by
 backward Euler over each MuJoCo step ``h`` with the joint velocity at the *end* of the step as
-an input. First a linearly implicit (Rosenbrock) prediction
+an input and the joint angle at the end of the step as MuJoCo's semi-implicit Euler makes it,
+``θ_{n+1} = θ_n + h θ̇_{n+1}`` (so position-dependent forces, e.g. end stops and chamber
+volumes, are implicit too: their stiffness reaches MuJoCo as damping ``h ∂τ/∂θ``). First a linearly implicit (Rosenbrock) prediction
 ``(I − h J_y) Δy = h f(y_n, θ̇_n) + h J_θ̇ (θ̇_{n+1} − θ̇_n)``, i.e. ``Δy = a + b Δθ̇``, makes
 the end-of-step joint torque affine in the unknown velocity, ``τ_{n+1} = τ_0 + G Δθ̇``
 (``G ≤ 0``). MuJoCo's Euler/implicitfast integrators treat joint damping implicitly, so the
@@ -114,20 +116,20 @@ def linearise(y, P, W, S):
     theta, thd = W[W_THETA], W[W_THETA_DOT]
     (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, M, Mc,
      R) = scratch_views(S)
-    rhs(y, theta, thd, U, P, f0, F0)
+    rhs(y, theta + h * thd, thd, U, P, f0, F0)
     tau0 = F0[F_TAU]
     for j in range(N_Y):
         for k in range(N_Y):
             yp[k] = y[k]
         d = 1e-7 * max(abs(y[j]), Y_TYP[j])
         yp[j] = y[j] + d
-        rhs(yp, theta, thd, U, P, fp, Fp)
+        rhs(yp, theta + h * thd, thd, U, P, fp, Fp)
         for k in range(N_Y):
             M[k, j] = -h * (fp[k] - f0[k]) / d
         M[j, j] += 1.0
         dtau[j] = (Fp[F_TAU] - tau0) / d
     dv = 1e-7 * max(abs(thd), 1.0)
-    rhs(y, theta, thd + dv, U, P, fp, Fp)
+    rhs(y, theta + h * (thd + dv), thd + dv, U, P, fp, Fp)
     dtau_dv = (Fp[F_TAU] - tau0) / dv
     for k in range(N_Y):
         R[k, 0] = h * f0[k]
@@ -194,7 +196,7 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     return False
 
 
-def close_substep(y, yold, h, theta_dot, P, W, S):
+def close_substep(y, yold, h, theta, theta_dot, P, W, S):
     """Accept the backward-Euler (sub-)step ``y_old → y`` of length ``h`` (power flows at
     ``y`` in scratch row 2): pressure floor, right-point ledger, then the circuit's own
     closing (battery, heat, monitors: ``close_extra``)."""
@@ -203,7 +205,7 @@ def close_substep(y, yold, h, theta_dot, P, W, S):
     U = W[W_U:W_U + N_U]
     if clip_floor(y, P):
         W[W_CLIP_STEPS] += 1.0
-        rhs(y, W[W_THETA], theta_dot, U, P, f1, F1)
+        rhs(y, theta, theta_dot, U, P, f1, F1)
     tau = F1[F_TAU]
     W[W_E_MECH] += h * tau * theta_dot
     for k in range(N_LOSS):
@@ -234,8 +236,9 @@ def finish_step(y, P, W, theta_dot_new, S):
         ystart[k] = y[k]
         y[k] += W[W_A + k] + W[W_B + k] * dthd
     tau = W[W_TAU0] + W[W_G] * dthd
-    if newton(y, yold, h, theta, theta_dot_new, U, P, W, S, True):
-        close_substep(y, yold, h, theta_dot_new, P, W, S)
+    theta_end = theta + h * theta_dot_new
+    if newton(y, yold, h, theta_end, theta_dot_new, U, P, W, S, True):
+        close_substep(y, yold, h, theta_end, theta_dot_new, P, W, S)
     else:
         W[W_SUBSTEPPED] += 1.0
         for k in range(N_Y):
@@ -248,7 +251,8 @@ def finish_step(y, P, W, theta_dot_new, S):
             for k in range(N_Y):
                 yold[k] = y[k]
             thd = thd0 + (pos + frac) * dthd
-            ok = newton(y, yold, frac * h, theta, thd, U, P, W, S, False)
+            th_sub = theta + (pos + frac) * h * thd
+            ok = newton(y, yold, frac * h, th_sub, thd, U, P, W, S, False)
             if not ok and frac > MIN_SUBSTEP_FRACTION:
                 for k in range(N_Y):
                     y[k] = yold[k]
@@ -259,9 +263,9 @@ def finish_step(y, P, W, theta_dot_new, S):
                 for k in range(N_Y):
                     if not math.isfinite(y[k]):
                         y[k] = yold[k]
-                rhs(y, theta, thd, U, P, f1, F1)
+                rhs(y, th_sub, thd, U, P, f1, F1)
             W[W_SUBSTEPS] += 1.0
-            close_substep(y, yold, frac * h, thd, P, W, S)
+            close_substep(y, yold, frac * h, th_sub, thd, P, W, S)
             pos += frac
             if ok:
                 frac *= 2.0
