@@ -154,6 +154,17 @@ RE_TURBULENT_START = 4000.0
 
 
 @law
+def pipe_reynolds_number(flow_m3_s, bore_m, dynamic_viscosity, density):
+    """Reynolds number of the mean flow in a round pipe, ``Re = ρ |v| D / μ`` with
+    ``v = 4Q/(πD²)``, i.e. ``Re = 4 ρ |Q| / (π D μ)`` (White, *Fluid Mechanics*, §6.1).
+
+    Example: Q = 1e-5 m³/s in 4 mm bore, μ = 0.04 Pa s, ρ = 870 → 4·870·1e-5/(π·4e-3·0.04)
+    = 69.2.
+    """
+    return 4.0 * density * abs(flow_m3_s) / (math.pi * bore_m * dynamic_viscosity)
+
+
+@law
 def laminar_resistance_pa_s_m3(length_m, bore_m, dynamic_viscosity):
     """Hagen–Poiseuille ``R = 128 μ L / (π D⁴)`` so that ``Δp = R Q`` (laminar pipe flow).
 
@@ -193,7 +204,7 @@ def hose_pressure_loss_pa(flow_m3_s, length_m, bore_m, dynamic_viscosity, densit
     r_lam = laminar_resistance_pa_s_m3(length_m, bore_m, dynamic_viscosity)
     if turbulence_on == 0.0:
         return r_lam * flow_m3_s
-    re = 4.0 * density * abs(flow_m3_s) / (math.pi * bore_m * dynamic_viscosity)
+    re = pipe_reynolds_number(flow_m3_s, bore_m, dynamic_viscosity, density)
     return r_lam * flow_m3_s * friction_factor_ratio(re, relative_roughness)
 
 
@@ -449,12 +460,325 @@ def lumped_temperature_rate_k_s(temperature_k, heat_w, ambient_k, resistance_k_w
     return (heat_w - (temperature_k - ambient_k) / resistance_k_w) / heat_capacity_j_k
 
 
+# ---- laws of the component library (afo_mj.hydraulics) that the first set lacked ------------
+
+@law
+def cavitation_factor(p_abs_pa, floor_pa, band_pa):
+    """Lumped cavitation rule on the bulk modulus (the pressure-floor rule of system
+    simulators such as Hopsan and Simscape): 1 above ``floor + band``, falling as a cubic
+    smoothstep to a residual 1e-4 at the floor, so that a chamber emptied with no inflow
+    changes pressure slowly and stops near the floor (vapour and gas release):
+
+    ``f = 1e-4 + (1 − 1e-4) smoothstep01((p − p_floor)/band)``.
+
+    Example: floor 2 kPa, band 20 kPa, p = 12 kPa → 1e-4 + 0.9999·0.5 = 0.50005.
+    """
+    return 1e-4 + (1.0 - 1e-4) * smoothstep01((p_abs_pa - floor_pa) / band_pa)
+
+
+@law
+def orifice_dp_for_flow_pa(flow_m3_s, area_m2, discharge_coefficient, density, transition_pa):
+    """Pressure drop that drives ``Q`` through :func:`orifice_flow_m3_s` (its exact inverse in
+    ``Δp``; ``A > 0``). Squaring the law twice gives ``Δp⁴ = c (Δp² + p_cr²)`` with
+    ``c = (Q/k)⁴``, ``k = C_d A √(2/ρ)``, so ``Δp = sign(Q) √((c + √(c² + 4 c p_cr²))/2)``
+    (Merritt 1967 §3.3 for the law; the inversion is algebra).
+
+    Example: A = 1 mm², C_d = 0.61, ρ = 870, p_cr = 1 kPa, Q = 2.925e-5 m³/s → 1.0 MPa (the
+    :func:`orifice_flow_m3_s` example backwards).
+    """
+    k = discharge_coefficient * area_m2 * math.sqrt(2.0 / density)
+    c = (flow_m3_s / k) ** 4
+    u = 0.5 * (c + math.sqrt(c * c + 4.0 * c * transition_pa * transition_pa))
+    root = math.sqrt(u)
+    if flow_m3_s < 0.0:
+        return -root
+    return root
+
+
+@law
+def valve_opening_area_m2(opening, max_area_m2, leakage_area_m2):
+    """Flow area of a valve at opening fraction ``x``: ``A = A_leak + (A_max − A_leak)
+    clip(x, 0, 1)`` (the seat or port leakage when closed; Merritt 1967 §3.4: the metering
+    area grows linearly with lift for a poppet or a rectangular port).
+
+    Example: A_max = 2 mm², A_leak = 1e-11 m², x = 0.25 → 5.0000075e-7 m².
+    """
+    x = opening
+    if x < 0.0:
+        x = 0.0
+    elif x > 1.0:
+        x = 1.0
+    return leakage_area_m2 + (max_area_m2 - leakage_area_m2) * x
+
+
+@law
+def poppet_opening_fraction(dp_pa, start_pa, width_pa, smoothing):
+    """Opening of a spring-loaded poppet (check valve): the lift grows linearly with the
+    pressure drop above the cracking pressure (force balance against a linear spring, flow
+    forces neglected; Merritt 1967 §3.7; the static check valve of Simscape and Hopsan):
+    ``s = clip((Δp − Δp_start)/Δp_width, 0, 1)``, both corners rounded over ``± smoothing``
+    (fraction of the width) by parabolas — ``s = r(u) − r(u − 1)`` with
+    ``r(u) = ramp_c1(u + w, 2w)``, which is 0 for ``u ≤ −w``, ``(u + w)²/(4w)`` on
+    ``|u| < w``, ``u`` beyond (C¹; ``w = 0`` gives the sharp ramp).
+
+    Example: start 0.1 MPa, width 0.4 MPa, smoothing 0.05: Δp = 0.3 MPa → 0.5; Δp = 0.1 MPa
+    (the corner) → 0.05/4 = 0.0125.
+    """
+    u = (dp_pa - start_pa) / width_pa
+    w = smoothing
+    if u <= -w:
+        return 0.0
+    if u >= 1.0 + w:
+        return 1.0
+    return ramp_c1(u + w, 2.0 * w) - ramp_c1(u - 1.0 + w, 2.0 * w)
+
+
+@law
+def spool_edge_area_m2(spool_m, spool_max_m, overlap_m, area_gradient_m, smoothing_m,
+                       leakage_area_m2):
+    """Metering-edge area of a spool valve (Merritt 1967 §3.4–3.6): the spool clipped to
+    ``±x_max``, a lap ``o`` (> 0 overlap, < 0 underlap) and port width (area gradient) ``w``:
+    ``A = w max(x − o, 0) + A_leak``, the corner rounded over ``± smoothing`` by a parabola
+    (``max(u, 0) ≈ ramp_c1(u + ε, 2ε)``; ``ε = 0`` sharp). The opposite edge of a 4/3 valve
+    is this law at ``−x``.
+
+    Example: x = 0.2 mm (of 0.3 mm), lap 0.05 mm, w = 4 mm, sharp, no leakage → 6e-7 m².
+    """
+    x = spool_m
+    if x > spool_max_m:
+        x = spool_max_m
+    elif x < -spool_max_m:
+        x = -spool_max_m
+    return (area_gradient_m * ramp_c1(x - overlap_m + smoothing_m, 2.0 * smoothing_m)
+            + leakage_area_m2)
+
+
+@law
+def onoff_valve_rate_1_s(position, command, approach_time_constant_s, switching_time_s,
+                         corner_fraction):
+    """Travel of a fast on/off valve (seed ch. 5; our model of a coil whose force saturates):
+    ``dx/dt = clip((clip(u, 0, 1) − x)/τ_s, −1/T_sw, 1/T_sw)`` — the rate limit of the
+    switching time ``T_sw``, an exponential approach of time constant ``τ_s`` near the end.
+    The rate clamp has rounded corners of radius ``corner_fraction/T_sw``
+    (:func:`soft_clip`; 0 gives the sharp clip, a circuit's Newton iteration wants ~0.05).
+
+    Example: x = 0, u = 1, τ_s = 0.1 ms, T_sw = 2 ms, sharp → 500 1/s; x = 0.99995 → 0.5 1/s.
+    """
+    u = command
+    if u < 0.0:
+        u = 0.0
+    elif u > 1.0:
+        u = 1.0
+    lim = 1.0 / switching_time_s
+    return soft_clip((u - position) / approach_time_constant_s, -lim, lim,
+                     corner_fraction * lim)
+
+
+@law
+def unloading_open_drive(pilot_pa, cut_out_pa, band_pa):
+    """Opening drive ``σ_open`` of a pilot-operated unloading valve (Esposito, *Fluid Power
+    with Applications*, accumulator circuits): 1 at or above the cut-out pressure, 0 below
+    ``cut_out − band``, cubic smoothstep between; ``band = 0`` the sharp threshold.
+
+    Example: cut-out 14.1 MPa, band 0.1 MPa, pilot 14.05 MPa → 0.5.
+    """
+    if band_pa <= 0.0:
+        return 1.0 if pilot_pa >= cut_out_pa else 0.0
+    return smoothstep01((pilot_pa - cut_out_pa + band_pa) / band_pa)
+
+
+@law
+def unloading_close_drive(pilot_pa, cut_in_pa, band_pa):
+    """Closing drive ``σ_close`` of an unloading valve with hysteresis: 1 at or below the
+    cut-in pressure, 0 above ``cut_in + band``, smoothstep between; ``band = 0`` sharp.
+
+    Example: cut-in 12.5 MPa, band 0.1 MPa, pilot 12.55 MPa → 0.5.
+    """
+    if band_pa <= 0.0:
+        return 1.0 if pilot_pa <= cut_in_pa else 0.0
+    return smoothstep01((cut_in_pa + band_pa - pilot_pa) / band_pa)
+
+
+@law
+def unloading_valve_rate_1_s(position, pilot_pa, cut_out_pa, cut_in_pa, band_pa,
+                             time_constant_s, hysteresis_on):
+    """Position rate of an unloading valve (our continuous form of the hysteresis relay):
+    ``dx/dt = [σ_open (1 − x) − σ_close x]/τ`` with :func:`unloading_open_drive` and
+    :func:`unloading_close_drive`; without hysteresis (``hysteresis_on = 0``)
+    ``σ_close = 1 − σ_open``. Between ``cut_in + band`` and ``cut_out − band`` the rate is 0:
+    the valve holds its position (the relay's memory lives in ``x``).
+
+    Example: τ = 5 ms, x = 0.5, pilot above cut-out → 100 1/s; pilot between the bands → 0.
+    """
+    up = unloading_open_drive(pilot_pa, cut_out_pa, band_pa)
+    if hysteresis_on != 0.0:
+        down = unloading_close_drive(pilot_pa, cut_in_pa, band_pa)
+    else:
+        down = 1.0 - up
+    return (up * (1.0 - position) - down * position) / time_constant_s
+
+
+@law
+def gas_accumulator_pressure_pa(fluid_volume_m3, gas_volume_m3, precharge_abs_pa,
+                                polytropic_index):
+    """Gas pressure of a charged accumulator holding oil volume ``V_f`` (polytropic gas
+    ``p V_g^n = p_0 V_0^n``, ``V_g = V_0 − V_f``; Esposito, *Fluid Power with Applications*,
+    accumulator sizing): ``p = p_0 (V_0/(V_0 − V_f))^n``, the inverse of
+    :func:`gas_accumulator_oil_volume_m3` (valid for ``0 ≤ V_f < V_0``).
+
+    Example: V_0 = 75 cm³, p_0 = 1.5 MPa, n = 1.4, V_f = 25 cm³ → 1.5e6·1.5^1.4 = 2.646 MPa.
+    """
+    return precharge_abs_pa * (gas_volume_m3 / (gas_volume_m3 - fluid_volume_m3)) \
+        ** polytropic_index
+
+
+@law
+def polytropic_gas_energy_j(gas_volume_now_m3, gas_volume_m3, precharge_abs_pa,
+                            polytropic_index):
+    """Work stored compressing the gas from ``(p_0, V_0)`` to volume ``V_g``,
+    ``E = ∫_{V_g}^{V_0} p dV = p_0 V_0 ((V_0/V_g)^(n−1) − 1)/(n − 1)`` (= ``(p V_g − p_0 V_0)
+    /(n − 1)``), ``p_0 V_0 ln(V_0/V_g)`` for ``n = 1`` (evaluated with ``expm1`` so it is
+    exact as ``n → 1``).
+
+    Example: V_0 = 75 cm³, p_0 = 1.5 MPa, n = 1.4, V_g = 50 cm³ →
+    (2.646e6·50e-6 − 1.5e6·75e-6)/0.4 = 49.5 J.
+    """
+    m = polytropic_index - 1.0
+    log_r = math.log(gas_volume_m3 / gas_volume_now_m3)
+    scale = precharge_abs_pa * gas_volume_m3
+    if m == 0.0:
+        return scale * log_r
+    return scale * math.expm1(m * log_r) / m
+
+
+@law
+def spring_accumulator_pressure_pa(fluid_volume_m3, piston_area_m2, spring_rate_n_m,
+                                   preload_n, stroke_m, vent_pressure_pa, stop_stiffness_pa_m3):
+    """Port pressure of a spring-loaded piston accumulator holding ``V_f``: piston at
+    ``x = V_f/A``, ``p = p_vent + (F_0 + k x)/A`` on ``0 ≤ V_f ≤ A s`` (force balance on the
+    piston, Esposito ch. "Accumulators"); beyond either stop the port liquid is compressed:
+    ``p = p_end + K_stop (V_f − V_end)`` with ``K_stop = B/V_port`` (Pa/m³).
+
+    Example: A = 4.909e-4 m², k = 1e4 N/m, F_0 = 200 N, s = 40 mm, vent 101325 Pa,
+    V_f = 9.817 cm³ (half stroke) → 101325 + 400/4.909e-4 = 9.161e5 Pa.
+    """
+    full = piston_area_m2 * stroke_m
+    if fluid_volume_m3 < 0.0:
+        return (vent_pressure_pa + preload_n / piston_area_m2
+                + stop_stiffness_pa_m3 * fluid_volume_m3)
+    if fluid_volume_m3 > full:
+        return (vent_pressure_pa + (preload_n + spring_rate_n_m * stroke_m) / piston_area_m2
+                + stop_stiffness_pa_m3 * (fluid_volume_m3 - full))
+    return vent_pressure_pa + (preload_n + spring_rate_n_m * fluid_volume_m3 / piston_area_m2) \
+        / piston_area_m2
+
+
+@law
+def spring_accumulator_oil_volume_m3(p_abs_pa, piston_area_m2, spring_rate_n_m, preload_n,
+                                     stroke_m, vent_pressure_pa, stop_stiffness_pa_m3):
+    """Oil held by a spring accumulator at port pressure ``p`` (the inverse of
+    :func:`spring_accumulator_pressure_pa` for ``V_f ≥ 0``): ``V_f = A clip(((p − p_vent) A −
+    F_0)/k, 0, s)``, 0 below the cracking pressure, the top-stop line above the full
+    pressure. Example (the :func:`spring_accumulator_pressure_pa` one): 9.161e5 Pa →
+    9.817e-6 m³."""
+    full_p = vent_pressure_pa + (preload_n + spring_rate_n_m * stroke_m) / piston_area_m2
+    if p_abs_pa > full_p:
+        return piston_area_m2 * stroke_m + (p_abs_pa - full_p) / stop_stiffness_pa_m3
+    x = ((p_abs_pa - vent_pressure_pa) * piston_area_m2 - preload_n) / spring_rate_n_m
+    if x < 0.0:
+        x = 0.0
+    elif x > stroke_m:
+        x = stroke_m
+    return piston_area_m2 * x
+
+
+@law
+def spring_accumulator_capacitance_m3_pa(p_abs_pa, piston_area_m2, spring_rate_n_m, preload_n,
+                                         stroke_m, vent_pressure_pa, stop_stiffness_pa_m3):
+    """``dV_f/dp`` of a spring accumulator at port pressure ``p``: ``A²/k`` between the
+    cracking pressure ``p_vent + F_0/A`` and the full pressure ``p_vent + (F_0 + k s)/A``,
+    ``1/K_stop`` on either stop (derivative of :func:`spring_accumulator_pressure_pa`).
+
+    Example: A = 4.909e-4 m², k = 1e4 N/m → 2.410e-11 m³/Pa inside the stroke.
+    """
+    crack = vent_pressure_pa + preload_n / piston_area_m2
+    full_p = crack + spring_rate_n_m * stroke_m / piston_area_m2
+    if p_abs_pa < crack or p_abs_pa > full_p:
+        return 1.0 / stop_stiffness_pa_m3
+    return piston_area_m2 * piston_area_m2 / spring_rate_n_m
+
+
+@law
+def spring_accumulator_energy_j(fluid_volume_m3, piston_area_m2, spring_rate_n_m, preload_n,
+                                stroke_m, vent_pressure_pa, stop_stiffness_pa_m3):
+    """Energy stored in a spring accumulator, ``∫_0^{V_f} (p − p_vent) dV_f``: the spring's
+    ``F_0 x + ½ k x²`` in the stroke; on the stops the integral of the stop law is added
+    (liquid compression), negative below empty. Example: F_0 = 200 N, k = 1e4 N/m, full
+    stroke 40 mm → 200·0.04 + ½·1e4·0.04² = 16 J."""
+    a = piston_area_m2
+    full = a * stroke_m
+    if fluid_volume_m3 < 0.0:
+        return preload_n / a * fluid_volume_m3 \
+            + 0.5 * stop_stiffness_pa_m3 * fluid_volume_m3 * fluid_volume_m3
+    if fluid_volume_m3 > full:
+        dv = fluid_volume_m3 - full
+        return (preload_n * stroke_m + 0.5 * spring_rate_n_m * stroke_m * stroke_m
+                + (preload_n + spring_rate_n_m * stroke_m) / a * dv
+                + 0.5 * stop_stiffness_pa_m3 * dv * dv)
+    x = fluid_volume_m3 / a
+    return preload_n * x + 0.5 * spring_rate_n_m * x * x
+
+
+@law
+def pump_speed_for_flow_rad_s(flow_m3_s, dp_pa, displacement_m3_rad, slip_coefficient,
+                              extra_leak_conductance_m3, dynamic_viscosity):
+    """Shaft speed at which the pump of :func:`pump_flow_m3_s` delivers ``Q`` against ``Δp``
+    (its inverse in ``ω``): ``ω = (Q + (C_s d + G_x) Δp/μ)/d`` (Wilson's slip model).
+
+    Example: d = 0.2 cm³/2π, Q = 9.443e-6 m³/s, C_s = 1e-8, μ = 0.03 Pa s, Δp = 10 MPa →
+    300 rad/s.
+    """
+    return (flow_m3_s + (slip_coefficient * displacement_m3_rad + extra_leak_conductance_m3)
+            * dp_pa / dynamic_viscosity) / displacement_m3_rad
+
+
+@law
+def oring_coulomb_force_n(sliding_diameter_m, cross_section_m, squeeze_ratio,
+                          friction_coefficient, elastic_modulus_pa, coulomb_scale):
+    """Coulomb friction of a dynamic O-ring, seed eq. 2.7 (Xia & Durfee 2014) with the normal
+    load per unit circumference from Lindley's compression law (Lindley 1967):
+    ``F_C = k μ_f E π D d λ^(3/2)``.
+
+    Example: μ_f = 0.4, E = 3.5 MPa, D = 10 mm, d = 1.78 mm, λ = 0.12, k = 1 → 3.25 N.
+    """
+    return (coulomb_scale * friction_coefficient * elastic_modulus_pa * math.pi
+            * sliding_diameter_m * cross_section_m * squeeze_ratio ** 1.5)
+
+
+@law
+def annular_gap_conductance_m3(diameter_m, radial_clearance_m, length_m):
+    """Geometric conductance of a concentric annular clearance (piston in its bore), laminar
+    (Merritt 1967 §3.2): ``G = π D δ³ / (12 L)``, so ``Q = G Δp/μ``
+    (:func:`laminar_gap_flow_m3_s`). Example: D = 12 mm, δ = 10 µm, L = 5 mm → 6.283e-16 m³.
+    """
+    return math.pi * diameter_m * radial_clearance_m ** 3 / (12.0 * length_m)
+
+
+@numba.guvectorize(["void(float64, float64[:], float64[:], float64[:])"], "(),(n),(n)->()",
+                   cache=True)
+def table_interp_array(x, xs, ys, out):
+    """:func:`table_interp` broadcast over ``x`` (a numpy generalised ufunc over the
+    table ``(xs, ys)``): the array form of the same law, for the numpy library."""
+    out[0] = table_interp(x, xs, ys)
+
+
 def law_names() -> tuple:
     """Names of every registered law."""
     return tuple(LAWS)
 
 
-__all__ = ["LAWS", "law", "table_interp", "law_names", "RE_LAMINAR_END", "RE_TURBULENT_START"]
+__all__ = ["LAWS", "law", "table_interp", "table_interp_array", "law_names", "RE_LAMINAR_END",
+           "RE_TURBULENT_START"]
 __all__ += list(LAWS)
 
 _ = np  # numpy is the laws' array interface (ufuncs broadcast over numpy arrays)
