@@ -90,7 +90,7 @@ def test_turbulent_blasius_and_haaland():
 
 def test_transition_is_continuous_and_monotonic():
     re = np.linspace(1500, 4500, 3001)
-    phi = friction_factor_ratio(re)
+    phi = friction_factor_ratio(re, 0.0)   # the law (a ufunc): roughness 0 = smooth wall
     assert phi[0] == 1.0
     assert np.max(np.abs(np.diff(phi))) < 0.01  # no jump
     dp = phi * re  # Δp ∝ φ Re at fixed geometry

@@ -17,6 +17,11 @@ Equations
 
 The loss is written as ``Δp = R_lam Q φ(Re)`` with ``φ = f Re / 64`` (``φ = 1`` in the laminar
 range), which stays finite with a finite slope at ``Q = 0``.
+
+Each equation is a compiled law of :mod:`afo_mj.hydraulics.laws` (``laminar_resistance_pa_s_m3``,
+``friction_factor_ratio``, ``pipe_reynolds_number``, ``hose_pressure_loss_pa``,
+``hose_flow_m3_s``, ``node_capacitance_m3_pa``), shared with the simulated circuits and the
+design tool; the first two are re-exported here.
 """
 
 from __future__ import annotations
@@ -26,43 +31,11 @@ import math
 
 import numpy as np
 
+from . import laws
+from .laws import (RE_LAMINAR_END, RE_TURBULENT_START, friction_factor_ratio,  # noqa: F401
+                   laminar_resistance_pa_s_m3)
 from .params import Parameters, effect, param
 from .power import PowerFlow
-
-RE_LAMINAR_END = 2000.0
-RE_TURBULENT_START = 4000.0
-
-
-def laminar_resistance_pa_s_m3(length_m, bore_m, dynamic_viscosity_pa_s):
-    """Hagen–Poiseuille resistance ``R = 128 μ L / (π D⁴)`` so that ``Δp = R Q``.
-
-    Example: 1 m of 4 mm bore, μ = 0.04 Pa s → 1.27e11 Pa s/m³ (1 cm³/s costs 1.27 bar).
-    """
-    return 128.0 * dynamic_viscosity_pa_s * length_m / (math.pi * bore_m ** 4)
-
-
-def _smoothstep(s):
-    s = np.clip(s, 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
-def friction_factor_ratio(reynolds, relative_roughness: float = 0.0):
-    """``φ(Re) = f(Re) Re / 64``: the Darcy friction factor relative to the laminar one.
-
-    ``φ = 1`` for Re ≤ 2000; for Re ≥ 4000 the turbulent law (Blasius for a smooth wall,
-    Haaland when ``relative_roughness > 0``); smoothstep blend between.
-    """
-    re = np.abs(np.asarray(reynolds, dtype=float))
-    re_t = np.maximum(re, RE_LAMINAR_END)
-    if relative_roughness > 0.0:
-        inv_sqrt_f = -1.8 * np.log10((relative_roughness / 3.7) ** 1.11 + 6.9 / re_t)
-        f_turb = 1.0 / inv_sqrt_f ** 2
-    else:
-        f_turb = 0.3164 * re_t ** -0.25
-    phi_turb = f_turb * re_t / 64.0
-    w = _smoothstep((re - RE_LAMINAR_END) / (RE_TURBULENT_START - RE_LAMINAR_END))
-    return 1.0 + w * (phi_turb - 1.0)
-
 
 @dataclasses.dataclass(frozen=True)
 class HoseParams(Parameters):
@@ -89,25 +62,41 @@ class Hose:
         self.relative_roughness = params.roughness_m / params.bore_m
 
     def reynolds(self, flow_m3_s, kinematic_viscosity_m2_s):
-        """``Re = |v| D / ν`` with ``v = Q / A``."""
-        return np.abs(flow_m3_s) / self.area_m2 * self.params.bore_m / kinematic_viscosity_m2_s
+        """``Re = |v| D / ν`` with ``v = Q / A`` (:func:`~afo_mj.hydraulics.laws.
+        pipe_reynolds_number` with ``μ/ρ = ν``)."""
+        return laws.pipe_reynolds_number(np.asarray(flow_m3_s, dtype=float), self.params.bore_m,
+                                         kinematic_viscosity_m2_s, 1.0)
 
     def pressure_loss_pa(self, flow_m3_s, density_kg_m3, kinematic_viscosity_m2_s):
-        """Δp from inlet to outlet for flow ``Q`` (same sign as Q): ``Δp = R_lam Q φ(Re)``."""
-        mu = density_kg_m3 * kinematic_viscosity_m2_s
-        r_lam = laminar_resistance_pa_s_m3(self.params.length_m, self.params.bore_m, mu)
-        if not self.params.turbulence_enabled:
-            return r_lam * flow_m3_s
-        phi = friction_factor_ratio(self.reynolds(flow_m3_s, kinematic_viscosity_m2_s),
-                                    self.relative_roughness)
-        return r_lam * flow_m3_s * phi
+        """Δp from inlet to outlet for flow ``Q`` (same sign as Q): ``Δp = R_lam Q φ(Re)``
+        (:func:`~afo_mj.hydraulics.laws.hose_pressure_loss_pa`)."""
+        hp = self.params
+        mu = np.asarray(density_kg_m3, dtype=float) * kinematic_viscosity_m2_s
+        return laws.hose_pressure_loss_pa(np.asarray(flow_m3_s, dtype=float), hp.length_m,
+                                          hp.bore_m, mu, density_kg_m3, self.relative_roughness,
+                                          float(hp.turbulence_enabled))
+
+    def flow_m3_s(self, dp_pa, density_kg_m3, kinematic_viscosity_m2_s):
+        """Flow for a pressure drop ``Δp`` from inlet to outlet: the inverse of
+        :meth:`pressure_loss_pa` (:func:`~afo_mj.hydraulics.laws.hose_flow_m3_s`)."""
+        hp = self.params
+        mu = np.asarray(density_kg_m3, dtype=float) * kinematic_viscosity_m2_s
+        return laws.hose_flow_m3_s(np.asarray(dp_pa, dtype=float), hp.length_m, hp.bore_m, mu,
+                                   density_kg_m3, self.relative_roughness,
+                                   float(hp.turbulence_enabled))
 
     def capacitance_m3_pa(self, fluid_bulk_modulus_pa):
-        """Lumped hydraulic capacitance ``C = V (1/B + 1/K_wall)`` (wall term if enabled)."""
-        inv = 1.0 / np.asarray(fluid_bulk_modulus_pa, dtype=float)
-        if self.params.wall_compliance_enabled:
-            inv = inv + 1.0 / self.params.wall_bulk_modulus_pa
-        return self.volume_m3 * inv
+        """Lumped hydraulic capacitance ``C = V (1/B + 1/K_wall)`` (wall term if enabled;
+        :func:`~afo_mj.hydraulics.laws.node_capacitance_m3_pa`)."""
+        return laws.node_capacitance_m3_pa(self.volume_m3,
+                                           np.asarray(fluid_bulk_modulus_pa, dtype=float),
+                                           self.volume_m3, self.wall_compliance_inv_pa)
+
+    @property
+    def wall_compliance_inv_pa(self) -> float:
+        """``1/K_wall`` with the wall compliance enabled, else 0 (a rigid wall)."""
+        p = self.params
+        return 1.0 / p.wall_bulk_modulus_pa if p.wall_compliance_enabled else 0.0
 
     @property
     def inertance_kg_m4(self) -> float:

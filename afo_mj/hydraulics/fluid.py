@@ -13,6 +13,11 @@ Sources
 * Oil presets from published datasheet points (viscosity at 40 °C and 100 °C, ISO 3448 grade
   midpoints and a typical viscosity index ~100); the VG 46 density is the commercial figure in
   ``shared/reference/facts.md`` (879 kg/m³ at 15 °C).
+
+The equations themselves are the compiled laws of :mod:`afo_mj.hydraulics.laws`
+(``walther_viscosity_m2_s``, ``oil_density_kg_m3``, ``dynamic_viscosity_pa_s``,
+``bulk_modulus_pa``, ``cavitation_factor``), which the simulated circuits and the design tool
+evaluate too; this module holds the oil's parameters and evaluates the laws for them.
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ import math
 
 import numpy as np
 
+from . import laws
+from .laws import walther_viscosity_m2_s
 from .params import Parameters, ParameterError, effect, param
 
 ATMOSPHERIC_PRESSURE_PA = 101_325.0
@@ -50,19 +57,6 @@ def walther_coefficients(t1_k: float, nu1_m2_s: float, t2_k: float, nu2_m2_s: fl
     return b, c
 
 
-def walther_viscosity_m2_s(temperature_k, b: float, c: float, a_cst: float = WALTHER_A_CST):
-    """Kinematic viscosity from Walther's equation (ASTM D341, seed eq. 2.3).
-
-    ``nu = 10^(10^(b - c log10 T)) - a`` in cSt, returned in m²/s.
-
-    Example: the Modelica OpenHydraulics VG 46-like set ``b = 9.32, c = 3.65`` gives about
-    41 cSt at 313.15 K: ``walther_viscosity_m2_s(313.15, 9.32, 3.65)`` → ``4.13e-5``.
-    """
-    t = np.asarray(temperature_k, dtype=float)
-    nu_cst = 10.0 ** (10.0 ** (b - c * np.log10(t))) - a_cst
-    return nu_cst * 1e-6
-
-
 def effective_bulk_modulus_pa(pressure_pa, liquid_bulk_modulus_pa: float, air_fraction: float,
                               polytropic_index: float,
                               atmospheric_pressure_pa: float = ATMOSPHERIC_PRESSURE_PA):
@@ -71,19 +65,14 @@ def effective_bulk_modulus_pa(pressure_pa, liquid_bulk_modulus_pa: float, air_fr
     ``B = B_L (1 + α (p_a/p)^(1/n)) / (1 + α p_a^(1/n) B_L / (n p^((n+1)/n)))``
 
     with ``p`` absolute pressure, ``α`` the gas volume fraction at ``p_a``, ``n`` the polytropic
-    index (1 isothermal … 1.4 adiabatic). With ``α = 0`` it is ``B_L``.
+    index (1 isothermal … 1.4 adiabatic). With ``α = 0`` it is ``B_L``. Evaluates the law
+    :func:`afo_mj.hydraulics.laws.bulk_modulus_pa` (atmospheric pressure defaulted).
 
     Example (``B_L`` = 1.5 GPa, ``α`` = 0.01, ``n`` = 1.4): 0.49 GPa at 1 MPa abs, 1.14 GPa at
     3 MPa abs, 1.40 GPa at 7 MPa abs (``shared/reference/facts.md``).
     """
-    p = np.asarray(pressure_pa, dtype=float)
-    if air_fraction == 0.0:
-        return np.full_like(p, liquid_bulk_modulus_pa)
-    n = polytropic_index
-    ratio = (atmospheric_pressure_pa / p) ** (1.0 / n)
-    num = 1.0 + air_fraction * ratio
-    den = 1.0 + air_fraction * ratio * liquid_bulk_modulus_pa / (n * p)
-    return liquid_bulk_modulus_pa * num / den
+    return laws.bulk_modulus_pa(np.asarray(pressure_pa, dtype=float), liquid_bulk_modulus_pa,
+                                air_fraction, polytropic_index, atmospheric_pressure_pa)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,20 +143,28 @@ class Fluid:
 
     def kinematic_viscosity_m2_s(self, temperature_k):
         """Walther/ASTM D341 viscosity at ``temperature_k`` (see :func:`walther_viscosity_m2_s`)."""
-        return walther_viscosity_m2_s(temperature_k, self.walther_b, self.walther_c)
+        return walther_viscosity_m2_s(np.asarray(temperature_k, dtype=float), self.walther_b,
+                                      self.walther_c)
 
     def density_kg_m3(self, pressure_pa=ATMOSPHERIC_PRESSURE_PA, temperature_k=None):
-        """Linearised equation of state ``rho = rho0 (1 + (p - p_a)/B_L - beta (T - T0))``."""
+        """Equation of state ``ρ = ρ_T(T) (1 + (p − p_a)/B_L)``: the thermal law
+        :func:`afo_mj.hydraulics.laws.oil_density_kg_m3` (``ρ_0/(1 + β (T − T_0))``, mass
+        conserved as the volume grows by ``1 + β ΔT``) with the liquid's linearised
+        compressibility."""
         p = self.params
         t = p.reference_temperature_k if temperature_k is None else temperature_k
-        return p.density_kg_m3 * (1.0 + (np.asarray(pressure_pa) - ATMOSPHERIC_PRESSURE_PA)
-                                  / p.liquid_bulk_modulus_pa
-                                  - p.thermal_expansion_per_k * (t - p.reference_temperature_k))
+        rho_t = laws.oil_density_kg_m3(np.asarray(t, dtype=float), p.density_kg_m3,
+                                       p.thermal_expansion_per_k, p.reference_temperature_k)
+        return rho_t * (1.0 + (np.asarray(pressure_pa) - ATMOSPHERIC_PRESSURE_PA)
+                        / p.liquid_bulk_modulus_pa)
 
     def dynamic_viscosity_pa_s(self, temperature_k):
-        """``mu = rho(T) nu(T)`` at atmospheric pressure."""
-        return self.density_kg_m3(temperature_k=temperature_k) * \
-            self.kinematic_viscosity_m2_s(temperature_k)
+        """``μ = ρ(T) ν(T)`` at atmospheric pressure
+        (:func:`afo_mj.hydraulics.laws.dynamic_viscosity_pa_s`)."""
+        p = self.params
+        return laws.dynamic_viscosity_pa_s(np.asarray(temperature_k, dtype=float), self.walther_b,
+                                           self.walther_c, p.density_kg_m3,
+                                           p.thermal_expansion_per_k, p.reference_temperature_k)
 
     def bulk_modulus_pa(self, pressure_pa):
         """Effective bulk modulus for the continuity equation: eq. 2.5 (if entrained air is
@@ -190,9 +187,8 @@ class Fluid:
         :meth:`clamp_pressure`.
         """
         p = self.params
-        s = np.clip((np.asarray(pressure_pa, dtype=float) - p.pressure_floor_pa)
-                    / p.cavitation_band_pa, 0.0, 1.0)
-        return 1e-4 + (1.0 - 1e-4) * s * s * (3.0 - 2.0 * s)
+        return laws.cavitation_factor(np.asarray(pressure_pa, dtype=float), p.pressure_floor_pa,
+                                      p.cavitation_band_pa)
 
     def clamp_pressure(self, pressure_pa):
         """Pressures held at or above the floor: returns ``(clamped, n_clamped)``."""

@@ -23,9 +23,9 @@ Energy ledger (gauge pressures): electrical bus input = load output + Σ named h
 from __future__ import annotations
 
 import dataclasses
-import math
 import numpy as np
 
+from . import laws
 from .conduit import Hose, HoseParams
 from .cylinder import Cylinder, CylinderParams
 from .fluid import ATMOSPHERIC_PRESSURE_PA, Fluid, FluidParams, ISO_VG46
@@ -112,16 +112,9 @@ class PumpCylinderCircuit:
 
     # -- physics -----------------------------------------------------------------------------
     def _hose_flow(self, hose: Hose, dp, rho, nu):
-        """Invert the loss law ``Δp = R_lam Q φ(Re)`` for ``Q`` (fixed point, 4 sweeps)."""
-        mu = rho * nu
-        r_lam = 128.0 * mu * hose.params.length_m / (math.pi * hose.params.bore_m ** 4)
-        q = dp / r_lam
-        if hose.params.turbulence_enabled and np.any(hose.reynolds(q, nu) > 0.9 * 2000.0):
-            for _ in range(4):
-                dpq = hose.pressure_loss_pa(q, rho, nu)
-                phi = np.where(q != 0.0, dpq / np.where(q != 0.0, r_lam * q, 1.0), 1.0)
-                q = dp / (r_lam * phi)
-        return q
+        """Invert the loss law ``Δp = R_lam Q φ(Re)`` for ``Q``
+        (:func:`~afo_mj.hydraulics.laws.hose_flow_m3_s`, through :meth:`Hose.flow_m3_s`)."""
+        return hose.flow_m3_s(dp, rho, nu)
 
     def evaluate(self, t: float, y: np.ndarray, u) -> tuple[np.ndarray, dict]:
         """``(dy/dt, flows)`` for a batch of states ``y`` of shape (n, k)."""
@@ -156,16 +149,17 @@ class PumpCylinderCircuit:
         dv = (f_h - f_fr + f_stop + f_load) / self.moving_mass_kg
         # node continuity
         b_oil = self.fluid.bulk_modulus_pa
-        wall = lambda h: (h.volume_m3 / 2 / h.params.wall_bulk_modulus_pa  # noqa: E731
-                          if h.params.wall_compliance_enabled else 0.0)
-        vpa = p.pump_port_volume_m3 + self.hose_a.volume_m3 / 2
-        vpb = p.pump_port_volume_m3 + self.hose_b.volume_m3 / 2
-        vca = va + self.hose_a.volume_m3 / 2
-        vcb = vb + self.hose_b.volume_m3 / 2
-        c_pa = vpa / b_oil(ppa) + wall(self.hose_a)
-        c_pb = vpb / b_oil(ppb) + wall(self.hose_b)
-        c_ca = vca / b_oil(pca) + wall(self.hose_a)
-        c_cb = vcb / b_oil(pcb) + wall(self.hose_b)
+        ha, hb = self.hose_a, self.hose_b
+        vpa = p.pump_port_volume_m3 + ha.volume_m3 / 2
+        vpb = p.pump_port_volume_m3 + hb.volume_m3 / 2
+        vca = va + ha.volume_m3 / 2
+        vcb = vb + hb.volume_m3 / 2
+        # each node holds half of each hose's wall (laws.node_capacitance_m3_pa)
+        cap = laws.node_capacitance_m3_pa
+        c_pa = cap(vpa, b_oil(ppa), ha.volume_m3 / 2, ha.wall_compliance_inv_pa)
+        c_pb = cap(vpb, b_oil(ppb), hb.volume_m3 / 2, hb.wall_compliance_inv_pa)
+        c_ca = cap(vca, b_oil(pca), ha.volume_m3 / 2, ha.wall_compliance_inv_pa)
+        c_cb = cap(vcb, b_oil(pcb), hb.volume_m3 / 2, hb.wall_compliance_inv_pa)
         net_pa = q_pump - q_ha
         net_pb = -q_pump - q_hb
         net_ca = q_ha - q_leak - cyl.area_a_m2 * v
@@ -186,8 +180,9 @@ class PumpCylinderCircuit:
         }
         heat_to_oil = (heat["pump_leakage_friction"] + heat["hose_a"] + heat["hose_b"]
                        + heat["cylinder_seal_friction"] + heat["cylinder_leakage"])
-        dtemp = (heat_to_oil - (temp - p.ambient_temperature_k) / p.fluid_thermal_resistance_k_w) \
-            / p.fluid_heat_capacity_j_k
+        dtemp = laws.lumped_temperature_rate_k_s(temp, heat_to_oil, p.ambient_temperature_k,
+                                                 p.fluid_thermal_resistance_k_w,
+                                                 p.fluid_heat_capacity_j_k)
         dy = np.stack([di, dw, net_pa / c_pa, net_pb / c_pb, net_ca / c_ca, net_cb / c_cb,
                        v, dv, dtemp])
         g = lambda pr: pr - ATMOSPHERIC_PRESSURE_PA  # noqa: E731  gauge
@@ -205,11 +200,12 @@ class PumpCylinderCircuit:
         return dy, flows
 
     def _stop_elastic(self, x):
+        """The spring part of the end-stop force (the law without its damper)."""
         cyl = self.cylinder
         if not cyl.params.end_stops_enabled:
             return 0.0
-        k, s = cyl.params.end_stop_stiffness_n_m, cyl.params.stroke_m
-        return k * np.maximum(-x, 0.0) - k * np.maximum(x - s, 0.0)
+        return laws.end_stop_force_n(x, 0.0, cyl.params.stroke_m,
+                                     cyl.params.end_stop_stiffness_n_m, 0.0)
 
     def stored_energy_j(self, y: np.ndarray) -> dict:
         """Energy held in state functions: inductance, rotating and moving masses, end stops."""
