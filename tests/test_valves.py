@@ -155,20 +155,27 @@ def test_check_valve_reverse_flow_only_leakage():
 # ----------------------------------------------------------------------------- relief valve
 
 def test_relief_valve_flow_matches_analytic_characteristic():
+    """The relief law (afo_mj.hydraulics.laws.relief_valve_area_m2, shared with the simulated
+    circuits): seated below cracking, fully open from cracking + override, the cubic
+    smoothstep s²(3 − 2s) of the normalised pressure between (written out here)."""
     p = ReliefValveParams(cracking_dp_pa=15e6, override_dp_pa=1.5e6, max_area_m2=2e-6,
                           leakage_area_m2=1e-10, opening_smoothing=0.0)
     v = ReliefValve(p)
     dp = np.linspace(1e6, 20e6, 96)
-    s = np.clip((dp - 15e6) / 1.5e6, 0.0, 1.0)
+    u = np.clip((dp - 15e6) / 1.5e6, 0.0, 1.0)
+    s = u * u * (3.0 - 2.0 * u)
     ref = turbulent(dp, 1e-10 + (2e-6 - 1e-10) * s)
     np.testing.assert_allclose(v.flow_m3_s(P_TANK + dp, P_TANK, RHO), ref, rtol=1e-4)
-    # default (rounded corners): same characteristic outside the corner bands
+    # seated (leakage only) up to cracking, full area from cracking + override on
+    np.testing.assert_array_equal(v.opening(np.array([1e6, 14.99e6, 15e6])), 0.0)
+    np.testing.assert_array_equal(v.opening(np.array([16.5e6, 17e6, 30e6])), 1.0)
+    # opening_smoothing belongs to a linear ramp; the smoothstep law does not use it
     vs = ReliefValve(p.replace(opening_smoothing=0.05))
-    band = 0.05 * 1.5e6
-    keep = (np.abs(dp - 15e6) > band) & (np.abs(dp - 16.5e6) > band)
-    np.testing.assert_allclose(vs.flow_m3_s(P_TANK + dp, P_TANK, RHO)[keep], ref[keep], rtol=1e-4)
-    # half open at cracking + half the override
+    np.testing.assert_array_equal(vs.flow_m3_s(P_TANK + dp, P_TANK, RHO),
+                                  v.flow_m3_s(P_TANK + dp, P_TANK, RHO))
+    # half open at cracking + half the override; a quarter of the way: 0.25²(3 − 0.5)
     assert v.opening(15.75e6) == pytest.approx(0.5)
+    assert v.opening(15.375e6) == pytest.approx(0.15625)
 
 
 def test_relief_valve_reverse_and_leakage_switch():

@@ -6,12 +6,13 @@ Simscape's "Check Valve (IL)" and Hopsan's "Check valve with spring"):
 * opening ``s = ramp((Δp − p_crack) / Δp_full)``, ``Δp = p_in − p_out``, 0 below the cracking
   pressure, 1 from ``p_crack + Δp_full`` on, linear between (the spring force grows linearly
   with lift and the pressure force on the seat balances it); both corners are rounded over
-  ``± opening_smoothing · Δp_full`` (:func:`~afo_mj.hydraulics.orifice.smooth_ramp01`) so the
-  flow has a continuous Jacobian;
-* area ``A = A_leak + (A_max − A_leak) s``: the seat leakage ``A_leak`` when closed (and for
-  reverse flow), ``A_max`` at full lift;
+  ``± opening_smoothing · Δp_full`` (:func:`~afo_mj.hydraulics.laws.poppet_opening_fraction`)
+  so the flow has a continuous Jacobian;
+* area ``A = A_leak + (A_max − A_leak) s`` (:func:`~afo_mj.hydraulics.laws.
+  valve_opening_area_m2`): the seat leakage ``A_leak`` when closed (and for reverse flow),
+  ``A_max`` at full lift;
 * flow through the regularised orifice law ``Q = C_d A √(2/ρ) Δp / (Δp² + p_cr²)^(1/4)``
-  (:func:`~afo_mj.hydraulics.orifice.orifice_flow_m3_s`; Merritt 1967 §3.3).
+  (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`; Merritt 1967 §3.3).
 
 A reverse pressure drop keeps the poppet on its seat, so reverse flow passes the leakage area
 only. All of ``Δp Q`` is throttled to heat.
@@ -26,8 +27,9 @@ import dataclasses
 
 import numpy as np
 
+from . import laws
 from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
-                      orifice_flow_m3_s, smooth_ramp01, throttle_power)
+                      orifice_flow_m3_s, throttle_power)
 from .params import Parameters, effect, param
 from .power import PowerFlow
 
@@ -49,15 +51,17 @@ class PoppetValve:
     def opening(self, dp_pa):
         """Poppet opening fraction ``s ∈ [0, 1]`` at pressure drop ``dp_pa = p_in − p_out``.
 
-        ``s = ramp((Δp − Δp_start)/Δp_width)`` with rounded corners (see module docstring).
+        ``s = ramp((Δp − Δp_start)/Δp_width)`` with rounded corners (see module docstring):
+        the law :func:`afo_mj.hydraulics.laws.poppet_opening_fraction`.
         """
-        s = (np.asarray(dp_pa, dtype=float) - self._dp_start) / self._dp_width
-        return smooth_ramp01(s, self.params.opening_smoothing)
+        return laws.poppet_opening_fraction(np.asarray(dp_pa, dtype=float), self._dp_start,
+                                            self._dp_width, self.params.opening_smoothing)
 
     def area_m2(self, dp_pa):
-        """Flow area ``A_leak + (A_max − A_leak) s(Δp)``."""
-        a_max = self.params.max_area_m2
-        return self._leak_area + (a_max - self._leak_area) * self.opening(dp_pa)
+        """Flow area ``A_leak + (A_max − A_leak) s(Δp)``
+        (:func:`afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
+        return laws.valve_opening_area_m2(self.opening(dp_pa), self.params.max_area_m2,
+                                          self._leak_area)
 
     def flow_m3_s(self, p_in_pa, p_out_pa, density_kg_m3):
         """Flow from ``in`` to ``out`` (negative = reverse flow, through the leakage only)."""

@@ -39,6 +39,7 @@ import dataclasses
 
 import numpy as np
 
+from . import laws
 from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
                       orifice_flow_m3_s, throttle_power)
 from .params import Parameters, effect, param
@@ -99,18 +100,18 @@ class OnOffValve:
         self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
 
     def position_rate(self, x, command_on):
-        """``dx/dt = clip((clip(u, 0, 1) − x)/τ_s, −1/T_sw, 1/T_sw)`` (1/s)."""
+        """``dx/dt = clip((clip(u, 0, 1) − x)/τ_s, −1/T_sw, 1/T_sw)`` (1/s): the law
+        :func:`~afo_mj.hydraulics.laws.onoff_valve_rate_1_s` with sharp corners."""
         p = self.params
-        target = np.clip(np.asarray(command_on, dtype=float), 0.0, 1.0)
-        rate_max = 1.0 / p.switching_time_s
-        return np.clip((target - np.asarray(x, dtype=float)) / p.approach_time_constant_s,
-                       -rate_max, rate_max)
+        return laws.onoff_valve_rate_1_s(np.asarray(x, dtype=float),
+                                         np.asarray(command_on, dtype=float),
+                                         p.approach_time_constant_s, p.switching_time_s, 0.0)
 
     def area_m2(self, x):
-        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``."""
-        a_max = self.params.max_area_m2
-        return self._leak_area + (a_max - self._leak_area) * np.clip(np.asarray(x, dtype=float),
-                                                                     0.0, 1.0)
+        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``
+        (:func:`~afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
+        return laws.valve_opening_area_m2(np.asarray(x, dtype=float), self.params.max_area_m2,
+                                          self._leak_area)
 
     def flow_m3_s(self, x, p_in_pa, p_out_pa, density_kg_m3):
         """Flow from ``in`` to ``out`` at valve position ``x``."""

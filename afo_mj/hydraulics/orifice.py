@@ -23,6 +23,10 @@ proportional to its opening at a fixed pressure drop).
 Power: all of ``Δp·Q`` is throttled to heat (no work is done), ``Δp Q ≥ 0`` because ``Q`` has the
 sign of ``Δp``.
 
+The law is :func:`afo_mj.hydraulics.laws.orifice_flow_m3_s` (re-exported here, all five
+arguments required), with its inverse :func:`afo_mj.hydraulics.laws.orifice_dp_for_flow_pa`;
+the simulated circuits and the design tool evaluate the same compiled functions.
+
 Also here: the small smoothing helpers used by the valve modules (:func:`smooth_max0`,
 :func:`smooth_ramp01`), which round the corners of valve opening laws so their Jacobian is
 continuous.
@@ -35,6 +39,8 @@ import math
 
 import numpy as np
 
+from . import laws
+from .laws import orifice_flow_m3_s
 from .params import Parameters, param
 from .power import PowerFlow
 
@@ -59,39 +65,19 @@ DEFAULT_DISCHARGE_COEFFICIENT = 0.61
 DEFAULT_TRANSITION_PRESSURE_PA = 1.0e4
 
 
-def orifice_flow_m3_s(dp_pa, area_m2, discharge_coefficient, density_kg_m3,
-                      transition_pressure_pa=DEFAULT_TRANSITION_PRESSURE_PA):
-    """Regularised turbulent orifice flow (positive from the high to the low side of ``dp_pa``).
-
-    ``Q = C_d A √(2/ρ) Δp / (Δp² + p_cr²)^(1/4)``
-
-    Source: standard orifice equation (Merritt 1967, §3.3), regularised near zero in the
-    critical-pressure form of system simulators (Hopsan, Simscape). ``p_cr`` must be > 0.
-    Broadcasts over all arguments.
-
-    Example: 1 mm² orifice, C_d = 0.61, ρ = 870 kg/m³, Δp = 5 MPa:
-    ``orifice_flow_m3_s(5e6, 1e-6, 0.61, 870.0, 1e4)`` → 6.540e-5 m³/s (3.92 L/min), the same
-    as ``0.61e-6 * sqrt(2 * 5e6 / 870)`` to 1e-6 (relative).
-    """
-    dp = np.asarray(dp_pa, dtype=float)
-    pcr = transition_pressure_pa
-    k = discharge_coefficient * area_m2 * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
-    return k * dp / (dp * dp + pcr * pcr) ** 0.25
-
-
 def orifice_area_for_flow(flow_m3_s, dp_pa, discharge_coefficient, density_kg_m3,
                           transition_pressure_pa=DEFAULT_TRANSITION_PRESSURE_PA):
     """Orifice area that passes ``|flow_m3_s|`` at ``|dp_pa|`` (sizing; inverse in ``A``).
 
-    ``A = |Q| (Δp² + p_cr²)^(1/4) / (C_d √(2/ρ) |Δp|)``  (``dp_pa`` must not be 0).
+    ``A = |Q| (Δp² + p_cr²)^(1/4) / (C_d √(2/ρ) |Δp|)``, i.e. ``|Q|`` over the law's flow
+    through a unit area (``dp_pa`` must not be 0).
 
     Example: 4 L/min at 3.5 MPa, C_d 0.61, ρ 870: ``orifice_area_for_flow(4/60e3, 3.5e6, 0.61,
     870.0)`` → 1.218e-6 m² (a 1.25 mm diameter hole).
     """
-    dp = np.abs(np.asarray(dp_pa, dtype=float))
-    pcr = transition_pressure_pa
-    k = discharge_coefficient * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
-    return np.abs(np.asarray(flow_m3_s, dtype=float)) * (dp * dp + pcr * pcr) ** 0.25 / (k * dp)
+    unit_flow = orifice_flow_m3_s(np.abs(np.asarray(dp_pa, dtype=float)), 1.0,
+                                  discharge_coefficient, density_kg_m3, transition_pressure_pa)
+    return np.abs(np.asarray(flow_m3_s, dtype=float)) / unit_flow
 
 
 def orifice_dp_for_flow(flow_m3_s, area_m2, discharge_coefficient, density_kg_m3,
@@ -100,16 +86,14 @@ def orifice_dp_for_flow(flow_m3_s, area_m2, discharge_coefficient, density_kg_m3
 
     Squaring the law twice gives ``Δp⁴ = c (Δp² + p_cr²)`` with ``c = (Q/k)⁴``,
     ``k = C_d A √(2/ρ)``, so ``Δp = sign(Q) √((c + √(c² + 4 c p_cr²))/2)`` (exact inverse of
-    :func:`orifice_flow_m3_s`; ``area_m2`` must be > 0).
+    :func:`orifice_flow_m3_s`; ``area_m2`` must be > 0): the law
+    :func:`afo_mj.hydraulics.laws.orifice_dp_for_flow_pa`.
 
     Example: ``orifice_dp_for_flow(6.540e-5, 1e-6, 0.61, 870.0, 1e4)`` → 5.0e6 Pa.
     """
-    q = np.asarray(flow_m3_s, dtype=float)
-    k = discharge_coefficient * area_m2 * np.sqrt(2.0 / np.asarray(density_kg_m3, dtype=float))
-    c = (q / k) ** 4
-    pcr2 = transition_pressure_pa * transition_pressure_pa
-    u = 0.5 * (c + np.sqrt(c * c + 4.0 * c * pcr2))
-    return np.sign(q) * np.sqrt(u)
+    return laws.orifice_dp_for_flow_pa(np.asarray(flow_m3_s, dtype=float), area_m2,
+                                       discharge_coefficient, density_kg_m3,
+                                       transition_pressure_pa)
 
 
 def throttle_power(p_in_pa, p_out_pa, flow_m3_s) -> PowerFlow:
@@ -134,21 +118,22 @@ def smooth_max0(s, width: float):
 
     ``0`` for ``s ≤ −width``, ``(s + width)²/(4 width)`` between, ``s`` for ``s ≥ width``;
     ``width = 0`` gives the exact ``max(s, 0)``. (Quadratic corner smoothing, our choice.)
+    This is the law :func:`afo_mj.hydraulics.laws.ramp_c1` shifted:
+    ``smooth_max0(s, w) = ramp_c1(s + w, 2w)``.
     """
-    s = np.asarray(s, dtype=float)
-    if width <= 0.0:
-        return np.maximum(s, 0.0)
-    mid = (s + width) ** 2 / (4.0 * width)
-    return np.where(s <= -width, 0.0, np.where(s >= width, s, mid))
+    w = max(float(width), 0.0)
+    return laws.ramp_c1(np.asarray(s, dtype=float) + w, 2.0 * w)
 
 
 def smooth_ramp01(s, width: float):
     """``clip(s, 0, 1)`` with both corners rounded over ``±width`` (``width < 0.5``; C¹).
 
     Exactly 0 for ``s ≤ −width``, exactly ``s`` on ``[width, 1 − width]``, exactly 1 for
-    ``s ≥ 1 + width``; odd-symmetric about ``s = 1/2``.
+    ``s ≥ 1 + width``; odd-symmetric about ``s = 1/2``. The law
+    :func:`afo_mj.hydraulics.laws.poppet_opening_fraction` with start 0 and width 1.
     """
-    return smooth_max0(s, width) - smooth_max0(np.asarray(s, dtype=float) - 1.0, width)
+    return laws.poppet_opening_fraction(np.asarray(s, dtype=float), 0.0, 1.0,
+                                        max(float(width), 0.0))
 
 
 @dataclasses.dataclass(frozen=True)

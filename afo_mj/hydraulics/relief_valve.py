@@ -4,14 +4,19 @@ Static model (the quasi-steady relief valve of system simulators, e.g. Simscape'
 Relief Valve (IL)", Hopsan's "Pressure relief valve" without dynamics; characteristic as in
 Merritt 1967 §3 and maker's Δp–Q curves):
 
-* opening ``s = ramp((Δp − Δp_crack) / Δp_override)``, ``Δp = p_in − p_out`` (protected line
-  minus tank), 0 below the cracking pressure, 1 at ``Δp_crack + Δp_override`` and above, linear
-  between (poppet force balance against a linear spring, flow forces neglected); corners rounded
-  over ``± opening_smoothing · Δp_override``
-  (:func:`~afo_mj.hydraulics.orifice.smooth_ramp01`);
-* area ``A = A_leak + (A_max − A_leak) s`` (seat leakage ``A_leak`` when closed);
+* opening ``s = smoothstep01((Δp − Δp_crack) / Δp_override)``, ``Δp = p_in − p_out``
+  (protected line minus tank): 0 below the cracking pressure, 1 at ``Δp_crack + Δp_override``
+  and above, the cubic ``s²(3 − 2s)`` between — C¹ at both ends, so an implicit integrator's
+  Newton iteration sees a continuous Jacobian;
+* area ``A = A_leak + (A_max − A_leak) s`` (seat leakage ``A_leak`` when closed): the law
+  :func:`~afo_mj.hydraulics.laws.relief_valve_area_m2`, which the simulated circuits use;
 * flow ``Q = C_d A √(2/ρ) Δp / (Δp² + p_cr²)^(1/4)``
-  (:func:`~afo_mj.hydraulics.orifice.orifice_flow_m3_s`).
+  (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`).
+
+(The poppet's force balance against a linear spring gives a lift linear in ``Δp``; the
+smoothstep has the same end points and the same mid point, half open at
+``Δp_crack + Δp_override/2``, and needs no corner rounding. ``opening_smoothing`` is kept in the
+parameters for compatibility and validated, but the law does not use it.)
 
 A reverse pressure drop keeps the poppet seated: reverse flow only through the leakage. All of
 ``Δp Q`` becomes heat.
@@ -24,6 +29,9 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
+from . import laws
 from .check_valve import PoppetValve
 from .orifice import DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA
 from .params import Parameters, effect, param
@@ -49,8 +57,9 @@ class ReliefValveParams(Parameters):
                                           hi=1e6, lo_open=True,
                                           doc="p_cr of the regularised orifice law")
     opening_smoothing: float = param(0.05, unit="-", lo=0.0, hi=0.5, hi_open=True,
-                                     doc="corner rounding of the opening ramp, fraction of "
-                                         "override_dp_pa (0 = sharp corners)")
+                                     doc="corner rounding of a linear opening ramp, fraction "
+                                         "of override_dp_pa (unused: the relief law's "
+                                         "smoothstep has C¹ ends)")
     leakage_enabled: bool = effect(True, doc="seat leakage through leakage_area_m2 when closed")
 
     def check(self) -> None:
@@ -75,3 +84,14 @@ class ReliefValve(PoppetValve):
         self._dp_start = params.cracking_dp_pa
         self._dp_width = params.override_dp_pa
         self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
+
+    def opening(self, dp_pa):
+        """Opening fraction ``smoothstep01((Δp − Δp_crack)/Δp_override)`` (module docstring)."""
+        return laws.smoothstep01((np.asarray(dp_pa, dtype=float) - self._dp_start)
+                                 / self._dp_width)
+
+    def area_m2(self, dp_pa):
+        """Flow area, the law :func:`~afo_mj.hydraulics.laws.relief_valve_area_m2`."""
+        return laws.relief_valve_area_m2(np.asarray(dp_pa, dtype=float), self._dp_start,
+                                         self._dp_width, self.params.max_area_m2,
+                                         self._leak_area)

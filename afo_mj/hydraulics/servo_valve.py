@@ -16,9 +16,9 @@ the overlap (``o > 0`` closed-centre dead band, ``o < 0`` underlap) and ``w`` th
 
     A_PA = A_BT = w max( x − o, 0) + A_leak,    A_AT = A_PB = w max(−x − o, 0) + A_leak
 
-(corners optionally rounded over ``± opening_smoothing_m``,
-:func:`~afo_mj.hydraulics.orifice.smooth_max0`). Each edge passes the regularised orifice flow
-(:func:`~afo_mj.hydraulics.orifice.orifice_flow_m3_s`):
+(corners optionally rounded over ``± opening_smoothing_m``; the law
+:func:`~afo_mj.hydraulics.laws.spool_edge_area_m2`). Each edge passes the regularised orifice
+flow (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`):
 ``Q_PA = q(p_P − p_A, A_PA)``, ``Q_AT = q(p_A − p_T, A_AT)``, ``Q_PB = q(p_P − p_B, A_PB)``,
 ``Q_BT = q(p_B − p_T, A_BT)``, and
 
@@ -56,8 +56,9 @@ import math
 
 import numpy as np
 
+from . import laws
 from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
-                      orifice_flow_m3_s, smooth_max0)
+                      orifice_flow_m3_s)
 from .params import Parameters, effect, param
 from .power import PowerFlow
 
@@ -151,11 +152,11 @@ class ServoValve:
     def edge_areas_m2(self, x_m):
         """``(A_PA, A_AT, A_PB, A_BT)`` (m²) at spool position ``x_m`` (clipped to ±x_max)."""
         p = self.params
-        x = np.clip(np.asarray(x_m, dtype=float), -p.spool_max_m, p.spool_max_m)
-        w, leak, o, eps = (self.area_gradient_m, self.leakage_area_m2, self.overlap_m,
-                           p.opening_smoothing_m)
-        a_pos = w * smooth_max0(x - o, eps) + leak
-        a_neg = w * smooth_max0(-x - o, eps) + leak
+        x = np.asarray(x_m, dtype=float)
+        args = (p.spool_max_m, self.overlap_m, self.area_gradient_m, p.opening_smoothing_m,
+                self.leakage_area_m2)
+        a_pos = laws.spool_edge_area_m2(x, *args)
+        a_neg = laws.spool_edge_area_m2(-x, *args)
         return a_pos, a_neg, a_neg, a_pos
 
     def edge_flows_m3_s(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3):

@@ -38,17 +38,13 @@ import dataclasses
 
 import numpy as np
 
+from . import laws
 from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
                       orifice_flow_m3_s, throttle_power)
 from .params import Parameters, effect, param
 from .power import PowerFlow
 
 __all__ = ["UnloadingValveParams", "UnloadingValve"]
-
-
-def _smoothstep01(s):
-    s = np.clip(s, 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,41 +93,38 @@ class UnloadingValve:
         self.params = params
         self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
 
-    def _blend(self, s):
-        if self.params.switching_band_pa > 0.0:
-            return _smoothstep01(s)
-        return (s >= 1.0).astype(float)
-
     def open_drive(self, pilot_pressure_pa):
-        """``σ_open ∈ [0, 1]``: 1 at or above cut-out, 0 below ``cut_out − band``."""
+        """``σ_open ∈ [0, 1]``: 1 at or above cut-out, 0 below ``cut_out − band``
+        (:func:`~afo_mj.hydraulics.laws.unloading_open_drive`)."""
         p = self.params
-        pilot = np.asarray(pilot_pressure_pa, dtype=float)
-        band = max(p.switching_band_pa, 1.0)
-        return self._blend((pilot - p.cut_out_pressure_pa + band) / band)
+        return laws.unloading_open_drive(np.asarray(pilot_pressure_pa, dtype=float),
+                                         p.cut_out_pressure_pa, p.switching_band_pa)
 
     def close_drive(self, pilot_pressure_pa):
         """``σ_close ∈ [0, 1]``: 1 at or below cut-in, 0 above ``cut_in + band`` (without
-        hysteresis: ``1 − σ_open``)."""
+        hysteresis: ``1 − σ_open``; :func:`~afo_mj.hydraulics.laws.unloading_close_drive`)."""
         p = self.params
         if not p.hysteresis_enabled:
             return 1.0 - self.open_drive(pilot_pressure_pa)
-        pilot = np.asarray(pilot_pressure_pa, dtype=float)
-        band = max(p.switching_band_pa, 1.0)
-        return self._blend((p.cut_in_pressure_pa + band - pilot) / band)
+        return laws.unloading_close_drive(np.asarray(pilot_pressure_pa, dtype=float),
+                                          p.cut_in_pressure_pa, p.switching_band_pa)
 
     def position_rate(self, x, pilot_pressure_pa):
         """``dx/dt = [σ_open (1 − x) − σ_close x] / τ`` (1/s): toward 1 above cut-out, toward 0
-        below cut-in, exactly 0 in the hysteresis band (the valve holds its position)."""
-        x = np.asarray(x, dtype=float)
-        up = self.open_drive(pilot_pressure_pa)
-        down = self.close_drive(pilot_pressure_pa)
-        return (up * (1.0 - x) - down * x) / self.params.time_constant_s
+        below cut-in, exactly 0 in the hysteresis band (the valve holds its position); the law
+        :func:`~afo_mj.hydraulics.laws.unloading_valve_rate_1_s`."""
+        p = self.params
+        return laws.unloading_valve_rate_1_s(np.asarray(x, dtype=float),
+                                             np.asarray(pilot_pressure_pa, dtype=float),
+                                             p.cut_out_pressure_pa, p.cut_in_pressure_pa,
+                                             p.switching_band_pa, p.time_constant_s,
+                                             float(p.hysteresis_enabled))
 
     def area_m2(self, x):
-        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``."""
-        a_max = self.params.max_area_m2
-        return self._leak_area + (a_max - self._leak_area) * np.clip(np.asarray(x, dtype=float),
-                                                                     0.0, 1.0)
+        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``
+        (:func:`~afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
+        return laws.valve_opening_area_m2(np.asarray(x, dtype=float), self.params.max_area_m2,
+                                          self._leak_area)
 
     def flow_m3_s(self, x, p_in_pa, p_out_pa, density_kg_m3):
         """Flow from ``in`` (pump line) to ``out`` (tank) at valve position ``x``."""

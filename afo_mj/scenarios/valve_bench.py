@@ -105,6 +105,7 @@ from afo_mj.control.assistance import table_lookup, zhang_profile
 from afo_mj.devices import valve_ankle_actuator as va
 from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAfoDevice, ValveAnkleParams
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
+from afo_mj.hydraulics import laws
 
 __all__ = ["BenchError", "digital_flow_vs_duty", "tracking_efficiency", "flow_table",
            "tracking_table", "TRACKING_TASKS"]
@@ -165,16 +166,13 @@ class _Recorder:
         return out
 
 
-def _ramp_c1(x: np.ndarray, b: float) -> np.ndarray:
-    """The kernel's C¹ check-valve opening ``0 | x²/(2b) | x − b/2``."""
-    return np.where(x <= 0.0, 0.0, np.where(x < b, 0.5 * x * x / b, x - 0.5 * b))
-
-
 def _check_and_makeup_flows(Y: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check-valve flow pump → rail and make-up flow tank → port A at states ``Y`` (rows)."""
-    q_cv = P[va.P_CV_G] * _ramp_c1(Y[:, va.Y_PP] - Y[:, va.Y_PS] - P[va.P_CV_CRACK],
-                                   P[va.P_CV_BAND])
-    q_ma = P[va.P_MAKEUP_G] * _ramp_c1(P[va.P_P_RES] - Y[:, va.Y_PVA], P[va.P_MAKEUP_BAND])
+    """Check-valve flow pump → rail and make-up flow tank → port A at states ``Y`` (rows): the
+    conductance check valve :func:`afo_mj.hydraulics.laws.check_valve_flow_m3_s`."""
+    q_cv = laws.check_valve_flow_m3_s(Y[:, va.Y_PP] - Y[:, va.Y_PS], P[va.P_CV_G],
+                                      P[va.P_CV_CRACK], P[va.P_CV_BAND])
+    q_ma = laws.check_valve_flow_m3_s(P[va.P_P_RES] - Y[:, va.Y_PVA], P[va.P_MAKEUP_G], 0.0,
+                                      P[va.P_MAKEUP_BAND])
     return q_cv, q_ma
 
 
