@@ -148,10 +148,11 @@ def test_motor_steady_state_and_current_limit():
     w = v * 0.02 / (0.02 ** 2 + 0.5 * 1e-5)
     i = 1e-5 * w / 0.02
     assert motor.current_rate_a_s(v, i, w) == pytest.approx(0.0, abs=1e-9)
-    # at stall the clamp applies R * I_max
-    assert motor.applied_voltage_v(12.0, 0.0, 24.0) == pytest.approx(0.5 * 10.0)
+    # at stall the clamp applies R * I_max (the driver law rounds the clamp's corners over
+    # 0.05 V, so 7 V past it the value is off by 0.05²/(4·7) + 0.05²/(4·17) ≈ 1.3e-4 V)
+    assert motor.applied_voltage_v(12.0, 0.0, 24.0) == pytest.approx(0.5 * 10.0, abs=2e-4)
     # and never more than the duty limit of the bus
-    assert motor.applied_voltage_v(50.0, 5000.0, 24.0) == pytest.approx(0.95 * 24.0)
+    assert motor.applied_voltage_v(50.0, 5000.0, 24.0) == pytest.approx(0.95 * 24.0, abs=2e-4)
     pf = motor.power(v, 3.0, 100.0, motor.current_rate_a_s(v, 3.0, 100.0))
     assert pf.residual_w == pytest.approx(0.0, abs=1e-12)
     assert motor.bus_power_w(10.0, 2.0) == pytest.approx(20.0 + 0.02 * 4 + 0.3)

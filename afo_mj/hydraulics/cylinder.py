@@ -18,6 +18,10 @@ Geometry and force (Merritt 1967, ch. 5; seed §2.3)
 * End stops: a stiff spring–damper engaging beyond 0 and ``s``:
   ``F = −k_s pen − c_s v_pen`` where ``pen`` is the penetration, with the damping force only while
   penetrating (and never pulling the piston into the stop).
+
+The leakage, end-stop and seal equations are the laws of :mod:`afo_mj.hydraulics.laws`
+(``annular_gap_conductance_m3``, ``laminar_gap_flow_m3_s``, ``end_stop_force_n``,
+``end_stop_energy_j``; the seals' in :mod:`.seal`).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import math
 
 import numpy as np
 
+from . import laws
 from .fluid import ATMOSPHERIC_PRESSURE_PA
 from .params import Parameters, effect, param
 from .power import PowerFlow
@@ -89,8 +94,8 @@ class Cylinder:
         self.piston_seal = OringSeal(p.piston_seal, p.bore_m)
         self.rod_seal = OringSeal(p.rod_seal, max(p.rod_diameter_m, 1e-6))
         self.n_rod_seals = n_rod_seals
-        self.leakage_conductance_m3 = (math.pi * p.bore_m * p.radial_clearance_m ** 3
-                                       / (12.0 * p.land_length_m))
+        self.leakage_conductance_m3 = float(laws.annular_gap_conductance_m3(
+            p.bore_m, p.radial_clearance_m, p.land_length_m))
 
     def chamber_volumes_m3(self, position_m):
         """``(V_a, V_b)`` at piston position ``x``."""
@@ -124,28 +129,26 @@ class Cylinder:
         dp = np.asarray(p_a_pa, dtype=float) - p_b_pa
         if not self.params.internal_leakage_enabled or self.params.kind == "single_acting":
             return np.zeros_like(dp)
-        return self.leakage_conductance_m3 / dynamic_viscosity_pa_s * dp
+        return laws.laminar_gap_flow_m3_s(dp, self.leakage_conductance_m3, dynamic_viscosity_pa_s)
 
     def end_stop_force_n(self, position_m, velocity_m_s):
-        """Contact force of the end stops (pushes the piston back into 0 … stroke)."""
+        """Contact force of the end stops (pushes the piston back into 0 … stroke): the law
+        :func:`~afo_mj.hydraulics.laws.end_stop_force_n`."""
         x = np.asarray(position_m, dtype=float)
         v = np.asarray(velocity_m_s, dtype=float)
         if not self.params.end_stops_enabled:
             return np.zeros_like(x)
-        k, c = self.params.end_stop_stiffness_n_m, self.params.end_stop_damping_n_s_m
-        pen_low = np.maximum(-x, 0.0)
-        pen_high = np.maximum(x - self.params.stroke_m, 0.0)
-        f_low = np.maximum(k * pen_low - c * v * (pen_low > 0), 0.0)
-        f_high = np.maximum(k * pen_high + c * v * (pen_high > 0), 0.0)
-        return f_low - f_high
+        p = self.params
+        return laws.end_stop_force_n(x, v, p.stroke_m, p.end_stop_stiffness_n_m,
+                                     p.end_stop_damping_n_s_m)
 
     def end_stop_energy_j(self, position_m):
-        """Elastic energy stored in the end stops, ``½ k pen²``."""
-        if not self.params.end_stops_enabled:
-            return np.zeros_like(np.asarray(position_m, dtype=float))
+        """Elastic energy stored in the end stops, ``½ k pen²``
+        (:func:`~afo_mj.hydraulics.laws.end_stop_energy_j`)."""
         x = np.asarray(position_m, dtype=float)
-        pen = np.maximum(-x, 0.0) + np.maximum(x - self.params.stroke_m, 0.0)
-        return 0.5 * self.params.end_stop_stiffness_n_m * pen * pen
+        if not self.params.end_stops_enabled:
+            return np.zeros_like(x)
+        return laws.end_stop_energy_j(x, self.params.stroke_m, self.params.end_stop_stiffness_n_m)
 
     def power(self, p_a_pa, p_b_pa, velocity_m_s, leakage_m3_s) -> PowerFlow:
         """Hydraulic → mechanical conversion with gauge pressures.

@@ -12,7 +12,9 @@ machine, which makes the electromechanical conversion lossless: ``v i = R i² + 
 
 Driver: a PWM inverter fed from the bus. It applies the commanded voltage, clipped to
 ``± max_duty · V_bus``, and limits the winding current by clipping the voltage to the band that
-gives at most ``± I_max`` at steady state, ``K ω ± R I_max`` (a voltage-clamp current limiter).
+gives at most ``± I_max`` at steady state, ``K ω ± R I_max`` (a voltage-clamp current limiter);
+both clamps have 0.05 V rounded corners (the law :func:`~afo_mj.hydraulics.laws.
+driver_voltage_v`, exact to ``r²/(4|v − v_limit|)`` away from them).
 Its losses are conduction ``R_on i²`` and a quiescent power, so the bus supplies
 ``P_bus = v i + R_on i² + P_q`` (negative when regenerating).
 """
@@ -23,6 +25,7 @@ import dataclasses
 
 import numpy as np
 
+from . import laws
 from .params import Parameters, effect, param
 from .power import PowerFlow
 
@@ -64,23 +67,26 @@ class BrushlessMotor:
         self.driver = driver
 
     def applied_voltage_v(self, command_v, speed_rad_s, bus_voltage_v):
-        """Voltage the driver applies: command clipped to the duty range and the current limit."""
+        """Voltage the driver applies: command clipped to the current-limit band
+        ``K ω ± R I_max`` and the duty range ``± d V_bus``, both with 0.05 V rounded corners
+        (:func:`~afo_mj.hydraulics.laws.driver_voltage_v`)."""
         d, m = self.driver, self.params
-        v = np.asarray(command_v, dtype=float)
-        if d.current_limit_enabled:
-            emf = m.torque_constant_nm_a * np.asarray(speed_rad_s, dtype=float)
-            band = m.resistance_ohm * d.current_limit_a
-            v = np.minimum(np.maximum(v, emf - band), emf + band)
-        v_max = d.max_duty * np.asarray(bus_voltage_v, dtype=float)
-        return np.minimum(np.maximum(v, -v_max), v_max)
+        return laws.driver_voltage_v(np.asarray(command_v, dtype=float),
+                                     m.torque_constant_nm_a * np.asarray(speed_rad_s, dtype=float),
+                                     m.resistance_ohm, d.current_limit_a,
+                                     float(d.current_limit_enabled), d.max_duty,
+                                     np.asarray(bus_voltage_v, dtype=float))
 
     def friction_torque_nm(self, speed_rad_s):
+        """``T_f = T_c tanh(ω/ω_c) + b ω`` (:func:`~afo_mj.hydraulics.laws.
+        motor_friction_torque_nm`), 0 with friction disabled."""
         m = self.params
         w = np.asarray(speed_rad_s, dtype=float)
         if not m.friction_enabled:
             return np.zeros_like(w)
-        return m.coulomb_torque_nm * np.tanh(w / m.smoothing_speed_rad_s) + \
-            m.viscous_coefficient_nm_s_rad * w
+        return laws.motor_friction_torque_nm(w, m.coulomb_torque_nm,
+                                             m.viscous_coefficient_nm_s_rad,
+                                             m.smoothing_speed_rad_s)
 
     def current_rate_a_s(self, voltage_v, current_a, speed_rad_s):
         """``di/dt = (v − R i − K ω) / L``."""

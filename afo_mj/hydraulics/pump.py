@@ -7,7 +7,14 @@ displacement fraction, 1 for a fixed pump):
 
 * delivered flow into port a:  ``Q = d ω − C_s D Δp / (2π μ)``      (slip/leakage ∝ Δp/μ)
 * shaft torque:                ``T = d Δp + C_f D |Δp|/(2π) tanh(ω/ω_c) + C_v D μ ω/(2π) + T_0 tanh(ω/ω_c)``
-  (Coulomb part ∝ Δp·D, viscous part ∝ μ·ω, a constant drag ``T_0``).
+  (Coulomb part ∝ Δp·D, viscous part ∝ μ·ω, a constant drag ``T_0``; ``|Δp|`` rounded to
+  ``√(Δp² + (10 kPa)²)``, which keeps the Coulomb kink at equal port pressures out of an
+  implicit integrator's Jacobian).
+
+The equations are the laws :func:`~afo_mj.hydraulics.laws.pump_flow_m3_s`,
+:func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s` and
+:func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm`, which the circuits and the design tool
+evaluate too.
 
 These hold in all four quadrants (pumping and motoring, either direction) and give
 
@@ -28,6 +35,7 @@ import math
 
 import numpy as np
 
+from . import laws
 from .params import Parameters, effect, param
 from .power import PowerFlow
 
@@ -89,21 +97,28 @@ class Pump:
         return 1.0
 
     def leakage_m3_s(self, dp_pa, dynamic_viscosity_pa_s):
-        """Slip flow from a to b, ``C_s D Δp / (2π μ)``."""
-        return self._cs * self.d_m3_rad * np.asarray(dp_pa, dtype=float) / dynamic_viscosity_pa_s
+        """Slip flow from a to b, ``C_s D Δp / (2π μ)``: laminar leakage through the
+        conductance ``C_s d`` (:func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s`)."""
+        return laws.laminar_gap_flow_m3_s(np.asarray(dp_pa, dtype=float),
+                                          self._cs * self.d_m3_rad, dynamic_viscosity_pa_s)
 
     def flow_m3_s(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
-        """Flow delivered into port a (drawn from b): ``ε d ω − Q_leak``."""
+        """Flow delivered into port a (drawn from b): ``ε d ω − Q_leak``
+        (:func:`~afo_mj.hydraulics.laws.pump_flow_m3_s`; the slip ``C_s d`` is that of the
+        full displacement, so it enters as the law's extra conductance)."""
         eps = self._fraction(displacement_fraction)
-        return eps * self.d_m3_rad * np.asarray(speed_rad_s, dtype=float) - \
-            self.leakage_m3_s(dp_pa, dynamic_viscosity_pa_s)
+        return laws.pump_flow_m3_s(np.asarray(speed_rad_s, dtype=float),
+                                   np.asarray(dp_pa, dtype=float), eps * self.d_m3_rad, 0.0,
+                                   self._cs * self.d_m3_rad, dynamic_viscosity_pa_s)
 
     def friction_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s):
-        """Loss torque (sign of ω): Coulomb ∝ |Δp| D, viscous ∝ μ ω, constant drag."""
-        w = np.asarray(speed_rad_s, dtype=float)
-        sgn = np.tanh(w / self.params.smoothing_speed_rad_s)
-        return ((self._cf * self.d_m3_rad * np.abs(dp_pa) + self.params.drag_torque_nm) * sgn
-                + self._cv * self.d_m3_rad * dynamic_viscosity_pa_s * w)
+        """Loss torque (sign of ω): Coulomb ∝ |Δp| D (``|Δp|`` rounded over 10 kPa), viscous
+        ∝ μ ω, constant drag (:func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm`)."""
+        p = self.params
+        return laws.pump_friction_torque_nm(np.asarray(speed_rad_s, dtype=float),
+                                            np.asarray(dp_pa, dtype=float), self.d_m3_rad,
+                                            self._cf, self._cv, p.drag_torque_nm,
+                                            p.smoothing_speed_rad_s, dynamic_viscosity_pa_s)
 
     def shaft_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
         """Torque the drive must supply: ``ε d Δp + T_friction``."""

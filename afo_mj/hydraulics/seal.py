@@ -20,7 +20,11 @@ Velocity dependence (Stribeck), ``shared/reference/facts.md`` / Simscape transla
     v_St = √2 v_brk,  v_C = v_brk/10
 
 Optional pressure-dependent part (large-scale seals, seed ref. [48]):
-``F_p = c_p |Δp_sealed| tanh(v/v_C)``.
+``F_p = c_p |Δp_sealed| tanh(v/v_C)``, ``|Δp|`` rounded to ``√(Δp² + (10 kPa)²)``.
+
+The equations are the laws :func:`~afo_mj.hydraulics.laws.oring_coulomb_force_n`,
+:func:`~afo_mj.hydraulics.laws.seal_friction_n` and
+:func:`~afo_mj.hydraulics.laws.seal_dragout_flow_m3_s`.
 
 Leakage (seed eq. 2.8 depends on surface speed and contact pressure; its extracted constants are
 unreadable). We use inverse hydrodynamic lubrication theory (Müller & Nau, *Fluid Sealing
@@ -37,6 +41,7 @@ import math
 
 import numpy as np
 
+from . import laws
 from .params import ParameterError, Parameters, effect, param
 from .power import PowerFlow
 
@@ -80,9 +85,9 @@ class OringSeal:
                                  "allowed: > 0 [m]")
         p = self.params = params
         self.sliding_diameter_m = float(sliding_diameter_m)
-        self.coulomb_force_n = (p.coulomb_scale * p.friction_coefficient * p.elastic_modulus_pa
-                                * math.pi * self.sliding_diameter_m * p.cross_section_m
-                                * p.squeeze_ratio ** 1.5)
+        self.coulomb_force_n = float(laws.oring_coulomb_force_n(
+            self.sliding_diameter_m, p.cross_section_m, p.squeeze_ratio, p.friction_coefficient,
+            p.elastic_modulus_pa, p.coulomb_scale))
         self.breakaway_force_n = p.breakaway_ratio * self.coulomb_force_n
         self._v_st = math.sqrt(2.0) * p.breakaway_velocity_m_s
         self._v_c = p.breakaway_velocity_m_s / 10.0
@@ -101,28 +106,27 @@ class OringSeal:
         self.peak_contact_pressure_pa = 2.0 * load_n_m / (math.pi * self.contact_half_width_m)
 
     def friction_force_n(self, velocity_m_s, sealed_dp_pa=0.0):
-        """Friction opposing ``velocity_m_s`` (returned with the sign of the velocity)."""
-        v = np.asarray(velocity_m_s, dtype=float)
-        tanh_c = np.tanh(v / self._v_c)
-        f = self.coulomb_force_n * tanh_c + self._fv * v
-        if self._stribeck_gain:
-            r = v / self._v_st
-            f = f + self._stribeck_gain * np.exp(-r * r) * r
-        if self._cp:
-            f = f + self._cp * np.abs(sealed_dp_pa) * tanh_c
-        return f
+        """Friction opposing ``velocity_m_s`` (returned with the sign of the velocity): the
+        law :func:`~afo_mj.hydraulics.laws.seal_friction_n` (its pressure part with ``|Δp|``
+        rounded over 10 kPa)."""
+        return laws.seal_friction_n(np.asarray(velocity_m_s, dtype=float),
+                                    np.asarray(sealed_dp_pa, dtype=float), self.coulomb_force_n,
+                                    self._stribeck_gain, self._v_st, self._v_c, self._fv,
+                                    self._cp)
 
     def leakage_m3_s(self, velocity_m_s, dynamic_viscosity_pa_s):
-        """Drag-out film flow ``π D h v / 2`` with ``h = √(8 μ |v| a / (9 σ_m))`` (0 if disabled).
+        """Drag-out film flow ``π D h v / 2`` with ``h = √(8 μ |v| a / (9 σ_m))`` (0 if disabled;
+        :func:`~afo_mj.hydraulics.laws.seal_dragout_flow_m3_s` with the pressure gradient
+        ``σ_m / a``).
 
         Positive in the direction of motion.
         """
         v = np.asarray(velocity_m_s, dtype=float)
         if not self.params.leakage_enabled:
             return np.zeros_like(v)
-        w = self.peak_contact_pressure_pa / self.contact_half_width_m
-        h = np.sqrt(8.0 * dynamic_viscosity_pa_s * np.abs(v) / (9.0 * w))
-        return math.pi * self.sliding_diameter_m * h * v / 2.0
+        return laws.seal_dragout_flow_m3_s(v, dynamic_viscosity_pa_s, self.sliding_diameter_m,
+                                           self.peak_contact_pressure_pa
+                                           / self.contact_half_width_m)
 
     def power(self, velocity_m_s, sealed_dp_pa=0.0) -> PowerFlow:
         """All friction power turns into heat: ``in = F v``, ``out = 0``, ``heat = F v >= 0``."""
