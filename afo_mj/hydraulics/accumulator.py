@@ -38,6 +38,13 @@ so :meth:`pressure_pa` is defined, finite and monotone for every ``Vf``:
 * **Spring above full stroke** (``Vf > A·stroke``): the piston sits on its top stop and the
   liquid is compressed with the same stiffness ``B_stop/V_port``; :meth:`over_capacity` flags it.
 
+The gas and spring equations are the laws of :mod:`afo_mj.hydraulics.laws`
+(``gas_accumulator_pressure_pa``, ``gas_accumulator_oil_volume_m3``,
+``polytropic_gas_energy_j``, ``spring_accumulator_pressure_pa``,
+``spring_accumulator_oil_volume_m3``, ``spring_accumulator_capacitance_m3_pa``,
+``spring_accumulator_energy_j``); the stop and knee continuations of the gas kind are this
+module's.
+
 Energy: :meth:`stored_energy_j` is the integral of the port pressure (minus the vent pressure
 for the spring kind) over ``Vf`` from the empty state, so ``d E/d Vf`` equals the power per unit
 flow reported by :meth:`power` in every region, limits included.
@@ -50,6 +57,7 @@ import math
 
 import numpy as np
 
+from . import laws
 from .fluid import ATMOSPHERIC_PRESSURE_PA
 from .params import Parameters, param
 from .power import PowerFlow
@@ -196,12 +204,13 @@ class GasAccumulator(_Accumulator):
         #: Residual gas volume where the gas law hands over to its tangent.
         self.knee_gas_volume_m3 = GAS_LAW_MIN_VOLUME_FRACTION * v0
         self.knee_fluid_volume_m3 = v0 - self.knee_gas_volume_m3
-        self.knee_pressure_pa = p0 * (1.0 / GAS_LAW_MIN_VOLUME_FRACTION) ** n
+        self.knee_pressure_pa = float(laws.gas_accumulator_pressure_pa(
+            self.knee_fluid_volume_m3, v0, p0, n))
         self.knee_stiffness_pa_m3 = n * self.knee_pressure_pa / self.knee_gas_volume_m3
         self.knee_energy_j = float(self._gas_energy(self.knee_gas_volume_m3))
         #: Usable fluid volume between precharge and maximum pressure,
         #: ``V0 (1 − (p0/p_max)^(1/n))``.
-        self.capacity_m3 = v0 * (1.0 - (p0 / p.max_pressure_pa) ** (1.0 / n))
+        self.capacity_m3 = float(laws.gas_accumulator_oil_volume_m3(p.max_pressure_pa, v0, p0, n))
 
     def gas_volume_m3(self, fluid_volume_m3):
         """``V_g = V0 − Vf`` clipped to ``[knee volume, V0]`` (where the gas law holds)."""
@@ -210,14 +219,11 @@ class GasAccumulator(_Accumulator):
         return np.clip(p.gas_volume_m3 - vf, self.knee_gas_volume_m3, p.gas_volume_m3)
 
     def _gas_energy(self, gas_volume_m3):
-        # E = p0 V0 (r^(n-1) - 1)/(n - 1), r = V0/Vg; expm1 keeps it exact as n -> 1.
+        # E = p0 V0 (r^(n-1) - 1)/(n - 1), r = V0/Vg (laws.polytropic_gas_energy_j)
         p = self.params
-        m = p.polytropic_index - 1.0
-        log_r = np.log(p.gas_volume_m3 / np.asarray(gas_volume_m3, dtype=float))
-        scale = p.precharge_pressure_pa * p.gas_volume_m3
-        if m == 0.0:
-            return scale * log_r
-        return scale * np.expm1(m * log_r) / m
+        return laws.polytropic_gas_energy_j(np.asarray(gas_volume_m3, dtype=float),
+                                            p.gas_volume_m3, p.precharge_pressure_pa,
+                                            p.polytropic_index)
 
     def pressure_pa(self, fluid_volume_m3):
         """Absolute port pressure at stored volume ``Vf``.
@@ -231,8 +237,9 @@ class GasAccumulator(_Accumulator):
         """
         p = self.params
         vf = np.asarray(fluid_volume_m3, dtype=float)
-        vg = self.gas_volume_m3(vf)
-        p_gas = p.precharge_pressure_pa * (p.gas_volume_m3 / vg) ** p.polytropic_index
+        p_gas = laws.gas_accumulator_pressure_pa(np.clip(vf, 0.0, self.knee_fluid_volume_m3),
+                                                 p.gas_volume_m3, p.precharge_pressure_pa,
+                                                 p.polytropic_index)
         p_empty = p.precharge_pressure_pa + self.stop_stiffness_pa_m3 * vf
         dv = vf - self.knee_fluid_volume_m3
         p_knee = self.knee_pressure_pa + self.knee_stiffness_pa_m3 * dv
@@ -256,8 +263,8 @@ class GasAccumulator(_Accumulator):
         """
         p = self.params
         pr = np.asarray(pressure_pa, dtype=float)
-        p0 = p.precharge_pressure_pa
-        vf_gas = p.gas_volume_m3 * (1.0 - (p0 / np.maximum(pr, p0)) ** (1.0 / p.polytropic_index))
+        vf_gas = laws.gas_accumulator_oil_volume_m3(pr, p.gas_volume_m3, p.precharge_pressure_pa,
+                                                    p.polytropic_index)
         vf_knee = self.knee_fluid_volume_m3 \
             + (pr - self.knee_pressure_pa) / self.knee_stiffness_pa_m3
         return np.where(pr > self.knee_pressure_pa, vf_knee, vf_gas)
@@ -290,7 +297,6 @@ class SpringAccumulator(_Accumulator):
         self.stop_stiffness_pa_m3 = p.stop_bulk_modulus_pa / p.port_volume_m3
         #: Usable volume ``A · stroke``.
         self.capacity_m3 = p.piston_area_m2 * p.stroke_m
-        self._full_energy_j = p.preload_n * p.stroke_m + 0.5 * p.spring_rate_n_m * p.stroke_m ** 2
 
     def _vent_pressure_pa(self) -> float:
         return self.params.vent_pressure_pa
@@ -307,32 +313,26 @@ class SpringAccumulator(_Accumulator):
         Example (defaults, half stroke ``Vf = 9.82`` cm³): ``101325 + (200 + 1e4·0.02)/4.909e-4``
         = 9.16e5 Pa.
         """
-        p = self.params
-        vf = np.asarray(fluid_volume_m3, dtype=float)
-        x = self.piston_position_m(vf)
-        p_spring = p.vent_pressure_pa + (p.preload_n + p.spring_rate_n_m * x) / p.piston_area_m2
-        s = self.stop_stiffness_pa_m3
-        return np.where(vf < 0.0, p.cracking_pressure_pa + s * vf,
-                        np.where(vf > self.capacity_m3,
-                                 p.full_pressure_pa + s * (vf - self.capacity_m3), p_spring))
+        return laws.spring_accumulator_pressure_pa(np.asarray(fluid_volume_m3, dtype=float),
+                                                   *self._law_args())
 
     def stiffness_pa_m3(self, fluid_volume_m3):
-        """``dp/dVf``: ``k/A²`` in the stroke, ``B_stop/V_port`` on the stops."""
+        """``dp/dVf``: ``k/A²`` in the stroke, ``B_stop/V_port`` on the stops (the inverse of
+        :func:`~afo_mj.hydraulics.laws.spring_accumulator_capacitance_m3_pa` at the pressure
+        of ``Vf``)."""
+        return 1.0 / laws.spring_accumulator_capacitance_m3_pa(self.pressure_pa(fluid_volume_m3),
+                                                               *self._law_args())
+
+    def _law_args(self) -> tuple:
         p = self.params
-        vf = np.asarray(fluid_volume_m3, dtype=float)
-        inside = (vf >= 0.0) & (vf <= self.capacity_m3)
-        return np.where(inside, p.spring_rate_n_m / p.piston_area_m2 ** 2,
-                        self.stop_stiffness_pa_m3)
+        return (p.piston_area_m2, p.spring_rate_n_m, p.preload_n, p.stroke_m,
+                p.vent_pressure_pa, self.stop_stiffness_pa_m3)
 
     def fluid_volume_m3(self, pressure_pa):
         """Inverse of :meth:`pressure_pa` for ``Vf >= 0``: ``A ((p − p_vent) A − F0)/k`` in the
         stroke, 0 below the cracking pressure, the top-stop line above the full pressure."""
-        p = self.params
-        pr = np.asarray(pressure_pa, dtype=float)
-        x = ((pr - p.vent_pressure_pa) * p.piston_area_m2 - p.preload_n) / p.spring_rate_n_m
-        vf = p.piston_area_m2 * np.clip(x, 0.0, p.stroke_m)
-        above = self.capacity_m3 + (pr - p.full_pressure_pa) / self.stop_stiffness_pa_m3
-        return np.where(pr > p.full_pressure_pa, above, vf)
+        return laws.spring_accumulator_oil_volume_m3(np.asarray(pressure_pa, dtype=float),
+                                                     *self._law_args())
 
     def stored_energy_j(self, fluid_volume_m3):
         """Spring energy ``F0 x + ½ k x²`` (``= ∫_0^Vf (p − p_vent) dVf``); on the stops the
@@ -341,13 +341,5 @@ class SpringAccumulator(_Accumulator):
 
         Example (defaults, full stroke): ``200·0.04 + ½·1e4·0.04²`` = 16 J.
         """
-        p = self.params
-        vf = np.asarray(fluid_volume_m3, dtype=float)
-        x = self.piston_position_m(vf)
-        e_spring = p.preload_n * x + 0.5 * p.spring_rate_n_m * x * x
-        s = self.stop_stiffness_pa_m3
-        e_low = (p.cracking_pressure_pa - p.vent_pressure_pa) * vf + 0.5 * s * vf * vf
-        dv = vf - self.capacity_m3
-        e_high = self._full_energy_j + (p.full_pressure_pa - p.vent_pressure_pa) * dv \
-            + 0.5 * s * dv * dv
-        return np.where(vf < 0.0, e_low, np.where(dv > 0.0, e_high, e_spring))
+        return laws.spring_accumulator_energy_j(np.asarray(fluid_volume_m3, dtype=float),
+                                                *self._law_args())

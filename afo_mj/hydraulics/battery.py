@@ -7,7 +7,10 @@ vol. 1, 2015, §2.1–2.4):
 
 with ``I`` the pack current (positive discharging), ``R`` the pack internal resistance and
 ``V_oc = N_s · v_cell(SOC)`` for ``N_s`` cells in series. ``v_cell`` is a piecewise-linear
-table interpolated with ``np.interp``. The default table is a generic NMC/graphite cell,
+table (a parameter, :attr:`BatteryParams.ocv_soc` / :attr:`BatteryParams.ocv_cell_v`)
+interpolated by the law :func:`afo_mj.hydraulics.laws.table_interp` (its array form
+:func:`~afo_mj.hydraulics.laws.table_interp_array`); the current for a terminal power is the law
+:func:`afo_mj.hydraulics.laws.battery_current_a`. The default table is a generic NMC/graphite cell,
 3.0 V empty to 4.2 V full, 3.6–3.8 V over the middle of its range (mean over SOC 3.77 V; the
 3.6–3.7 V "nominal" of datasheets is the average under a moderate discharge current);
 its points are rounded from the shape of published low-rate OCV curves of NMC 18650/21700 cells
@@ -29,6 +32,7 @@ import math
 
 import numpy as np
 
+from . import laws
 from .params import Parameters, param
 from .power import PowerFlow
 
@@ -92,8 +96,8 @@ class Battery:
 
     def __init__(self, params: BatteryParams = BatteryParams()):
         self.params = p = params
-        self._soc = np.asarray(p.ocv_soc)
-        self._volts = np.asarray(p.ocv_cell_v)
+        self._soc = np.asarray(p.ocv_soc, dtype=float)
+        self._volts = np.asarray(p.ocv_cell_v, dtype=float)
         seg = np.diff(self._soc) * 0.5 * (self._volts[1:] + self._volts[:-1])
         #: ∫_0^{SOC_i} v_cell dSOC at the table points (V), exact for the piecewise-linear table.
         self._cum = np.concatenate(([0.0], np.cumsum(seg)))
@@ -112,7 +116,7 @@ class Battery:
         Example (defaults, 6S): ``open_circuit_voltage_v(0.5)`` → ``6·3.75 = 22.5`` V.
         """
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
-        return self.params.cells_series * np.interp(s, self._soc, self._volts)
+        return self.params.cells_series * laws.table_interp_array(s, self._soc, self._volts)
 
     def terminal_voltage_v(self, soc, current_a):
         """``V_term = V_oc − R I`` (``I > 0`` discharging).
@@ -142,15 +146,13 @@ class Battery:
         ``I = (V_oc − sqrt(V_oc² − 4 R P)) / (2R) = 2P / (V_oc + sqrt(V_oc² − 4 R P))``
         (the second form, used here, has no cancellation at small ``P``). ``P`` is first clipped
         to :meth:`max_power_w`, so the result is finite: ``V_oc/(2R)`` at and beyond the limit
-        (see :meth:`power_limited`).
+        (see :meth:`power_limited`). The law :func:`afo_mj.hydraulics.laws.battery_current_a`.
 
         Example (defaults, SOC 0.5, 200 W): ``2·200/(22.5 + sqrt(22.5² − 96))`` = 9.36 A.
         """
-        r = self.params.internal_resistance_ohm
-        v = self.open_circuit_voltage_v(soc)
-        p = np.minimum(np.asarray(power_w, dtype=float), v * v / (4.0 * r))
-        disc = np.maximum(v * v - 4.0 * r * p, 0.0)
-        return 2.0 * p / (v + np.sqrt(disc))
+        return laws.battery_current_a(np.asarray(power_w, dtype=float),
+                                      self.open_circuit_voltage_v(soc),
+                                      self.params.internal_resistance_ohm)
 
     def over_current(self, current_a):
         """True where ``|I|`` exceeds ``max_current_a``."""
@@ -173,7 +175,7 @@ class Battery:
         i = np.clip(np.searchsorted(self._soc, s, side="right") - 1, 0, len(self._soc) - 2)
         s0 = self._soc[i]
         v0 = self._volts[i]
-        v = np.interp(s, self._soc, self._volts)
+        v = laws.table_interp_array(s, self._soc, self._volts)
         cell = self._cum[i] + (s - s0) * 0.5 * (v0 + v)
         return self.capacity_c * self.params.cells_series * cell
 
