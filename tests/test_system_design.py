@@ -125,11 +125,21 @@ def test_laws_reproduce_the_preset_anchors():
     assert float(dm.pulley_mass_kg(0.04, A)) == pytest.approx(budget["pulley_bearings"], rel=0.01)
     assert float(dm.hose_wall_mass_kg_per_m(3.2e-3, 16.5e6, A)) == pytest.approx(0.045,
                                                                                   rel=0.02)
-    # seed eq. 2.7 through the library's seal class
-    ps = HAFO.cylinder.piston_seal
-    assert float(dm.seal_coulomb_force_n(10.4e-3, ps.cross_section_m, ps.squeeze_ratio,
-                                         ps.friction_coefficient, ps.elastic_modulus_pa)) == \
-        pytest.approx(OringSeal(ps, 10.4e-3).coulomb_force_n, rel=1e-12)
+    # seed eq. 2.7, F_C = μ_f E π D d λ^1.5 by hand, for the design's seals: one piston ring
+    # (1.78 mm for a 10.4 mm bore) and two cable seals per cylinder, as the library's seal
+    # class gives them
+    from afo_mj.analysis.system_design import actuator_geometry
+    ps, rs = HAFO.cylinder.piston_seal, HAFO.cylinder.rod_seal
+    geo = actuator_geometry(13.8e6, 10.4e-3, 0.04, 1.0, A, HAFO)
+    cable = float(geo["cable_m"])
+    hand = (ps.friction_coefficient * ps.elastic_modulus_pa * math.pi * 10.4e-3 * 1.78e-3
+            * ps.squeeze_ratio ** 1.5
+            + 2 * rs.friction_coefficient * rs.elastic_modulus_pa * math.pi * cable
+            * rs.cross_section_m * rs.squeeze_ratio ** 1.5)
+    assert float(geo["seal_coulomb_n"]) == pytest.approx(hand, rel=1e-12)
+    assert float(geo["seal_coulomb_n"]) == pytest.approx(
+        OringSeal(ps.replace(cross_section_m=1.78e-3), 10.4e-3).coulomb_force_n
+        + 2 * OringSeal(rs, cable).coulomb_force_n, rel=1e-12)
     # hoop stress by hand: t = t_min + S p D / (2 σ)
     assert float(dm.hose_wall_thickness_m(4e-3, 20e6, A)) == pytest.approx(
         A.hose_min_wall_m + 4.0 * 20e6 * 4e-3 / (2 * 250e6), rel=1e-12)
@@ -187,15 +197,24 @@ def test_pack_surface_temperature_against_churchill_chu_by_hand():
     assert float(r) == pytest.approx((ts - 298.15) / 8.0, rel=1e-9)
 
 
+#: The bench still runs the old compiled kernel (afo_mj.devices.pump_ankle_actuator), whose
+#: driver clamp ``_soft_clip`` sits half its 0.05 V corner radius beyond the limit; the design
+#: tool and its prediction use the driver law (afo_mj.hydraulics.laws.driver_voltage_v), exact
+#: away from the corners. At stall the kernel so passes 0.025 V / R more current than the law:
+#: its stall torque is the law's times ``1 + 0.025 / (R I)``. (Goes once the generated circuits
+#: replace the kernel.)
+KERNEL_CLAMP_OFFSET_V = 0.025
+
+
 def test_bench_prediction_of_the_presets_matches_the_measured_bench():
-    """The README's bench figures of the presets (measured on the MuJoCo stand)."""
+    """The README's bench figures of the presets (measured on the MuJoCo stand, old kernel)."""
     from afo_mj.devices.hafo import HAFO, HAFO_GAIT
-    p = predict_bench(HAFO)
-    assert p["stall_torque_nm"] == pytest.approx(65.9, rel=0.005)
-    assert p["no_load_speed_deg_s"] == pytest.approx(105.6, rel=0.005)
-    g = predict_bench(HAFO_GAIT)
-    assert g["stall_torque_nm"] == pytest.approx(66.7, rel=0.005)
-    assert g["no_load_speed_deg_s"] == pytest.approx(315.5, rel=0.005)
+    for params, stall, speed in ((HAFO, 65.9, 105.6), (HAFO_GAIT, 66.7, 315.5)):
+        p = predict_bench(params)
+        kernel = 1.0 + KERNEL_CLAMP_OFFSET_V / (params.motor.resistance_ohm
+                                                 * p["stall_current_a"])
+        assert p["stall_torque_nm"] * kernel == pytest.approx(stall, rel=0.005)
+        assert p["no_load_speed_deg_s"] == pytest.approx(speed, rel=0.005)
 
 
 # -- the HAFO acceptance -------------------------------------------------------------------------
@@ -249,8 +268,12 @@ def test_hafo_written_preset_on_the_bench_agrees_with_the_prediction(hafo_design
     assert sim["bench"]["stall_torque_nm"] == pytest.approx(pb["stall_torque_nm"], rel=0.10)
     assert sim["bench"]["no_load_speed_deg_s"] == pytest.approx(pb["no_load_speed_deg_s"],
                                                                 rel=0.10)
-    # in fact much closer: the prediction solves the kernel's own steady state
-    assert sim["bench"]["stall_torque_nm"] == pytest.approx(pb["stall_torque_nm"], rel=0.01)
+    # in fact much closer: the prediction solves the laws' steady state, which the kernel
+    # follows but for its clamp offset (KERNEL_CLAMP_OFFSET_V)
+    best = s["best"]
+    kernel = 1.0 + KERNEL_CLAMP_OFFSET_V / (best["resistance_ohm"] * best["current_limit_a"])
+    assert sim["bench"]["stall_torque_nm"] == pytest.approx(pb["stall_torque_nm"] * kernel,
+                                                            rel=0.005)
     assert sim["bench"]["no_load_speed_deg_s"] == pytest.approx(pb["no_load_speed_deg_s"],
                                                                 rel=0.01)
     assert sim["device"]["mass_total_kg"] == pytest.approx(s["best"]["total_kg"], rel=0.10)
@@ -411,7 +434,14 @@ def test_valve_supply_against_hand_calculation():
         out = dm.supply_steady("valve", q, dp, mu=mu, rho=870.0, d=d, cs=1.2e-7, cf=0.05,
                                cv=1.8e4, t0=0.002, wc_pump=1.0, sf=sf)
         ps = max(abs(dp) + sf.margin_pa, sf.rail_min_pa)
-        qp = abs(q) + sf.servo_leak_m3_s * math.sqrt(ps / sf.servo_leak_dp_pa)
+        # centre leakage: the maker's figure scaled by the regularised orifice law
+        # C_d A √(2/ρ) Δp / (Δp² + p_cr²)^¼ of two edges in series (half the drop each); far
+        # above p_cr this is Q_L √(p_s/Δp_L)
+        edge = lambda x: x / (x * x + sf.servo_pcr_pa ** 2) ** 0.25  # noqa: E731
+        q_lk = sf.servo_leak_m3_s * edge(ps / 2) / edge(sf.servo_leak_dp_pa / 2)
+        assert q_lk == pytest.approx(sf.servo_leak_m3_s * math.sqrt(ps / sf.servo_leak_dp_pa),
+                                     rel=1e-4)
+        qp = abs(q) + q_lk
         assert float(out["p_valve"]) == pytest.approx(ps * qp - dp * q, rel=1e-12)
         assert float(out["w_p"]) == pytest.approx((qp + 1.2e-7 * d * ps / mu) / d, rel=1e-12)
         assert float(out["p_valve"]) >= 0.0

@@ -2,9 +2,10 @@
 
 Two kinds of model live here, both vectorised over numpy arrays (any broadcastable shapes):
 
-1. **The hydraulic chain in steady state** — the same equations as the compiled simulator
-   (:mod:`afo_mj.devices.pump_ankle_actuator`, which writes the component modules' laws once
-   more in compiled form), with every time derivative set to zero:
+1. **The hydraulic chain in steady state** — the component laws of
+   :mod:`afo_mj.hydraulics.laws` (compiled ufuncs, evaluated here over the design arrays; the
+   component library and the simulated circuits call the same functions), with every time
+   derivative set to zero:
 
    * seal friction per cylinder (piston seal + two cable seals), the Stribeck form of
      :class:`afo_mj.hydraulics.seal.OringSeal` with its Coulomb level from seed eq. 2.7
@@ -35,7 +36,7 @@ import math
 
 import numpy as np
 
-from afo_mj.hydraulics.conduit import friction_factor_ratio
+from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.fluid import Fluid, FluidParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, param
 from afo_mj.hydraulics.thermal import natural_convection_h_cylinder
@@ -44,9 +45,9 @@ __all__ = ["DesignAssumptions", "BatteryChemistry", "CHEMISTRIES", "ORING_CROSS_
            "STEFAN_BOLTZMANN_W_M2_K4",
            "motor_scaling", "pump_mass_kg", "pump_inertia_kg_m2", "hose_wall_thickness_m",
            "hose_wall_mass_kg_per_m", "cable_diameter_m", "oring_cross_section_m",
-           "seal_coulomb_force_n", "cylinder_masses", "pulley_mass_kg",
-           "oil_viscosity_pa_s", "soft_clip", "seal_force_n", "chain_steady", "line_steady",
-           "pump_steady", "SupplyFigures", "supply_steady",
+           "cylinder_masses", "pulley_mass_kg",
+           "oil_viscosity_pa_s", "chain_steady", "line_steady",
+           "pump_steady", "SupplyFigures", "servo_centre_leak_m3_s", "supply_steady",
            "pack_geometry", "pack_thermal_resistance_k_w", "radiation_h_w_m2_k"]
 
 STEFAN_BOLTZMANN_W_M2_K4 = 5.670374419e-8
@@ -280,19 +281,6 @@ def oring_cross_section_m(bore_m):
     return np.select([d <= 6e-3, d <= 25e-3, d <= 50e-3, d <= 100e-3], list(cs[:4]), cs[4])
 
 
-def seal_coulomb_force_n(sliding_diameter_m, cross_section_m, squeeze_ratio: float,
-                         friction_coefficient: float, elastic_modulus_pa: float,
-                         coulomb_scale: float = 1.0):
-    """Coulomb friction of one O-ring, seed eq. 2.7 as :class:`afo_mj.hydraulics.seal.
-    OringSeal` writes it: ``F_C = s μ_f E π D d λ^1.5``.
-
-    Example (nitrile, μ_f 0.4, E 3.5 MPa, λ 0.12): 10.4 mm bore, 1.78 mm ring → 3.39 N.
-    """
-    return (coulomb_scale * friction_coefficient * elastic_modulus_pa * math.pi
-            * np.asarray(sliding_diameter_m, dtype=float)
-            * np.asarray(cross_section_m, dtype=float) * squeeze_ratio ** 1.5)
-
-
 def cylinder_masses(bore_m, stroke_m, cable_m, design_pressure_pa, oil_density_kg_m3,
                     dead_volume_m3: float, a: DesignAssumptions) -> dict:
     """Mass of one piston-cable cylinder, part by part (kg).
@@ -334,66 +322,49 @@ def pulley_mass_kg(radius_m, a: DesignAssumptions):
         + a.pulley_fixed_kg
 
 
-# -- oil, smoothing ---------------------------------------------------------------------------
+# -- oil ------------------------------------------------------------------------------------
 def oil_viscosity_pa_s(fluid: FluidParams, temperature_k):
-    """Dynamic viscosity as the simulator computes it (:func:`afo_mj.devices.
-    pump_ankle_actuator.viscosity_pa_s`): Walther/ASTM D341 kinematic viscosity through the
-    oil's two datasheet points times ``ρ0 / (1 + β (T − T0))``.
+    """Dynamic viscosity ``μ = ρ(T) ν(T)`` of ``fluid``: Walther/ASTM D341 through the oil's two
+    datasheet points times ``ρ0 / (1 + β (T − T0))``, the law
+    :func:`afo_mj.hydraulics.laws.dynamic_viscosity_pa_s` (through
+    :meth:`afo_mj.hydraulics.fluid.Fluid.dynamic_viscosity_pa_s`).
 
     Example: ISO VG 32 at 298.15 K → 0.0568 Pa s.
     """
-    fl = Fluid(fluid)
-    t = np.asarray(temperature_k, dtype=float)
-    rho = fluid.density_kg_m3 / (1.0 + fluid.thermal_expansion_per_k
-                                 * (t - fluid.reference_temperature_k))
-    return rho * fl.kinematic_viscosity_m2_s(t)
-
-
-def soft_clip(x, lo, hi, r):
-    """The driver's voltage clamp with rounded corners (radius ``r``), as the kernel's
-    ``_soft_clip``: ``min(max(x, lo), hi)`` exact away from the corners, C¹ at them."""
-    a_ = x - lo
-    x = lo + 0.5 * (a_ + np.sqrt(a_ * a_ + r * r)) - 0.5 * r
-    b = hi - x
-    return hi - 0.5 * (b + np.sqrt(b * b + r * r)) + 0.5 * r
-
-
-def seal_force_n(velocity_m_s, coulomb_n, stribeck_gain_n, v_stribeck_m_s, v_coulomb_m_s,
-                 viscous_n_s_m):
-    """Seal friction of one cylinder (the kernel's ``_seal_force`` without the optional
-    pressure term): ``F_C tanh(v/v_C) + f_v v + g_S exp(−(v/v_St)²) v/v_St``."""
-    v = np.asarray(velocity_m_s, dtype=float)
-    r = v / v_stribeck_m_s
-    return coulomb_n * np.tanh(v / v_coulomb_m_s) + viscous_n_s_m * v \
-        + stribeck_gain_n * np.exp(-r * r) * r
+    return Fluid(fluid).dynamic_viscosity_pa_s(np.asarray(temperature_k, dtype=float))
 
 
 # -- the chain in steady state ----------------------------------------------------------------
 def line_steady(torque_nm, velocity_rad_s, *, r, ae, n_cyl, seal, g_leak, hose_length_m,
                 hose_bore_m, mu, rho) -> dict:
-    """The ankle side of :func:`chain_steady`: cylinders and hoses (no pump)."""
+    """The ankle side of :func:`chain_steady`: cylinders and hoses (no pump). Seal friction
+    :func:`~afo_mj.hydraulics.laws.seal_friction_n` (no pressure part), piston leakage
+    :func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s`, hose loss
+    :func:`~afo_mj.hydraulics.laws.hose_pressure_loss_pa` (smooth wall) and its Reynolds number
+    :func:`~afo_mj.hydraulics.laws.pipe_reynolds_number`."""
     tau = np.asarray(torque_nm, dtype=float)
     thd = np.asarray(velocity_rad_s, dtype=float)
     xdot = r * thd
-    f_seal = n_cyl * seal_force_n(xdot, *seal)
+    fc, g_st, v_st, v_c, f_v = seal
+    f_seal = n_cyl * laws.seal_friction_n(xdot, 0.0, fc, g_st, v_st, v_c, f_v, 0.0)
     dp_c = -(tau + r * f_seal) / (r * ae)
-    q_lk = g_leak * dp_c / mu
+    q_lk = laws.laminar_gap_flow_m3_s(dp_c, g_leak, mu)
     q = q_lk - ae * xdot
-    area = math.pi / 4.0 * hose_bore_m ** 2
-    re = np.abs(q) * (hose_bore_m / area) / (mu / rho)
-    r_lam = 128.0 * mu * hose_length_m / (math.pi * hose_bore_m ** 4)
-    dp_line = r_lam * q * friction_factor_ratio(re)
+    re = laws.pipe_reynolds_number(q, hose_bore_m, mu, rho)
+    dp_line = laws.hose_pressure_loss_pa(q, hose_length_m, hose_bore_m, mu, rho, 0.0, 1.0)
     return {"dp_c": dp_c, "q": q, "dp_line": dp_line, "dp_p": dp_c + 2.0 * dp_line,
             "reynolds": re, "f_seal": f_seal, "p_mech": tau * thd, "p_seal": f_seal * xdot,
             "p_leak": dp_c * q_lk, "p_line": 2.0 * dp_line * q}
 
 
 def pump_steady(q, dp_p, *, mu, d, cs, cf, cv, t0, wc_pump) -> dict:
-    """The pump side of :func:`chain_steady` for line flow ``q`` at pump pressure ``Δp_p``."""
-    q_slip = cs * d * dp_p / mu
-    w_p = (q + q_slip) / d
-    t_fric = (cf * d * np.sqrt(dp_p * dp_p + 1e8) + t0) * np.tanh(w_p / wc_pump) \
-        + cv * d * mu * w_p
+    """The pump side of :func:`chain_steady` for line flow ``q`` at pump pressure ``Δp_p``:
+    speed :func:`~afo_mj.hydraulics.laws.pump_speed_for_flow_rad_s` (the inverse of the slip
+    law), slip :func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s` through ``C_s d``,
+    friction :func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm`."""
+    q_slip = laws.laminar_gap_flow_m3_s(dp_p, cs * d, mu)
+    w_p = laws.pump_speed_for_flow_rad_s(q, dp_p, d, cs, 0.0, mu)
+    t_fric = laws.pump_friction_torque_nm(w_p, dp_p, d, cf, cv, t0, wc_pump, mu)
     t_p = d * dp_p + t_fric
     return {"w_p": w_p, "t_p": t_p, "p_pump_vol": dp_p * q_slip, "p_pump_mech": t_fric * w_p,
             "p_hyd_pump": dp_p * q, "p_shaft": t_p * w_p}
@@ -420,6 +391,9 @@ class SupplyFigures:
     flow_margin: float          # digital: pump flow / peak demand (the valve preset's 30 %)
     valve_block_kg: float
     accumulator_kg: float       # the pressure-following supply's small accumulator
+    servo_cd: float = 0.61      # the servo valve's edges (orifice law)
+    servo_pcr_pa: float = 1.0e4
+    onoff_pcr_pa: float = 1.0e4  # the on/off valve's orifice transition pressure
 
     @classmethod
     def from_presets(cls) -> "SupplyFigures":
@@ -433,7 +407,23 @@ class SupplyFigures:
                    onoff_cd=sw.discharge_coefficient, onoff_switch_s=sw.switching_time_s,
                    onoff_switch_j=sw.switching_energy_j, onoff_hold_w=sw.holding_power_w,
                    pwm_hz=g.pwm_frequency_hz, flow_margin=1.3,
-                   valve_block_kg=v.valve_block_mass_kg, accumulator_kg=v.accumulator_mass_kg)
+                   valve_block_kg=v.valve_block_mass_kg, accumulator_kg=v.accumulator_mass_kg,
+                   servo_cd=v.servo_valve.discharge_coefficient,
+                   servo_pcr_pa=v.servo_valve.transition_pressure_pa,
+                   onoff_pcr_pa=sw.transition_pressure_pa)
+
+
+def servo_centre_leak_m3_s(rail_pa, sf: SupplyFigures, rho):
+    """Centre leakage of the servo valve from the rail ``p_s`` to tank: the maker's figure
+    ``Q_L`` at ``Δp_L``, scaled by the orifice law
+    (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`) of its edges, which see half the drop
+    each (two in series; :class:`afo_mj.hydraulics.servo_valve.ServoValve` sizes them so):
+    ``Q = Q_L q(p_s/2)/q(Δp_L/2)`` — ``Q_L √(p_s/Δp_L)`` far above the transition pressure.
+    """
+    unit = lambda dp: laws.orifice_flow_m3_s(0.5 * dp, 1.0, sf.servo_cd, rho,  # noqa: E731
+                                             sf.servo_pcr_pa)
+    return sf.servo_leak_m3_s * unit(np.asarray(rail_pa, dtype=float)) \
+        / unit(sf.servo_leak_dp_pa)
 
 
 def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,
@@ -445,12 +435,13 @@ def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,
     * ``"valve"`` (servo valve, rail following the load, the ``valve_pressure_control``
       preset's circuit): rail ``p_s = max(|Δp_L| + margin, p_min)``; a 4-way valve meters
       ``|q|`` from the rail whatever the quadrant and throttles ``p_s |q| − Δp_L q``; its centre
-      leakage ``Q_l √(p_s/p_l)`` (orifice law) also comes from the rail; a unidirectional pump
+      leakage (:func:`servo_centre_leak_m3_s`) also comes from the rail; a unidirectional pump
       delivers ``|q| + leakage`` at ``p_s``; the torque motor draws its coil power.
     * ``"digital"`` (PWM unloading of a constant-speed pump, the ``digital`` preset): the pump
       turns at ``w_set`` (delivering ``d w_set``); while the load takes power the on/off valve
       sends the flow to it for the duty ``D = |q| / (d w_set − slip)`` and to tank (through the
-      open valve, ``Δp_u = ρ/2 (d w_set / (C_d A))²``) for the rest; each of the ``2 f``
+      open valve, the orifice law's drop for ``d w_set``,
+      :func:`~afo_mj.hydraulics.laws.orifice_dp_for_flow_pa`) for the rest; each of the ``2 f``
       switches a second holds the pump at the load pressure for half the switching time
       without useful flow (a linear throttle, our estimate); when the load gives power back
       the pump idles unloaded and the release valve throttles all of it. Coil power
@@ -470,8 +461,7 @@ def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,
         return out
     if arch == "valve":
         ps = np.maximum(np.abs(dp) + sf.margin_pa, sf.rail_min_pa)
-        q_lk = sf.servo_leak_m3_s * np.sqrt(ps / sf.servo_leak_dp_pa)
-        qp = np.abs(q) + q_lk
+        qp = np.abs(q) + servo_centre_leak_m3_s(ps, sf, rho)
         out = pump_steady(qp, ps, **kw)
         out.update(p_valve=ps * qp - dp * q,
                    p_valve_el=np.full_like(out["t_p"], sf.servo_coil_w),
@@ -482,22 +472,18 @@ def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,
     w = np.asarray(w_set, dtype=float) + 0.0 * q
     adp = np.abs(dp)
     q_open = d * w
-    q_dlv = np.maximum(q_open - cs * d * adp / mu, 1e-30)
+    q_dlv = np.maximum(laws.pump_flow_m3_s(w, adp, d, cs, 0.0, mu), 1e-30)
     motoring = dp * q > 0.0
     duty = np.where(motoring, np.clip(np.abs(q) / q_dlv, 0.0, 1.0), 0.0)
     switching = (duty > 0.0) & (duty < 1.0)
     d_hold = np.minimum(duty + np.where(switching, sf.onoff_switch_s * sf.pwm_hz, 0.0), 1.0)
-    dp_u = 0.5 * rho * (q_open / (sf.onoff_cd * sf.onoff_area_m2)) ** 2
-    th = np.tanh(w / wc_pump)
-
-    def torque(p_):
-        fr = (cf * d * np.sqrt(p_ * p_ + 1e8) + t0) * th + cv * d * mu * w
-        return d * p_ + fr, fr
-
-    t_on, f_on = torque(adp)
-    t_off, f_off = torque(dp_u)
-    t_p = d_hold * t_on + (1.0 - d_hold) * t_off
-    vol = d_hold * cs * d * adp ** 2 / mu + (1.0 - d_hold) * cs * d * dp_u ** 2 / mu
+    dp_u = laws.orifice_dp_for_flow_pa(q_open, sf.onoff_area_m2, sf.onoff_cd, rho,
+                                       sf.onoff_pcr_pa)
+    f_on = laws.pump_friction_torque_nm(w, adp, d, cf, cv, t0, wc_pump, mu)
+    f_off = laws.pump_friction_torque_nm(w, dp_u, d, cf, cv, t0, wc_pump, mu)
+    t_p = d_hold * (d * adp + f_on) + (1.0 - d_hold) * (d * dp_u + f_off)
+    vol = d_hold * adp * laws.laminar_gap_flow_m3_s(adp, cs * d, mu) \
+        + (1.0 - d_hold) * dp_u * laws.laminar_gap_flow_m3_s(dp_u, cs * d, mu)
     mech = (d_hold * f_on + (1.0 - d_hold) * f_off) * w
     p_hyd = t_p * w - vol - mech
     return {"w_p": w, "t_p": t_p, "p_pump_vol": vol, "p_pump_mech": mech, "p_hyd_pump": p_hyd,
@@ -520,7 +506,8 @@ def chain_steady(torque_nm, velocity_rad_s, *, r, ae, n_cyl, seal, g_leak, hose_
       ``Δp_p = Δp_c + 2 Δp_h``;
     * pump speed ``ω = (q + C_s d Δp_p/μ)/d`` and shaft torque ``T_p`` (module docstring).
 
-    ``seal`` is ``(F_C, g_S, v_St, v_C, f_v)`` per cylinder (:func:`seal_force_n`). Returns
+    ``seal`` is ``(F_C, g_S, v_St, v_C, f_v)`` per cylinder (the arguments of
+    :func:`~afo_mj.hydraulics.laws.seal_friction_n`). Returns
     arrays ``dp_c``, ``q``, ``dp_line`` (one hose), ``dp_p``, ``w_p``, ``t_p``, ``reynolds``,
     the powers (W) ``p_mech`` (τ θ̇, delivered), ``p_seal``, ``p_leak``, ``p_line`` (both
     hoses), ``p_pump_vol``, ``p_pump_mech``, ``p_hyd_pump`` (Δp_p q), ``p_shaft`` (T_p ω).

@@ -57,12 +57,13 @@ from afo_mj.analysis.design_models import (CHEMISTRIES, DesignAssumptions, Suppl
                                            oil_viscosity_pa_s, oring_cross_section_m,
                                            pack_geometry, pack_thermal_resistance_k_w,
                                            pulley_mass_kg, pump_inertia_kg_m2, pump_mass_kg,
-                                           seal_coulomb_force_n, soft_clip, supply_steady)
+                                           servo_centre_leak_m3_s, supply_steady)
 from afo_mj.analysis.design_requirements import (DesignError, DutyCycle, Requirements,
                                                  duty_cycle, load_requirements,
                                                  parse_requirements)
+from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.battery import Battery, BatteryParams
-from afo_mj.hydraulics.fluid import FLUID_PRESETS
+from afo_mj.hydraulics.fluid import FLUID_PRESETS, Fluid
 
 __all__ = ["DesignError", "DesignResult", "load_requirements", "parse_requirements",
            "size_system", "evaluate_designs", "design_overrides", "design_params",
@@ -88,8 +89,6 @@ MOTOR_ALTERNATIVES = 2
 #: Rounds and breadth of the local search around the lightest exact designs.
 REFINE_ROUNDS = 3
 REFINE_TOP = 6
-#: Corner radius of the compiled driver's voltage clamps (pump_ankle_actuator._soft_clip).
-DRIVER_CLAMP_CORNER_V = 0.05
 #: Designs (lowest mass bounds) looked at in full to explain an infeasible motor stage.
 DIAGNOSE_DESIGNS = 3000
 #: Up to this many constraint points the screening's motor stage checks each exactly; a
@@ -204,17 +203,18 @@ def actuator_geometry(pressure_pa, bore_m, arm_m, rom_rad: float, a: DesignAssum
     ae = n * area
     ps, rs = base.cylinder.piston_seal, base.cylinder.rod_seal
     cs = oring_cross_section_m(d)
-    fc_p = seal_coulomb_force_n(d, cs, ps.squeeze_ratio, ps.friction_coefficient,
-                                ps.elastic_modulus_pa, ps.coulomb_scale)
-    fc_r = seal_coulomb_force_n(cable, rs.cross_section_m, rs.squeeze_ratio,
-                                rs.friction_coefficient, rs.elastic_modulus_pa, rs.coulomb_scale)
+    fc_p = laws.oring_coulomb_force_n(d, cs, ps.squeeze_ratio, ps.friction_coefficient,
+                                      ps.elastic_modulus_pa, ps.coulomb_scale)
+    fc_r = laws.oring_coulomb_force_n(cable, rs.cross_section_m, rs.squeeze_ratio,
+                                      rs.friction_coefficient, rs.elastic_modulus_pa,
+                                      rs.coulomb_scale)
     k_s = math.sqrt(2.0 * math.e)
     strib = ((k_s * (ps.breakaway_ratio - 1.0) * fc_p if ps.stribeck_enabled else 0.0)
              + 2.0 * (k_s * (rs.breakaway_ratio - 1.0) * fc_r if rs.stribeck_enabled else 0.0))
     fv = ((ps.viscous_coefficient_n_s_m if ps.viscous_enabled else 0.0)
           + 2.0 * (rs.viscous_coefficient_n_s_m if rs.viscous_enabled else 0.0))
     cy = base.cylinder
-    g_leak = math.pi * d * cy.radial_clearance_m ** 3 / (12.0 * cy.land_length_m)
+    g_leak = laws.annular_gap_conductance_m3(d, cy.radial_clearance_m, cy.land_length_m)
     return {"relief_cracking_pa": crack, "max_dp_pa": dp_max,
             "wall_pressure_pa": a.reservoir_pressure_pa + dp_max, "cable_m": cable,
             "effective_area_m2": ae, "torque_per_pressure_m3": ae * r,
@@ -328,8 +328,8 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         return out
 
     def motor_torque(ch):
-        w = ch["w_p"]
-        return ch["t_p"] + tc[col] * np.tanh(w / mo.smoothing_speed_rad_s) + bv[col] * w
+        return ch["t_p"] + laws.motor_friction_torque_nm(ch["w_p"], tc[col], bv[col],
+                                                         mo.smoothing_speed_rad_s)
 
     # -- masses independent of the temperature -----------------------------------------------
     cyl = cylinder_masses(spec["bore_m"], geo["stroke_m"], geo["cable_m"],
@@ -383,8 +383,7 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
             i_ = tq / kt[col]
             p_ = np.maximum(tq * w + tq ** 2 / km[col] ** 2 + dr.on_resistance_ohm * i_ ** 2
                             + dr.quiescent_power_w + valve_el_peak[:, None], 0.0)
-            disc = np.maximum(vmin ** 2 - 4.0 * r_bat[col] * p_, 0.0)
-            ib = 2.0 * p_ / (vmin + np.sqrt(disc))
+            ib = laws.battery_current_a(p_, vmin, r_bat[col])
             return p_, ib, vmin - r_bat[col] * ib
 
         valve_el_peak = np.max(ch["p_valve_el"], axis=1)
@@ -408,9 +407,7 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
         p_motor_in = tm * ch["w_p"] + copper
         p_bus = p_motor_in + drv + ch["p_valve_el"]
         vmid = bat["v_oc_mid"]
-        pmax_b = vmid ** 2 / (4.0 * r_bat)
-        pb = np.minimum(p_bus, pmax_b[col])
-        i_b = 2.0 * pb / (vmid + np.sqrt(np.maximum(vmid ** 2 - 4.0 * r_bat[col] * pb, 0.0)))
+        i_b = laws.battery_current_a(p_bus, vmid, r_bat[col])
         p_chem = vmid * i_b
         e = {k: np.sum(v * dt, axis=1) for k, v in (
             ("battery_internal", p_chem - p_bus), ("driver", drv), ("motor_copper", copper),
@@ -911,12 +908,12 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     else:
         if arch == "valve":
             ps = np.maximum(np.abs(cl["dp_p"]) + sf.margin_pa, sf.rail_min_pa)
-            qs = np.abs(cl["q"]) + sf.servo_leak_m3_s * np.sqrt(ps / sf.servo_leak_dp_pa)
+            qs = np.abs(cl["q"]) + servo_centre_leak_m3_s(ps, sf, rho_g[:, None])
         else:
             ps, qs = cl["dp_p"], cl["q"]
-        slip = pu.slip_coefficient * ps / mu_g[:, None]                 # (G, S)
-        wm = np.max(np.abs(qs[:, None, :] / dk[None, :, None] + slip[:, None, :]),
-                    axis=2) / speed_lim                                  # (G, K)
+        wm = np.max(np.abs(laws.pump_speed_for_flow_rad_s(
+            qs[:, None, :], ps[:, None, :], dk[None, :, None], pu.slip_coefficient, 0.0,
+            mu_g[:, None, None])), axis=2) / speed_lim                   # (G, K)
     ok_gk = ok_g[:, None] & (wm <= 1.0)
     counts.update({"pump_pressure": int(np.count_nonzero(~ok_pp)) * nk,
                    "pressure": int(np.count_nonzero(dpm > 1.0)) * nk,
@@ -1006,8 +1003,12 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     best_m = np.zeros(nf, dtype=int)
     mfails = {k: 0 for k in ("driver_current", "motor_peak", "motor_thermal", "winding",
                              "surface_temperature")}
-    gmot = lambda w: mo.coulomb_torque_nm * np.tanh(w / mo.smoothing_speed_rad_s) \
-        + mo.viscous_coefficient_nm_s_rad * w  # noqa: E731  motor friction at P_ref
+    def gmot(w):
+        """Motor friction at P_ref (:func:`~afo_mj.hydraulics.laws.motor_friction_torque_nm`)."""
+        return laws.motor_friction_torque_nm(w, mo.coulomb_torque_nm,
+                                             mo.viscous_coefficient_nm_s_rad,
+                                             mo.smoothing_speed_rad_s)
+
     def chunk_inputs(idx):
         """Duty sums and constraint-point pump torque/speed of designs ``idx``."""
         rows = row_of[gsel[idx]]
@@ -1322,12 +1323,9 @@ def design_overrides(row: dict, req: Requirements, a: DesignAssumptions | None =
         "motor.viscous_coefficient_nm_s_rad": float(ms["viscous_coefficient_nm_s_rad"]),
         "motor.max_speed_rad_s": a.motor_max_speed_rad_s,
         "motor.mass_kg": row["mass_kg"]["motor"],
-        # the kernel's driver clamp has rounded corners of 0.05 V (pump_ankle_actuator
-        # _soft_clip): held against the current limit it applies 0.025 V more, i.e.
-        # 0.025/R more current; the written limit takes that off so the stall is the design's
-        "driver.current_limit_a": max(row["current_limit_a"]
-                                      - 0.5 * DRIVER_CLAMP_CORNER_V / r_w,
-                                      0.5 * row["current_limit_a"]),
+        # the driver law's clamp (laws.driver_voltage_v) is exact away from its rounded
+        # corners, so the design's limit is written as it is
+        "driver.current_limit_a": row["current_limit_a"],
         "battery.name": f"{req.cells_series}S {cap:.2f} Ah Li-ion {chem.name}",
         "battery.capacity_ah": cap, "battery.cells_series": float(req.cells_series),
         "battery.internal_resistance_ohm": row["battery_resistance_ohm"],
@@ -1379,7 +1377,8 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
     own packed parameters (:func:`afo_mj.devices.hafo.pack_parameters`).
 
     * full voltage command ``1.25 × 4.2 V × cells`` through the driver's clamps (current limit
-      ``K ω ± R I_max``, duty ``± d V_bus``, both with the kernel's 0.05 V corner);
+      ``K ω ± R I_max``, duty ``± d V_bus``, both with the 0.05 V rounded corners of
+      :func:`~afo_mj.hydraulics.laws.driver_voltage_v`);
       battery at the preset's initial charge (Rint: ``V_bus = V_oc − R_b I_b``); oil at ambient
       (the bench starts cold and runs for a fraction of a second);
     * **stall** (ankle locked): ``K i = T_motor(ω) `` with the pump turning only to feed its
@@ -1388,6 +1387,9 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
       ``R i + K ω`` with ``i`` the current that turns the pump against the seal friction and
       the line loss. The foot's weight (≈ 0.6 N·m about the ankle, helping plantarflexion) is
       left out: it moves the pump pressure by < 0.1 MPa and the speed by < 1 %.
+
+    Every component equation is a law of :mod:`afo_mj.hydraulics.laws`; the open-circuit
+    voltage is the battery parameters' own table (:class:`afo_mj.hydraulics.battery.Battery`).
     """
     from scipy.optimize import brentq
 
@@ -1396,36 +1398,35 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
     P = pack_parameters(params)
     soc = params.initial_soc if soc is None else soc
     temp = params.ambient_temperature_k if temperature_k is None else temperature_k
-    mu = float(pa.viscosity_pa_s(temp, P))
-    v_oc = float(pa.battery_ocv(soc, P))
+    mu = float(Fluid(params.fluid).dynamic_viscosity_pa_s(temp))
+    v_oc = float(Battery(params.battery).open_circuit_voltage_v(soc))
     v_cmd = 1.25 * 4.2 * params.battery.cells_series if full_voltage_v is None else full_voltage_v
     r, ae, n = P[pa.P_R_PULLEY], P[pa.P_A_E], P[pa.P_N_CYL]
     d, cs, cf, cv, t0, wcp = (P[pa.P_D], P[pa.P_CS], P[pa.P_CF], P[pa.P_CV], P[pa.P_T0],
                               P[pa.P_WC_P])
     R, K, ilim = P[pa.P_R], P[pa.P_K], P[pa.P_I_LIM]
-    rh = P[pa.P_HOSE_K] * mu
+    hose, rho = params.hose, P[pa.P_RHO]
     seal = (P[pa.P_SEAL_FC], P[pa.P_SEAL_STRIB], P[pa.P_SEAL_VST], P[pa.P_SEAL_VC],
             P[pa.P_SEAL_FV])
 
     def motor_t(w, dpp):
-        tm = P[pa.P_TC_M] * math.tanh(w / P[pa.P_WC_M]) + P[pa.P_BV_M] * w
-        tp = d * dpp + (cf * d * math.sqrt(dpp * dpp + 1e8) + t0) * math.tanh(w / wcp) \
-            + cv * d * mu * w
-        return tm + tp
+        """Motor shaft torque: pump ``d Δp + T_f`` plus the motor's friction (the laws)."""
+        tm = laws.motor_friction_torque_nm(w, P[pa.P_TC_M], P[pa.P_BV_M], P[pa.P_WC_M])
+        tp = d * dpp + laws.pump_friction_torque_nm(w, dpp, d, cf, cv, t0, wcp, mu)
+        return float(tm + tp)
 
     def applied(w, cur):
         """Voltage the driver applies at motor speed ``w`` drawing ``cur`` (fixed point on
-        the bus voltage)."""
+        the bus voltage; :func:`~afo_mj.hydraulics.laws.driver_voltage_v`,
+        :func:`~afo_mj.hydraulics.laws.battery_current_a`)."""
         volt = v_cmd
         vbus = v_oc
         for _ in range(30):
-            emf = K * w
-            v1 = float(soft_clip(v_cmd, emf - R * ilim, emf + R * ilim, 0.05))
-            volt = float(soft_clip(v1, -P[pa.P_DUTY] * vbus, P[pa.P_DUTY] * vbus, 0.05))
+            volt = float(laws.driver_voltage_v(v_cmd, K * w, R, ilim, P[pa.P_CUR_LIM_ON],
+                                               P[pa.P_DUTY], vbus))
             pbus = volt * cur + P[pa.P_R_ON] * cur * cur + P[pa.P_P_Q]
             rb = P[pa.P_BAT_R]
-            disc = max(v_oc * v_oc - 4.0 * rb * pbus, 0.0)
-            ib = 2.0 * pbus / (v_oc + math.sqrt(disc))
+            ib = float(laws.battery_current_a(pbus, v_oc, rb))
             vbus_new = max(v_oc - rb * ib, 0.0)
             if abs(vbus_new - vbus) < 1e-12:
                 break
@@ -1434,10 +1435,17 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
 
     # -- stall: unknown chamber difference Δp_c ------------------------------------------------
     def stall_state(dpc):
-        q_lk = P[pa.P_G_LEAK] * dpc / mu
-        dpp = dpc + 2.0 * rh * q_lk
-        q_rel = float(pa._relief_flow(dpp, P))
-        w = (q_lk + q_rel + cs * d * dpp / mu) / d
+        q_lk = float(laws.laminar_gap_flow_m3_s(dpc, P[pa.P_G_LEAK], mu))
+        dpp = dpc + 2.0 * float(laws.hose_pressure_loss_pa(q_lk, hose.length_m, hose.bore_m, mu,
+                                                           rho, 0.0, 0.0))
+        q_rel = 0.0
+        if dpp > 0.0:   # the relief from the high to the low side, seated otherwise
+            area = laws.relief_valve_area_m2(dpp, P[pa.P_REL_CRACK], P[pa.P_REL_OVER],
+                                             P[pa.P_REL_AMAX], P[pa.P_REL_ALEAK])
+            q_rel = float(laws.orifice_flow_m3_s(dpp, area, P[pa.P_REL_CD], rho,
+                                                 P[pa.P_REL_PCR]))
+        w = float(laws.pump_speed_for_flow_rad_s(q_lk + q_rel, dpp, d, cs,
+                                                 P[pa.P_PUMP_G_EXTRA], mu))
         return w, dpp
 
     def stall_residual(dpc):
@@ -1454,8 +1462,8 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
     # -- no load: unknown plantarflexion speed ω_a --------------------------------------------
     def free_state(wa):
         ch = chain_steady(0.0, -wa, r=r, ae=ae, n_cyl=n, seal=seal, g_leak=P[pa.P_G_LEAK],
-                          hose_length_m=params.hose.length_m, hose_bore_m=params.hose.bore_m,
-                          mu=mu, rho=P[pa.P_RHO], d=d, cs=cs, cf=cf, cv=cv, t0=t0, wc_pump=wcp)
+                          hose_length_m=hose.length_m, hose_bore_m=hose.bore_m,
+                          mu=mu, rho=rho, d=d, cs=cs, cf=cf, cv=cv, t0=t0, wc_pump=wcp)
         return float(ch["w_p"]), float(ch["dp_p"])
 
     def free_residual(wa):
