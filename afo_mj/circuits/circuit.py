@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from afo_mj.circuits.components import (BUS, COMPONENT_KINDS, HYDRAULIC, JOINT, SHAFT,
-                                        CircuitError, Component)
-from afo_mj.circuits.controllers import CONTROLLER_KINDS, Controller
+from afo_mj.circuits.catalogue import COMPONENT_KINDS, CONTROLLER_KINDS
+from afo_mj.circuits.components import BUS, HYDRAULIC, JOINT, SHAFT, CircuitError, Component
+from afo_mj.circuits.controllers import Controller
 from afo_mj.hydraulics.fluid import FLUID_PRESETS, ISO_VG32, FluidParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_named
 

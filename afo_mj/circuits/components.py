@@ -29,7 +29,7 @@ from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
 from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
 from afo_mj.hydraulics.motor import DriverParams, MotorParams
-from afo_mj.hydraulics.params import Parameters, ParameterError, param
+from afo_mj.hydraulics.params import Parameters, param
 from afo_mj.hydraulics.pump import PumpParams
 from afo_mj.hydraulics.relief_valve import ReliefValveParams
 from afo_mj.hydraulics.seal import OringSeal
@@ -561,11 +561,3 @@ class SpringReturnCylinder(Component):
         g.store_rate(self, "spring", f"({f0} + {k} * {x}) * {xd}")
         g.store_rate(self, "end_stops", f"-{f_e} * {xd}")
         g.probe(self, "piston_position_m", x)
-
-
-#: the component kinds a circuit description may name
-COMPONENT_KINDS = {c.kind: c for c in (Battery, MotorDriver, Pump, Hose, ReliefValve,
-                                       CheckValve, Reservoir, Volume, GasAccumulator,
-                                       PulleyCylinders, SpringReturnCylinder)}
-
-_ = ParameterError

@@ -112,6 +112,3 @@ class PumpTorque(Controller):
                      f"w_des = -{ktp} * thd / {d} + {kp} * err + {ki} * integ",
                      f"return {R} * {d} * dp_des / {K} + {K} * w_des + {kw} * (w_des - {w})"):
             g.ctrl_line(line)
-
-
-CONTROLLER_KINDS = {c.kind: c for c in (OpenLoop, PumpTorque)}
