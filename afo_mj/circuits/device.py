@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from afo_mj.control import assistance as asst
+from afo_mj.circuits import stepper
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import CompiledCircuit, build
 from afo_mj.circuits.components import CircuitError
@@ -18,74 +20,129 @@ from afo_mj.circuits.components import CircuitError
 SIDE_NAMES = ("right", "left")
 
 
+class CircuitLog:
+    """Preallocated per-step device signals, ``data[step, field, side]`` (one step's signals
+    side by side in memory), written by the compiled ``device_end``: the header
+    (:data:`afo_mj.circuits.stepper.LOG_HEADER`), every state by name, every probe by name."""
+
+    def __init__(self, n: int, ns: int, fields):
+        self.n = 0
+        self.FIELDS = tuple(fields)
+        self.data = np.zeros((n, len(self.FIELDS), ns))
+
+    def arrays(self) -> dict:
+        return {f: self.data[:self.n, i].copy() for i, f in enumerate(self.FIELDS)}
+
+
 class CircuitDevice:
-    """One compiled circuit per worn side. ``torque_fn(t, angle, velocity)`` gives the command
-    (a torque for a torque controller, a voltage for ``open_loop``); ``None`` commands 0."""
+    """One compiled circuit per worn side, stepped with MuJoCo (the coupled-device protocol).
+
+    The command per step is, in this order of precedence: ``torque_fn(t, angle, velocity)``
+    (a torque for a torque controller, a voltage for ``open_loop``; bench tests), the
+    tabulated ``profile`` of torque vs stride phase (+dorsiflexion, N·m,
+    :mod:`afo_mj.control.assistance`) with the phase estimated from the foot switch, or 0
+    (transparent). ``max_steps`` > 0 keeps a device log of that many steps."""
 
     coupled = True
 
     def __init__(self, circuit: Circuit | CompiledCircuit, sides=("right",),
-                 timestep_s: float = 1e-3, torque_fn=None):
+                 timestep_s: float = 1e-3, torque_fn=None, profile=None, max_steps: int = 0,
+                 min_stride_s: float = 0.4, max_stride_s: float = 3.0):
         cc = circuit if isinstance(circuit, CompiledCircuit) else build(circuit)
         bad = [s for s in sides if s not in SIDE_NAMES]
         if bad or not sides or len(set(sides)) != len(sides):
             raise CircuitError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
                                "of ['right', 'left']")
+        if not timestep_s > 0:
+            raise CircuitError(f"device timestep_s = {timestep_s!r}; allowed: > 0")
         self.cc = cc
-        self.k = cc.module
+        self.k = k = cc.module
         self.sides = tuple(sides)
         self.side_index = np.array([SIDE_NAMES.index(s) for s in self.sides], dtype=np.int64)
         ns = len(self.sides)
         self.timestep_s = float(timestep_s)
         self.torque_fn = torque_fn
-        self.Y = np.tile(cc.y0, (ns, 1))
-        self.P = np.tile(cc.P, (ns, 1))
-        self.W = np.zeros((ns, cc.n_w))
-        self.S = np.zeros((ns, cc.n_scratch, cc.s_width))
+        self.transparent = profile is None and torque_fn is None
+        profile = (np.zeros(asst.TABLE_POINTS) if profile is None
+                   else np.ascontiguousarray(profile, dtype=float))
+        # one buffer, laid out by meta (stepper.device_views), so that the compiled
+        # device_begin / device_end take two arrays instead of a dozen
+        sizes = {k.M_Y: ns * k.N_Y, k.M_P: ns * k.N_P, k.M_W: ns * k.N_W,
+                 k.M_S: ns * k.N_SCRATCH * k.S_WIDTH, k.M_PH: ns * asst.N_PH,
+                 k.M_PROFILE: profile.shape[0], k.M_V: k.N_V * ns, k.M_OUT: ns * 2,
+                 k.M_O: k.N_O * 2, k.M_LIM: 2}
+        meta = np.zeros(k.N_META + ns, dtype=np.int64)
+        off = 0
+        for m in range(k.M_END):
+            meta[m] = off
+            off += sizes[m]
+        meta[k.M_END], meta[k.M_NS], meta[k.M_NPROF] = off, ns, profile.shape[0]
+        meta[k.N_META:] = self.side_index
+        self._meta = meta
+        self._buf = np.zeros(off)
+        (self.Y, self.P, self.W, self.S, self.phase_state, self.profile, self._V, self._out,
+         self._O) = k.device_views(self._buf, meta)
+        self.Y[:] = cc.y0
+        self.P[:] = cc.P
         self.S[:, 0, 0] = self.timestep_s
         for key, v in cc.w_init.items():
-            self.W[:, getattr(self.k, "W_" + key)] = v
-        self.W[:, self.k.W_P_MAX] = cc.circuit.options.initial_pressure_pa
-        self._th = np.zeros(ns)
-        self._thd = np.zeros(ns)
-        self._cmd = np.zeros(ns)
-        self._out = np.zeros((ns, 2))
-        self._vnew = np.zeros(ns)
-        self._tau = np.zeros(ns)
-        self.force2 = np.zeros(2)
-        self.damping2 = np.zeros(2)
-        self.delivered2 = np.zeros(2)
+            self.W[:, getattr(k, "W_" + key)] = v
+        self.W[:, k.W_P_MAX] = cc.circuit.options.initial_pressure_pa
+        self.profile[:] = profile
+        self.phase_state[:] = asst.new_phase_state(ns)
+        self.stride_limits = (float(min_stride_s), float(max_stride_s))
+        self._buf[meta[k.M_LIM]:meta[k.M_LIM] + 2] = self.stride_limits
+        self._th, self._thd, self._cmd = (self._V[k.V_THETA], self._V[k.V_THETA_DOT],
+                                          self._V[k.V_TAU_CMD])
+        self._vnew, self._tau = self._V[k.V_THETA_DOT_NEW], self._V[k.V_TAU]
+        self._O[k.O_PHASE] = -1.0
+        self.force2, self.damping2 = self._O[k.O_FORCE], self._O[k.O_DAMPING]
+        self.delivered2, self.commanded2 = self._O[k.O_DELIVERED], self._O[k.O_COMMANDED]
+        self.phase2 = self._O[k.O_PHASE]
+        self._out2 = (self.force2, self.damping2)
+        self.log_fields = (stepper.LOG_HEADER + tuple(cc.state_names)
+                           + tuple(cc.probe_names))
+        self.log = CircuitLog(max_steps, ns, self.log_fields) if max_steps else None
+        self._log_data = (self.log.data if self.log is not None
+                          else np.zeros((0, len(self.log_fields), ns)))
         self.steps = 0
         self.t_s = 0.0
 
     # -- coupled protocol --------------------------------------------------------------------
     def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
+        """Hold the inputs, run the controller, linearise; returns views of the per-walker-side
+        joint force and extra damping (length 2; arguments indexed by walker side)."""
         self.t_s = t
+        if self.torque_fn is None:
+            self.k.device_begin(t, angle_rad, velocity_rad_s, stance, self._buf, self._meta)
+            return self._out2
         si = self.side_index
         for j in range(len(si)):
             s = si[j]
             self._th[j] = angle_rad[s]
             self._thd[j] = velocity_rad_s[s]
-            self._cmd[j] = (0.0 if self.torque_fn is None
-                            else self.torque_fn(t, self._th[j], self._thd[j]))
+            self._cmd[j] = self.torque_fn(t, self._th[j], self._thd[j])
         self.k.begin_step(self.Y, self.P, self.W, self.S, self._th, self._thd, self._cmd,
                           self._out)
         for j in range(len(si)):
             self.force2[si[j]] = self._out[j, 0]
             self.damping2[si[j]] = self._out[j, 1]
-        return self.force2, self.damping2
+            self.commanded2[si[j]] = self._cmd[j]
+        return self._out2
 
     def end_step(self, velocity_new_rad_s):
-        si = self.side_index
-        for j in range(len(si)):
-            self._vnew[j] = velocity_new_rad_s[si[j]]
-        if not self.k.finish_all(self.Y, self.P, self.W, self.S, self._vnew, self._tau):
+        """Close the step with the joint velocity MuJoCo produced; returns the delivered
+        torques (length 2, zero where not worn)."""
+        n = self.steps
+        code = self.k.device_end(velocity_new_rad_s, self._buf, self._meta, self._log_data, n,
+                                 self.t_s + self.timestep_s)
+        if not code:
             raise FloatingPointError(
                 f"circuit {self.cc.circuit.name!r}: a state became non-finite at t = "
                 f"{self.t_s:.4f} s: {dict(zip(self.cc.state_names, self.Y[0].tolist()))}")
-        for j in range(len(si)):
-            self.delivered2[si[j]] = self._tau[j]
-        self.steps += 1
+        if code == 2:
+            self.log.n = n + 1
+        self.steps = n + 1
         return self.delivered2
 
     # -- ledger ----------------------------------------------------------------------------

@@ -384,6 +384,121 @@ def run_imposed(Y, P, W, S, theta, theta_dot, cmd, log):
     return n
 
 
+# ---- walking: the whole coupled step of every worn side in two compiled calls ---------------
+# (CircuitDevice.begin_step / end_step with a gait-phase profile: one dispatch each per MuJoCo
+# step instead of a Python loop over the sides; a call's cost grows with its number of array
+# arguments, so every per-side array is a view of one buffer ``buf`` laid out by the int64
+# array ``meta``: offsets M_*, then the walker side of each worn side.)
+
+#: ``meta`` entries: offsets of Y, P, W, S, phase state, profile, V, out, O, stride limits;
+#: then buffer length, worn sides, profile points; the worn sides' walker indices follow
+(M_Y, M_P, M_W, M_S, M_PH, M_PROFILE, M_V, M_OUT, M_O, M_LIM, M_END, M_NS,
+ M_NPROF) = range(13)
+N_META = 13
+#: rows of the per-worn-side work array ``V`` (N_V × sides)
+V_THETA, V_THETA_DOT, V_TAU_CMD, V_THETA_DOT_NEW, V_TAU = range(5)
+N_V = 5
+#: rows of the per-walker-side output array ``O`` (N_O × 2)
+O_FORCE, O_DAMPING, O_DELIVERED, O_COMMANDED, O_PHASE = range(5)
+N_O = 5
+#: the device log's first columns; the circuit's states and probes follow
+LOG_HEADER = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
+              "phase", "actuated_input", "bus_voltage_v", "battery_current_a",
+              "mechanical_power_w", "oil_temperature_k", "ankle_velocity_rad_s")
+N_LOG_HEAD = len(LOG_HEADER)
+#: constants the generated module carries with the template
+LAYOUT_CONSTANTS = ("M_Y", "M_P", "M_W", "M_S", "M_PH", "M_PROFILE", "M_V", "M_OUT", "M_O",
+                    "M_LIM", "M_END", "M_NS", "M_NPROF", "N_META", "V_THETA", "V_THETA_DOT",
+                    "V_TAU_CMD", "V_THETA_DOT_NEW", "V_TAU", "N_V", "O_FORCE", "O_DAMPING",
+                    "O_DELIVERED", "O_COMMANDED", "O_PHASE", "N_O", "N_LOG_HEAD")
+
+
+def device_views(buf, meta):
+    """``(Y, P, W, S, phase_state, profile, V, out, O)``: views of the device buffer."""
+    ns = meta[M_NS]
+    Y = buf[meta[M_Y]:meta[M_Y] + ns * N_Y].reshape((ns, N_Y))
+    P = buf[meta[M_P]:meta[M_P] + ns * N_P].reshape((ns, N_P))
+    W = buf[meta[M_W]:meta[M_W] + ns * N_W].reshape((ns, N_W))
+    S = buf[meta[M_S]:meta[M_S] + ns * N_SCRATCH * S_WIDTH].reshape((ns, N_SCRATCH, S_WIDTH))
+    ph = buf[meta[M_PH]:meta[M_PH] + ns * N_PH].reshape((ns, N_PH))
+    prof = buf[meta[M_PROFILE]:meta[M_PROFILE] + meta[M_NPROF]]
+    V = buf[meta[M_V]:meta[M_V] + N_V * ns].reshape((N_V, ns))
+    out = buf[meta[M_OUT]:meta[M_OUT] + ns * 2].reshape((ns, 2))
+    O = buf[meta[M_O]:meta[M_O] + N_O * 2].reshape((N_O, 2))
+    return Y, P, W, S, ph, prof, V, out, O
+
+
+def device_begin(t, angle2, velocity2, stance2, buf, meta):
+    """First half of the coupled step of every worn side ``k`` (walker side
+    ``meta[N_META + k]``): gait phase from the foot switch and the commanded torque from the
+    tabulated profile (:mod:`afo_mj.control.assistance`), then :func:`begin_step`. Writes the
+    joint force, extra damping, commanded torque and phase into ``O`` (walker sides)."""
+    Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
+    lo = buf[meta[M_LIM]]
+    hi = buf[meta[M_LIM] + 1]
+    ns = meta[M_NS]
+    th = V[V_THETA]
+    thd = V[V_THETA_DOT]
+    cmd = V[V_TAU_CMD]
+    for k in range(ns):
+        s = meta[N_META + k]
+        th[k] = angle2[s]
+        thd[k] = velocity2[s]
+        ph = phase_update(phase_state[k], t, stance2[s] != 0, lo, hi)
+        cmd[k] = table_lookup(profile, ph)
+        O[O_PHASE, s] = ph
+    begin_step(Y, P, W, S, th, thd, cmd, out)
+    for k in range(ns):
+        s = meta[N_META + k]
+        O[O_FORCE, s] = out[k, 0]
+        O[O_DAMPING, s] = out[k, 1]
+        O[O_COMMANDED, s] = cmd[k]
+
+
+def device_end(velocity2, buf, meta, log, k, t):
+    """Second half for every worn side: :func:`finish_all` with the new joint velocities,
+    delivered torques into ``O[O_DELIVERED]`` and, when ``k < log.shape[0]``, row ``k`` of the
+    device log (steps × columns × sides: ``LOG_HEADER``, the states, the probes) at time
+    ``t``. Returns 0 when a state became non-finite, 2 when the log row was written, 1
+    otherwise."""
+    Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
+    ns = meta[M_NS]
+    vnew = V[V_THETA_DOT_NEW]
+    tau = V[V_TAU]
+    for j in range(ns):
+        vnew[j] = velocity2[meta[N_META + j]]
+    if not finish_all(Y, P, W, S, vnew, tau):
+        return 0
+    for j in range(ns):
+        O[O_DELIVERED, meta[N_META + j]] = tau[j]
+    if k >= log.shape[0]:
+        return 1
+    for j in range(ns):
+        write_log_row(log[k, :, j], t, Y[j], W[j], S[j], phase_state[j, PH_PHASE], vnew[j])
+    return 2
+
+
+def write_log_row(row, t, y, W, S, phase, theta_dot):
+    """One side's log row (``LOG_HEADER``, then the states, then the probes at the step's
+    end, from the power flows left in scratch row 2)."""
+    row[0] = t
+    row[1] = W[W_CMD]
+    row[2] = W[W_TAU]
+    row[3] = W[W_TAU_MEAS]
+    row[4] = phase
+    row[5] = W[W_U + U_CMD]
+    row[6] = W[W_U + U_VBUS]
+    row[7] = W[W_I_BAT]
+    row[8] = W[W_P_MECH]
+    row[9] = W[W_TEMP_K]
+    row[10] = theta_dot
+    for i in range(N_Y):
+        row[N_LOG_HEAD + i] = y[i]
+    for i in range(N_PROBE):
+        row[N_LOG_HEAD + N_Y + i] = S[2, F_PROBE + i]
+
+
 #: the template functions, in the order the generated module defines them
 TEMPLATE = (solve_linear, scratch_views, jacobian, linearise, newton, close_substep,
-            finish_step, begin_step, finish_all, run_load, run_imposed)
+            finish_step, begin_step, finish_all, run_load, run_imposed, device_views,
+            write_log_row, device_begin, device_end)
