@@ -251,6 +251,17 @@ def test_check_valve_conductance():
         g * 1e4 ** 2 / (2 * band))
 
 
+
+def test_shuttle_valve_feeds_the_lower_line_only():
+    """Flushing valve: far from the shift band the lower line sees the whole conductance
+    from the supply and the higher line none; at equal line pressures each gets half."""
+    g, b = 5e-12, 5e4
+    assert L.shuttle_valve_flow_m3_s(1.0e6, 2.0e6, 1.5e6, g, b) == pytest.approx(
+        g * 0.5e6, rel=1e-12)
+    assert abs(L.shuttle_valve_flow_m3_s(2.0e6, 1.0e6, 1.5e6, g, b)) < 1e-12 * g * 0.5e6
+    assert L.shuttle_valve_flow_m3_s(1.2e6, 1.2e6, 1.5e6, g, b) == pytest.approx(
+        0.5 * g * 0.3e6, rel=1e-12)
+
 def test_poppet_opening_linear_with_rounded_corners():
     start, width, w = 0.1e6, 0.4e6, 0.05
     dp = np.linspace(start + w * width, start + (1 - w) * width, 11)
@@ -499,6 +510,8 @@ SAMPLES = {
     "laminar_gap_flow_m3_s": [(1e7, 1e-15, 0.03)],
     "relief_valve_area_m2": [(14.5e6, 14e6, 1e6, 2e-6, 1e-10), (1e6, 14e6, 1e6, 2e-6, 1e-10)],
     "check_valve_flow_m3_s": [(1e5, 1e-9, 0.0, 2e4), (-1e5, 1e-9, 0.0, 2e4)],
+    "shuttle_valve_flow_m3_s": [(1.0e6, 2.0e6, 1.5e6, 5e-12, 5e4),
+                                (2.0e6, 1.0e6, 1.5e6, 5e-12, 5e4)],
     "pump_flow_m3_s": [(300.0, 1e7, D_REV, 1e-8, 1e-16, 0.03)],
     "pump_friction_torque_nm": [(300.0, 1e7, D_REV, 0.05, 1.8e4, 0.002, 1.0, 0.03),
                                 (-3.0, 0.0, D_REV, 0.05, 1.8e4, 0.002, 1.0, 0.03)],

@@ -13,8 +13,9 @@ from afo_mj.circuits import controllers as _k
 
 #: component kind → class
 COMPONENT_KINDS = {c.kind: c for c in (
-    _c.Battery, _c.MotorDriver, _c.Pump, _c.Hose, _c.ReliefValve, _c.CheckValve, _c.Reservoir,
-    _c.Volume, _c.GasAccumulator, _c.PulleyCylinders, _c.SpringReturnCylinder)}
+    _c.Battery, _c.MotorDriver, _c.Pump, _c.Hose, _c.ReliefValve, _c.CheckValve,
+    _c.FlushingValve, _c.Reservoir, _c.Volume, _c.GasAccumulator, _c.PulleyCylinders,
+    _c.SpringReturnCylinder)}
 
 #: controller kind → class
 CONTROLLER_KINDS = {c.kind: c for c in (_k.OpenLoop, _k.PumpTorque)}

@@ -37,6 +37,13 @@ from afo_mj.hydraulics.seal import OringSeal
 HYDRAULIC, SHAFT, BUS, JOINT = "hydraulic", "shaft", "bus", "joint"
 
 
+def gated(enabled: bool, value: float) -> float:
+    """``value`` when its effect is ``enabled``, else 0. Both are evaluated (read) before the
+    call, so a switched-off effect's parameters still count as reaching the circuit: turning
+    an effect off is a choice, not a silent parameter."""
+    return value if enabled else 0.0
+
+
 class CircuitError(ValueError):
     """A circuit description that cannot be built (names the component, port, node or
     parameter and what is allowed)."""
@@ -148,9 +155,9 @@ class MotorDriver(Component):
         R = g.param(self, "R", m.resistance_ohm)
         L = g.param(self, "L", m.inductance_h)
         K = g.param(self, "K", m.torque_constant_nm_a)
-        tc = g.param(self, "coulomb_nm", m.coulomb_torque_nm if m.friction_enabled else 0.0)
-        bv = g.param(self, "viscous", m.viscous_coefficient_nm_s_rad if m.friction_enabled
-                     else 0.0)
+        tc = g.param(self, "coulomb_nm", gated(m.friction_enabled, m.coulomb_torque_nm))
+        bv = g.param(self, "viscous", gated(m.friction_enabled,
+                                                m.viscous_coefficient_nm_s_rad))
         wc = g.param(self, "smoothing_speed", m.smoothing_speed_rad_s)
         wmax = g.param(self, "max_speed", m.max_speed_rad_s)
         ilim = g.param(self, "current_limit", d.current_limit_a)
@@ -196,11 +203,11 @@ class Pump(Component):
             raise CircuitError(f"{self.name}.variable_displacement_enabled = True: the "
                                "circuit pump is fixed-displacement (allowed: False)")
         d = g.param(self, "d", p.displacement_m3_rev / (2.0 * math.pi))
-        cs = g.param(self, "slip", p.slip_coefficient if p.leakage_enabled else 0.0)
-        cf = g.param(self, "coulomb", p.coulomb_coefficient if p.coulomb_friction_enabled
-                     else 0.0)
-        cv = g.param(self, "viscous", p.viscous_coefficient if p.viscous_friction_enabled
-                     else 0.0)
+        cs = g.param(self, "slip", gated(p.leakage_enabled, p.slip_coefficient))
+        cf = g.param(self, "coulomb", gated(p.coulomb_friction_enabled,
+                                                p.coulomb_coefficient))
+        cv = g.param(self, "viscous", gated(p.viscous_friction_enabled,
+                                                p.viscous_coefficient))
         t0 = g.param(self, "drag", p.drag_torque_nm)
         wc = g.param(self, "smoothing_speed", p.smoothing_speed_rad_s)
         wmax = g.param(self, "max_speed", p.max_speed_rad_s)
@@ -244,8 +251,8 @@ class Hose(Component):
         rough = g.param(self, "relative_roughness", p.roughness_m / p.bore_m)
         turb = g.param(self, "turbulent", 1.0 if p.turbulence_enabled else 0.0)
         half = g.param(self, "half_volume", 0.5 * math.pi / 4.0 * p.bore_m ** 2 * p.length_m)
-        kinv = g.param(self, "wall_inv", 1.0 / p.wall_bulk_modulus_pa
-                       if p.wall_compliance_enabled else 0.0)
+        kinv = g.param(self, "wall_inv", gated(p.wall_compliance_enabled,
+                                                  1.0 / p.wall_bulk_modulus_pa))
         pa, pb = g.p(self, "a"), g.p(self, "b")
         q = g.local(self, "q")
         g.line(f"{q} = hose_flow_m3_s({pa} - {pb}, {length}, {bore}, U[U_MU], U[U_RHO], "
@@ -273,7 +280,7 @@ class ReliefValve(Component):
         crack = g.param(self, "cracking", p.cracking_dp_pa)
         over = g.param(self, "override", p.override_dp_pa)
         amax = g.param(self, "max_area", p.max_area_m2)
-        aleak = g.param(self, "leak_area", p.leakage_area_m2 if p.leakage_enabled else 0.0)
+        aleak = g.param(self, "leak_area", gated(p.leakage_enabled, p.leakage_area_m2))
         cd = g.param(self, "cd", p.discharge_coefficient)
         pcr = g.param(self, "p_cr", p.transition_pressure_pa)
         g.param(self, "opening_smoothing", p.opening_smoothing)
@@ -319,6 +326,41 @@ class CheckValve(Component):
         g.flow(self, "b", q)
         g.loss(self, "throttling", f"({pa} - {pb}) * {q}")
         g.probe(self, "flow_m3_s", q)
+
+
+@dataclasses.dataclass(frozen=True)
+class FlushingValveParams(Parameters):
+    """A flushing (shuttle) valve: the charge supply into the lower of two lines."""
+
+    conductance_m3_s_pa: float = param(5e-12, unit="m^3/(s Pa)", lo=1e-15, hi=1e-6,
+                                       doc="open conductance G")
+    shift_band_pa: float = param(0.05e6, unit="Pa", lo=1e3, hi=1e6,
+                                 doc="line pressure difference over which the spool shifts")
+
+
+class FlushingValve(Component):
+    """Flushing (shuttle) valve of a closed loop: connects the charge supply ``s`` to
+    whichever of the lines ``a``, ``b`` is at the lower pressure
+    (:func:`~afo_mj.hydraulics.laws.shuttle_valve_flow_m3_s`), so the loop is replenished and
+    its low side never cavitates. Loss: ``throttling``."""
+
+    kind = "flushing_valve"
+    ports = {"a": HYDRAULIC, "b": HYDRAULIC, "s": HYDRAULIC}
+    params_type = FlushingValveParams
+    summary = "flushing (shuttle) valve: charge supply into the lower line"
+
+    def emit(self, g, p):
+        gc = g.param(self, "conductance", p.conductance_m3_s_pa)
+        band = g.param(self, "band", p.shift_band_pa)
+        pa, pb, ps = g.p(self, "a"), g.p(self, "b"), g.p(self, "s")
+        qa, qb = g.local(self, "qa"), g.local(self, "qb")
+        g.line(f"{qa} = shuttle_valve_flow_m3_s({pa}, {pb}, {ps}, {gc}, {band})")
+        g.line(f"{qb} = shuttle_valve_flow_m3_s({pb}, {pa}, {ps}, {gc}, {band})")
+        g.flow(self, "a", qa)
+        g.flow(self, "b", qb)
+        g.flow(self, "s", f"-({qa} + {qb})")
+        g.loss(self, "throttling", f"({ps} - {pa}) * {qa} + ({ps} - {pb}) * {qb}")
+        g.probe(self, "flow_m3_s", f"{qa} + {qb}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -435,11 +477,11 @@ class PulleyCylinders(Component):
         stroke = g.param(self, "stroke", cy.stroke_m)
         va0 = g.param(self, "dead_a", cy.dead_volume_a_m3)
         vb0 = g.param(self, "dead_b", cy.dead_volume_b_m3)
-        gl = g.param(self, "leak_g", cyl.leakage_conductance_m3 if cy.internal_leakage_enabled
-                     else 0.0)
+        gl = g.param(self, "leak_g", gated(cy.internal_leakage_enabled,
+                                           cyl.leakage_conductance_m3))
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
-        ks = g.param(self, "stop_k", k_stop if cy.end_stops_enabled else 0.0)
-        cs = g.param(self, "stop_c", c_stop if cy.end_stops_enabled else 0.0)
+        ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
+        cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
         seal = _seal_params(g, self, cy, cyl, rods=2)
         ps = cy.piston_seal
         drag_on = g.param(self, "dragout_on", 1.0 if ps.leakage_enabled else 0.0)
@@ -477,14 +519,14 @@ def _seal_params(g, comp, cy, cyl, rods: int) -> str:
     speed) as the argument list of :func:`~afo_mj.hydraulics.laws.seal_friction_n`."""
     ps, rs = cyl.piston_seal, cyl.rod_seal
     on = cy.seal_friction_enabled
-    # the pressure coefficient is packed through its switch (0 while the effect is off)
+    # the viscous and pressure coefficients reach the seal model through their switches
+    # (0 while an effect is off): read here so that switching one off is not "unused"
     for seal in (cy.piston_seal, cy.rod_seal):
-        if not seal.pressure_friction_enabled:
-            _ = seal.pressure_coefficient_m2
-    fc = ps.coulomb_force_n + rods * rs.coulomb_force_n if on else 0.0
-    st = ps._stribeck_gain + rods * rs._stribeck_gain if on else 0.0
-    fv = ps._fv + rods * rs._fv if on else 0.0
-    cp = ps._cp + rods * rs._cp if on else 0.0
+        _ = (seal.pressure_coefficient_m2, seal.viscous_coefficient_n_s_m)
+    fc = gated(on, ps.coulomb_force_n + rods * rs.coulomb_force_n)
+    st = gated(on, ps._stribeck_gain + rods * rs._stribeck_gain)
+    fv = gated(on, ps._fv + rods * rs._fv)
+    cp = gated(on, ps._cp + rods * rs._cp)
     return ", ".join((g.param(comp, "seal_fc", fc), g.param(comp, "seal_stribeck", st),
                       g.param(comp, "seal_v_st", ps._v_st), g.param(comp, "seal_v_c", ps._v_c),
                       g.param(comp, "seal_fv", fv), g.param(comp, "seal_cp", cp)))
@@ -545,8 +587,8 @@ class SpringReturnCylinder(Component):
         f0 = g.param(self, "spring_f0", p.spring_preload_n)
         x0 = g.param(self, "x0", p.neutral_position_m)
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
-        ks = g.param(self, "stop_k", k_stop if cy.end_stops_enabled else 0.0)
-        cs = g.param(self, "stop_c", c_stop if cy.end_stops_enabled else 0.0)
+        ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
+        cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
         seal = _seal_params(g, self, cy, cyl, rods=1)
         pa = g.p(self, "a")
         x, xd, f_s, f_e = (g.local(self, n) for n in ("x", "xd", "fseal", "fstop"))

@@ -340,6 +340,67 @@ def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndar
     return P
 
 
+def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
+                 initial_pressure_pa: float | None = None, name: str = "hafo"):
+    """The pump-controlled ankle actuator of ``p`` as a circuit description
+    (:mod:`afo_mj.circuits`): battery → motor + driver → reversible pump → two hoses → the
+    pulley cylinders; cross-port relief valves, a flushing valve from the charge reservoir
+    into the lower line, a make-up check valve into each line; the HAFO torque loop
+    (``mode="voltage"``: the command is the motor voltage). Every field of ``p`` reaches the
+    circuit or is a mass-budget figure (``pump_mass_kg``)."""
+    from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
+    from afo_mj.circuits.components import (
+        Battery, BatterySourceParams, CheckValve, CheckValveParams, FlushingValve,
+        FlushingValveParams, Hose, MotorDriver, PulleyCylinders, Pump, ReliefValve,
+        Reservoir, ReservoirParams, Volume, VolumeParams)
+    from afo_mj.circuits.controllers import OpenLoop, PumpTorque, PumpTorqueGains
+    if mode not in ("torque", "voltage"):
+        raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
+    port = VolumeParams(volume_m3=p.pump_port_volume_m3)
+    makeup = CheckValveParams(conductance_m3_s_pa=p.makeup_conductance_m3_s_pa,
+                              cracking_pa=0.0, band_pa=p.makeup_band_pa)
+    comps = [
+        Battery("battery", BatterySourceParams(battery=p.battery, initial_soc=p.initial_soc)),
+        MotorDriver("motor", MotorDriver.Params(motor=p.motor, driver=p.driver)),
+        Pump("pump", p.pump),
+        Volume("port_a", port), Volume("port_b", port),
+        Hose("hose_a", p.hose), Hose("hose_b", p.hose),
+        ReliefValve("relief_ab", p.relief), ReliefValve("relief_ba", p.relief),
+        Reservoir("charge", ReservoirParams(pressure_pa=p.reservoir_pressure_pa)),
+        FlushingValve("flushing", FlushingValveParams(
+            conductance_m3_s_pa=p.flushing_conductance_m3_s_pa,
+            shift_band_pa=p.flushing_band_pa)),
+        CheckValve("makeup_a", makeup), CheckValve("makeup_b", makeup),
+        PulleyCylinders("cylinders", PulleyCylinders.Params(
+            cylinder=p.cylinder, count=p.cylinders, pulley_radius_m=p.pulley_radius_m)),
+    ]
+    nodes = {
+        "bus": ["battery.bus", "motor.bus"],
+        "shaft": ["motor.shaft", "pump.shaft"],
+        "line_a": ["pump.a", "port_a.port", "hose_a.a", "relief_ab.a", "relief_ba.b",
+                   "flushing.a", "makeup_a.b"],
+        "line_b": ["pump.b", "port_b.port", "hose_b.a", "relief_ab.b", "relief_ba.a",
+                   "flushing.b", "makeup_b.b"],
+        "tank": ["charge.port", "flushing.s", "makeup_a.a", "makeup_b.a"],
+        "chamber_a": ["hose_a.b", "cylinders.a"],
+        "chamber_b": ["hose_b.b", "cylinders.b"],
+        "ankle": ["cylinders.joint"],
+    }
+    c = p.control
+    controller = (OpenLoop() if mode == "voltage" else PumpTorque(
+        PumpTorqueGains(pressure_gain_rad_s_per_pa=c.pressure_gain_rad_s_per_pa,
+                        pressure_integral_gain_rad_per_pa=c.pressure_integral_gain_rad_per_pa,
+                        integral_limit_pa_s=c.integral_limit_pa_s,
+                        speed_gain_v_s_per_rad=c.speed_gain_v_s_per_rad),
+        motor="motor", pump="pump", actuator="cylinders"))
+    p0 = p.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
+    return Circuit(name, comps, nodes, controller, fluid=p.fluid,
+                   thermal=ThermalParams(heat_capacity_j_k=p.heat_capacity_j_k,
+                                         thermal_resistance_k_w=p.thermal_resistance_k_w,
+                                         ambient_temperature_k=p.ambient_temperature_k),
+                   options=CircuitOptions(initial_pressure_pa=p0))
+
+
 SIDE_NAMES = ("right", "left")
 
 

@@ -294,6 +294,23 @@ def check_valve_flow_m3_s(dp_pa, conductance_m3_s_pa, cracking_pa, band_pa):
     return conductance_m3_s_pa * ramp_c1(dp_pa - cracking_pa, band_pa)
 
 
+
+@law
+def shuttle_valve_flow_m3_s(p_line_pa, p_other_pa, p_supply_pa, conductance_m3_s_pa,
+                            shift_band_pa):
+    """Flow from a charge supply into one line through a flushing (shuttle) valve that
+    connects the supply to whichever of two lines is at the lower pressure (the charge
+    arrangement of a closed hydrostatic loop; Merritt §7.2, Ivantysyn & Ivantysynova ch. 8):
+    ``Q = G s (p_s − p_line)`` with the spool's share ``s = ½(1 + tanh((p_other − p_line)/b))``
+    (1 when this line is the lower one, 0 when it is the higher; ``b`` the pressure difference
+    over which the spool shifts). The two lines' flows share one conductance ``G``.
+
+    Example: G = 5e-12, b = 5e4, lines at 1.0 and 2.0 MPa, supply 1.5 MPa: the lower line
+    gets ≈ 2.5e-6 m³/s, the higher ≈ −1.1e-14 m³/s.
+    """
+    share = 0.5 * (1.0 + math.tanh((p_other_pa - p_line_pa) / shift_band_pa))
+    return conductance_m3_s_pa * share * (p_supply_pa - p_line_pa)
+
 # ---- pump and motor -------------------------------------------------------------------------
 
 @law
