@@ -323,6 +323,42 @@ def test_unloading_valve_drives_and_hysteresis():
 
 # ---------------------------------------------------------------------------- pump, motor
 
+def test_valve_circuit_laws():
+    """The laws the valve circuits add (issue 18): snap-action unloading valve, first-order
+    spool, pressure compensator, PWM on-fraction."""
+    tau = 2e-3
+    args = (11.1e6, 9.6e6, 0.3e6, tau, 1.0)
+    # pilot between the bands: the latch decides (open beyond 12 % of the travel, shut
+    # below 2 %), where the plain law holds still
+    assert L.unloading_valve_snap_rate_1_s(0.5, 10.3e6, *args) == pytest.approx(0.5 / tau)
+    assert L.unloading_valve_snap_rate_1_s(0.01, 10.3e6, *args) == pytest.approx(-0.01 / tau)
+    assert L.unloading_valve_rate_1_s(0.5, 10.3e6, *args) == 0.0
+    # above cut-out it opens, below cut-in it shuts, whatever the latch says
+    assert L.unloading_valve_snap_rate_1_s(0.01, 11.2e6, *args) == pytest.approx(0.99 / tau)
+    assert L.unloading_valve_snap_rate_1_s(0.5, 9.5e6, *args) == pytest.approx(-0.5 / tau)
+    # the spool lags its clipped command
+    assert L.spool_lag_rate_1_s(0.2, 3.0, 8e-4) == pytest.approx(0.8 / 8e-4)
+    assert L.spool_lag_rate_1_s(0.2, -0.1, 8e-4) == pytest.approx(-0.3 / 8e-4)
+    # compensator: linear destroking inside the band, full and minimum stroke outside
+    assert L.compensator_displacement_fraction(10.5e6, 11e6, 1e6, 0.03) == pytest.approx(
+        0.5, abs=1e-3)
+    assert L.compensator_displacement_fraction(5e6, 11e6, 1e6, 0.03) == pytest.approx(
+        1.0, abs=1e-4)
+    assert L.compensator_displacement_fraction(20e6, 11e6, 1e6, 0.03) == pytest.approx(
+        0.03, abs=1e-4)
+    # PWM: the on-fraction over a step is the step's overlap with the on-windows
+    f, duty, h = 50.0, 0.3, 1e-3
+    t = np.arange(0, 0.2, 1e-6)
+    on = (np.mod(t * f, 1.0) < duty).astype(float)
+    for t0 in (0.0, 0.0055, 0.0195, 0.1234):
+        sel = (t >= t0) & (t < t0 + h)
+        assert L.pwm_on_fraction(t0, h, duty, f) == pytest.approx(on[sel].mean(), abs=2e-3)
+    assert L.pwm_on_fraction(0.005, 0.002, 0.3, 50.0) == pytest.approx(0.5, rel=1e-12)
+    # over whole periods the fraction is the duty
+    assert L.pwm_on_fraction(0.013, 0.1, 0.37, 50.0) == pytest.approx(0.37, rel=1e-12)
+    assert L.pwm_on_fraction(0.01, h, 0.0, f) == 0.0 and L.pwm_on_fraction(0.01, h, 1.0, f) == 1.0
+
+
 def test_pump_flow_speed_and_torque():
     w, dp, cs, mu = 300.0, 10e6, 1e-8, 0.03
     q = L.pump_flow_m3_s(w, dp, D_REV, cs, 0.0, mu)
@@ -552,6 +588,12 @@ SAMPLES = {
                                              (1e5, 3e-4, 2e4, 150.0, 0.03, 101325.0, 7.5e14)],
     "spring_accumulator_energy_j": [(5e-6, 3e-4, 2e4, 150.0, 0.03, 101325.0, 7.5e14),
                                     (1e-5, 3e-4, 2e4, 150.0, 0.03, 101325.0, 7.5e14)],
+    "unloading_valve_snap_rate_1_s": [(0.5, 10.3e6, 11.1e6, 9.6e6, 0.3e6, 2e-3, 1.0),
+                                      (0.05, 11.0e6, 11.1e6, 9.6e6, 0.3e6, 2e-3, 0.0)],
+    "spool_lag_rate_1_s": [(0.2, 3.0, 8e-4), (0.2, -3.0, 8e-4), (0.2, 0.1, 8e-4)],
+    "compensator_displacement_fraction": [(10.5e6, 11e6, 1e6, 0.03), (20e6, 11e6, 1e6, 0.03)],
+    "pwm_on_fraction": [(0.005, 0.002, 0.3, 50.0), (0.0, 1e-3, 0.0, 50.0),
+                        (0.0, 1e-3, 1.0, 50.0)],
     "pump_speed_for_flow_rad_s": [(9.4e-6, 1e7, D_REV, 1e-8, 0.0, 0.03)],
     "oring_coulomb_force_n": [(0.01, 1.78e-3, 0.12, 0.4, 3.5e6, 1.0)],
     "annular_gap_conductance_m3": [(0.012, 10e-6, 5e-3)],

@@ -114,6 +114,8 @@ class Emitter:
         self.ctrl_lines: list = []
         self.ctrl_slots: list = []
         self.work_init: dict = {}
+        self.inputs: list = []          # named actuated inputs after U_NAMES (controller-set)
+        self.inputs_driven: set = set()
         self.fixed: dict = {}
         self.sources: dict = {}
         self._current = None
@@ -249,6 +251,24 @@ class Emitter:
     def initial_work(self, key, value):
         self.work_init[key] = float(value)
 
+    # -- named actuated inputs (valve commands, coil switching rates) -----------------------
+    def input(self, comp, key) -> str:
+        """Declare the actuated input ``comp.key`` (held over each step, written by the
+        controller through :meth:`input_slot`); returns its reference in ``rhs``."""
+        label = f"{comp.name}.{key}"
+        if label not in self.inputs:
+            self.inputs.append(label)
+        return f"U[{len(U_NAMES) + self.inputs.index(label)}]"
+
+    def input_slot(self, comp, key) -> str:
+        """The work-vector entry through which the controller sets input ``comp.key``."""
+        label = f"{comp.name}.{key}"
+        if label not in self.inputs:
+            raise CircuitError(f"controller drives {label!r}, which no component reads; "
+                               f"allowed: {', '.join(self.inputs) or 'none'}")
+        self.inputs_driven.add(label)
+        return f"W[W_U + {len(U_NAMES) + self.inputs.index(label)}]"
+
 
 @dataclasses.dataclass
 class CompiledCircuit:
@@ -273,6 +293,8 @@ class CompiledCircuit:
     n_w: int
     n_scratch: int
     s_width: int
+    #: named actuated inputs after ``U_NAMES`` (``W[W_U + len(U_NAMES) + k]``)
+    input_names: tuple = ()
 
     def index(self, state_label: str) -> int:
         return self.state_names.index(state_label)
@@ -330,6 +352,11 @@ def generate(circuit: Circuit):
     missing = [f for f in leaf_fields(circuit.controller.params) if f not in used_c]
     if missing:
         raise CircuitError(f"controller.{missing[0]} reaches no equation")
+    undriven = [k for k in g.inputs if k not in g.inputs_driven]
+    if undriven:
+        raise CircuitError(f"input {undriven[0]!r} is driven by no controller; controller "
+                           f"{circuit.controller.kind!r} drives "
+                           f"{', '.join(sorted(g.inputs_driven)) or 'none'}")
 
     n_y = len(g.states)
     if n_y == 0:
@@ -411,7 +438,7 @@ def generate(circuit: Circuit):
     consts = {f"W_{n}": i for i, n in enumerate(W_HEADER)}
     off = len(W_HEADER)
     consts["W_U"] = off
-    off += len(U_NAMES)
+    off += len(U_NAMES) + len(g.inputs)
     consts["W_CTRL"] = off
     off += max(len(g.ctrl_slots), 1)
     consts["W_A"] = off
@@ -475,7 +502,7 @@ def generate(circuit: Circuit):
            ""]
     src.append(f"N_Y = {n_y}")
     src.append(f"N_F = {n_f}")
-    src.append(f"N_U = {len(U_NAMES)}")
+    src.append(f"N_U = {len(U_NAMES) + len(g.inputs)}")
     src.append(f"N_LOSS = {n_loss}")
     src.append(f"N_SRATE = {n_srate}")
     src.append(f"N_W = {n_w}")
@@ -501,7 +528,9 @@ def generate(circuit: Circuit):
     src.append(fn("rhs", "y, th, thd, U, P, dy, F", body))
     src.append("")
     src.append(fn("controller", "y, th, thd, cmd, h, P, W",
-                  ["U = W[W_U:W_U + N_U]"] + g.ctrl_lines))
+                  ["U = W[W_U:W_U + N_U]"]
+                  + [f"fix_{node} = {pref}" for node, pref in g.fixed.items()]
+                  + g.ctrl_lines))
     src.append("")
     src.append(fn("begin_extra", "y, P, W", begin))
     src.append("")
@@ -547,7 +576,8 @@ def build(circuit: Circuit) -> CompiledCircuit:
         store_names=stores, srate_names=tuple(layout["srate_names"]),
         probe_names=tuple(p for p, _ in g.probes),
         monitor_names=tuple(m for m, _, _ in g.monitors), y0=y0, w_init=dict(g.work_init),
-        n_w=layout["n_w"], n_scratch=layout["n_scratch"], s_width=layout["s_width"])
+        n_w=layout["n_w"], n_scratch=layout["n_scratch"], s_width=layout["s_width"],
+        input_names=tuple(g.inputs))
 
 
 __all__ = ["build", "generate", "CompiledCircuit", "Emitter", "cache_dir", "leaf_fields"]

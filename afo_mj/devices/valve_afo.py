@@ -57,12 +57,18 @@ import math
 
 import numpy as np
 
+from afo_mj.circuits import components as _cc
+from afo_mj.circuits import valve_controllers as _vc
+from afo_mj.circuits import valves as _cv
+from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
+from afo_mj.circuits.components import CircuitError
 from afo_mj.devices import valve_ankle_actuator as va
 from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleParams,
                                  _hose_mass_kg, pack_parameters)
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams
+from afo_mj.hydraulics.orifice import OrificeParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, effect, param, replace_named
 from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL
 from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
@@ -70,7 +76,7 @@ from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
 __all__ = ["ValveControlParams", "ValveAnkleParams", "VALVE_PRESETS", "valve_params",
            "valve_mass_budget", "ValveAfoDevice", "impedance_table", "CIRCUITS",
-           "SUPPLY_MODES"]
+           "SUPPLY_MODES", "valve_circuit", "valve_initial_state"]
 
 CIRCUITS = ("servo", "digital")
 SUPPLY_MODES = ("constant_speed", "unloading", "pressure_control", "variable_displacement")
@@ -361,6 +367,168 @@ def pack_valve_parameters(p: ValveAnkleParams) -> np.ndarray:
     P[va.P_TAU_MAX] = p.max_torque_nm
     P[va.P_CMD] = va.CMD_PROFILE
     return P
+
+
+def valve_circuit(params: ValveAnkleParams) -> Circuit:
+    """The circuit description of one side of a valve orthosis (issue 18): the components and
+    nodes of :mod:`~afo_mj.devices.valve_ankle_actuator`'s servo or digital circuit, with the
+    parameters :func:`pack_valve_parameters` packs for it.
+
+    Nodes: ``bus``, ``shaft``, ``pump_out`` (pump outlet, relief, unloading or switching
+    valve, check valve), ``rail`` (behind the check valve: manifold or accumulator, servo
+    valve's P or the digital circuit's open P→A edge; the unloading valve's pilot and the
+    compensator's sense line), ``tank`` (the pressurised reservoir), ``port_a``/``port_b``
+    (valve ports with their make-up check valves), ``chamber_a``/``chamber_b``, ``ankle``.
+
+    Which fields reach which component: the shared parts (fluid, motor, driver, pump, hoses,
+    cylinders, relief, make-up valves, port volumes, battery, thermal) as in the HAFO; the
+    servo circuit's ``servo_valve`` and ``servo_coil_power_w``; the digital circuit's
+    ``switching_valve``, ``release_valve_area_m2`` and ``pwm_frequency_hz``, its open port
+    edges sized as the servo valve at full opening; the check valve, ``manifold_volume_m3``
+    (the accumulator's port volume when there is one), the accumulator and
+    ``accumulator_blend_pa``; ``unloading`` with the unloading supply, the compensator fields
+    with the variable-displacement one, the rail set points with pressure control;
+    ``valve_control``, ``motor_speed_rad_s`` and ``max_torque_nm`` in the controller.
+    Fields of a supply or circuit not chosen describe no component (the old kernel packed
+    them and kept, e.g., a shut unloading valve leaking in every servo supply). Not in the
+    circuit at all: the HAFO's flushing valve and its control gains (the valve circuits have
+    neither), the masses, and ``initial_supply_pressure_pa`` (an initial state:
+    :func:`valve_initial_state`).
+
+    The servo valve's metering edges are rounded over ± 1 % of the stroke at least (the old
+    kernel rounded each over 2 % whatever ``opening_smoothing_m`` says: a sharp edge stalls
+    the step's Newton iteration at null)."""
+    p = params
+    if not isinstance(p, ValveAnkleParams):
+        raise CircuitError(f"valve_circuit(params = {type(p).__name__}); allowed: "
+                           "ValveAnkleParams")
+    digital = p.circuit == "digital"
+    sv = p.servo_valve
+    comps = [
+        _cc.Battery("battery", _cc.BatterySourceParams(battery=p.battery,
+                                                       initial_soc=p.initial_soc)),
+        _cc.MotorDriver("motor", _cc.MotorDriver.Params(motor=p.motor, driver=p.driver)),
+        _cc.Volume("pump_port", _cc.VolumeParams(volume_m3=p.pump_port_volume_m3)),
+        _cc.ReliefValve("relief", p.relief),
+        _cc.Reservoir("tank", _cc.ReservoirParams(pressure_pa=p.reservoir_pressure_pa)),
+        _cc.CheckValve("check", _cc.CheckValveParams(
+            conductance_m3_s_pa=p.check_valve_conductance_m3_s_pa,
+            cracking_pa=p.check_valve_cracking_pa, band_pa=2e4)),
+        _cc.Volume("port_a", _cc.VolumeParams(volume_m3=p.pump_port_volume_m3)),
+        _cc.Volume("port_b", _cc.VolumeParams(volume_m3=p.pump_port_volume_m3)),
+        _cc.Hose("hose_a", p.hose), _cc.Hose("hose_b", p.hose),
+        _cc.PulleyCylinders("cylinders", _cc.PulleyCylinders.Params(
+            cylinder=p.cylinder, count=p.cylinders, pulley_radius_m=p.pulley_radius_m)),
+    ]
+    for side in ("a", "b"):
+        comps.append(_cc.CheckValve(f"makeup_{side}", _cc.CheckValveParams(
+            conductance_m3_s_pa=p.makeup_conductance_m3_s_pa, cracking_pa=0.0,
+            band_pa=p.makeup_band_pa)))
+    pump = p.pump.replace(variable_displacement_enabled=False)
+    if p.supply_mode == "variable_displacement":
+        comps.append(_cv.VariablePump("pump", _cv.VariablePumpParams(
+            pump=pump, compensator_pressure_pa=p.compensator_pressure_pa,
+            compensator_band_pa=p.compensator_band_pa,
+            min_displacement_fraction=p.min_displacement_fraction)))
+    else:
+        comps.append(_cc.Pump("pump", pump))
+    if p.accumulator_enabled:
+        comps.append(_cv.SupplyAccumulator("accumulator", _cv.SupplyAccumulatorParams(
+            accumulator=p.accumulator.replace(port_volume_m3=p.manifold_volume_m3),
+            engage_band_pa=p.accumulator_blend_pa)))
+        rail_store = "accumulator.port"
+    else:
+        comps.append(_cc.Volume("manifold", _cc.VolumeParams(volume_m3=p.manifold_volume_m3)))
+        rail_store = "manifold.port"
+    nodes = {
+        "bus": ["battery.bus", "motor.bus"],
+        "shaft": ["motor.shaft", "pump.shaft"],
+        "pump_out": ["pump.a", "pump_port.port", "relief.a", "check.a"],
+        "tank": ["tank.port", "pump.b", "relief.b", "makeup_a.a", "makeup_b.a"],
+        "rail": ["check.b", rail_store],
+        "port_a": ["port_a.port", "hose_a.a", "makeup_a.b"],
+        "port_b": ["port_b.port", "hose_b.a", "makeup_b.b"],
+        "chamber_a": ["hose_a.b", "cylinders.a"],
+        "chamber_b": ["hose_b.b", "cylinders.b"],
+        "ankle": ["cylinders.joint"],
+    }
+    if p.supply_mode == "variable_displacement":
+        nodes["rail"].append("pump.sense")
+    if p.supply_mode == "unloading":
+        comps.append(_cv.UnloadingValve("unloading", p.unloading))
+        nodes["pump_out"].append("unloading.a")
+        nodes["tank"].append("unloading.b")
+        nodes["rail"].append("unloading.pilot")
+    c = p.valve_control
+    supply = _vc.SupplyControlParams(
+        speed_set_rad_s=p.motor_speed_rad_s, speed_gain_v_s_per_rad=c.speed_gain_v_s_per_rad,
+        speed_integral_gain_v_per_rad=c.speed_integral_gain_v_per_rad,
+        speed_integral_limit_rad=c.speed_integral_limit_rad,
+        pressure_control_enabled=p.supply_mode == "pressure_control",
+        follows_demand_enabled=p.supply_pressure_follows_demand,
+        pressure_set_pa=p.supply_pressure_set_pa, pressure_margin_pa=p.supply_pressure_margin_pa,
+        pressure_min_pa=p.supply_pressure_min_pa,
+        pressure_gain_rad_s_per_pa=c.supply_gain_rad_s_per_pa,
+        pressure_integral_gain_rad_per_pa=c.supply_integral_gain_rad_per_pa,
+        pressure_integral_limit_pa_s=c.supply_integral_limit_pa_s)
+    loop = dict(valve_gain_per_pa=c.valve_gain_per_pa,
+                valve_integral_gain_per_pa_s=c.valve_integral_gain_per_pa_s,
+                valve_integral_limit_pa_s=c.valve_integral_limit_pa_s,
+                max_torque_nm=p.max_torque_nm,
+                feedforward_density_kg_m3=p.fluid.density_kg_m3, supply=supply)
+    if digital:
+        if p.servo_coil_power_w != 0.0:
+            raise CircuitError(f"servo_coil_power_w = {p.servo_coil_power_w!r} with circuit = "
+                               "'digital': the digital circuit has no servo valve (allowed: 0)")
+        edge = OrificeParams(area_m2=p.servo_full_area_m2,
+                             discharge_coefficient=sv.discharge_coefficient,
+                             transition_pressure_pa=sv.transition_pressure_pa)
+        comps += [
+            _cv.FixedOrifice("edge_pa", edge), _cv.FixedOrifice("edge_bt", edge),
+            _cv.OnOffValve("switching", _cv.OnOffComponentParams(
+                valve=p.switching_valve, normally_open=True)),
+            _cv.OnOffValve("release", _cv.OnOffComponentParams(
+                valve=p.switching_valve.replace(max_area_m2=p.release_valve_area_m2),
+                normally_open=False))]
+        nodes["bus"] += ["switching.bus", "release.bus"]
+        nodes["pump_out"].append("switching.a")
+        nodes["tank"] += ["switching.b", "release.b", "edge_bt.b"]
+        nodes["rail"].append("edge_pa.a")
+        nodes["port_a"] += ["edge_pa.b", "release.a"]
+        nodes["port_b"].append("edge_bt.a")
+        controller = _vc.DigitalValveTorque(
+            _vc.DigitalValveTorqueParams(pwm_frequency_hz=p.pwm_frequency_hz, **loop),
+            motor="motor", pump="pump", switching="switching", release="release",
+            actuator="cylinders")
+    else:
+        smoothing = max(sv.opening_smoothing_m, 0.01 * sv.spool_max_m)
+        comps.append(_cv.ServoValve("servo", _cv.ServoValveComponentParams(
+            valve=sv.replace(opening_smoothing_m=smoothing),
+            coil_power_w=p.servo_coil_power_w)))
+        nodes["bus"].append("servo.bus")
+        nodes["tank"].append("servo.t")
+        nodes["rail"].append("servo.p")
+        nodes["port_a"].append("servo.a")
+        nodes["port_b"].append("servo.b")
+        controller = _vc.ServoValveTorque(_vc.ValveTorqueParams(**loop), motor="motor",
+                                          pump="pump", valve="servo", actuator="cylinders")
+    return Circuit(
+        f"valve_{p.circuit}_{p.supply_mode}", comps, nodes, controller, fluid=p.fluid,
+        thermal=ThermalParams(heat_capacity_j_k=p.heat_capacity_j_k,
+                              thermal_resistance_k_w=p.thermal_resistance_k_w,
+                              ambient_temperature_k=p.ambient_temperature_k),
+        options=CircuitOptions(initial_pressure_pa=p.reservoir_pressure_pa))
+
+
+def valve_initial_state(params: ValveAnkleParams) -> dict:
+    """Initial values of the :func:`valve_circuit` states that do not start at the tank
+    pressure or at rest (state label → value), as :class:`ValveAfoDevice` starts the old
+    kernel: the rail charged to ``initial_supply_pressure_pa`` (at least the tank's), the
+    motor at its set speed unless a pressure loop sets it."""
+    out = {"rail": max(params.initial_supply_pressure_pa, params.reservoir_pressure_pa)}
+    if params.supply_mode != "pressure_control":
+        out["shaft"] = params.motor_speed_rad_s
+    return out
 
 
 def impedance_table(rows) -> np.ndarray:

@@ -636,6 +636,85 @@ def unloading_valve_rate_1_s(position, pilot_pa, cut_out_pa, cut_in_pa, band_pa,
 
 
 @law
+def unloading_valve_snap_rate_1_s(position, pilot_pa, cut_out_pa, cut_in_pa, band_pa,
+                                  time_constant_s, hysteresis_on):
+    """Position rate of a pilot-operated unloading valve with snap action (our model of the
+    differential-area pilot of a real unloading valve; Esposito, *Fluid Power with
+    Applications*, accumulator circuits; the servo circuit of seed ch. 4).
+
+    With the drives ``σ_o`` (:func:`unloading_open_drive`) and ``σ_c``
+    (:func:`unloading_close_drive`; ``1 − σ_o`` without hysteresis) and the latch
+    ``L = smoothstep01((x − 0.02)/0.1)`` (0 below 2 % of the travel, 1 above 12 %):
+
+    ``s_up = σ_o + (1 − σ_o)(1 − σ_c) L``, ``s_dn = σ_c + (1 − σ_c)(1 − σ_o)(1 − L)``,
+    ``dx/dt = (s_up (1 − x) − s_dn x)/τ``.
+
+    Between the thresholds :func:`unloading_valve_rate_1_s` holds any position; in a supply
+    whose check valve keeps the pilot just under cut-out once the valve has cracked, that
+    would leave it throttling the whole pump flow. Here a valve past 12 % of its travel goes
+    on to open, one below 2 % goes back shut (the poppet's pressure area grows once it
+    lifts). Example: τ = 2 ms, pilot between the bands, x = 0.5 → (1 − 0.5)/2e-3 = 250 1/s;
+    x = 0.01 → −0.01/2e-3 = −5 1/s.
+    """
+    up = unloading_open_drive(pilot_pa, cut_out_pa, band_pa)
+    if hysteresis_on != 0.0:
+        down = unloading_close_drive(pilot_pa, cut_in_pa, band_pa)
+    else:
+        down = 1.0 - up
+    latch = smoothstep01((position - 0.02) / 0.1)
+    s_up = up + (1.0 - up) * (1.0 - down) * latch
+    s_dn = down + (1.0 - down) * (1.0 - up) * (1.0 - latch)
+    return (s_up * (1.0 - position) - s_dn * position) / time_constant_s
+
+
+@law
+def spool_lag_rate_1_s(position, command, time_constant_s):
+    """Spool of a proportional/servo valve as a first-order lag at its bandwidth (the
+    reduced-order servo-valve model, Merritt 1967 §5; the valve circuit of seed ch. 4):
+    ``dx/dt = (clip(u, −1, 1) − x)/τ`` with ``x`` and ``u`` fractions of full stroke and
+    ``τ = 1/(2π f_n)``. Example: x = 0.2, u = 3, τ = 0.8 ms → 0.8/8e-4 = 1000 1/s."""
+    u = command
+    if u > 1.0:
+        u = 1.0
+    elif u < -1.0:
+        u = -1.0
+    return (u - position) / time_constant_s
+
+
+@law
+def compensator_displacement_fraction(sensed_pa, compensator_pa, band_pa, min_fraction):
+    """Displacement fraction of a pressure-compensated variable-displacement pump (quasi-static
+    compensator: the swash plate destrokes linearly over ``band`` as the sensed pressure rises
+    to the compensator setting; Manring, *Hydraulic Control Systems*, ch. 5; Esposito ch. 5):
+    ``ε = clip((p_c − p)/b, ε_min, 1)`` with corners rounded over 0.02 (:func:`soft_clip`).
+    Example: p_c = 11 MPa, b = 1 MPa, ε_min = 0.03: p = 10.5 MPa → 0.5; p = 5 MPa → 1
+    (to 1e-4)."""
+    return soft_clip((compensator_pa - sensed_pa) / band_pa, min_fraction, 1.0, 0.02)
+
+
+@law
+def pwm_on_fraction(start_s, duration_s, duty, frequency_hz):
+    """Fraction of the interval ``[t, t + h]`` during which a PWM signal of duty ``D`` at
+    ``f`` Hz is on, the signal on for the first ``D`` of each period (the command of
+    :func:`afo_mj.hydraulics.onoff_valve.pwm_command`, averaged over a step so that the duty
+    is exact at any step length; seed ch. 5). The on-time over ``[0, t]`` is
+    ``(k D + min(t f − k, D))/f`` with ``k = ⌊t f⌋``; the fraction is its increment over
+    ``h``. ``D ≤ 0`` gives 0, ``D ≥ 1`` gives 1. Example: f = 50 Hz, D = 0.3, t = 0.005 s,
+    h = 0.002 s (phase 0.25 → 0.35) → 0.05/0.1 = 0.5.
+    """
+    if duty <= 0.0:
+        return 0.0
+    if duty >= 1.0:
+        return 1.0
+    t1 = start_s + duration_s
+    k0 = math.floor(start_s * frequency_hz)
+    k1 = math.floor(t1 * frequency_hz)
+    on0 = (k0 * duty + min(start_s * frequency_hz - k0, duty)) / frequency_hz
+    on1 = (k1 * duty + min(t1 * frequency_hz - k1, duty)) / frequency_hz
+    return (on1 - on0) / duration_s
+
+
+@law
 def gas_accumulator_pressure_pa(fluid_volume_m3, gas_volume_m3, precharge_abs_pa,
                                 polytropic_index):
     """Gas pressure of a charged accumulator holding oil volume ``V_f`` (polytropic gas
