@@ -37,11 +37,11 @@ def test_lab_bench_matches_radau_on_a_stiff_case_with_end_stops():
     ref = reference_lab_bench(circuit, cmd_fn, n * 1e-3, 0.01, 20.0, 0.3)
     # the drive reaches the stops (|θ| > s/(2r)) both ways
     assert ref.y[6].max() > 0.2 and ref.y[6].min() < -0.2
-    # motion and pump speed within the issue's 1 %; the pressures trapped behind the stops
-    # (relief phase, then a pinned piston) drift by ~3 % of span (measured 2026-11-24):
-    # open work on issue 18, asserted at the level reached so that a regression shows
-    for key, row, tol in (("angle_rad", 6, 0.01), ("shaft", 1, 0.01), ("chamber_a", 4, 0.04),
-                          ("chamber_b", 5, 0.04), ("line_a", 2, 0.04)):
+    # the issue's 1 % on the motion, the pump speed and every pressure (measured: angle 0.04 %,
+    # shaft 0.46 %, pressures 0.57-0.58 %; the pressures were 3 % off while a step's compression
+    # of the aerated oil used the end-of-step compliance, see afo_mj.circuits.stepper)
+    for key, row, tol in (("angle_rad", 6, 0.01), ("shaft", 1, 0.01), ("chamber_a", 4, 0.01),
+                          ("chamber_b", 5, 0.01), ("line_a", 2, 0.01), ("line_b", 3, 0.01)):
         e = nrmse(log[key], ref.y[row])
         assert e < tol, (key, e)
     led = dev.ledger()
