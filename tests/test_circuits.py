@@ -1,127 +1,24 @@
 """Generated circuits (issue 18): numerics against a tight-tolerance Radau solution of the same
-circuit written out by hand here, ledger closure, the parameters that used to be silent, and
-the description errors."""
+circuit written out by hand (tests/circuit_reference.py), ledger closure, the parameters that
+used to be silent, and the description errors."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from circuit_reference import nrmse, reference_lab_bench
 
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import build
 from afo_mj.circuits.components import CircuitError
 from afo_mj.circuits.device import CircuitDevice
 from afo_mj.circuits.library import lab_bench, pump_accumulator, spring_return
-from afo_mj.hydraulics import laws as L
-from afo_mj.hydraulics.cylinder import Cylinder
-from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 
 STIFF = {"fluid": {"air_fraction": 0.01},
          "components": {"cylinder": {"kind": "pulley_cylinders", "params": {
              "count": 1.0, "pulley_radius_m": 0.04, "cylinder.bore_m": 12e-3,
              "cylinder.rod_diameter_m": 2e-3, "cylinder.stroke_m": 0.016,
              "cylinder.dead_volume_a_m3": 0.4e-6, "cylinder.dead_volume_b_m3": 0.6e-6}}}}
-
-
-def _reference_lab_bench(circuit: Circuit, cmd_fn, t_end, inertia, k_load, c_load):
-    """The lab bench written out as one ODE (motor current, shaft speed, four node
-    pressures, joint angle and velocity) from the component parameters, integrated by Radau
-    at rtol 1e-9: a second implementation of the assembly the generator writes."""
-    comp = {c.name: c.params for c in circuit.components}
-    fl = circuit.fluid
-    fluid = Fluid(fl)
-    T = circuit.thermal.ambient_temperature_k
-    mu = L.dynamic_viscosity_pa_s(T, fluid.walther_b, fluid.walther_c, fl.density_kg_m3,
-                                  fl.thermal_expansion_per_k, fl.reference_temperature_k)
-    rho = L.oil_density_kg_m3(T, fl.density_kg_m3, fl.thermal_expansion_per_k,
-                              fl.reference_temperature_k)
-    m, dr = comp["motor"].motor, comp["motor"].driver
-    pu = comp["pump"]
-    d = pu.displacement_m3_rev / (2 * math.pi)
-    cyp = comp["cylinder"]
-    cy = cyp.cylinder
-    cyl = Cylinder(cy)
-    A, r, s = cyl.area_a_m2, cyp.pulley_radius_m, cy.stroke_m
-    ps, rs = cyl.piston_seal, cyl.rod_seal
-    fc = ps.coulomb_force_n + 2 * rs.coulomb_force_n
-    gst = ps._stribeck_gain + 2 * rs._stribeck_gain
-    fv = ps._fv + 2 * rs._fv
-    p_res = comp["charge"].pressure_pa
-    v_port = comp["port_a"].volume_m3
-    ho = comp["hose_a"]
-    vh2 = 0.5 * math.pi / 4 * ho.bore_m ** 2 * ho.length_m
-    kinv = 1.0 / ho.wall_bulk_modulus_pa
-    rv = comp["relief_ab"]
-    ck = comp["check_a"]
-    vbus = circuit.options.supply_voltage_v
-    air = fl.air_fraction
-
-    def cap(p, vol):
-        b = L.bulk_modulus_pa(max(p + ATMOSPHERIC_PRESSURE_PA, fl.pressure_floor_pa),
-                              fl.liquid_bulk_modulus_pa, air, fl.polytropic_index,
-                              ATMOSPHERIC_PRESSURE_PA)
-        return vol / b
-
-    def relief(dp):
-        if dp > 0:
-            area = L.relief_valve_area_m2(dp, rv.cracking_dp_pa, rv.override_dp_pa,
-                                          rv.max_area_m2, rv.leakage_area_m2)
-        else:
-            area = rv.leakage_area_m2
-        return L.orifice_flow_m3_s(dp, area, rv.discharge_coefficient, rho,
-                                   rv.transition_pressure_pa)
-
-    def f(t, z):
-        i, w, pa, pb, ca, cb, th, thd = z
-        v = L.driver_voltage_v(cmd_fn(t), m.torque_constant_nm_a * w, m.resistance_ohm,
-                               dr.current_limit_a, 1.0, dr.max_duty, vbus)
-        di = (v - m.resistance_ohm * i - m.torque_constant_nm_a * w) / m.inductance_h
-        dp = pa - pb
-        q = L.pump_flow_m3_s(w, dp, d, pu.slip_coefficient, 0.0, mu)
-        tf = L.pump_friction_torque_nm(w, dp, d, pu.coulomb_coefficient,
-                                       pu.viscous_coefficient, pu.drag_torque_nm,
-                                       pu.smoothing_speed_rad_s, mu)
-        tm = L.motor_friction_torque_nm(w, m.coulomb_torque_nm,
-                                        m.viscous_coefficient_nm_s_rad, m.smoothing_speed_rad_s)
-        dw = (m.torque_constant_nm_a * i - tm - d * dp - tf) / (
-            m.rotor_inertia_kg_m2 + pu.rotor_inertia_kg_m2)
-        qa = L.hose_flow_m3_s(pa - ca, ho.length_m, ho.bore_m, mu, rho, 0.0, 1.0)
-        qb = L.hose_flow_m3_s(pb - cb, ho.length_m, ho.bore_m, mu, rho, 0.0, 1.0)
-        qr = relief(dp) - relief(-dp)
-        qca = L.check_valve_flow_m3_s(p_res - pa, ck.conductance_m3_s_pa, ck.cracking_pa,
-                                      ck.band_pa)
-        qcb = L.check_valve_flow_m3_s(p_res - pb, ck.conductance_m3_s_pa, ck.cracking_pa,
-                                      ck.band_pa)
-        x = 0.5 * s - r * th
-        xd = -r * thd
-        ql = L.laminar_gap_flow_m3_s(ca - cb, cyl.leakage_conductance_m3, mu)
-        fs = L.seal_friction_n(xd, ca - cb, fc, gst, ps._v_st, ps._v_c, fv, 0.0)
-        fe = L.end_stop_force_n(x, xd, s, cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m)
-        cpa = cap(pa, v_port + vh2) + vh2 * kinv
-        cpb = cap(pb, v_port + vh2) + vh2 * kinv
-        cca = cap(ca, max(cy.dead_volume_a_m3 + A * x, 0.5 * cy.dead_volume_a_m3) + vh2) \
-            + vh2 * kinv
-        ccb = cap(cb, max(cy.dead_volume_b_m3 + A * (s - x), 0.5 * cy.dead_volume_b_m3)
-                  + vh2) + vh2 * kinv
-        tau = -r * (A * (ca - cb) - fs + fe)
-        thdd = (tau - k_load * th - c_load * thd) / inertia
-        return [di, dw, (q - qa - qr + qca) / cpa, (-q - qb + qr + qcb) / cpb,
-                (qa - A * xd - ql) / cca, (qb + A * xd + ql) / ccb, thd, thdd]
-
-    p0 = circuit.options.initial_pressure_pa
-    z0 = [0.0, 0.0, p0, p0, p0, p0, 0.0, 0.0]
-    t_eval = np.arange(1, int(round(t_end / 1e-3)) + 1) * 1e-3
-    sol = solve_ivp(f, (0.0, t_end), z0, method="Radau", rtol=1e-9, atol=[1e-9, 1e-7] +
-                    [1e-3] * 4 + [1e-10, 1e-8], t_eval=t_eval, max_step=2e-4)
-    assert sol.success, sol.message
-    return sol
-
-
-def _nrmse(a, b):
-    return float(np.sqrt(np.mean((a - b) ** 2)) / (np.max(b) - np.min(b)))
 
 
 @pytest.mark.slow
@@ -137,15 +34,15 @@ def test_lab_bench_matches_radau_on_a_stiff_case_with_end_stops():
     cmd = np.array([cmd_fn(k * 1e-3) for k in range(n)])
     dev = CircuitDevice(circuit)
     log = dev.run_load(cmd, inertia_kg_m2=0.01, stiffness_nm_rad=20.0, damping_nm_s_rad=0.3)
-    ref = _reference_lab_bench(circuit, cmd_fn, n * 1e-3, 0.01, 20.0, 0.3)
+    ref = reference_lab_bench(circuit, cmd_fn, n * 1e-3, 0.01, 20.0, 0.3)
     # the drive reaches the stops (|θ| > s/(2r)) both ways
     assert ref.y[6].max() > 0.2 and ref.y[6].min() < -0.2
-    # motion and pump speed within the issue's 1 %; the pressures trapped behind the stops
-    # (relief phase, then a pinned piston) drift by ~3 % of span (measured 2026-11-24):
-    # open work on issue 18, asserted at the level reached so that a regression shows
-    for key, row, tol in (("angle_rad", 6, 0.01), ("shaft", 1, 0.01), ("chamber_a", 4, 0.04),
-                          ("chamber_b", 5, 0.04), ("line_a", 2, 0.04)):
-        e = _nrmse(log[key], ref.y[row])
+    # the issue's 1 % on the motion, the pump speed and every pressure (measured: angle 0.04 %,
+    # shaft 0.46 %, pressures 0.57-0.58 %; the pressures were 3 % off while a step's compression
+    # of the aerated oil used the end-of-step compliance, see afo_mj.circuits.stepper)
+    for key, row, tol in (("angle_rad", 6, 0.01), ("shaft", 1, 0.01), ("chamber_a", 4, 0.01),
+                          ("chamber_b", 5, 0.01), ("line_a", 2, 0.01), ("line_b", 3, 0.01)):
+        e = nrmse(log[key], ref.y[row])
         assert e < tol, (key, e)
     led = dev.ledger()
     assert abs(led["balance_error_rel"]) < 1e-9

@@ -95,6 +95,32 @@ def test_bulk_modulus_is_the_mixtures_definition():
     assert L.bulk_modulus_pa(2e6, bl, 0.0, 1.4, pa) == bl
 
 
+def test_mean_compliance_is_the_integral_of_one_over_b():
+    """(∫ dp/B)/(p1 − p0) by scipy quadrature of the bulk-modulus law (clamped at the floor,
+    the kink given to quad), in either order; a zero-width interval gives 1/B(p); the example."""
+    pa, bl, fl = 101325.0, 1.5e9, 2e3
+    for alpha, n, p0, p1 in ((0.01, 1.4, 0.4e6, 4.6e6), (0.01, 1.4, 4.6e6, 0.4e6),
+                             (0.05, 1.2, 2e3, 1e7), (0.1, 1.0, 1e3, 3e5),
+                             (0.01, 1.4, 500.0, 1500.0), (0.0, 1.4, 1e5, 2e7),
+                             (0.01, 1.4, 3e5, 3e5 + 1.0)):
+        def inv_b(p, alpha=alpha, n=n):
+            return 1.0 / L.bulk_modulus_pa(max(p, fl), bl, alpha, n, pa)
+        lo, hi = min(p0, p1), max(p0, p1)
+        ref = quad(inv_b, lo, hi, points=[fl] if lo < fl < hi else None, epsabs=0.0,
+                   epsrel=1e-12, limit=400)[0] / (hi - lo)
+        got = L.oil_mean_compliance_per_pa(p0, p1, bl, alpha, n, pa, fl)
+        assert got == pytest.approx(ref, rel=5e-5), (alpha, n, p0, p1)
+    for p in (1e3, 0.2e6, 5e6):
+        assert L.oil_mean_compliance_per_pa(p, p, bl, 0.01, 1.4, pa, fl) == \
+            1.0 / L.bulk_modulus_pa(max(p, fl), bl, 0.01, 1.4, pa)
+    # a tiny interval: the mean → the point value (no cancellation in the gas term)
+    p = 0.2e6
+    tiny = L.oil_mean_compliance_per_pa(p, p * (1 + 1e-10), bl, 0.01, 1.4, pa, fl)
+    assert tiny == pytest.approx(1.0 / L.bulk_modulus_pa(p, bl, 0.01, 1.4, pa), rel=1e-8)
+    assert L.oil_mean_compliance_per_pa(0.4e6, 4.6e6, bl, 0.01, 1.4, pa, fl) == pytest.approx(
+        1.401e-9, rel=1e-3)
+
+
 def test_walther_satisfies_astm_d341():
     """log10 log10(ν[cSt] + 0.7) = b − c log10 T, checked backwards from the law's ν."""
     b, c = 9.32, 3.65
@@ -529,6 +555,8 @@ SAMPLES = {
     "soft_clip": [(5.0, -1.0, 1.0, 0.05), (0.2, -1.0, 1.0, 0.05), (-3.0, -1.0, 1.0, 0.0)],
     "smooth_abs": [(-3.0, 4.0), (0.0, 0.1)],
     "bulk_modulus_pa": [(1e6, 1.5e9, 0.01, 1.4, 101325.0), (3e6, 1.5e9, 0.0, 1.4, 101325.0)],
+    "oil_mean_compliance_per_pa": [(0.4e6, 4.6e6, 1.5e9, 0.01, 1.4, 101325.0, 2e3),
+                                   (1e3, 3e5, 1.5e9, 0.1, 1.0, 101325.0, 2e3)],
     "walther_viscosity_m2_s": [(313.15, 9.32, 3.65), (353.0, 9.5, 3.7)],
     "oil_density_kg_m3": [(311.0, 875.0, 7e-4, 288.15)],
     "dynamic_viscosity_pa_s": [(330.0, 9.5, 3.7, 875.0, 7e-4, 288.15)],

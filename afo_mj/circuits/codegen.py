@@ -5,7 +5,8 @@ its equations through an :class:`Emitter`. The emitter numbers the states (a pre
 hydraulic node that is not held by a reservoir, a speed per shaft, then the components' own
 states), the packed parameters and the named losses, stores and probes, and assembles
 straight-line Python for ``rhs`` (node continuity ``C(p) ṗ = ΣQ`` with
-``C = ΣV/B(p) + ΣV_w/K_w + ΣC_acc``, shaft ``J ω̇ = ΣT``), the controller, and the begin/close
+``C = ΣV/B(p) + ΣV_w/K_w + ΣC_acc``, shaft ``J ω̇ = ΣT``; ``rhs_step`` is the same with the
+mean of ``1/B`` over the stepper's step in place of ``1/B(p)``), the controller, and the begin/close
 hooks (oil viscosity and density, battery, heat). The source of the one stepper
 (:mod:`afo_mj.circuits.stepper`) is appended, and the module is written to the cache directory
 under the hash of its text and imported; numba caches its machine code beside it, so a new
@@ -379,11 +380,13 @@ def generate(circuit: Circuit):
                 raise CircuitError(f"node {node!r} has no capacitance: no component adds oil "
                                    "volume or compliance to it (add a volume, hose or "
                                    "accumulator)")
-            b = f"B_{node}"
-            body.append(f"{b} = bulk_modulus_pa(max({ref} + P_ATM, {floor}), {b_l}, {air}, "
-                        f"{npoly}, P_ATM)")
+            # oil compliance: the mean of 1/B over the step y_old → y (``yo``), so that a
+            # backward-Euler step conserves the node's oil (the tangent 1/B(y) when yo = y)
+            b = f"K_{node}"
+            body.append(f"{b} = oil_mean_compliance_per_pa(yo[{k}] + P_ATM, {ref} + P_ATM, "
+                        f"{b_l}, {air}, {npoly}, P_ATM, {floor})")
             wall = " + ".join(f"({v}) * ({i})" for v, i in g.walls[node]) or "0.0"
-            cexpr = f"({_expr_sum(g.vols[node])}) / {b} + {wall}"
+            cexpr = f"({_expr_sum(g.vols[node])}) * {b} + {wall}"
             if g.caps[node]:
                 cexpr += " + " + _expr_sum(g.caps[node])
             body.append(f"C_{node} = {cexpr}")
@@ -525,7 +528,9 @@ def generate(circuit: Circuit):
     src.append("Y_TYP = np.array([" + ", ".join(repr(float(s["typ"])) for s in g.states)
                + "])")
     src.append("")
-    src.append(fn("rhs", "y, th, thd, U, P, dy, F", body))
+    src.append(fn("rhs_step", "y, yo, th, thd, U, P, dy, F", body))
+    src.append("")
+    src.append(fn("rhs", "y, th, thd, U, P, dy, F", ["rhs_step(y, y, th, thd, U, P, dy, F)"]))
     src.append("")
     src.append(fn("controller", "y, th, thd, cmd, h, P, W",
                   ["U = W[W_U:W_U + N_U]"]
