@@ -163,6 +163,15 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
             if k not in keys:
                 raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys))
     preset, params, ov = device_params(dev, origin)
+    from afo_mj.devices.valve_afo import ValveAnkleParams
+    if isinstance(params, ValveAnkleParams):
+        # the HAFO protocols drive HafoDevice (pump-controlled kernel): a valve preset's
+        # parameters would run through the pump kernel and be reported under its name
+        from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
+        raise fail("device.preset", preset,
+                   "a pump-controlled preset for the HAFO bench protocols (bench.kind = "
+                   f'"hafo"): {" | ".join(HAFO_PRESETS)}; preset {preset!r} is '
+                   'valve-controlled: use bench.kind = "stiffness" (the stiffness rig)')
     tests = bench.get("tests", list(BENCH_TESTS))
     if (not isinstance(tests, list) or not tests or len(set(tests)) != len(tests)
             or any(t not in BENCH_TESTS for t in tests)):
