@@ -111,7 +111,15 @@ def _device_files_writer(results, reference, dsum, name, wall_s):
     def write(tmp: Path) -> None:
         from afo_mj.outputs.device_figures import plot_device_run
         _run_info_writer(wall_s)(tmp)
-        plot_device_run(tmp, results, reference, dsum, name)
+        if "circuit" in dsum:
+            # a circuit's log has its own signal names: the gait figures without the preset
+            # devices' hydraulics panels, and the circuit's own torque/pressure figure
+            from afo_mj.outputs.circuit_figures import plot_circuit_gait
+            plot_device_run(tmp, {c: (r, a, None) for c, (r, a, _d) in results.items()},
+                            reference, dsum, name)
+            plot_circuit_gait(tmp, results, dsum, name)
+        else:
+            plot_device_run(tmp, results, reference, dsum, name)
     return write
 
 
