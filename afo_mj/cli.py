@@ -111,7 +111,15 @@ def _device_files_writer(results, reference, dsum, name, wall_s):
     def write(tmp: Path) -> None:
         from afo_mj.outputs.device_figures import plot_device_run
         _run_info_writer(wall_s)(tmp)
-        plot_device_run(tmp, results, reference, dsum, name)
+        if "circuit" in dsum:
+            # a circuit's log has its own signal names: the gait figures without the preset
+            # devices' hydraulics panels, and the circuit's own torque/pressure figure
+            from afo_mj.outputs.circuit_figures import plot_circuit_gait
+            plot_device_run(tmp, {c: (r, a, None) for c, (r, a, _d) in results.items()},
+                            reference, dsum, name)
+            plot_circuit_gait(tmp, results, dsum, name)
+        else:
+            plot_device_run(tmp, results, reference, dsum, name)
     return write
 
 
@@ -365,9 +373,10 @@ def _run_bench(args) -> int:
         print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
+    from afo_mj.analysis.circuit_bench import CircuitBenchError
     try:
         summary, series = run_bench_scenario(bs)
-    except (BenchError, FloatingPointError) as exc:
+    except (BenchError, CircuitBenchError, FloatingPointError) as exc:
         print(f"afo-mj run: {bs.name}: {exc}; nothing written", file=sys.stderr)
         return 1
     wall = time.perf_counter() - t0
@@ -380,6 +389,9 @@ def _run_bench(args) -> int:
         if bs.bench_kind == "stiffness":
             from afo_mj.scenarios.stiffness_bench import plot_stiffness_bench
             plot_stiffness_bench(series, tmp)
+        elif bs.bench_kind == "circuit":
+            from afo_mj.outputs.circuit_figures import plot_circuit_bench
+            plot_circuit_bench(series, tmp, bs.name)
         else:
             plot_bench(series, tmp)
 
@@ -388,6 +400,8 @@ def _run_bench(args) -> int:
     except ResultDirError as exc:
         print(f"afo-mj run: {bs.name}: {exc}", file=sys.stderr)
         return 1
+    if bs.bench_kind == "circuit":
+        return _print_circuit_bench(args, bs, summary, out, wall)
     rc = _bench_rrd_option(args, bs, series)
     print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
     if bs.bench_kind == "stiffness":
@@ -417,6 +431,36 @@ def _run_bench(args) -> int:
           f"balance error {100 * summary['energy']['balance_error_rel']:.3f} %")
     print(f"  results: {out}")
     return rc
+
+
+def _print_circuit_bench(args, bs, summary, out, wall) -> int:
+    b = summary["bench"]
+    print(f"afo_mj bench: {bs.name}, circuit {summary['circuit']['name']} (controller "
+          f"{summary['circuit']['controller']}; {wall:.1f} s wall)")
+    rows = (("torque_velocity", "stall_torque_nm", "N*m", ".1f"),
+            ("torque_velocity", "no_load_speed_deg_s", "deg/s", ".1f"),
+            ("isometric_steps", "rise_time_s", "s (largest step, 10-90 %)", ".4f"),
+            ("isometric_steps", "overshoot_pct", "%", ".1f"),
+            ("frequency_response", "resonance_hz", "Hz (open-loop velocity/voltage peak)",
+             ".1f"),
+            ("frequency_response", "resonance_peak_db", "dB above the lowest frequency", ".1f"),
+            ("position_step", "rise_time_s", "s (closed-loop position step)", ".3f"),
+            ("position_step", "overshoot_pct", "% (position step)", ".1f"),
+            ("stiffness", "worst_error_rel", "(worst emulated stiffness error)", ".3f"),
+            ("tracking", "rmse_nm", "N*m (torque profile on a moving load)", ".2f"))
+    for proto, key, unit, fmt in rows:
+        v = b.get(proto, {}).get(key)
+        if isinstance(v, (int, float)):
+            print(f"  {proto + '.' + key:40s} {v:{fmt}} {unit}")
+    e = summary["energy"]
+    print(f"  worst energy balance error {e['balance_error_rel']:.2e} over "
+          f"{len(summary['ledger'])} runs ({'closed' if e['ledger_closed'] else 'NOT closed'}"
+          f" within {e['tolerance']:g})")
+    print(f"  results: {out}")
+    if getattr(args, "rrd", None):
+        print("afo-mj: --rrd is not written for a circuit bench (no time-domain recording "
+              "of its protocols yet)", file=sys.stderr)
+    return 0
 
 
 def _bench_rrd_option(args, bs, series) -> int:

@@ -61,6 +61,11 @@ class PumpTorqueGains(Parameters):
                                        doc="anti-windup clamp on ∫ pressure error")
     speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
                                           doc="k_ω: motor voltage per unit speed error")
+    spring_feedforward: float = param(0.0, unit="-", lo=0.0, hi=1.0,
+                                      doc="k_s: fraction of a spring-return actuator's "
+                                          "spring force added to the pressure demand (0: the "
+                                          "HAFO's law; 1: the spring's torque compensated, "
+                                          "so zero command is transparent)")
 
 
 class PumpTorque(Controller):
@@ -71,8 +76,14 @@ class PumpTorque(Controller):
     PI law on the pressure error; the voltage adds the current feedforward for the pump torque
     and a proportional speed loop on the motor's Hall speed::
 
-        ω_d = −k_τ θ̇ / d + k_p e + k_i ∫e dt,   e = −τ_cmd/k_τ − (p_a − p_b)
+        ω_d = −k_τ θ̇ / d + k_p e + k_i ∫e dt,   e = Δp_d − (p_a − p_b)
+        Δp_d = −τ_cmd/k_τ + k_s (F_0 + k x(θ)) / A
         v   = R d Δp_d / K + K ω_d + k_ω (ω_d − ω)
+
+    The spring term (``spring_feedforward`` k_s, default 0) is for a spring-return cylinder
+    (:class:`~afo_mj.circuits.components.SpringReturnCylinder`): the pressure that holds its
+    return spring, ``(F_0 + k (x_0 − r θ)) / A``, so that the delivered torque, not only the
+    hydraulic one, follows the command.
 
     References: ``motor``, ``pump``, ``actuator`` (component names); the actuator's ports
     ``a``/``b`` are the measured nodes (``b`` may be absent: single-acting, gauge)."""
@@ -100,12 +111,23 @@ class PumpTorque(Controller):
         d = g.param_ref(pump, "d")
         R, K = g.param_ref(motor, "R"), g.param_ref(motor, "K")
         integ = g.ctrl_slot("pressure_integral")
+        ks = g.param(circuit.controller_owner, "spring_ff", p.spring_feedforward)
+        spring = "0.0"
+        if act.kind == "spring_return_cylinder":
+            spring = (f"{ks} * ({g.param_ref(act, 'spring_f0')} + {g.param_ref(act, 'spring_k')}"
+                      f" * ({g.param_ref(act, 'x0')} - {g.param_ref(act, 'arm')} * th)) / "
+                      f"{g.param_ref(act, 'area')}")
+        elif p.spring_feedforward != 0.0:
+            raise CircuitError(f"controller.params.spring_feedforward = "
+                               f"{p.spring_feedforward!r}: actuator {act.name!r} ({act.kind}) "
+                               "has no return spring (allowed: 0, or a "
+                               "spring_return_cylinder actuator)")
         pa = g.p(act, "a")
         pb = g.p(act, "b") if "b" in act.ports else "0.0"
         w = g.speed(pump, "shaft")
         for line in (f"dp_meas = {pa} - {pb}",
                      f"W[W_TAU_MEAS] = -{ktp} * dp_meas",
-                     f"dp_des = -cmd / {ktp}",
+                     f"dp_des = -cmd / {ktp} + {spring}",
                      "err = dp_des - dp_meas",
                      f"integ = min(max({integ} + err * h, -{lim}), {lim})",
                      f"{integ} = integ",

@@ -8,6 +8,8 @@
   gas accumulator on the pump's line a.
 * :func:`spring_return` — a single-acting cylinder with spring return on an ankle lever,
   pump-driven from a vented tank: a plantarflexion-only assist.
+* :func:`pump_accumulator_gait`, :func:`spring_return_gait` — the same sized for walking
+  (:data:`GAIT_DRIVE`).
 """
 
 from __future__ import annotations
@@ -134,14 +136,63 @@ def spring_return(overrides: dict | None = None) -> Circuit:
         "chamber": ["hose.b", "cylinder.a"],
         "ankle": ["cylinder.joint"],
     })
-    # the suction port draws from the tank through a second check valve
-    comps["inlet"] = {"kind": "check_valve"}
+    # the suction port draws from the tank, and takes the oil back when the pump reverses,
+    # through a short open suction line (a check valve there dead-heads the reversed pump:
+    # the chamber could not be drained and the suction port pumped up to 22 MPa in gait)
+    comps["inlet"] = {"kind": "hose", "params": {"length_m": 0.1, "bore_m": 4e-3,
+                                                 "wall_bulk_modulus_pa": 1.5e9}}
     nodes["vent"].append("inlet.a")
     nodes["suction"].append("inlet.b")
     spec = {"name": "spring_return", "components": comps, "nodes": nodes,
             "controller": {"kind": "pump_torque", "motor": "motor", "pump": "pump",
                            "actuator": "cylinder"}}
     return Circuit.from_dict(_merge(spec, overrides))
+
+
+#: What sizes a pump-controlled circuit for walking (as the HAFO's ``hafo_gait`` preset,
+#: :data:`afo_mj.devices.hafo.HAFO_GAIT`): with the 0.2 cm³/rev pump the flow feedforward
+#: asks 215 pump rad/s per ankle rad/s, so at push-off (≈ 4 rad/s) the motor's EMF passes the
+#: 22 V bus and the pump brakes the ankle at the relief pressure (measured on
+#: pump_accumulator, 40 N·m Zhang profile: delivered −30 … +99 N·m, tracking RMSE 43.5 N·m).
+#: A 0.6 cm³/rev pump (72 rad/s per ankle rad/s), an 18.6 A driver and a 0.2 Ω motor keep the
+#: 65 N·m-class stall at the same pressure; 4.2 mm hoses keep the line loss per hose at three
+#: times the flow. The pressure loop gains are raised (k_p 4e-5 rad/s/Pa, k_i 1e-3):
+#: an accumulator on the line, or a single chamber, is a far larger compliance than the
+#: HAFO's closed pair, and the HAFO's gains left a 10 bar error through push-off.
+GAIT_DRIVE = {
+    "components": {
+        "pump": {"kind": "pump", "params": {"displacement_m3_rev": 0.6e-6,
+                                            "rotor_inertia_kg_m2": 6e-7}},
+        "motor": {"kind": "motor", "params": {
+            "motor.resistance_ohm": 0.2, "motor.inductance_h": 0.05e-3,
+            "motor.rotor_inertia_kg_m2": 1.2e-6, "driver.current_limit_a": 18.6}},
+        "battery": {"kind": "battery", "params": {"battery.max_current_a": 30.0}}},
+    "controller": {"params": {"pressure_gain_rad_s_per_pa": 4e-5,
+                              "pressure_integral_gain_rad_per_pa": 1e-3}},
+}
+
+
+def pump_accumulator_gait(overrides: dict | None = None) -> Circuit:
+    """:func:`pump_accumulator` sized for walking (:data:`GAIT_DRIVE`, 4.2 mm hoses)."""
+    hose = {"kind": "hose", "params": {"bore_m": 4.2e-3}}
+    gait = _merge(GAIT_DRIVE, {"name": "pump_accumulator_gait",
+                               "components": {"hose_a": hose, "hose_b": hose}})
+    return pump_accumulator(_merge(gait, overrides))
+
+
+def spring_return_gait(overrides: dict | None = None) -> Circuit:
+    """:func:`spring_return` sized for walking (:data:`GAIT_DRIVE`, a 4.2 mm hose), its piston
+    at 16 mm at the neutral ankle so that the 40 mm stroke spans −0.46 … +0.32 rad (the
+    10 mm of :func:`spring_return` puts the retracted stop at +0.2 rad, inside the walker's
+    dorsiflexion: −270 N·m on the stop in gait), and the return spring compensated by the
+    controller (``spring_feedforward = 1``: zero command is transparent)."""
+    gait = _merge(GAIT_DRIVE, {
+        "name": "spring_return_gait",
+        "components": {"hose": {"kind": "hose", "params": {"bore_m": 4.2e-3}},
+                       "cylinder": {"kind": "spring_return_cylinder",
+                                    "params": {"neutral_position_m": 0.016}}},
+        "controller": {"params": {"spring_feedforward": 1.0}}})
+    return spring_return(_merge(gait, overrides))
 
 
 def _merge(spec: dict, overrides: dict | None) -> dict:
@@ -157,4 +208,5 @@ def _merge(spec: dict, overrides: dict | None) -> dict:
 
 
 LIBRARY = {"lab_bench": lab_bench, "pump_accumulator": pump_accumulator,
-           "spring_return": spring_return}
+           "spring_return": spring_return, "pump_accumulator_gait": pump_accumulator_gait,
+           "spring_return_gait": spring_return_gait}

@@ -61,7 +61,7 @@ from typing import Any, Mapping
 from afo_mj.scenarios.device_scenario import device_params
 from afo_mj.scenarios.walk_scenario import ScenarioError, apply_overrides
 
-TOP_KEYS = ("name", "description", "device", "bench")
+TOP_KEYS = ("name", "description", "device", "bench", "circuit")
 DEVICE_KEYS = ("preset", "params")
 BENCH_KEYS = ("tests", "timestep_s", "body_mass_kg", "height_m")
 #: ``bench.kind`` values: the HAFO tests, the stiffness rig
@@ -91,8 +91,20 @@ class BenchScenario:
     bench_kind: str = "hafo"
     #: the stiffness rig's sweep (``bench_kind == "stiffness"``), else None
     stiffness: Any = None             # stiffness_bench.StiffnessSweepConfig
+    #: ``bench_kind == "circuit"``: the compiled ``[circuit]``, its description and the
+    #: protocols' settings (:class:`afo_mj.analysis.circuit_bench.CircuitBenchConfig`)
+    circuit: Any = None
+    circuit_spec: Any = None
+    circuit_bench: Any = None
 
     def as_dict(self) -> dict:
+        if self.bench_kind == "circuit":
+            import dataclasses as _dc
+            return {"name": self.name, "description": self.description, "kind": "bench",
+                    "file": None if self.source_path is None else str(self.source_path),
+                    "circuit": self.circuit_spec,
+                    "bench": {"kind": "circuit", "tests": list(self.tests),
+                              **_dc.asdict(self.circuit_bench)}}
         if self.bench_kind == "stiffness":
             c = self.stiffness
             deg = math.pi / 180.0
@@ -149,6 +161,9 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
     bench = doc.get("bench", {})
     if not isinstance(bench, dict):
         raise fail("bench", bench, "a table")
+    if "circuit" in doc:
+        return _parse_circuit_bench(doc, bench, name, description, origin, fail, source_path,
+                                    text)
     kind = bench.get("kind", "hafo")
     if kind not in BENCH_KINDS:
         raise fail("bench.kind", kind, " | ".join(f'"{k}"' for k in BENCH_KINDS))
@@ -163,6 +178,15 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
             if k not in keys:
                 raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys))
     preset, params, ov = device_params(dev, origin)
+    from afo_mj.devices.valve_afo import ValveAnkleParams
+    if isinstance(params, ValveAnkleParams):
+        # the HAFO protocols drive HafoDevice (pump-controlled kernel): a valve preset's
+        # parameters would run through the pump kernel and be reported under its name
+        from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
+        raise fail("device.preset", preset,
+                   "a pump-controlled preset for the HAFO bench protocols (bench.kind = "
+                   f'"hafo"): {" | ".join(HAFO_PRESETS)}; preset {preset!r} is '
+                   'valve-controlled: use bench.kind = "stiffness" (the stiffness rig)')
     tests = bench.get("tests", list(BENCH_TESTS))
     if (not isinstance(tests, list) or not tests or len(set(tests)) != len(tests)
             or any(t not in BENCH_TESTS for t in tests)):
@@ -257,6 +281,90 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
                          bench_kind="stiffness", stiffness=cfg)
 
 
+#: ``[bench]`` keys of a circuit bench (``[circuit]`` given): the protocols and the settings
+#: of :class:`afo_mj.analysis.circuit_bench.CircuitBenchConfig`, with their ranges
+CIRCUIT_BENCH_RANGES = {
+    "timestep_s": (1e-5, 1e-3), "load_inertia_kg_m2": (1e-4, 1.0),
+    "load_stiffness_nm_rad": (0.0, 1e4), "load_damping_nm_s_rad": (0.0, 100.0),
+    "step_duration_s": (0.1, 5.0), "freq_min_hz": (0.1, 100.0),
+    "freq_max_hz": (1.0, 2000.0), "voltage_amplitude_v": (0.1, 100.0),
+    "position_step_rad": (-0.6, 0.6), "position_kp_nm_rad": (0.0, 1e4),
+    "position_kd_nm_s_rad": (0.0, 100.0), "torque_limit_nm": (1.0, 500.0),
+    "position_duration_s": (0.1, 10.0), "stiffness_amplitude_rad": (0.01, 0.5),
+    "stiffness_frequency_hz": (0.05, 10.0), "tracking_peak_torque_nm": (0.0, 200.0),
+    "tracking_amplitude_rad": (0.0, 0.5), "tracking_frequency_hz": (0.1, 5.0)}
+CIRCUIT_BENCH_INTS = {"freq_points": (15, 200), "tv_points": (2, 40),
+                      "tracking_cycles": (2, 50)}
+CIRCUIT_BENCH_LISTS = {"step_torques_nm": (0.5, 200.0), "stiffnesses_nm_rad": (0.5, 1e4)}
+
+
+def _parse_circuit_bench(doc, bench, name, description, origin, fail, source_path,
+                         text) -> BenchScenario:
+    """A ``[circuit]`` on the bench: the protocols of :mod:`afo_mj.analysis.circuit_bench`
+    (``bench.tests``), each checked against what the circuit's controller can run."""
+    from afo_mj.analysis.circuit_bench import (PROTOCOLS, CircuitBenchConfig,
+                                               protocol_problem)
+    from afo_mj.scenarios.circuit_scenario import load_circuit
+    if doc.get("device"):
+        raise fail("device", doc["device"], "nothing: the bench runs the [circuit] "
+                   "description (give either [circuit] or [device])")
+    keys = (("kind", "tests") + tuple(CIRCUIT_BENCH_RANGES) + tuple(CIRCUIT_BENCH_INTS)
+            + tuple(CIRCUIT_BENCH_LISTS))
+    for k in bench:
+        if k not in keys:
+            raise fail(f"bench.{k}", bench[k], "keys " + ", ".join(keys) + " (a [circuit] "
+                       "bench)")
+    if bench.get("kind", "circuit") != "circuit":
+        raise fail("bench.kind", bench["kind"], '"circuit" (the bench of a [circuit] '
+                   "description)")
+    spec, cc = load_circuit(doc["circuit"], origin)
+    tests = bench.get("tests", ["torque_velocity", "frequency_response"])
+    if (not isinstance(tests, list) or not tests or len(set(tests)) != len(tests)
+            or any(t not in PROTOCOLS for t in tests)):
+        raise fail("bench.tests", tests, "a non-empty list of distinct "
+                   + ", ".join(PROTOCOLS))
+    for t in tests:
+        why = protocol_problem(cc.circuit, t)
+        if why:
+            raise fail("bench.tests", tests, f"protocols circuit {cc.circuit.name!r} can run; "
+                       f"{why}")
+    kw = {}
+    for k, (lo, hi) in CIRCUIT_BENCH_RANGES.items():
+        if k in bench:
+            v = bench[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                    or not lo <= v <= hi:
+                raise fail(f"bench.{k}", v, f"a number in [{lo:g}, {hi:g}]")
+            kw[k] = float(v)
+    for k, (lo, hi) in CIRCUIT_BENCH_INTS.items():
+        if k in bench:
+            v = bench[k]
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise fail(f"bench.{k}", v, f"an integer in [{lo}, {hi}]")
+            kw[k] = v
+    for k, (lo, hi) in CIRCUIT_BENCH_LISTS.items():
+        if k in bench:
+            v = bench[k]
+            if (not isinstance(v, list) or not v or any(
+                    isinstance(x, bool) or not isinstance(x, (int, float))
+                    or not lo <= x <= hi for x in v)):
+                raise fail(f"bench.{k}", v, f"a non-empty list of numbers in [{lo:g}, {hi:g}]")
+            kw[k] = tuple(float(x) for x in v)
+    cfg = CircuitBenchConfig(**kw)
+    if cfg.freq_max_hz <= cfg.freq_min_hz:
+        raise fail("bench.freq_max_hz", cfg.freq_max_hz, f"above bench.freq_min_hz = "
+                   f"{cfg.freq_min_hz:g}")
+    if cfg.freq_max_hz * cfg.timestep_s > 0.05:
+        raise fail("bench.timestep_s", cfg.timestep_s, f"at most 1 / (20 x freq_max_hz) = "
+                   f"{0.05 / cfg.freq_max_hz:g} s (20 steps a cycle at the highest frequency)")
+    return BenchScenario(name=name, description=description,
+                         preset=f"circuit:{cc.circuit.name}", params=None,
+                         overrides=MappingProxyType({}), tests=tuple(tests),
+                         timestep_s=cfg.timestep_s, body_mass_kg=0.0, height_m=0.0,
+                         source_path=source_path, text=text, bench_kind="circuit",
+                         circuit=cc, circuit_spec=spec, circuit_bench=cfg)
+
+
 def load_bench_scenario(path, overrides=()) -> BenchScenario:
     p = Path(path)
     try:
@@ -272,6 +380,8 @@ def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
     (``bench.kind = "stiffness"``: the ``stiffness.*`` names, module docstring)."""
     if bs.bench_kind == "stiffness":
         return _run_stiffness_bench(bs)
+    if bs.bench_kind == "circuit":
+        return _run_circuit_bench(bs)
     from afo_mj.devices.hafo import HafoDevice
     from afo_mj.scenarios.hafo_bench import run_bench
     res, series = run_bench(bs.params, bs.tests, bs.body_mass_kg, bs.height_m,
@@ -319,4 +429,17 @@ def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
                            "drawn over the sweeps; energy_error_max: the largest |residual| / "
                            "max(|electrical in|, |mechanical out|)"},
     }
+    return summary, series
+
+
+def _run_circuit_bench(bs: BenchScenario) -> tuple[dict, dict]:
+    from afo_mj.analysis.circuit_bench import run_circuit_bench
+    res, series = run_circuit_bench(bs.circuit, bs.tests, bs.circuit_bench)
+    energy = res.pop("energy")
+    ledger = res.pop("ledger")
+    summary = {"format": "afo_mj circuit bench summary v1",
+               "scenario": bs.as_dict(),
+               "circuit": {"name": bs.circuit.circuit.name,
+                           "controller": bs.circuit.circuit.controller.kind},
+               "bench": res, "ledger": ledger, "energy": energy}
     return summary, series

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +56,10 @@ class DeviceConfig:
     impedance: list | None = None
     #: stiffness sweep: condition name → impedance rows (conditions ``assist_k<K>``)
     impedance_conditions: dict = dataclasses.field(default_factory=dict)
+    #: a circuit description worn instead of a preset (``[circuit]``): the compiled circuit
+    #: (:class:`afo_mj.circuits.codegen.CompiledCircuit`) and its description; else None
+    circuit: Any = None
+    circuit_spec: dict | None = None
 
 
 def device_params(dev: dict, origin: str):
@@ -82,8 +87,9 @@ def device_params(dev: dict, origin: str):
 def device_config(scenario) -> DeviceConfig | None:
     """Validate a scenario's ``[device]``/``[assistance]`` tables (None without a device)."""
     dev, ass = dict(scenario.device), dict(scenario.assistance)
+    circ = dict(getattr(scenario, "circuit", {}) or {})
     origin = str(scenario.source_path or scenario.name)
-    if not dev:
+    if not dev and not circ:
         if ass:
             raise ScenarioError(f"{origin}: [assistance] is given without a [device]")
         return None
@@ -105,7 +111,23 @@ def device_config(scenario) -> DeviceConfig | None:
     if (not isinstance(conds, list) or not conds or any(c not in CONDITIONS for c in conds)
             or len(set(conds)) != len(conds)):
         raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
-    preset, params, base_overrides = device_params(dev, origin)
+    cc = spec = None
+    if circ:
+        both = [k for k in ("preset", "params", "variants") if k in dev]
+        if both:
+            raise fail(f"device.{both[0]}", dev[both[0]], "nothing: the scenario wears the "
+                       "[circuit] description (give either [circuit] or device.preset)")
+        from afo_mj.scenarios.circuit_scenario import load_circuit
+        spec, cc = load_circuit(circ, origin)
+        preset, params, base_overrides = f"circuit:{cc.circuit.name}", None, {}
+        if "assist" in conds and ass.get("profile", "zhang") != "impedance" \
+                and cc.circuit.controller.kind == "open_loop":
+            raise fail("circuit.controller.kind", "open_loop", "a torque controller "
+                       "(circuit.controller.kind = \"pump_torque\") for the assist condition: "
+                       "open_loop passes the command through as the motor voltage, so a "
+                       "torque profile cannot be commanded")
+    else:
+        preset, params, base_overrides = device_params(dev, origin)
     impedance, sweep = None, []
     variants_doc = dev.get("variants", {})
     if not isinstance(variants_doc, dict) or any(not isinstance(v, dict)
@@ -139,6 +161,10 @@ def device_config(scenario) -> DeviceConfig | None:
                 raise fail("assistance.profile", kind, '"zhang" | "spline" | "impedance"')
         except ParameterError as exc:
             raise ScenarioError(f"{origin}: {exc}") from None
+    if impedance is not None and cc is not None:
+        raise fail("assistance.profile", "impedance", "a valve-circuit device.preset (e.g. "
+                   "phafo) for impedance emulation; the [circuit] controllers "
+                   f"({cc.circuit.controller.kind}) take a torque or voltage command")
     if impedance is not None:
         from afo_mj.devices.valve_afo import ValveAnkleParams, impedance_table
         if not isinstance(params, ValveAnkleParams):
@@ -153,7 +179,8 @@ def device_config(scenario) -> DeviceConfig | None:
             conds = [n for c in conds for n in ([n for n, _ in sweep] if c == "assist"
                                                  else [c])]
     return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile, variants,
-                        impedance, dict(sweep) if impedance is not None else {})
+                        impedance, dict(sweep) if impedance is not None else {},
+                        circuit=cc, circuit_spec=spec)
 
 
 def _impedance_rows(ass: dict, fail):
@@ -260,21 +287,20 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     cmd = L["commanded_torque_nm"][:n_log, k][m]
     dlv = L["delivered_torque_nm"][:n_log, k][m]
     p_d = rec.device_moment_nm[mask, side] * w
-    led = device.ledger(k)
+    led = device_ledger(device, cfg, L, k)
     drawn = led["electrical_drawn_j"]
     mech_pos = float(np.sum(np.clip(L["mechanical_power_w"][:, k], 0, None)) * dt)
     duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec.time_s) > 1 else 0.0
     mean_power = drawn / duration if duration > 0 else math.nan
-    bat = cfg.params.battery
-    from afo_mj.hydraulics.battery import Battery
-    runtime_h = (Battery(bat).energy_wh / mean_power) if mean_power > 0 else None
+    energy_wh = led["battery_energy_wh"]
+    runtime_h = (energy_wh / mean_power) if mean_power > 0 and energy_wh else None
     out["device"] = {
         "peak_torque_nm": float(np.max(np.abs(dlv))),
         "torque_tracking_rmse_nm": float(np.sqrt(np.mean((cmd - dlv) ** 2))),
         "positive_work_j_per_stride": float(np.sum(np.clip(p_d, 0, None)) * dt / n),
         "negative_work_j_per_stride": float(np.sum(np.clip(p_d, None, 0)) * dt / n),
-        "mass_total_kg": device.mass_total_kg,
-        "mass_at_ankle_kg": device.mass_at_ankle_kg,
+        "mass_total_kg": getattr(device, "mass_total_kg", None),
+        "mass_at_ankle_kg": getattr(device, "mass_at_ankle_kg", None),
         "peak_pressure_mpa": led["peak_pressure_pa"] / 1e6,
         "fluid_temperature_rise_k": led["temperature_rise_k"],
         "battery_runtime_h": runtime_h,
@@ -287,7 +313,7 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     out["energy_per_stride"] = {
         "stride_time_s": stride_s,
         "electrical_in_j": drawn * scale,
-        "hydraulic_j": led["hydraulic_j"] * scale,
+        "hydraulic_j": None if led["hydraulic_j"] is None else led["hydraulic_j"] * scale,
         "mechanical_positive_out_j": mech_pos * scale,
         "losses_j": {k: v * scale for k, v in led["losses_j"].items()},
         "note": "whole-run ledger (start-up strides included) times mean analysed stride "
@@ -307,7 +333,40 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
         "note": "whole run; electrical_in_j is the battery's chemical energy drawn, "
                 "regeneration (ankle back-driving the pump) counted apart",
     }
+    if cfg.circuit is not None:
+        out["energy"]["input_j"] = led["input_j"]
+        out["energy"]["note"] = ("whole run; electrical_in_j is the energy drawn from the "
+                                 "circuit's source (battery chemical energy, or the ideal "
+                                 "bench supply), electrical_regenerated_j what went back; "
+                                 "losses and stores per component instance")
+        out["device"]["note"] = ("circuit description: worn masses are not modelled "
+                                 "(mass_total_kg null); hydraulic_j is not a ledger term")
     return out
+
+
+def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
+    """The ledger terms the summary reads, for a preset device (its own ledger) or a circuit
+    (:meth:`afo_mj.circuits.device.CircuitDevice.ledger`, generic keys mapped: drawn =
+    ``input_drawn_j``, regenerated = ``input_drawn_j − input_j``, the oil temperature rise
+    from the device log, the battery energy from the circuit's battery component)."""
+    led = dict(device.ledger(k))
+    if cfg.circuit is None:
+        from afo_mj.hydraulics.battery import Battery
+        led["battery_energy_wh"] = Battery(cfg.params.battery).energy_wh
+        return led
+    temp = L["oil_temperature_k"][:, k]
+    led["electrical_drawn_j"] = led["input_drawn_j"]
+    led["electrical_regenerated_j"] = led["input_drawn_j"] - led["input_j"]
+    led["hydraulic_j"] = None
+    led["temperature_rise_k"] = (float(temp[-1] - cfg.circuit.circuit.thermal
+                                       .ambient_temperature_k) if temp.size else 0.0)
+    bats = [c for c in cfg.circuit.circuit.components if c.kind == "battery"]
+    wh = None
+    if bats:
+        from afo_mj.hydraulics.battery import Battery
+        wh = Battery(bats[0].params.battery).energy_wh
+    led["battery_energy_wh"] = wh
+    return led
 
 
 def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int):
@@ -317,6 +376,10 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
     from afo_mj.devices.hafo import HafoDevice
     from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
     active = condition == "assist" or condition in cfg.impedance_conditions
+    if cfg.circuit is not None:
+        from afo_mj.circuits.device import CircuitDevice
+        return CircuitDevice(cfg.circuit, sides=cfg.sides, timestep_s=timestep_s,
+                             profile=cfg.profile if active else None, max_steps=max_steps)
     if isinstance(cfg.params, ValveAnkleParams):
         imp = cfg.impedance_conditions.get(condition, cfg.impedance)
         return ValveAfoDevice(cfg.params, sides=cfg.sides,
@@ -343,7 +406,8 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
         if cond != "no_device":
             steps = int(((scenario.strides + 1.5) * T + 1.0) / dt) + 4
             dev = make_device(cfg, cond, dt, steps)
-            worn = dev.worn_masses()
+            # a circuit description has no worn-mass layout (its parts' masses are metadata)
+            worn = dev.worn_masses() if hasattr(dev, "worn_masses") else ()
         rec = run_walk(scenario.walker, reference, T, scenario.strides,
                        scenario.controller_params(), worn_masses=worn, device=dev)
         try:
@@ -355,6 +419,10 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
              for c, (r, a, d) in results.items()}
     summary = {"device_conditions": conds, "device_preset": cfg.preset,
                "device_sides": list(cfg.sides)}
+    if cfg.circuit is not None:
+        summary["circuit"] = {"name": cfg.circuit.circuit.name,
+                              "controller": cfg.circuit.circuit.controller.kind,
+                              "description": cfg.circuit_spec}
     if "no_device" in conds:
         base = conds["no_device"]["human"]["ankle_positive_work_j_per_stride"]
         summary["comparison_vs_no_device"] = {

@@ -30,6 +30,8 @@ Schema (every section and key optional except where said; unknown keys are error
     [controller]                     # overrides of afo_mj.gait.walk.ControllerParams fields
     [device]                         # an orthosis (afo_mj.scenarios.device_scenario)
     [assistance]                     # its assistance profile (afo_mj.scenarios.device_scenario)
+    [circuit]                        # a circuit description worn instead of device.preset
+                                     # (afo_mj.scenarios.circuit_scenario)
     [output]                         # what a run writes besides summary.json and figures
     record = false                   # true: a rerun recording, recording.rrd, in the results
                                      # directory (afo_mj.outputs.recording; `--rrd FILE` on
@@ -70,7 +72,7 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
 """Keys of ``[impairment]``: the WalkerParams fields of the same names."""
 
 _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller", "device",
-             "assistance", "output")
+             "assistance", "output", "circuit")
 _OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
               "analyse_strides", "band_references", "reference_id_path")
@@ -112,6 +114,9 @@ class WalkScenario:
     device: Mapping[str, Any] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
     assistance: Mapping[str, Any] = dataclasses.field(
         default_factory=lambda: MappingProxyType({}))
+    #: raw ``[circuit]`` table (a circuit description worn instead of a ``device.preset``,
+    #: validated by :mod:`afo_mj.scenarios.circuit_scenario`); empty without one
+    circuit: Mapping[str, Any] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
     #: ``[output]``: write a rerun recording into the results directory, and its rates
     record: bool = False
     record_signal_rate_hz: float = 500.0
@@ -313,8 +318,9 @@ def apply_overrides(doc: dict, overrides, origin: str = "<scenario>") -> dict:
     """Set dotted keys in a parsed TOML document: ``["gait.strides=4",
     "device.params.hose.length_m=2.2"]``. Values are read as TOML values (numbers, booleans,
     strings in quotes, arrays); anything that is not valid TOML is taken as a bare string.
-    The first two levels are tables of the scenario schema; below ``device.params`` the rest of
-    the key is a dotted parameter name and is kept whole."""
+    The first two levels are tables of the scenario schema; below ``device.params``,
+    ``circuit.components.<name>.params`` and ``circuit.controller.params`` the rest of the key
+    is a dotted parameter name and is kept whole."""
     for item in overrides or ():
         key, sep, raw = str(item).partition("=")
         key = key.strip()
@@ -328,6 +334,11 @@ def apply_overrides(doc: dict, overrides, origin: str = "<scenario>") -> dict:
         parts = key.split(".")
         if parts[:2] == ["device", "params"] and len(parts) > 2:
             parts = parts[:2] + [".".join(parts[2:])]
+        elif (parts[:2] == ["circuit", "components"] and len(parts) > 4
+              and parts[3] == "params"):
+            parts = parts[:4] + [".".join(parts[4:])]
+        elif parts[:3] == ["circuit", "controller", "params"] and len(parts) > 3:
+            parts = parts[:3] + [".".join(parts[3:])]
         node = doc
         for part in parts[:-1]:
             nxt = node.setdefault(part, {})
@@ -455,7 +466,8 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                         strides=strides, analyse_strides=(first, last),
                         controller=MappingProxyType(controller), source_path=source_path,
                         text=text, device=MappingProxyType(ctx.table(doc, "device")),
-                        assistance=MappingProxyType(ctx.table(doc, "assistance")))
+                        assistance=MappingProxyType(ctx.table(doc, "assistance")),
+                        circuit=MappingProxyType(ctx.table(doc, "circuit")))
 
 
 def load_scenario(path, overrides=()) -> WalkScenario:

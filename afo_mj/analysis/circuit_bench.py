@@ -1,0 +1,453 @@
+"""Bench protocols for any circuit description that drives a joint (issue 18 item 3).
+
+The HAFO bench (:mod:`afo_mj.scenarios.hafo_bench`) drives the preset devices on the MuJoCo
+ankle test stand; these protocols drive a compiled circuit
+(:class:`afo_mj.circuits.device.CircuitDevice`) against a simulated load: a foot inertia
+``J`` on a torsional spring ``K`` and damper ``c`` (``run_load``), the joint motion imposed
+(``run_imposed``: a locked ankle, a constant velocity, a sinusoid), or, for the closed
+position loop, the same inertia stepped with the device's coupled protocol.
+
+Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
+
+* ``torque_velocity`` — a motor-driven circuit (its controller is replaced by ``open_loop``:
+  full motor voltage ``1.25 × V_bus``, which the driver clips to ``duty_max V_bus``, reached
+  through a 50 ms ramp). Stall torque ``= −mean(τ)`` over the last 40 % of a locked run
+  (0.4 s, lengthened to 1.5 s then 4 s until that window changes by under 1 %:
+  ``stall_settled``);
+  no-load speed ``= −mean(θ̇)`` of the free inertia (no spring) from 0.1 s until it passes
+  80 % of the plantarflexion stroke; torque–velocity points at imposed constant
+  plantarflexion velocities (``mean(τ)`` after 50 ms at the velocity).
+* ``isometric_steps`` — a torque controller: locked ankle, plantarflexion torque steps;
+  10–90 % rise time, overshoot and steady-state error
+  (:func:`~afo_mj.analysis.response_metrics.step_metrics`).
+* ``frequency_response`` — a motor-driven circuit (open loop, as ``torque_velocity``):
+  motor-voltage sine about 0 V, plantarflexion velocity ``−θ̇`` of the inertia on its spring
+  at ``freq_points`` log-spaced frequencies; gain and phase by the three-parameter sine fit;
+  the resonance is the frequency of the largest gain (the inertia on the oil column) and its
+  peak in dB above the lowest frequency's gain.
+* ``position_step`` — a torque controller: ``τ_cmd = K_p (θ_ref − θ) − K_d θ̇`` (clipped to
+  ``±torque_limit_nm``) on the inertia and spring; step metrics of the angle.
+* ``stiffness`` — a torque controller, which renders a spring through its command
+  (``τ_cmd = −K (θ − θ_rest)``; the rest angle at the sweep's dorsiflexion end so that the
+  command is plantarflexion only, as a single-acting actuator can deliver): imposed sinusoid,
+  emulated stiffness = −slope of the least-squares line of delivered torque on angle.
+  Refused for ``open_loop``.
+* ``flow_vs_duty`` — a circuit whose actuated input is a valve duty (PWM): none of the
+  shipped component kinds is one yet, so every current circuit is refused, naming what it is
+  actuated by.
+* ``tracking`` — a torque controller: a Zhang et al. (2017) profile (peak
+  ``tracking_peak_torque_nm``) commanded on a load moved through ``θ = A sin 2πft`` (one
+  profile per cycle); RMSE of delivered − commanded torque over all cycles but the first.
+
+Every run's energy ledger is reported (``ledger.<run>``: ``balance_error_rel``); the
+summary's ``energy.balance_error_rel`` is the worst and ``energy.ledger_closed`` says whether
+all are within 1e-9.
+
+Sign conventions as the circuits': angle, velocity and torque positive in dorsiflexion;
+plantarflexion torque negative; positive motor voltage drives plantarflexion.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.analysis.response_metrics import sine_response, step_metrics
+
+PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
+             "stiffness", "flow_vs_duty", "tracking")
+#: controller kinds that take a joint-torque command
+TORQUE_CONTROLLERS = ("pump_torque",)
+LEDGER_TOLERANCE = 1e-9
+_RAMP_S = 0.05
+
+
+class CircuitBenchError(ValueError):
+    """A protocol the circuit cannot run, or a bench setting out of range."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CircuitBenchConfig:
+    """Bench settings (SI). Defaults are a foot-sized load and the protocols' lengths."""
+
+    timestep_s: float = 1e-4
+    load_inertia_kg_m2: float = 0.05
+    load_stiffness_nm_rad: float = 20.0
+    load_damping_nm_s_rad: float = 0.2
+    step_torques_nm: tuple = (10.0, 20.0, 30.0, 40.0)
+    step_duration_s: float = 0.4
+    freq_min_hz: float = 2.0
+    freq_max_hz: float = 300.0
+    freq_points: int = 18
+    voltage_amplitude_v: float = 3.0
+    tv_points: int = 6
+    position_step_rad: float = -0.2
+    position_kp_nm_rad: float = 60.0
+    position_kd_nm_s_rad: float = 2.0
+    torque_limit_nm: float = 60.0
+    position_duration_s: float = 1.0
+    stiffnesses_nm_rad: tuple = (20.0, 50.0, 100.0)
+    stiffness_amplitude_rad: float = 0.15
+    stiffness_frequency_hz: float = 0.5
+    tracking_peak_torque_nm: float = 30.0
+    tracking_amplitude_rad: float = 0.2
+    tracking_frequency_hz: float = 1.0
+    tracking_cycles: int = 4
+
+
+# -- what the circuit is ------------------------------------------------------------------------
+def actuator(circuit):
+    """The component on the joint node (it has ``torque_per_pa``)."""
+    for c in circuit.components:
+        if "joint" in c.ports:
+            return c
+    raise CircuitBenchError(f"circuit {circuit.name!r} drives no joint")
+
+
+def _motor(circuit):
+    for c in circuit.components:
+        if getattr(c, "actuated", False):
+            return c
+    return None
+
+
+def stroke_limits_rad(circuit) -> tuple[float, float]:
+    """Joint angles at the actuator's end stops ``(plantarflexion, dorsiflexion)``."""
+    a = actuator(circuit)
+    p = a.params
+    if a.kind == "pulley_cylinders":
+        half = 0.5 * p.cylinder.stroke_m / p.pulley_radius_m
+        return -half, half
+    if a.kind == "spring_return_cylinder":       # x = x0 − r θ in [0, stroke]
+        r = p.moment_arm_m
+        return (p.neutral_position_m - p.cylinder.stroke_m) / r, p.neutral_position_m / r
+    return -0.5, 0.5
+
+
+def bus_voltage_v(circuit) -> float:
+    """Bus voltage at full charge: the battery's ``4.2 V × cells``, or the bench supply."""
+    for c in circuit.components:
+        if c.kind == "battery":
+            return 4.2 * c.params.battery.cells_series
+    return circuit.options.supply_voltage_v
+
+
+def protocol_problem(circuit, test: str) -> str | None:
+    """Why ``circuit`` cannot run protocol ``test`` (None: it can)."""
+    if test not in PROTOCOLS:
+        return f"unknown protocol {test!r}; allowed: {', '.join(PROTOCOLS)}"
+    ctrl = circuit.controller.kind
+    motor = _motor(circuit)
+    if test in ("torque_velocity", "frequency_response"):
+        if motor is None or motor.kind != "motor":
+            return (f"{test} drives the motor voltage open loop; circuit {circuit.name!r} has "
+                    "no motor as its actuated component")
+        return None
+    if test == "flow_vs_duty":
+        act = motor.name if motor is not None else "nothing"
+        kind = motor.kind if motor is not None else "-"
+        return (f"flow_vs_duty needs a valve (PWM duty) as the actuated input; circuit "
+                f"{circuit.name!r} is actuated by {act!r} ({kind}: motor voltage through "
+                f"controller {ctrl!r}); no component kind with a duty input exists yet")
+    if ctrl not in TORQUE_CONTROLLERS:
+        what = {"stiffness": "an impedance-capable (torque-commanded) controller"}.get(
+            test, "a torque controller")
+        return (f"{test} needs {what} (circuit.controller.kind = "
+                f"{' | '.join(repr(c) for c in TORQUE_CONTROLLERS)}); circuit "
+                f"{circuit.name!r} has controller {ctrl!r}, which passes the command through "
+                "as the motor voltage")
+    return None
+
+
+def check_protocols(circuit, tests) -> None:
+    for t in tests:
+        why = protocol_problem(circuit, t)
+        if why:
+            raise CircuitBenchError(why)
+
+
+# -- runs ---------------------------------------------------------------------------------------
+class _Bench:
+    def __init__(self, cc, cfg: CircuitBenchConfig):
+        from afo_mj.circuits.codegen import build
+        from afo_mj.circuits.controllers import OpenLoop
+        from afo_mj.scenarios.circuit_scenario import with_controller
+        self.cc, self.cfg = cc, cfg
+        self.circuit = cc.circuit
+        self._open = None
+        self._open_factory = lambda: build(with_controller(self.circuit, OpenLoop()))
+        self.ledgers: dict = {}
+
+    @property
+    def open_loop(self):
+        if self.circuit.controller.kind == "open_loop":
+            return self.cc
+        if self._open is None:
+            self._open = self._open_factory()
+        return self._open
+
+    def _dev(self, cc, **kw):
+        from afo_mj.circuits.device import CircuitDevice
+        return CircuitDevice(cc, timestep_s=self.cfg.timestep_s, **kw)
+
+    def _close(self, dev, label):
+        led = dev.ledger()
+        self.ledgers[label] = {"balance_error_rel": led["balance_error_rel"],
+                               "input_j": led["input_j"],
+                               "mechanical_out_j": led["mechanical_out_j"],
+                               "peak_pressure_pa": led["peak_pressure_pa"],
+                               "newton_unconverged_steps": led["newton_unconverged_steps"]}
+
+    def load(self, cc, cmd, label, stiffness=None, damping=None, theta0=0.0):
+        c = self.cfg
+        dev = self._dev(cc)
+        log = dev.run_load(cmd, c.load_inertia_kg_m2,
+                           c.load_stiffness_nm_rad if stiffness is None else stiffness,
+                           c.load_damping_nm_s_rad if damping is None else damping,
+                           theta0_rad=theta0)
+        self._close(dev, label)
+        return log
+
+    def imposed(self, cc, cmd, angle, velocity, label):
+        dev = self._dev(cc)
+        log = dev.run_imposed(cmd, angle, velocity)
+        self._close(dev, label)
+        return log
+
+    def t(self, duration_s):
+        n = int(round(duration_s / self.cfg.timestep_s))
+        return np.arange(n) * self.cfg.timestep_s
+
+
+def _ramp(t, v):
+    return v * np.minimum(1.0, t / _RAMP_S)
+
+
+def torque_velocity(b: _Bench) -> tuple[dict, list]:
+    cc = b.open_loop
+    vfull = 1.25 * bus_voltage_v(b.circuit)
+    lo, hi = stroke_limits_rad(b.circuit)
+    # a compliant circuit (an accumulator on the line) takes longer to reach its stall
+    # pressure: the run is lengthened until the last 40 % changes by under 1 %
+    for stall_s in (0.4, 1.5, 4.0):
+        t = b.t(stall_s)
+        z = np.zeros_like(t)
+        stall_log = b.imposed(cc, _ramp(t, vfull), z, z, f"torque_velocity.stall_{stall_s:g}s")
+        tail = stall_log["torque_nm"][int(0.6 * t.size):]
+        stall = -float(np.mean(tail))
+        settled = abs(tail[-1] - tail[0]) <= 0.01 * max(abs(stall), 1e-9)
+        if settled:
+            break
+    t = b.t(0.6)
+    free = b.load(cc, _ramp(t, vfull), "torque_velocity.free", stiffness=0.0, damping=0.0)
+    th, w = free["angle_rad"], free["velocity_rad_s"]
+    win = (t >= 0.1) & (np.minimum.accumulate(th) > 0.8 * lo)
+    if np.count_nonzero(win) < 10:
+        win = t >= 0.7 * t[-1]
+    no_load = -float(np.mean(w[win]))
+    speeds, torques = [], []
+    for k in range(b.cfg.tv_points):
+        v = -no_load * k / max(b.cfg.tv_points - 1, 1)
+        th0 = 0.8 * hi
+        t_hold = 0.15
+        span = 0.8 * (hi - lo)
+        dur = t_hold + 0.04 + (span / abs(v) if v != 0 else 0.2)
+        tt = b.t(min(dur, 1.5))
+        s = np.clip(tt - t_hold, 0.0, None)
+        ta = 0.04
+        vel = np.where(s < ta, 0.5 * v * (1 - np.cos(np.pi * s / ta)), v)
+        ang = th0 + np.concatenate(([0.0], np.cumsum(vel[:-1]) * b.cfg.timestep_s))
+        log = b.imposed(cc, _ramp(tt, vfull), ang, vel, f"torque_velocity.v{k}")
+        sel = (s > ta + 0.05) & (ang > lo * 0.8)
+        if not np.any(sel):
+            sel = s > ta
+        speeds.append(-math.degrees(v))
+        torques.append(-float(np.mean(log["torque_nm"][sel])))
+    summary = {"stall_torque_nm": stall, "stall_settled": bool(settled),
+               "stall_run_s": stall_s, "no_load_speed_rad_s": no_load,
+               "no_load_speed_deg_s": math.degrees(no_load), "full_voltage_v": vfull,
+               "curve_speed_deg_s": speeds, "curve_torque_nm": torques}
+    series = [{"x": np.array(speeds), "y": {"plantarflexion torque": np.array(torques)},
+               "xlabel": "plantarflexion velocity [deg/s]", "ylabel": "torque [N·m]",
+               "markers": True},
+              {"x": t, "y": {"free angle [rad]": th, "free velocity [rad/s]": w},
+               "xlabel": "time [s]", "ylabel": "free inertia"}]
+    return summary, series
+
+
+def isometric_steps(b: _Bench) -> tuple[dict, list]:
+    t = b.t(b.cfg.step_duration_s)
+    z = np.zeros_like(t)
+    t_step = 0.05
+    out, ys = {}, {}
+    for tau in b.cfg.step_torques_nm:
+        cmd = np.where(t >= t_step, -tau, 0.0)
+        log = b.imposed(b.cc, cmd, z, z, f"isometric_steps.{tau:g}nm")
+        m = step_metrics(log["time_s"], -log["torque_nm"], tau, t_step + b.cfg.timestep_s)
+        out[f"{tau:g}nm"] = {k: m[k] for k in ("rise_time_s", "overshoot_pct",
+                                               "settling_time_s", "steady_state_error",
+                                               "final")}
+        ys[f"{tau:g} N·m"] = -log["torque_nm"]
+    head = out[f"{b.cfg.step_torques_nm[-1]:g}nm"]
+    summary = {"steps": out, "rise_time_s": head["rise_time_s"],
+               "overshoot_pct": head["overshoot_pct"],
+               "steady_state_error_nm": head["steady_state_error"],
+               "headline_step_nm": b.cfg.step_torques_nm[-1]}
+    return summary, [{"x": t + b.cfg.timestep_s, "y": ys, "xlabel": "time [s]",
+                      "ylabel": "plantarflexion torque [N·m]"}]
+
+
+def frequency_response(b: _Bench) -> tuple[dict, list]:
+    cc = b.open_loop
+    c = b.cfg
+    freqs = np.geomspace(c.freq_min_hz, c.freq_max_hz, c.freq_points)
+    gains, phases = [], []
+    for f in freqs:
+        dur = max(8.0 / f, 0.25)
+        t = b.t(dur)
+        u = c.voltage_amplitude_v * np.sin(2 * np.pi * f * t)
+        log = b.load(cc, u, f"frequency_response.{f:.3g}hz")
+        r = sine_response(log["time_s"], u, -log["velocity_rad_s"], f, settle_cycles=3.0)
+        gains.append(r["gain"])
+        phases.append(r["phase_deg"])
+    gains = np.array(gains)
+    db = 20 * np.log10(gains / gains[0])
+    k = int(np.argmax(gains))
+    summary = {"frequencies_hz": freqs.tolist(), "gain_rad_s_per_v": gains.tolist(),
+               "gain_db": db.tolist(), "phase_deg": phases,
+               "resonance_hz": float(freqs[k]), "resonance_peak_db": float(db[k]),
+               "resonance_at_range_end": bool(k in (0, freqs.size - 1)),
+               "output": "plantarflexion velocity per motor volt (open loop)"}
+    # refine the peak: a parabola through the three points about the maximum in log f
+    if 0 < k < freqs.size - 1:
+        x = np.log(freqs[k - 1:k + 2])
+        y = db[k - 1:k + 2]
+        a, bb, _ = np.polyfit(x, y, 2)
+        if a < 0:
+            summary["resonance_hz"] = float(np.exp(-bb / (2 * a)))
+    return summary, [{"x": freqs, "y": {"gain [dB]": db}, "xlabel": "frequency [Hz]",
+                      "ylabel": "−θ̇ / V gain [dB re lowest]", "log_x": True,
+                      "markers": True},
+                     {"x": freqs, "y": {"phase [deg]": np.array(phases)},
+                      "xlabel": "frequency [Hz]", "ylabel": "phase [deg]", "log_x": True,
+                      "markers": True}]
+
+
+def position_step(b: _Bench) -> tuple[dict, list]:
+    """The closed position loop on the inertia, stepped with the coupled protocol (implicit
+    in the device's damping, as MuJoCo integrates it)."""
+    c = b.cfg
+    h = c.timestep_s
+    ref = c.position_step_rad
+    t_step = 0.05
+
+    def law(t, q, v):
+        r = ref if t >= t_step else 0.0
+        return float(np.clip(c.position_kp_nm_rad * (r - q) - c.position_kd_nm_s_rad * v,
+                             -c.torque_limit_nm, c.torque_limit_nm))
+
+    n = int(round(c.position_duration_s / h))
+    dev = b._dev(b.cc, torque_fn=law, max_steps=n)
+    th = np.zeros(2)
+    w = np.zeros(2)
+    stance = np.zeros(2, dtype=bool)
+    J, K, cd = c.load_inertia_kg_m2, c.load_stiffness_nm_rad, c.load_damping_nm_s_rad
+    angle = np.zeros(n)
+    for i in range(n):
+        force, damping = dev.begin_step(i * h, th, w, stance)
+        # semi-implicit Euler with the device's damping and the load's taken implicitly
+        acc_free = (force[0] - K * th[0]) / J
+        wn = (w[0] + h * acc_free) / (1.0 + h * (damping[0] + cd) / J)
+        dev.end_step(np.array([wn, 0.0]))
+        w[0] = wn
+        th[0] += h * wn
+        angle[i] = th[0]
+    b._close(dev, "position_step")
+    time = (np.arange(n) + 1) * h
+    m = step_metrics(time, -angle, -ref, t_step)
+    L = dev.log.arrays()
+    summary = {"step_rad": ref, "rise_time_s": m["rise_time_s"],
+               "overshoot_pct": m["overshoot_pct"], "settling_time_s": m["settling_time_s"],
+               "steady_state_error_rad": -m["steady_state_error"],
+               "gains": {"kp_nm_rad": c.position_kp_nm_rad,
+                         "kd_nm_s_rad": c.position_kd_nm_s_rad}}
+    return summary, [{"x": time, "y": {"angle [rad]": angle,
+                                       "reference [rad]": np.where(time >= t_step, ref, 0.0)},
+                      "xlabel": "time [s]", "ylabel": "ankle angle [rad]"},
+                     {"x": L["time_s"][:, 0], "y": {
+                         "commanded": L["commanded_torque_nm"][:, 0],
+                         "delivered": L["delivered_torque_nm"][:, 0]},
+                      "xlabel": "time [s]", "ylabel": "torque [N·m]"}]
+
+
+def stiffness(b: _Bench) -> tuple[dict, list]:
+    c = b.cfg
+    f, amp = c.stiffness_frequency_hz, c.stiffness_amplitude_rad
+    t = b.t(3.0 / f)
+    ang = amp * np.sin(2 * np.pi * f * t)
+    vel = amp * 2 * np.pi * f * np.cos(2 * np.pi * f * t)
+    rest = -amp
+    out, ys = {}, {}
+    keep = t >= 1.0 / f
+    for k in c.stiffnesses_nm_rad:
+        cmd = -k * (ang - rest)
+        log = b.imposed(b.cc, cmd, ang, vel, f"stiffness.k{k:g}")
+        slope = float(np.polyfit(ang[keep], log["torque_nm"][keep], 1)[0])
+        out[f"k{k:g}"] = {"commanded_nm_rad": k, "emulated_nm_rad": -slope,
+                          "error_rel": (-slope - k) / k,
+                          "peak_torque_nm": float(np.max(np.abs(log["torque_nm"])))}
+        ys[f"K = {k:g} N·m/rad"] = log["torque_nm"][keep]
+    worst = max(abs(v["error_rel"]) for v in out.values())
+    return ({"stiffness": out, "worst_error_rel": worst, "amplitude_rad": amp,
+             "frequency_hz": f, "rest_angle_rad": rest},
+            [{"x": ang[keep], "y": ys, "xlabel": "ankle angle [rad]",
+              "ylabel": "delivered torque [N·m]"}])
+
+
+def tracking(b: _Bench) -> tuple[dict, list]:
+    from afo_mj.control import assistance as asst
+    c = b.cfg
+    f, amp = c.tracking_frequency_hz, c.tracking_amplitude_rad
+    t = b.t(c.tracking_cycles / f)
+    ang = amp * np.sin(2 * np.pi * f * t)
+    vel = amp * 2 * np.pi * f * np.cos(2 * np.pi * f * t)
+    prof = asst.zhang_profile(c.tracking_peak_torque_nm, 52.9, 26.2, 9.8)
+    phase = (t * f) % 1.0
+    cmd = np.interp(phase, np.linspace(0.0, 1.0, len(prof)), prof)
+    log = b.imposed(b.cc, cmd, ang, vel, "tracking")
+    keep = t >= 1.0 / f
+    err = log["torque_nm"][keep] - cmd[keep]
+    return ({"rmse_nm": float(np.sqrt(np.mean(err ** 2))),
+             "peak_commanded_nm": float(np.max(np.abs(cmd))),
+             "peak_delivered_nm": float(np.max(np.abs(log["torque_nm"][keep]))),
+             "amplitude_rad": amp, "frequency_hz": f},
+            [{"x": t[keep], "y": {"commanded": cmd[keep], "delivered": log["torque_nm"][keep]},
+              "xlabel": "time [s]", "ylabel": "torque [N·m] (+ dorsiflexion)"},
+             {"x": t[keep], "y": {"imposed angle": ang[keep]}, "xlabel": "time [s]",
+              "ylabel": "ankle angle [rad]"}])
+
+
+_RUNNERS = {"torque_velocity": torque_velocity, "isometric_steps": isometric_steps,
+            "frequency_response": frequency_response, "position_step": position_step,
+            "stiffness": stiffness, "tracking": tracking}
+
+
+def run_circuit_bench(cc, tests, cfg: CircuitBenchConfig = CircuitBenchConfig()):
+    """Run ``tests`` on compiled circuit ``cc``; returns ``(summary, series)``: summary
+    ``{protocol: figures, "ledger": {run: …}, "energy": {...}}``, series ``{protocol:
+    [panels]}`` (:func:`afo_mj.outputs.circuit_figures.plot_circuit_bench`)."""
+    check_protocols(cc.circuit, tests)
+    b = _Bench(cc, cfg)
+    summary, series = {}, {}
+    for test in tests:
+        summary[test], series[test] = _RUNNERS[test](b)
+    worst = max((abs(v["balance_error_rel"]) for v in b.ledgers.values()), default=0.0)
+    summary["ledger"] = b.ledgers
+    summary["energy"] = {"balance_error_rel": worst,
+                         "ledger_closed": bool(worst <= LEDGER_TOLERANCE),
+                         "tolerance": LEDGER_TOLERANCE,
+                         "note": "largest |ledger residual| / energy throughput over every "
+                                 "bench run (ledger.<run>.balance_error_rel)"}
+    return summary, series
