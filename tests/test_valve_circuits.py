@@ -22,7 +22,12 @@ Exact equality is not expected; the new stepper and components differ on purpose
 6. the orifices use the oil density at the oil's temperature (the old kernel the reference
    density: 0.7 % apart at 25 °C, 0.35 % in every orifice flow);
 7. the servo supplies other than ``unloading`` have no unloading valve (the old kernel kept a
-   shut one leaking ≈ 1e-8 m³/s to tank).
+   shut one leaking ≈ 1e-8 m³/s to tank);
+8. the step conserves oil (each node's compliance is its mean over the step,
+   :func:`~afo_mj.hydraulics.laws.oil_mean_compliance_per_pa`; the old kernel the tangent one
+   at the step's end): the pressures reach a threshold a step earlier or later, so a
+   snap-action valve (the unloading valve's cut-out, the digital valves' switching) can
+   switch 1 ms apart, and the pump outlet jumps by its whole span in that step.
 
 The differences these make were measured (``python -m pytest tests/test_valve_circuits.py
 -s`` prints them) and the tolerances below sit just above them; a regression in a component
@@ -87,6 +92,23 @@ def _nrmse(pair, upto=None):
     return float(np.sqrt(np.mean((new - old) ** 2)) / max(np.ptp(old), 1e-30))
 
 
+def _switches(x, frac=0.2):
+    """Steps where ``x`` jumps by more than ``frac`` of its span in one step."""
+    return np.flatnonzero(np.abs(np.diff(x)) > frac * max(np.ptp(x), 1e-30)) + 1
+
+
+def _nrmse_between_switches(pair, window=4):
+    """``_nrmse`` with ``window`` steps either side of every snap (a jump of a fifth of the
+    span in one step, in either signal) left out, after checking that both signals snap at
+    the same instants to within one step (item 8)."""
+    so, sn = _switches(pair[:, 0]), _switches(pair[:, 1])
+    assert len(so) == len(sn) and np.all(np.abs(so - sn) <= 1), (so, sn)
+    keep = np.ones(pair.shape[0], bool)
+    for k in np.concatenate([so, sn]):
+        keep[max(k - window, 0):k + window + 1] = False
+    return _nrmse(pair[keep])
+
+
 #: per preset: NRMSE bounds (end-of-step torque, chamber and port pressures, rail, pump
 #: outlet, motor speed), and the relative bounds on the input and mechanical energies.
 #: Measured 2026-11-27 (servo presets: torque 0.5–0.8 %, chambers ≤ 0.33 %, input energy
@@ -94,7 +116,6 @@ def _nrmse(pair, upto=None):
 SERVO = dict(tau_end=0.01, chambers=0.005, rail=0.01, pump_out=0.01, shaft=0.012,
              input=2.5e-3, mech=0.012)
 TOLERANCES = {
-    "valve": SERVO,
     "valve_accumulator": SERVO,
     "valve_pressure_control": SERVO,
     "valve_variable": SERVO,
@@ -102,7 +123,12 @@ TOLERANCES = {
     # the constant-speed pump without accumulator blows its whole surplus over the relief
     # valve: the motor speed barely moves (16 rad/s span), so its NRMSE is over a tiny span
     "valve_no_accumulator": dict(SERVO, shaft=0.08),
+    # the motor's slow-down after the unloading valve's cut-out starts a step apart (item 8):
+    # measured 3.7 % (0.8 % before item 8), and the input energy 0.25 %
+    "valve": dict(SERVO, shaft=0.045, input=3.5e-3),
 }
+#: presets with an unloading valve (a snap-action cut-out)
+UNLOADING = ("valve",)
 FAST = ("valve",)
 
 
@@ -113,7 +139,12 @@ def _check_servo(name):
     got = {"tau_end": _nrmse(log["tau_end"]),
            "chambers": max(_nrmse(log[k]) for k in ("chamber_a", "chamber_b", "port_a",
                                                    "port_b")),
-           "rail": _nrmse(log["rail"]), "pump_out": _nrmse(log["pump_out"]),
+           "rail": _nrmse(log["rail"]),
+           # the unloading valve's cut-out can fall a step apart (item 8): its pump outlet is
+           # compared between the snaps (measured for ``valve``, cut-out at step 183 vs 184:
+           # 4.6 % over the whole run, 0.01 % between)
+           "pump_out": (_nrmse_between_switches(log["pump_out"]) if name in UNLOADING
+                        else _nrmse(log["pump_out"])),
            "shaft": _nrmse(log["shaft"])}
     lo, ln = old.ledger(), new.ledger()
     got["input"] = abs(ln["input_j"] / lo["electrical_in_j"] - 1.0)
@@ -145,7 +176,7 @@ def test_digital_preset_matches_the_old_kernel():
     """The digital circuit switches its valves by PWM with no accumulator: the torque is a
     50 Hz saw-tooth, and the closed loop's duty decisions make the small differences above
     grow once they change a switching instant. Over the first 150 ms the states agree to
-    ~2 %; over the run they drift (measured: chamber NRMSE 7 %, input energy 3.5 %),
+    ~3 %; over the run they drift (measured: chamber NRMSE 9 %, input energy 1.3 %),
     asserted at that level. The torque handed to MuJoCo (the step's
     prediction) differs more than the end-of-step torque at the instants a valve starts to
     move (the linearisation sees the valve's opening differently), so the end-of-step torque
@@ -156,12 +187,14 @@ def test_digital_preset_matches_the_old_kernel():
     lo, ln = old.ledger(), new.ledger()
     rel_in = abs(ln["input_j"] / lo["electrical_in_j"] - 1.0)
     print("digital early", early, "full", full, "input", rel_in)
-    # measured: early 1.7 % (pump outlet 3.2 %: the switching valve's travel rate, item 2),
-    # full 5.7–7.4 %, input energy 3.5 %
+    # measured (2026-11-24, with the oil-conserving step, item 8): early 2.6 % (pump outlet
+    # 3.4 %), full 6.7–9.3 %, input energy 1.3 %; before item 8: early 1.7 % (3.2 %),
+    # full 5.7–7.4 %, input 3.5 %. The switching instants move by a step (item 8) and the
+    # closed loop's later duty decisions follow them.
     for key, value in early.items():
-        assert value < (0.04 if key == "pump_out" else 0.02), (key, value)
+        assert value < (0.04 if key == "pump_out" else 0.03), (key, value)
     for key, value in full.items():
-        assert value < 0.09, (key, value)
+        assert value < 0.105, (key, value)
     assert rel_in < 0.045
     assert abs(ln["balance_error_rel"]) <= 1e-9, ln
 
