@@ -32,9 +32,25 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   command is plantarflexion only, as a single-acting actuator can deliver): imposed sinusoid,
   emulated stiffness = −slope of the least-squares line of delivered torque on angle.
   Refused for ``open_loop``.
-* ``flow_vs_duty`` — a circuit whose actuated input is a valve duty (PWM): none of the
-  shipped component kinds is one yet, so every current circuit is refused, naming what it is
-  actuated by.
+* ``flow_vs_duty`` — a circuit metered by on/off valves under PWM (controller
+  ``digital_valve_torque`` or ``digital_valve_duty``; seed ch. 5). The controller is replaced
+  by ``digital_valve_duty`` (the command is the metering fraction ``u``, open loop; the
+  supply at its set speed). Per duty ``u`` in ``duties``: the pump spun up with the ankle
+  locked at 80 % of the dorsiflexion stroke and the valves at rest (``u = 0``), then the
+  inertia ``flow_inertia_kg_m2`` (an adult foot about the ankle, 0.01 kg m²) released (no
+  spring: a spring's torque would pull the line below the tank) against a damper
+  ``flow_damping_nm_s_rad`` and a constant dorsiflexion torque
+  ``k_τ p_bias`` (``flow_bias_pressure_pa``: the actuator's line held above the tank, so the
+  open switching valve, not the actuator, takes the pump's flow) at ``u``; the flow delivered into the
+  actuator ``Q = −k_τ θ̇`` (``k_τ`` its torque per pascal = displacement per radian) and the
+  pump's geometric flow ``d ω`` averaged over whole PWM periods from the second period until
+  the ankle passes 80 % of the plantarflexion stroke. Figures: ``Q`` and ``Q/(d ω)`` per
+  duty and the straight line ``Q/(d ω) = a u + b`` fitted by least squares. Seed ch. 5: on a
+  load of constant pressure the delivered fraction is the duty less what passes while the
+  valve travels, ``u − (1 − 2x*) T_sw f`` (``x*`` the opening at which the pump's pressure
+  falls to the load's), so within ``± T_sw f`` of ``u``; the load's inertia carries flow
+  through the open phase too (measured on the digital preset: 0.375 at ``u = 0.4`` with
+  0.01 kg m², 0.338 with 0.001 kg m²). The PWM period must be a whole number of steps.
 * ``tracking`` — a torque controller: a Zhang et al. (2017) profile (peak
   ``tracking_peak_torque_nm``) commanded on a load moved through ``θ = A sin 2πft`` (one
   profile per cycle); RMSE of delivered − commanded torque over all cycles but the first.
@@ -59,7 +75,9 @@ from afo_mj.analysis.response_metrics import sine_response, step_metrics
 PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
              "stiffness", "flow_vs_duty", "tracking")
 #: controller kinds that take a joint-torque command
-TORQUE_CONTROLLERS = ("pump_torque",)
+TORQUE_CONTROLLERS = ("pump_torque", "servo_valve_torque", "digital_valve_torque")
+#: controllers of a circuit metered by PWM on/off valves (``flow_vs_duty``)
+DIGITAL_CONTROLLERS = ("digital_valve_torque", "digital_valve_duty")
 LEDGER_TOLERANCE = 1e-9
 _RAMP_S = 0.05
 
@@ -95,6 +113,11 @@ class CircuitBenchConfig:
     tracking_amplitude_rad: float = 0.2
     tracking_frequency_hz: float = 1.0
     tracking_cycles: int = 4
+    duties: tuple = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+    flow_bias_pressure_pa: float = 0.5e6
+    flow_damping_nm_s_rad: float = 2.0
+    flow_inertia_kg_m2: float = 0.01
+    flow_max_duration_s: float = 2.0
 
 
 # -- what the circuit is ------------------------------------------------------------------------
@@ -140,17 +163,27 @@ def protocol_problem(circuit, test: str) -> str | None:
         return f"unknown protocol {test!r}; allowed: {', '.join(PROTOCOLS)}"
     ctrl = circuit.controller.kind
     motor = _motor(circuit)
+    valves = [c.name for c in circuit.components
+              if c.kind in ("servo_valve", "onoff_valve")]
     if test in ("torque_velocity", "frequency_response"):
         if motor is None or motor.kind != "motor":
             return (f"{test} drives the motor voltage open loop; circuit {circuit.name!r} has "
                     "no motor as its actuated component")
+        if valves:
+            return (f"{test} drives the motor voltage open loop, which moves the joint only "
+                    f"in a pump-controlled circuit; in circuit {circuit.name!r} the motor "
+                    f"feeds the valve(s) {', '.join(valves)} (controller {ctrl!r}): run "
+                    "isometric_steps, position_step, stiffness, tracking or flow_vs_duty")
         return None
     if test == "flow_vs_duty":
+        if ctrl in DIGITAL_CONTROLLERS:
+            return None
         act = motor.name if motor is not None else "nothing"
         kind = motor.kind if motor is not None else "-"
-        return (f"flow_vs_duty needs a valve (PWM duty) as the actuated input; circuit "
-                f"{circuit.name!r} is actuated by {act!r} ({kind}: motor voltage through "
-                f"controller {ctrl!r}); no component kind with a duty input exists yet")
+        return (f"flow_vs_duty needs a valve (PWM duty) as the actuated input: on/off valves "
+                f"under controller {' | '.join(repr(c) for c in DIGITAL_CONTROLLERS)}; "
+                f"circuit {circuit.name!r} is actuated by {act!r} ({kind}) through "
+                f"controller {ctrl!r}")
     if ctrl not in TORQUE_CONTROLLERS:
         what = {"stiffness": "an impedance-capable (torque-commanded) controller"}.get(
             test, "a torque controller")
@@ -179,6 +212,22 @@ class _Bench:
         self._open = None
         self._open_factory = lambda: build(with_controller(self.circuit, OpenLoop()))
         self.ledgers: dict = {}
+
+    @property
+    def duty_loop(self):
+        """The circuit under ``digital_valve_duty`` (its references and supply kept)."""
+        from afo_mj.circuits.codegen import build
+        from afo_mj.circuits.valve_controllers import DigitalValveDuty, DigitalValveDutyParams
+        from afo_mj.scenarios.circuit_scenario import with_controller
+        ctrl = self.circuit.controller
+        if ctrl.kind == "digital_valve_duty":
+            return self.cc
+        if getattr(self, "_duty", None) is None:
+            p = DigitalValveDutyParams(pwm_frequency_hz=ctrl.params.pwm_frequency_hz,
+                                       supply=ctrl.params.supply)
+            self._duty = build(with_controller(self.circuit,
+                                               DigitalValveDuty(p, **ctrl.refs)))
+        return self._duty
 
     @property
     def open_loop(self):
@@ -429,9 +478,83 @@ def tracking(b: _Bench) -> tuple[dict, list]:
               "ylabel": "ankle angle [rad]"}])
 
 
+def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
+    c = b.cfg
+    cc = b.duty_loop
+    ctrl = cc.circuit.controller
+    f = ctrl.params.pwm_frequency_hz
+    h = c.timestep_s
+    spp = 1.0 / (f * h)
+    if abs(spp - round(spp)) > 1e-6:
+        raise CircuitBenchError(f"bench.timestep_s = {h!r} does not divide the PWM period "
+                                f"{1.0 / f!r} s; allowed: a step with period / step an "
+                                "integer")
+    spp = int(round(spp))
+    act = actuator(cc.circuit)
+    k_tau = act.torque_per_pa()
+    lo, hi = stroke_limits_rad(cc.circuit)
+    theta0 = 0.8 * hi
+    # the pump's displacement per radian as the kernel reads it, and its shaft's state
+    pump = ctrl.refs["pump"]
+    d = float(cc.P[cc.param_labels.index(f"{pump}.d")])
+    shaft = [n for n in cc.state_names if n == "shaft" or n.endswith(".shaft")]
+    spin = b.t(0.15)
+    # a constant dorsiflexion torque holds the actuator's line at the bias pressure, so that
+    # the open switching valve, not the actuator, takes the pump's flow
+    bias = np.full(int(round(c.flow_max_duration_s / h)), c.flow_bias_pressure_pa * k_tau)
+    rows = {k: [] for k in ("duty", "delivered_flow_m3_s", "pump_flow_m3_s",
+                            "flow_fraction", "periods")}
+    traces = {}
+    for u in c.duties:
+        dev = b._dev(cc)
+        dev.run_imposed(np.zeros_like(spin), np.full(spin.size, theta0), np.zeros_like(spin))
+        n = int(round(c.flow_max_duration_s / h))
+        log = dev.run_load(np.full(n, float(u)), c.flow_inertia_kg_m2, 0.0,
+                           c.flow_damping_nm_s_rad, theta0_rad=theta0,
+                           external_torque_nm=bias)
+        b._close(dev, f"flow_vs_duty.u{u:g}")
+        th, w = log["angle_rad"], log["velocity_rad_s"]
+        past = np.flatnonzero(th < 0.8 * lo)
+        end = past[0] if past.size else th.size
+        periods = (end - spp) // spp
+        if periods < 1:
+            raise CircuitBenchError(
+                f"flow_vs_duty: at duty {u:g} the ankle crosses 80 % of the stroke within "
+                f"{(end * h):.3g} s, less than two PWM periods ({2.0 / f:.3g} s); allowed: a "
+                "load that slows it (bench.load_damping_nm_s_rad, load_stiffness_nm_rad)")
+        sel = slice(spp, spp + periods * spp)
+        q = -k_tau * float(np.mean(w[sel]))
+        qp = d * float(np.mean(log[shaft[0]][sel])) if shaft else float("nan")
+        rows["duty"].append(float(u))
+        rows["delivered_flow_m3_s"].append(q)
+        rows["pump_flow_m3_s"].append(qp)
+        rows["flow_fraction"].append(q / qp if qp > 0 else float("nan"))
+        rows["periods"].append(int(periods))
+        traces[f"u = {u:g}"] = th[:end]
+    x = np.array(rows["duty"])
+    y = np.array(rows["flow_fraction"])
+    ok = np.isfinite(y)
+    if np.count_nonzero(ok) >= 2:
+        a, b0 = np.polyfit(x[ok], y[ok], 1)
+        fit = a * x[ok] + b0
+        ss = float(np.sum((y[ok] - np.mean(y[ok])) ** 2))
+        r2 = 1.0 - float(np.sum((y[ok] - fit) ** 2)) / ss if ss > 0 else 1.0
+    else:
+        a = b0 = r2 = float("nan")
+    summary = dict(rows, pwm_frequency_hz=f, fit_slope=float(a), fit_offset=float(b0),
+                   fit_r2=float(r2), torque_per_pa_m3_rad=k_tau,
+                   start_angle_rad=theta0)
+    q_ml = np.array(rows["delivered_flow_m3_s"]) * 6e7
+    return summary, [{"x": x, "y": {"delivered flow [L/min]": q_ml / 1000.0},
+                      "xlabel": "PWM duty (metering fraction)", "ylabel": "flow [L/min]",
+                      "markers": True},
+                     {"x": x, "y": {"Q / (d ω)": y}, "xlabel": "PWM duty (metering fraction)",
+                      "ylabel": "delivered / pump flow", "markers": True}]
+
+
 _RUNNERS = {"torque_velocity": torque_velocity, "isometric_steps": isometric_steps,
             "frequency_response": frequency_response, "position_step": position_step,
-            "stiffness": stiffness, "tracking": tracking}
+            "stiffness": stiffness, "tracking": tracking, "flow_vs_duty": flow_vs_duty}
 
 
 def run_circuit_bench(cc, tests, cfg: CircuitBenchConfig = CircuitBenchConfig()):

@@ -10,6 +10,8 @@ on/off valves' PWM on-fractions and switching rates.
 * :class:`ServoValveTorque` (``servo_valve_torque``) — servo valve + supply.
 * :class:`DigitalValveTorque` (``digital_valve_torque``) — PWM switching (unloading) valve
   and release valve + constant-speed supply.
+* :class:`DigitalValveDuty` (``digital_valve_duty``) — the same valves metered open loop by
+  the command (the flow-vs-duty bench test) + constant-speed supply.
 """
 
 from __future__ import annotations
@@ -208,6 +210,38 @@ class ServoValveTorque(_ValveTorqueBase):
         self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], ps, pt)
 
 
+def _check_digital_refs(r) -> None:
+    for key in ("switching", "release"):
+        comp = r[key]
+        if comp.kind != "onoff_valve":
+            raise CircuitError(f"controller.{key} = {comp.name!r} ({comp.kind}); "
+                               "allowed: an 'onoff_valve'")
+
+
+def _emit_pwm(g, own, r, f_hz) -> None:
+    """The on/off valves' inputs from the metering command ``u`` (a local of the controller,
+    in [−1, 1]): ``u ≥ 0`` the switching valve shut for the fraction ``u`` of each PWM period
+    and the release valve shut; ``u < 0`` the switching valve open and the release valve open
+    for ``−u`` of each period. Each valve's input is the PWM signal's on-fraction over the step
+    (:func:`~afo_mj.hydraulics.laws.pwm_on_fraction`, the controller keeps the clock) and its
+    switching rate, ``2 f`` while it is modulated."""
+    sw, rel = r["switching"], r["release"]
+    f = g.param(own, "pwm_frequency", f_hz)
+    clock = g.ctrl_slot("time")
+    s_cmd, s_rate = g.input_slot(sw, "command"), g.input_slot(sw, "switch_rate")
+    r_cmd, r_rate = g.input_slot(rel, "command"), g.input_slot(rel, "switch_rate")
+    for line in (
+            f"t = {clock}",
+            f"{clock} = t + h",
+            "if u >= 0.0:\n    duty_s = 1.0 - u\n    duty_r = 0.0\n"
+            "else:\n    duty_s = 1.0\n    duty_r = -u",
+            f"{s_cmd} = pwm_on_fraction(t, h, duty_s, {f})",
+            f"{r_cmd} = pwm_on_fraction(t, h, duty_r, {f})",
+            f"{s_rate} = 2.0 * {f} if (duty_s > 0.0 and duty_s < 1.0) else 0.0",
+            f"{r_rate} = 2.0 * {f} if (duty_r > 0.0 and duty_r < 1.0) else 0.0"):
+        g.ctrl_line(line)
+
+
 class DigitalValveTorque(_ValveTorqueBase):
     """Torque control of the digital circuit (seed ch. 5): the pump runs at its set speed; a
     normally-open on/off valve (``switching``) unloads it to tank, and while that valve is
@@ -215,13 +249,9 @@ class DigitalValveTorque(_ValveTorqueBase):
 
     ``u = clip(u_ff + k_v e + k_vi ∫e, −1, 1)`` as in :class:`ServoValveTorque` with the
     feedforward ``Q_ff/(d ω_set)`` for a flow into A, ``Q_ff/(C_d A_r √(2 max(p_A − p_t,
-    0.2 MPa)/ρ))`` out of it. ``u ≥ 0``: the switching valve is shut for the fraction ``u``
-    of each PWM period (open for ``1 − u``), the release valve shut; ``u < 0``: the
-    switching valve open, the release valve open for ``−u`` of each period. The valves'
-    inputs are the PWM signal's on-fraction over the step
-    (:func:`~afo_mj.hydraulics.laws.pwm_on_fraction`, the controller keeps the clock) and
-    the switching rate, ``2 f`` while a valve is modulated. References: ``motor``, ``pump``,
-    ``switching``, ``release`` (``onoff_valve``), ``actuator``."""
+    0.2 MPa)/ρ))`` out of it; ``u`` meters the valves by PWM (:func:`_emit_pwm`).
+    References: ``motor``, ``pump``, ``switching``, ``release`` (``onoff_valve``),
+    ``actuator``."""
 
     kind = "digital_valve_torque"
     params_type = DigitalValveTorqueParams
@@ -229,46 +259,75 @@ class DigitalValveTorque(_ValveTorqueBase):
 
     def emit(self, g, p, circuit):
         r = _refs(self, circuit, ("motor", "pump", "switching", "release", "actuator"))
-        sw, rel = r["switching"], r["release"]
-        for key, comp in (("switching", sw), ("release", rel)):
-            if comp.kind != "onoff_valve":
-                raise CircuitError(f"controller.{key} = {comp.name!r} ({comp.kind}); "
-                                   "allowed: an 'onoff_valve'")
+        _check_digital_refs(r)
         if p.supply.pressure_control_enabled:
             raise CircuitError("controller.supply.pressure_control_enabled = True: the "
                                "digital circuit meters a constant-speed pump (allowed: False)")
         kv, kvi, rho = self._torque_loop(g, p, circuit, r["actuator"])
         own = circuit.controller_owner
-        f = g.param(own, "pwm_frequency", p.pwm_frequency_hz)
-        clock = g.ctrl_slot("time")
         d = g.param_ref(r["pump"], "d")
         wset = g.param(own, "speed_set", p.supply.speed_set_rad_s)
+        rel = r["release"]
         pca = g.p(r["actuator"], "a")
         pt = g.p(rel, "b")
         rcd, ramax = g.param_ref(rel, "cd"), g.param_ref(rel, "max_area")
-        s_cmd, s_rate = g.input_slot(sw, "command"), g.input_slot(sw, "switch_rate")
-        r_cmd, r_rate = g.input_slot(rel, "command"), g.input_slot(rel, "switch_rate")
         for line in (
-                f"t = {clock}",
-                f"{clock} = t + h",
                 "if q_ff > 0.0:\n"
                 f"    u_ff = q_ff / ({d} * {wset})\n"
                 "else:\n"
                 f"    u_ff = q_ff / max({rcd} * {ramax} * math.sqrt(2.0 * max({pca} - {pt}, "
                 f"2e5) / {rho}), 1e-12)",
-                f"u = min(max(u_ff + {kv} * err + {kvi} * integ, -1.0), 1.0)",
-                "if u >= 0.0:\n    duty_s = 1.0 - u\n    duty_r = 0.0\n"
-                "else:\n    duty_s = 1.0\n    duty_r = -u",
-                f"{s_cmd} = pwm_on_fraction(t, h, duty_s, {f})",
-                f"{r_cmd} = pwm_on_fraction(t, h, duty_r, {f})",
-                f"{s_rate} = 2.0 * {f} if (duty_s > 0.0 and duty_s < 1.0) else 0.0",
-                f"{r_rate} = 2.0 * {f} if (duty_r > 0.0 and duty_r < 1.0) else 0.0"):
+                f"u = min(max(u_ff + {kv} * err + {kvi} * integ, -1.0), 1.0)"):
             g.ctrl_line(line)
+        _emit_pwm(g, own, r, p.pwm_frequency_hz)
         rail = g.p(r["pump"], "a")
         self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], rail, pt, wset)
 
 
-CONTROLLERS = (ServoValveTorque, DigitalValveTorque)
+@dataclasses.dataclass(frozen=True)
+class DigitalValveDutyParams(Parameters):
+    """The PWM frequency of the on/off valves and the constant-speed supply's loop."""
+
+    pwm_frequency_hz: float = param(50.0, unit="Hz", lo=1.0, hi=2000.0,
+                                    doc="PWM frequency of the on/off valves")
+    supply: SupplyControlParams = SupplyControlParams()
+
+
+class DigitalValveDuty(_ValveTorqueBase):
+    """Open-loop metering of the digital circuit (seed ch. 5's flow-vs-duty bench test): the
+    command is the metering fraction ``u`` itself, clipped to [−1, 1] (``u > 0``: the
+    switching valve shut for ``u`` of each PWM period, passing the pump's flow into line A;
+    ``u < 0``: the release valve open for ``−u``; :func:`_emit_pwm`); the supply runs at its
+    set speed as under :class:`DigitalValveTorque`. The chamber pressures are measured for
+    the log only. References as :class:`DigitalValveTorque`."""
+
+    kind = "digital_valve_duty"
+    params_type = DigitalValveDutyParams
+    summary = "digital circuit's PWM metering fraction open loop + constant-speed supply"
+
+    def emit(self, g, p, circuit):
+        r = _refs(self, circuit, ("motor", "pump", "switching", "release", "actuator"))
+        _check_digital_refs(r)
+        if p.supply.pressure_control_enabled:
+            raise CircuitError("controller.supply.pressure_control_enabled = True: the "
+                               "digital circuit meters a constant-speed pump (allowed: False)")
+        own = circuit.controller_owner
+        act = r["actuator"]
+        ktp = g.param(own, "torque_per_pa", act.torque_per_pa())
+        pb = g.p(act, "b") if "b" in act.ports else "0.0"
+        g.ctrl_line(f"W[W_TAU_MEAS] = -{ktp} * ({g.p(act, 'a')} - {pb})")
+        g.ctrl_line("u = min(max(cmd, -1.0), 1.0)")
+        g.ctrl_line("dp_des = 0.0")       # read by the supply loop's (refused) pressure branch
+        g.ctrl_line("q_ff = 0.0")
+        _emit_pwm(g, own, r, p.pwm_frequency_hz)
+        wset = g.param(own, "speed_set", p.supply.speed_set_rad_s)
+        rail = g.p(r["pump"], "a")
+        self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], rail,
+                          g.p(r["release"], "b"), wset)
+
+
+CONTROLLERS = (ServoValveTorque, DigitalValveTorque, DigitalValveDuty)
 
 __all__ = ["SupplyControlParams", "ValveTorqueParams", "DigitalValveTorqueParams",
-           "ServoValveTorque", "DigitalValveTorque", "CONTROLLERS"]
+           "DigitalValveDutyParams", "ServoValveTorque", "DigitalValveTorque",
+           "DigitalValveDuty", "CONTROLLERS"]
