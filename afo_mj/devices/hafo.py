@@ -37,7 +37,8 @@ them); the reasoning, item by item:
 The device is stepped as a generated circuit (:func:`hafo_circuit`, :mod:`afo_mj.circuits`);
 the hand-written kernel :mod:`afo_mj.devices.pump_ankle_actuator` it replaced stays for the
 equivalence tests and the bench replay (:func:`pack_parameters` packs its parameter row).
-Torque control is through motor voltage (:class:`~afo_mj.circuits.controllers.PumpTorque`); its gains (:class:`HafoControlParams`) give the isometric torque-step response of
+Torque control is through motor voltage (:class:`~afo_mj.circuits.controllers.PumpTorque`);
+its gains (:class:`HafoControlParams`) give the isometric torque-step response of
 the bench scenario (``scenarios/bench_hafo.toml``).
 """
 
@@ -63,7 +64,8 @@ from afo_mj.hydraulics.seal import OringSealParams
 from afo_mj.human.walker import WornMass
 
 __all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
-           "HafoDevice", "HafoKernelDevice", "pack_parameters", "mass_budget", "hafo_params", "HAFO_GAIT", "PRESETS"]
+           "HafoDevice", "HafoKernelDevice", "pack_parameters", "mass_budget", "hafo_params",
+           "HAFO_GAIT", "PRESETS"]
 
 
 @dataclasses.dataclass(frozen=True)
