@@ -31,7 +31,8 @@ from afo_mj.circuits.codegen import build, leaf_fields
 from afo_mj.circuits.catalogue import COMPONENT_KINDS
 from afo_mj.circuits.device import CircuitDevice
 from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices.hafo import (HAFO, HAFO_GAIT, HafoDevice, hafo_circuit, pack_parameters)
+from afo_mj.devices.hafo import (HAFO, HAFO_GAIT, HafoKernelDevice, hafo_circuit,
+                                 pack_parameters)
 from afo_mj.hydraulics.params import replace_named
 
 STATES = ("motor.current_a", "shaft", "line_a", "line_b", "chamber_a", "chamber_b")
@@ -111,7 +112,7 @@ def test_moving_ankle_tracks_the_old_kernel(preset):
     theta = 0.25 * np.sin(2 * np.pi * t) * (1 - np.exp(-t / 0.1))
     theta_dot = np.gradient(theta, h)
     command = -40.0 * np.clip(np.sin(2 * np.pi * 1.5 * t[:n]), 0, None)
-    old = HafoDevice(preset, torque_fn=lambda *a: 0.0)
+    old = HafoKernelDevice(preset, torque_fn=lambda *a: 0.0)
     new = CircuitDevice(hafo_circuit(_like_old_kernel(preset)), torque_fn=lambda *a: 0.0)
     tau_o, y_o = _drive(old, t, theta, theta_dot, command)
     tau_n, y_n = _drive(new, t, theta, theta_dot, command)

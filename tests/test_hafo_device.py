@@ -7,7 +7,8 @@ import pytest
 
 from afo_mj.control import assistance as asst
 from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices.hafo import HAFO, HafoDevice, hafo_params, mass_budget, pack_parameters
+from afo_mj.devices.hafo import (HAFO, HafoDevice, HafoKernelDevice, hafo_params, mass_budget,
+                                 pack_parameters)
 from afo_mj.human.test_stand import AnkleTestStand, StandLoad
 from afo_mj.hydraulics.conduit import laminar_resistance_pa_s_m3
 from afo_mj.hydraulics.cylinder import Cylinder
@@ -107,6 +108,34 @@ def test_energy_balance_closes_on_the_stand():
     assert abs(led["balance_error_rel"]) < 0.005
     assert set(led["losses_j"]) == set(pa.LOSS_NAMES)
     assert all(v >= -1e-9 for v in led["losses_j"].values())
+
+
+def test_circuit_device_keeps_the_kernel_names_and_follows_it():
+    """HafoDevice steps the generated circuit: its log has every column of the old kernel's
+    log by the same name, its ledger every key and loss name of the old ledger; on the stand
+    under torque steps the delivered torque stays close to the old kernel's (the circuit
+    adds turbulent hose loss, the OCV table and per-side dead volumes: not bit-equal)."""
+    def fn(t, q, v):
+        return -30.0 * math.copysign(1.0, math.sin(2 * math.pi * 1.5 * t))
+    load = StandLoad(kind="spring", spring_stiffness_nm_per_rad=150.0)
+    runs = {}
+    for cls in (HafoDevice, HafoKernelDevice):
+        dev = cls(HAFO, torque_fn=fn, max_steps=1002)
+        rec = AnkleTestStand(load=load).run_device(dev, 1.0)
+        runs[cls] = dev, rec
+    (new, rec_n), (old, rec_o) = runs[HafoDevice], runs[HafoKernelDevice]
+    assert set(pa.LOG_FIELDS) <= set(new.log.arrays())
+    led_n, led_o = new.ledger(), old.ledger()
+    assert set(led_o) <= set(led_n)
+    assert list(led_n["losses_j"]) == list(pa.LOSS_NAMES)
+    assert set(led_o["stored_change_j"]) <= set(led_n["stored_change_j"])
+    err = np.sqrt(np.mean((rec_n.device_torque_nm - rec_o.device_torque_nm) ** 2))
+    assert err < 0.025 * 30.0            # measured 0.37 N·m
+    assert led_n["hydraulic_j"] == pytest.approx(led_o["hydraulic_j"], rel=0.01)   # 0.4 %
+    assert led_n["peak_current_a"] == pytest.approx(led_o["peak_current_a"], rel=0.01)
+    with pytest.raises(ValueError, match="state = 'nope'"):
+        new.state("nope")
+    assert new.state("chamber_a_pa")[0] == new.log.arrays()["chamber_a_pa"][-1]
 
 
 def test_stiff_oil_coupling_is_stable_and_matches_a_fine_step():

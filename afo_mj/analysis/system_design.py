@@ -1393,25 +1393,29 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
     """
     from scipy.optimize import brentq
 
-    from afo_mj.devices import pump_ankle_actuator as pa
-    from afo_mj.devices.hafo import pack_parameters
-    P = pack_parameters(params)
+    from afo_mj.circuits.codegen import generate
+    from afo_mj.devices.hafo import hafo_circuit
+    # the parameters as the device's generated circuit reads them (effect switches applied)
+    _, emitted, _ = generate(hafo_circuit(params))
+    P = dict(zip(emitted.P_labels, emitted.P))
     soc = params.initial_soc if soc is None else soc
     temp = params.ambient_temperature_k if temperature_k is None else temperature_k
     mu = float(Fluid(params.fluid).dynamic_viscosity_pa_s(temp))
     v_oc = float(Battery(params.battery).open_circuit_voltage_v(soc))
     v_cmd = 1.25 * 4.2 * params.battery.cells_series if full_voltage_v is None else full_voltage_v
-    r, ae, n = P[pa.P_R_PULLEY], P[pa.P_A_E], P[pa.P_N_CYL]
-    d, cs, cf, cv, t0, wcp = (P[pa.P_D], P[pa.P_CS], P[pa.P_CF], P[pa.P_CV], P[pa.P_T0],
-                              P[pa.P_WC_P])
-    R, K, ilim = P[pa.P_R], P[pa.P_K], P[pa.P_I_LIM]
-    hose, rho = params.hose, P[pa.P_RHO]
-    seal = (P[pa.P_SEAL_FC], P[pa.P_SEAL_STRIB], P[pa.P_SEAL_VST], P[pa.P_SEAL_VC],
-            P[pa.P_SEAL_FV])
+    n, r = P["cylinders.count"], P["cylinders.pulley_radius"]
+    ae = n * P["cylinders.area"]
+    d, cs, cf, cv, t0, wcp = (P["pump.d"], P["pump.slip"], P["pump.coulomb"],
+                              P["pump.viscous"], P["pump.drag"], P["pump.smoothing_speed"])
+    R, K, ilim = P["motor.R"], P["motor.K"], P["motor.current_limit"]
+    hose, rho = params.hose, P["fluid.density"]
+    seal = (P["cylinders.seal_fc"], P["cylinders.seal_stribeck"], P["cylinders.seal_v_st"],
+            P["cylinders.seal_v_c"], P["cylinders.seal_fv"])
 
     def motor_t(w, dpp):
         """Motor shaft torque: pump ``d Δp + T_f`` plus the motor's friction (the laws)."""
-        tm = laws.motor_friction_torque_nm(w, P[pa.P_TC_M], P[pa.P_BV_M], P[pa.P_WC_M])
+        tm = laws.motor_friction_torque_nm(w, P["motor.coulomb_nm"], P["motor.viscous"],
+                                           P["motor.smoothing_speed"])
         tp = d * dpp + laws.pump_friction_torque_nm(w, dpp, d, cf, cv, t0, wcp, mu)
         return float(tm + tp)
 
@@ -1422,10 +1426,10 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
         volt = v_cmd
         vbus = v_oc
         for _ in range(30):
-            volt = float(laws.driver_voltage_v(v_cmd, K * w, R, ilim, P[pa.P_CUR_LIM_ON],
-                                               P[pa.P_DUTY], vbus))
-            pbus = volt * cur + P[pa.P_R_ON] * cur * cur + P[pa.P_P_Q]
-            rb = P[pa.P_BAT_R]
+            volt = float(laws.driver_voltage_v(v_cmd, K * w, R, ilim, P["motor.limit_on"],
+                                               P["motor.max_duty"], vbus))
+            pbus = volt * cur + P["motor.r_on"] * cur * cur + P["motor.quiescent_w"]
+            rb = P["battery.resistance_ohm"]
             ib = float(laws.battery_current_a(pbus, v_oc, rb))
             vbus_new = max(v_oc - rb * ib, 0.0)
             if abs(vbus_new - vbus) < 1e-12:
@@ -1435,17 +1439,17 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
 
     # -- stall: unknown chamber difference Δp_c ------------------------------------------------
     def stall_state(dpc):
-        q_lk = float(laws.laminar_gap_flow_m3_s(dpc, P[pa.P_G_LEAK], mu))
+        q_lk = float(laws.laminar_gap_flow_m3_s(dpc, P["cylinders.leak_g"], mu))
         dpp = dpc + 2.0 * float(laws.hose_pressure_loss_pa(q_lk, hose.length_m, hose.bore_m, mu,
                                                            rho, 0.0, 0.0))
         q_rel = 0.0
         if dpp > 0.0:   # the relief from the high to the low side, seated otherwise
-            area = laws.relief_valve_area_m2(dpp, P[pa.P_REL_CRACK], P[pa.P_REL_OVER],
-                                             P[pa.P_REL_AMAX], P[pa.P_REL_ALEAK])
-            q_rel = float(laws.orifice_flow_m3_s(dpp, area, P[pa.P_REL_CD], rho,
-                                                 P[pa.P_REL_PCR]))
+            area = laws.relief_valve_area_m2(dpp, P["relief_ab.cracking"], P["relief_ab.override"],
+                                             P["relief_ab.max_area"], P["relief_ab.leak_area"])
+            q_rel = float(laws.orifice_flow_m3_s(dpp, area, P["relief_ab.cd"], rho,
+                                                 P["relief_ab.p_cr"]))
         w = float(laws.pump_speed_for_flow_rad_s(q_lk + q_rel, dpp, d, cs,
-                                                 P[pa.P_PUMP_G_EXTRA], mu))
+                                                 P["pump.extra_leak"], mu))
         return w, dpp
 
     def stall_residual(dpc):
@@ -1454,14 +1458,14 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
         cur = tm / K
         return applied(w, cur) - (R * cur + K * w)
 
-    hi = 4.0 * P[pa.P_REL_CRACK]
+    hi = 4.0 * P["relief_ab.cracking"]
     dpc = brentq(stall_residual, 0.0, hi, xtol=1.0, rtol=1e-12)
     w_s, dpp_s = stall_state(dpc)
     stall = r * ae * dpc
 
     # -- no load: unknown plantarflexion speed ω_a --------------------------------------------
     def free_state(wa):
-        ch = chain_steady(0.0, -wa, r=r, ae=ae, n_cyl=n, seal=seal, g_leak=P[pa.P_G_LEAK],
+        ch = chain_steady(0.0, -wa, r=r, ae=ae, n_cyl=n, seal=seal, g_leak=P["cylinders.leak_g"],
                           hose_length_m=hose.length_m, hose_bore_m=hose.bore_m,
                           mu=mu, rho=rho, d=d, cs=cs, cf=cf, cv=cv, t0=t0, wc_pump=wcp)
         return float(ch["w_p"]), float(ch["dp_p"])
@@ -1471,7 +1475,7 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
         cur = motor_t(w, dpp) / K
         return applied(w, cur) - (R * cur + K * w)
 
-    w_hi = 1.2 * P[pa.P_DUTY] * v_oc / K * d / (ae * r)
+    w_hi = 1.2 * P["motor.max_duty"] * v_oc / K * d / (ae * r)
     wa = brentq(free_residual, 1e-6, w_hi, xtol=1e-9, rtol=1e-12)
     w_nl, dpp_nl = free_state(wa)
     return {"stall_torque_nm": stall, "stall_pump_pressure_pa": dpp_s,

@@ -182,6 +182,9 @@ class MotorDriver(Component):
         g.loss(self, "friction", f"{tf} * {w}", oil=False)
         g.probe(self, "voltage_v", v)
         g.monitor(self, "speed_over_rating", f"abs({w}) / {wmax}")
+        # peak winding current as a fraction of the driver's limit (the limit acts on the
+        # commanded voltage, so a back-driven motor can exceed it)
+        g.monitor(self, "current_over_limit", f"abs({i}) / {ilim}")
 
 
 class Pump(Component):

@@ -44,6 +44,9 @@ class CircuitDevice:
     (transparent). ``max_steps`` > 0 keeps a device log of that many steps."""
 
     coupled = True
+    #: log column renames (generic name → the name a subclass's consumers read); the
+    #: columns are the same, only their keys in :meth:`CircuitLog.arrays` change
+    log_names: dict = {}
 
     def __init__(self, circuit: Circuit | CompiledCircuit, sides=("right",),
                  timestep_s: float = 1e-3, torque_fn=None, profile=None, max_steps: int = 0,
@@ -100,8 +103,8 @@ class CircuitDevice:
         self.delivered2, self.commanded2 = self._O[k.O_DELIVERED], self._O[k.O_COMMANDED]
         self.phase2 = self._O[k.O_PHASE]
         self._out2 = (self.force2, self.damping2)
-        self.log_fields = (stepper.LOG_HEADER + tuple(cc.state_names)
-                           + tuple(cc.probe_names))
+        self.log_fields = tuple(self.log_names.get(f, f) for f in (
+            stepper.LOG_HEADER + tuple(cc.state_names) + tuple(cc.probe_names)))
         self.log = CircuitLog(max_steps, ns, self.log_fields) if max_steps else None
         self._log_data = (self.log.data if self.log is not None
                           else np.zeros((0, len(self.log_fields), ns)))

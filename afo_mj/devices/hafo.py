@@ -34,8 +34,11 @@ them); the reasoning, item by item:
   outruns the pump.
 * **Masses** — :data:`HAFO_MASSES`, item by item; hose mass is computed (wall 45 g/m + oil).
 
-Torque control is through motor voltage (:func:`~afo_mj.devices.pump_ankle_actuator.
-controller`); its gains (:class:`HafoControlParams`) give the isometric torque-step response of
+The device is stepped as a generated circuit (:func:`hafo_circuit`, :mod:`afo_mj.circuits`);
+the hand-written kernel :mod:`afo_mj.devices.pump_ankle_actuator` it replaced stays for the
+equivalence tests and the bench replay (:func:`pack_parameters` packs its parameter row).
+Torque control is through motor voltage (:class:`~afo_mj.circuits.controllers.PumpTorque`);
+its gains (:class:`HafoControlParams`) give the isometric torque-step response of
 the bench scenario (``scenarios/bench_hafo.toml``).
 """
 
@@ -46,8 +49,9 @@ import math
 
 import numpy as np
 
-from afo_mj.control import assistance as asst
+from afo_mj.circuits.device import CircuitDevice
 from afo_mj.devices import pump_ankle_actuator as pa
+from afo_mj.devices.kernel_device import KernelDevice
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
 from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
@@ -60,7 +64,8 @@ from afo_mj.hydraulics.seal import OringSealParams
 from afo_mj.human.walker import WornMass
 
 __all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
-           "HafoDevice", "pack_parameters", "mass_budget", "hafo_params", "HAFO_GAIT", "PRESETS"]
+           "HafoDevice", "HafoKernelDevice", "pack_parameters", "mass_budget", "hafo_params",
+           "HAFO_GAIT", "PRESETS"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -404,8 +409,31 @@ def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
 SIDE_NAMES = ("right", "left")
 
 
-class HafoDevice:
+def regroup(values: dict, table: dict, what: str) -> dict:
+    """Sum the generic per-component entries ``values`` (component-instance names) into the
+    named groups of ``table`` (group → tuple of generic names, in the order of the result).
+    Every generic name must belong to exactly one group, so a component added to a circuit
+    without a place in its device's ledger is an error rather than a silent omission."""
+    out, used = {}, set()
+    for group, names in table.items():
+        out[group] = 0.0
+        for n in names:
+            if n in values:
+                out[group] += values[n]
+                used.add(n)
+    missing = sorted(set(values) - used)
+    if missing:
+        raise ParameterError(f"{what}: {missing} belong to no ledger entry; allowed: "
+                             + ", ".join(f"{g} ← {list(ns)}" for g, ns in table.items()))
+    return out
+
+
+class HafoDevice(CircuitDevice):
     """HAFO worn on one or both ankles, stepped with MuJoCo (coupled-device protocol).
+
+    The device is :func:`hafo_circuit` of ``params`` compiled by :mod:`afo_mj.circuits`
+    and stepped by :class:`~afo_mj.circuits.device.CircuitDevice`; this class adds the
+    mass budget and the HAFO's names for the log columns and the ledger entries.
 
     ``begin_step(t, angle, velocity, stance)`` → ``(joint_force, joint_damping)`` per walker
     side (zeros where not worn); MuJoCo steps; ``end_step(velocity_new)`` → delivered torque.
@@ -415,12 +443,32 @@ class HafoDevice:
     ``mode="voltage"`` it returns the motor voltage instead (open-loop bench tests).
     """
 
-    coupled = True
-    #: the compiled kernel module that steps it; a circuit with another kernel of the same
-    #: coupled-step API (:mod:`afo_mj.devices.valve_ankle_actuator`) subclasses this class
-    kernel = pa
-    #: the ledger's loss names, in the order of the kernel's ``LOSS_INDEX``
-    loss_names = pa.LOSS_NAMES
+    #: generic log columns under the names the gait, recording and signal code read
+    log_names = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
+                 "shaft": "motor_speed_rad_s", "line_a": "pressure_a_pa",
+                 "line_b": "pressure_b_pa", "chamber_a": "chamber_a_pa",
+                 "chamber_b": "chamber_b_pa"}
+    #: ledger losses: each named loss the sum of these component losses, chain order
+    loss_table = {
+        "battery_internal": ("battery.internal",), "driver": ("motor.driver",),
+        "motor_copper": ("motor.copper",), "motor_friction": ("motor.friction",),
+        "pump_volumetric": ("pump.volumetric",), "pump_mechanical": ("pump.mechanical",),
+        "line": ("hose_a.line", "hose_b.line"),
+        "charge_valves": ("flushing.throttling", "makeup_a.throttling",
+                          "makeup_b.throttling"),
+        "relief": ("relief_ab.throttling", "relief_ba.throttling"),
+        "seal_friction": ("cylinders.seal_friction",), "leakage": ("cylinders.leakage",)}
+    #: ledger stores: each the sum of these generic stores (oil: every pressure node)
+    store_table = {
+        "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
+        "oil": ("oil.line_a", "oil.line_b", "oil.chamber_a", "oil.chamber_b"),
+        # the reservoir gives energy when it feeds the lines: its store falls
+        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",)}
+    #: the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
+    #: input less their losses and the change of their stores (energy balance of that part)
+    upstream_losses = ("battery_internal", "driver", "motor_copper", "motor_friction",
+                       "pump_volumetric", "pump_mechanical")
+    upstream_stores = ("inductance", "rotor")
 
     def __init__(self, params: PumpAnkleParams = HAFO_ACTUATOR, sides=("right",),
                  profile: np.ndarray | None = None, timestep_s: float = 1e-3,
@@ -429,64 +477,24 @@ class HafoDevice:
                  max_stride_s: float = 3.0):
         if mode not in ("torque", "voltage"):
             raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
+        self.params = params
+        self.mode = mode
+        self._setup(self._circuit(params, mode, initial_pressure_pa), sides, profile,
+                    timestep_s, max_steps, torque_fn, min_stride_s, max_stride_s)
+
+    def _circuit(self, params, mode: str, initial_pressure_pa):
+        """The circuit description this device steps."""
+        return hafo_circuit(params, mode=mode, initial_pressure_pa=initial_pressure_pa)
+
+    def _setup(self, circuit, sides, profile, timestep_s, max_steps, torque_fn, min_stride_s,
+               max_stride_s) -> None:
         bad = [s for s in sides if s not in SIDE_NAMES]
         if bad or not sides or len(set(sides)) != len(sides):
             raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
                                  "of ['right', 'left']")
-        self.params = params
-        self.sides = tuple(sides)
-        self.side_index = np.array([SIDE_NAMES.index(s) for s in self.sides], dtype=np.int64)
-        ns = len(self.sides)
-        self.mode = mode
-        self.transparent = profile is None and torque_fn is None
-        profile = (np.zeros(asst.TABLE_POINTS) if profile is None
-                   else np.ascontiguousarray(profile, dtype=float))
-        self.torque_fn = torque_fn
-        self.timestep_s = float(timestep_s)
-        # Every per-side float array is a view of one buffer, laid out by ``_meta``
-        # (pa.device_layout), so that the compiled step (pa.device_begin / pa.device_end)
-        # takes two arrays instead of a dozen: the call overhead grows with their number.
-        K = self.kernel
-        self._meta = K.device_layout(ns, profile.shape[0], self.side_index)
-        self._buf = np.zeros(self._meta[K.M_END])
-        (self.Y, self.P, self.W, self.S, self.phase_state, self.profile, self._V, self._out,
-         self._O) = K.device_views(self._buf, self._meta)
-        self.P[:] = self._pack(params, mode)
-        self.profile[:] = profile
-        p0 = params.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
-        self._initial_state(p0)
-        self.W[:, K.W_SOC] = params.initial_soc
-        self.W[:, K.W_TEMP_K] = params.ambient_temperature_k
-        self.W[:, K.W_P_MAX] = p0
-        self.S[:, 0, 0] = self.timestep_s
-        self.phase_state[:] = asst.new_phase_state(ns)
-        self.stride_limits = (float(min_stride_s), float(max_stride_s))
-        self._buf[self._meta[K.M_LIM]:self._meta[K.M_LIM] + 2] = self.stride_limits
-        # per-worn-side work rows and per-walker-side outputs: views of the rows of V and O
-        self._theta, self._thd, self._cmd = (self._V[K.V_THETA], self._V[K.V_THETA_DOT],
-                                             self._V[K.V_TAU_CMD])
-        self._vnew, self._tau = self._V[K.V_THETA_DOT_NEW], self._V[K.V_TAU]
-        self._O[K.O_PHASE] = -1.0
-        self.force2, self.damping2 = self._O[K.O_FORCE], self._O[K.O_DAMPING]
-        self.delivered2, self.commanded2 = self._O[K.O_DELIVERED], self._O[K.O_COMMANDED]
-        self.phase2 = self._O[K.O_PHASE]
-        self._out2 = (self.force2, self.damping2)
-        self.steps = 0
-        self.log = _DeviceLog(max_steps, ns, K.LOG_FIELDS) if max_steps else None
-        self._log_data = (self.log.data if self.log is not None
-                          else np.zeros((0, len(K.LOG_FIELDS), ns)))
-        self.t_s = 0.0
-
-    def _pack(self, params, mode: str) -> np.ndarray:
-        """The kernel's parameter row for ``params``."""
-        return pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage" else pa.MODE_TORQUE)
-
-    def _initial_state(self, p0: float) -> None:
-        """Every pressure node at ``p0`` (gauge), the rest at zero."""
-        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
-
-    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
-        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)
+        super().__init__(circuit, sides=sides, timestep_s=timestep_s, torque_fn=torque_fn,
+                         profile=profile, max_steps=max_steps, min_stride_s=min_stride_s,
+                         max_stride_s=max_stride_s)
 
     # -- masses ----------------------------------------------------------------------------
     def worn_masses(self) -> list[WornMass]:
@@ -509,109 +517,60 @@ class HafoDevice:
         """Per worn side (what the published 0.97 kg refers to)."""
         return sum(i.mass_kg for i in mass_budget(self.params) if i.site != "waist")
 
-    # -- stepping ------------------------------------------------------------------------------
-    def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
-        """Hold inputs, compute the commanded torque and linearise (see module docs of
-        :mod:`~afo_mj.devices.pump_ankle_actuator`); returns views of the per-walker-side
-        joint force and extra damping (length 2). The arguments are numpy arrays indexed by
-        walker side (0 right, 1 left)."""
-        self.t_s = t
-        if self.torque_fn is None:
-            # phase estimate, profile lookup and linearisation in one compiled call
-            self.kernel.device_begin(t, angle_rad, velocity_rad_s, stance, self._buf,
-                                     self._meta)
-            return self._out2
-        si = self.side_index
-        th, thd, cmd = self._theta, self._thd, self._cmd
-        for k in range(len(si)):
-            s = si[k]
-            th[k] = angle_rad[s]
-            thd[k] = velocity_rad_s[s]
-            cmd[k] = self.torque_fn(t, th[k], thd[k])
-        self._kernel_begin_step(th, thd, cmd, t)
-        f2, d2 = self.force2, self.damping2
-        for k in range(len(si)):
-            f2[si[k]] = self._out[k, 0]
-            d2[si[k]] = self._out[k, 1]
-            self.commanded2[si[k]] = cmd[k]
-        return self._out2
-
-    def end_step(self, velocity_new_rad_s):
-        """Close the step with the ankle velocity MuJoCo produced; returns delivered torques
-        (length 2, zero where not worn)."""
-        k = self.steps
-        # finish_all, delivered torques and the log row in one compiled call
-        code = self.kernel.device_end(velocity_new_rad_s, self._buf, self._meta, self._log_data, k,
-                             self.t_s + self.timestep_s)
-        if not code:
-            raise FloatingPointError(
-                f"{type(self).__name__} hydraulic state became non-finite at t = "
-                f"{self.t_s:.4f} s: {dict(zip(self.kernel.STATE_NAMES, self.Y[0].tolist()))}")
-        if code == 2:
-            self.log.n = k + 1
-        self.steps = k + 1
-        return self.delivered2
+    # -- state by name -----------------------------------------------------------------------
+    def state(self, name: str) -> np.ndarray:
+        """The present value of state ``name`` (a circuit state label or its log name, e.g.
+        ``"chamber_a_pa"``) on each worn side (a view)."""
+        generic = {v: k for k, v in self.log_names.items()}.get(name, name)
+        if generic not in self.cc.state_names:
+            raise ParameterError(f"state = {name!r}; allowed: "
+                                 + ", ".join(self.log_names.get(n, n)
+                                             for n in self.cc.state_names))
+        return self.Y[:, self.cc.state_names.index(generic)]
 
     # -- results ---------------------------------------------------------------------------
     def ledger(self, k: int = 0) -> dict:
-        """Energy ledger of worn side ``k`` (J), with the balance residual."""
-        K = self.kernel
-        W = self.W[k]
-        losses = {n: float(W[i]) for n, i in zip(self.loss_names, K.LOSS_INDEX)}
-        stored = {"inductance": float(W[K.W_E_STORE_L]), "rotor": float(W[K.W_E_STORE_ROT]),
-                  "oil": float(W[K.W_E_STORE_OIL]),
-                  # the reservoir gives energy when it feeds the lines: its store falls
-                  "reservoir": float(W[K.W_E_RESERVOIR])}
-        e_in = float(W[K.W_E_CHEM])
-        e_out = float(W[K.W_E_MECH])
-        resid = e_in - e_out - sum(losses.values()) - sum(stored.values())
-        drawn = float(W[K.W_E_CHEM_DRAWN])
-        scale = max(drawn, 1e-12)
-        return {"electrical_in_j": e_in, "electrical_drawn_j": drawn,
-                "electrical_regenerated_j": drawn - e_in, "mechanical_out_j": e_out,
-                "balance_error_rel": resid / scale,
-                "energy_throughput_j": float(W[K.W_E_ABS_FLOW]),
-                "hydraulic_j": float(W[K.W_E_HYD]), "losses_j": losses,
-                "stored_change_j": stored, "residual_j": resid,
-                "heat_to_oil_j": float(W[K.W_HEAT_TO_OIL]),
-                "peak_pressure_pa": float(W[K.W_P_MAX]),
-                "peak_current_a": float(W[K.W_I_PEAK]),
-                "temperature_rise_k": float(W[K.W_TEMP_K] - self.params.ambient_temperature_k),
-                "soc": float(W[K.W_SOC]), "pressure_floor_steps": int(W[K.W_CLIP_STEPS]),
-                "newton_iterations": int(W[K.W_NEWTON_ITERS]),
-                "newton_unconverged_steps": int(W[K.W_NEWTON_FAIL]),
-                "substepped_steps": int(W[K.W_SUBSTEPPED]),
-                "substeps": int(W[K.W_SUBSTEPS]),
-                "coupling_torque_error_rms_nm": float(np.sqrt(W[K.W_COUPLE_SQ]
-                                                              / max(self.steps, 1)))}
+        """Energy ledger of worn side ``k`` (J), with the balance residual: the generic
+        circuit ledger with its losses and stores grouped by :attr:`loss_table` and
+        :attr:`store_table`, the battery's figures, and the hydraulic energy the pump
+        delivered (see :attr:`upstream_losses`)."""
+        g = super().ledger(k)
+        W, kk = self.W[k], self.k
+        losses = regroup(g["losses_j"], self.loss_table, f"{type(self).__name__} losses")
+        stored = regroup(g["stored_change_j"], self.store_table,
+                         f"{type(self).__name__} stores")
+        e_in, drawn = g["input_j"], g["input_drawn_j"]
+        hydraulic = (e_in - sum(losses[n] for n in self.upstream_losses)
+                     - sum(stored[n] for n in self.upstream_stores))
+        ilim = self.params.driver.current_limit_a
+        g.update({
+            "electrical_in_j": e_in, "electrical_drawn_j": drawn,
+            "electrical_regenerated_j": drawn - e_in, "hydraulic_j": hydraulic,
+            "losses_j": losses, "stored_change_j": stored,
+            "peak_current_a": g["monitors"]["motor.current_over_limit"] * ilim,
+            "temperature_rise_k": float(W[kk.W_TEMP_K] - self.params.ambient_temperature_k),
+            "soc": float(W[kk.W_SOC]), "substeps": int(W[kk.W_SUBSTEPS])})
+        return g
 
 
-class _DeviceLog:
-    """Preallocated per-step device signals (per worn side): ``data[step, field, side]`` (one
-    step's signals side by side in memory), written by the compiled
-    :func:`~afo_mj.devices.pump_ankle_actuator.device_end`."""
+class HafoKernelDevice(KernelDevice):
+    """The HAFO stepped by its hand-written kernel :mod:`~afo_mj.devices.pump_ankle_actuator`
+    (what :class:`HafoDevice` was before the generated circuit): the reference of the
+    equivalence tests and of the speed comparison. Same arguments as :class:`HafoDevice`;
+    log and ledger under the same names."""
 
-    FIELDS = pa.LOG_FIELDS
+    kernel = pa
+    loss_names = pa.LOSS_NAMES
+    worn_masses = HafoDevice.worn_masses
+    mass_total_kg = HafoDevice.mass_total_kg
+    mass_at_ankle_kg = HafoDevice.mass_at_ankle_kg
 
-    def __init__(self, n: int, ns: int, fields=pa.LOG_FIELDS):
-        self.n = 0
-        self.FIELDS = tuple(fields)
-        self.data = np.zeros((n, len(self.FIELDS), ns))
+    def _pack(self, params, mode: str) -> np.ndarray:
+        return pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage" else pa.MODE_TORQUE)
 
-    def write(self, k: int, t: float, dev: HafoDevice) -> None:
-        """Row ``k`` from the device's present state (what ``device_end`` writes)."""
-        if k >= self.data.shape[0]:
-            return
-        d, W, Y = self.data[k], dev.W, dev.Y
-        cols = (W[:, pa.W_TAU_CMD], W[:, pa.W_TAU], W[:, pa.W_TAU_MEAS],
-                dev.phase_state[:, asst.PH_PHASE], W[:, pa.W_V_CMD], Y[:, pa.Y_I], Y[:, pa.Y_W],
-                Y[:, pa.Y_PPA], Y[:, pa.Y_PPB], Y[:, pa.Y_PCA], Y[:, pa.Y_PCB],
-                W[:, pa.W_V_BUS], W[:, pa.W_I_BAT], W[:, pa.W_P_MECH], W[:, pa.W_TEMP_K],
-                dev._vnew)
-        d[0] = t
-        for i, c in enumerate(cols, start=1):
-            d[i] = c
-        self.n = k + 1
+    def _initial_state(self, p0: float) -> None:
+        """Every pressure node at ``p0`` (gauge), the rest at zero."""
+        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
 
-    def arrays(self) -> dict:
-        return {f: self.data[:self.n, i].copy() for i, f in enumerate(self.FIELDS)}
+    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
+        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)

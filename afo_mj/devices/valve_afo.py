@@ -63,7 +63,8 @@ from afo_mj.circuits import valves as _cv
 from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
 from afo_mj.circuits.components import CircuitError
 from afo_mj.devices import valve_ankle_actuator as va
-from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleParams,
+from afo_mj.devices.kernel_device import KernelDevice
+from afo_mj.devices.hafo import (HAFO_GAIT, HafoMassItem, PumpAnkleParams,
                                  _hose_mass_kg, pack_parameters)
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA
@@ -552,9 +553,10 @@ def impedance_table(rows) -> np.ndarray:
     return np.array([float(len(rows))] + [v for r in rows for v in r])
 
 
-class ValveAfoDevice(HafoDevice):
+class ValveAfoDevice(KernelDevice):
     """A :class:`ValveAnkleParams` orthosis worn on one or both ankles (the coupled-device
-    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`).
+    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`, stepped by the compiled kernel
+    :mod:`~afo_mj.devices.valve_ankle_actuator`).
 
     ``profile``: assistance torque vs stride phase, or ``impedance``: rows of
     :func:`impedance_table` (passive-AFO emulation, clutched spring, per-phase impedance), or

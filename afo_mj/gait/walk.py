@@ -400,7 +400,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                 break
         if coupled:
             # Hydraulic device: end-of-step torque = force − D·q̇_{n+1}, D integrated
-            # implicitly by MuJoCo (afo_mj.devices.pump_ankle_actuator).
+            # implicitly by MuJoCo (afo_mj.circuits.stepper).
             # (scalars as Python floats: cheaper than numpy scalars, the same IEEE arithmetic)
             stance2[0] = swing[0] < 0.5
             stance2[1] = swing[1] < 0.5

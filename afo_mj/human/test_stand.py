@@ -425,7 +425,7 @@ class AnkleTestStand:
         the device linearises its hydraulics about the current state and hands MuJoCo its
         end-of-step torque as a joint force plus extra joint damping, which MuJoCo's
         implicitfast integrator treats implicitly (see
-        :mod:`afo_mj.devices.pump_ankle_actuator`); after the step the new ankle velocity
+        :mod:`afo_mj.circuits.stepper`); after the step the new ankle velocity
         closes the device's step. ``device_torque_nm`` records the delivered torque."""
         n = int(round(duration_s / self.timestep_s))
         m, d = self.model, self.data

@@ -25,7 +25,7 @@ Formulas (each run, SI units; degrees only where a name ends in ``_deg`` / ``_de
 --------------------------------------------------------------------------------------------
 * Full voltage: the command is ``full_voltage_v`` (default 1.25 × the fully charged pack
   open-circuit voltage, ``1.25 · 4.2 V · cells``), which the driver clips to
-  ``duty_max · V_bus`` (:mod:`afo_mj.devices.pump_ankle_actuator`); it is reached through a
+  ``duty_max · V_bus`` (:func:`~afo_mj.hydraulics.laws.driver_voltage_v`); it is reached through a
   50 ms linear ramp so the first millisecond does not slam the relief valve (a ramp does not
   change the steady values measured).
 * Stall torque ``= −mean(τ)`` over the last 40 % of a locked-ankle run at full voltage.
@@ -62,7 +62,7 @@ The bench steps at 0.25 ms by default (``timestep_s``; the velocity sweep at 0.1
 :data:`VELOCITY_SWEEP_TIMESTEP_S`), to resolve the driver's electrical time constant
 (L/R ≈ 0.17 ms) in the recorded responses. The energy ledger closes at any step: a device
 step whose Newton correction fails (a 50 N·m step saturating the current at 1 ms) is redone
-in converged sub-steps (:func:`~afo_mj.devices.pump_ankle_actuator.finish_step`); at 1 ms
+in converged sub-steps (:mod:`afo_mj.circuits.stepper`); at 1 ms
 the isometric steps close to 2e-11 with the same 34 ms rise time.
 ``run_bench(timestep_s=...)`` sets one step for every test.
 """
