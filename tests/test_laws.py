@@ -102,7 +102,8 @@ def test_mean_compliance_is_the_integral_of_one_over_b():
     for alpha, n, p0, p1 in ((0.01, 1.4, 0.4e6, 4.6e6), (0.01, 1.4, 4.6e6, 0.4e6),
                              (0.05, 1.2, 2e3, 1e7), (0.1, 1.0, 1e3, 3e5),
                              (0.01, 1.4, 500.0, 1500.0), (0.0, 1.4, 1e5, 2e7),
-                             (0.01, 1.4, 3e5, 3e5 + 1.0)):
+                             (0.01, 1.4, 3e5, 3e5 + 1.0), (0.05, 1.2, 1.1e5, 2.2e5),
+                             (0.01, 1.4, 2.05e6, 1.0e6), (0.2, 1.0, 3e3, 5.5e3)):
         def inv_b(p, alpha=alpha, n=n):
             return 1.0 / L.bulk_modulus_pa(max(p, fl), bl, alpha, n, pa)
         lo, hi = min(p0, p1), max(p0, p1)

@@ -119,8 +119,10 @@ def oil_mean_compliance_per_pa(p0_abs_pa, p1_abs_pa, liquid_bulk_modulus_pa, air
     volume exactly (``V (Ψ(p1) − Ψ(p0)) = h Q``) where the tangent ``1/B(p1)`` does not. With
     ``r = (p_a/p)^(1/n)``, ``1/B = 1/(B_L (1 + α r)) + α r/(n p (1 + α r))``: the gas term
     integrates to ``ln((1 + α r_0)/(1 + α r_1))`` (evaluated with ``log1p``/``expm1``, no
-    cancellation for a small interval), the liquid term (within 1 + α r of ``1/B_L``) by 3-point
-    Gauss–Legendre; below the floor ``1/B`` is constant. ``p0 = p1`` gives ``1/B(p)``.
+    cancellation for a small interval), the liquid term (within 1 + α r of ``1/B_L``) by
+    Simpson's rule where ``p1/p0 ≤ 2`` (its end points the gas term has already evaluated: one
+    power more, as the law runs in every right-hand side of every node) and by 3-point
+    Gauss–Legendre on wider intervals; below the floor ``1/B`` is constant. ``p0 = p1`` gives ``1/B(p)``.
 
     Example: B_L = 1.5 GPa, α = 0.01, n = 1.4, floor 2 kPa, 0.4 → 4.6 MPa abs: 1.401e-9 /Pa,
     1.8 times the tangent value at 4.6 MPa (7.68e-10 /Pa).
@@ -142,15 +144,24 @@ def oil_mean_compliance_per_pa(p0_abs_pa, p1_abs_pa, liquid_bulk_modulus_pa, air
     n = polytropic_index
     al = air_fraction
     rb = (atmospheric_pressure_pa / b) ** (1.0 / n)
-    # ln((1 + α r_a)/(1 + α r_b)), r_a − r_b = r_b ((b/a)^(1/n) − 1)
-    total += math.log1p(al * rb * math.expm1(math.log1p((b - a) / a) / n) / (1.0 + al * rb))
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    off = half * 0.7745966692414834
-    liq = 0.0
-    for q, w in ((mid - off, 5.0 / 9.0), (mid, 8.0 / 9.0), (mid + off, 5.0 / 9.0)):
-        liq += w / (1.0 + al * (atmospheric_pressure_pa / q) ** (1.0 / n))
-    total += half * liq / liquid_bulk_modulus_pa
+    # r_a − r_b = r_b ((b/a)^(1/n) − 1) = r_b e;  gas: ln((1 + α r_a)/(1 + α r_b))
+    e = math.expm1(math.log1p((b - a) / a) / n)
+    total += math.log1p(al * rb * e / (1.0 + al * rb))
+    if b <= 2.0 * a:
+        # liquid: Simpson's rule on 1/(1 + α r), whose end values the gas term already has
+        ra = rb * (1.0 + e)
+        rm = (atmospheric_pressure_pa / (0.5 * (a + b))) ** (1.0 / n)
+        liq = (1.0 / (1.0 + al * ra) + 4.0 / (1.0 + al * rm) + 1.0 / (1.0 + al * rb)) / 6.0
+        total += (b - a) * liq / liquid_bulk_modulus_pa
+    else:
+        # a wide interval (a start from rest, a relief opening): 3-point Gauss–Legendre
+        half = 0.5 * (b - a)
+        mid = 0.5 * (a + b)
+        off = half * 0.7745966692414834
+        liq = 0.0
+        for q, w in ((mid - off, 5.0 / 9.0), (mid, 8.0 / 9.0), (mid + off, 5.0 / 9.0)):
+            liq += w / (1.0 + al * (atmospheric_pressure_pa / q) ** (1.0 / n))
+        total += half * liq / liquid_bulk_modulus_pa
     return total / span
 
 
