@@ -746,3 +746,8 @@ def test_series_spring_couples_two_chambers():
     assert L.coupled_node_rate_pa_s(na, nb, ca, cb, cs) == pytest.approx(ref[0], rel=1e-12)
     assert L.coupled_node_rate_pa_s(nb, na, cb, ca, cs) == pytest.approx(ref[1], rel=1e-12)
     assert L.coupled_node_rate_pa_s(na, nb, ca, cb, 0.0) == pytest.approx(na / ca, rel=1e-15)
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.hydraulics.transmission import series_compliance_m3_pa
+    assert series_compliance_m3_pa(0.04, 1.6e-4, 2000.0) == pytest.approx(cs, rel=1e-14)
+    with pytest.raises(ParameterError, match="stiffness_nm_rad"):
+        series_compliance_m3_pa(0.04, 1.6e-4, 0.0)

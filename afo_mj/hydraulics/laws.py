@@ -197,8 +197,8 @@ def series_spring_capacitance_m3_pa(torque_per_pa_m3, compliance_rad_per_nm):
     with ``τ = n A r Δp``, which stretches it by ``τ/k`` rad and moves the pistons by
     ``r τ/k``, displacing ``n A r τ/k = c_s Δp`` of oil out of the loaded chamber into the
     other (massless cable, stretched by the hydraulic torque alone; the lumping of
-    :func:`afo_mj.hydraulics.transmission.series_compliance_m3_pa`). Example: ``n A r`` = 6.4e-6 m³, 1/k = 5e-4 rad/(N m) →
-    2.048e-14 m³/Pa."""
+    :func:`afo_mj.hydraulics.transmission.series_compliance_m3_pa`). Example: ``n A r`` =
+    6.4e-6 m³, 1/k = 5e-4 rad/(N m) → 2.048e-14 m³/Pa."""
     return torque_per_pa_m3 * torque_per_pa_m3 * compliance_rad_per_nm
 
 
