@@ -13,9 +13,9 @@ effect of this library switched off (:func:`lean_setting`), adds effects one at 
 those that pay.
 
 Each effect knows how to switch itself on in a :class:`ModelSetting` (:meth:`Effect.apply`):
-packed circuit parameters (label → value) for the hydraulic terms, the backlash width and temperature drift
-of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a sensor transform applied
-to the replayed outputs.
+packed circuit parameters (label → value) for the hydraulic terms, the backlash width and
+temperature drift of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a
+sensor transform applied to the replayed outputs.
 
 =========================  ==============================================================
 effect                      term (component: equation; source)

@@ -102,7 +102,8 @@ def bench_protocol(replay: BenchReplay, duration_s: float = 20.0, fs_hz: float =
         theta = env * (0.12 * np.sin(2 * np.pi * t) + 0.03 * np.sin(6 * np.pi * t))
         thd = np.gradient(theta, t)
         w_ff = -ktp * thd / (p.pump.displacement_m3_rev / (2.0 * math.pi))
-        volt = (p.motor.torque_constant_nm_a * w_ff + env * _slew(_steps(t, rng, 1.0, 4.0, 0.2, 0.6), fs_hz)
+        volt = (p.motor.torque_constant_nm_a * w_ff
+                + env * _slew(_steps(t, rng, 1.0, 4.0, 0.2, 0.6), fs_hz)
                 + env * np.sin(2 * np.pi * 2.3 * t))
         return t, {"motor_voltage_v": volt, "ankle_angle_rad": theta}
     env = _fade_in(t)

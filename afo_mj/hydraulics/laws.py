@@ -207,7 +207,8 @@ def coupled_node_rate_pa_s(net_inflow_m3_s, other_inflow_m3_s, capacitance_m3_pa
                            other_capacitance_m3_pa, coupling_m3_pa):
     """Pressure rate of one of two nodes joined by a differential capacitance ``c_s`` (a
     series spring between two chambers, :func:`series_spring_capacitance_m3_pa`): the
-    solution of ``(C_a + c_s) ṗ_a − c_s ṗ_b = n_a``, ``−c_s ṗ_a + (C_b + c_s) ṗ_b = n_b``
+    solution of ``(C_a + c_s) ṗ_a − c_s ṗ_b = n_a``,
+    ``−c_s ṗ_a + (C_b + c_s) ṗ_b = n_b``
     (continuity of each chamber with the oil the stretching spring lets the pistons sweep,
     ``c_s (ṗ_a − ṗ_b)``), by Cramer's rule: ``ṗ_a = ((C_b + c_s) n_a + c_s n_b) / det``,
     ``det = (C_a + c_s)(C_b + c_s) − c_s²``; called with the nodes swapped for ``ṗ_b``.
