@@ -626,6 +626,10 @@ SAMPLES = {
     "pump_speed_for_flow_rad_s": [(9.4e-6, 1e7, D_REV, 1e-8, 0.0, 0.03)],
     "oring_coulomb_force_n": [(0.01, 1.78e-3, 0.12, 0.4, 3.5e6, 1.0)],
     "annular_gap_conductance_m3": [(0.012, 10e-6, 5e-3)],
+    "series_spring_capacitance_m3_pa": [(6.4e-6, 5e-4), (6.4e-6, 0.0)],
+    "coupled_node_rate_pa_s": [(3e-6, -1e-6, 3e-15, 4e-15, 2e-15),
+                               (-1e-6, 3e-6, 4e-15, 3e-15, 2e-15),
+                               (3e-6, -1e-6, 3e-15, 4e-15, 0.0)],
 }
 
 
@@ -731,3 +735,20 @@ def test_the_copy_finder_finds_copies():
            "class C:\n    def bulk_modulus_pa(self):\n        pass\n")
     got = [f.name for f in _function_defs(ast.parse(src))]
     assert "_soft_clip" in got and "seal_force_n" in got and "bulk_modulus_pa" not in got
+
+
+def test_series_spring_couples_two_chambers():
+    """The differential capacitance and the coupled rates against the 2×2 system solved by
+    numpy: (C_a + c_s) ṗ_a − c_s ṗ_b = n_a, −c_s ṗ_a + (C_b + c_s) ṗ_b = n_b."""
+    cs = L.series_spring_capacitance_m3_pa(0.04 * 1.6e-4, 1.0 / 2000.0)
+    assert cs == pytest.approx((0.04 * 1.6e-4) ** 2 / 2000.0, rel=1e-14)
+    na, nb, ca, cb = 3e-6, -1e-6, 3e-15, 4e-15
+    ref = np.linalg.solve([[ca + cs, -cs], [-cs, cb + cs]], [na, nb])
+    assert L.coupled_node_rate_pa_s(na, nb, ca, cb, cs) == pytest.approx(ref[0], rel=1e-12)
+    assert L.coupled_node_rate_pa_s(nb, na, cb, ca, cs) == pytest.approx(ref[1], rel=1e-12)
+    assert L.coupled_node_rate_pa_s(na, nb, ca, cb, 0.0) == pytest.approx(na / ca, rel=1e-15)
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.hydraulics.transmission import series_compliance_m3_pa
+    assert series_compliance_m3_pa(0.04, 1.6e-4, 2000.0) == pytest.approx(cs, rel=1e-14)
+    with pytest.raises(ParameterError, match="stiffness_nm_rad"):
+        series_compliance_m3_pa(0.04, 1.6e-4, 0.0)

@@ -104,10 +104,19 @@ class CalibrationOptions:
             bad("max_nfev", ">= 5")
 
 
+def declared_labels(replay: BenchReplay, d: DeclaredParameter) -> tuple[str, ...]:
+    """The packed labels of declared parameter ``d`` that the replay's circuit has."""
+    labels = tuple(lab for lab in d.labels if replay.has(lab))
+    if not labels:
+        raise CalibrationError(f"declared parameter {d.name}: the circuit "
+                               f"{replay.cc.circuit.name!r} packs none of {list(d.labels)}")
+    return labels
+
+
 def model_outputs(replay: BenchReplay, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
                   setting: ModelSetting, channels: Sequence[str]) -> dict[str, np.ndarray]:
-    """Replay with ``setting`` (kernel row, backlash, temperature drift) and read the outputs
-    ``channels`` through its sensor transforms."""
+    """Replay with ``setting`` (packed parameters, backlash, temperature drift) and read the
+    outputs ``channels`` through its sensor transforms."""
     sim = replay.simulate(time_s, inputs, setting.row, setting.backlash_rad,
                           setting.temperature_rate_k_s)
     out = {c: sim[c] for c in channels}
@@ -197,13 +206,14 @@ class Calibration:
         for c in self.outputs:
             sig = data.noise.get(c)
             self.noise[c] = float(sig) if sig else ra.noise_sigma_estimate(self.meas[c])
-        base = self.replay.base_row
-        self.context = {"pulley_radius_m": float(base[self.replay.kernel.P_R_PULLEY]),
-                        "effective_area_m2": float(base[self.replay.kernel.P_A_E])}
+        self.context = {}
         self.declared = declared_parameters(self.kind)
+        self.available = set(self.replay.param_labels)
+        #: per declared parameter, the packed labels this circuit has (all scaled together)
+        self.declared_labels = [declared_labels(self.replay, d) for d in self.declared]
         spread = {c: 0.5 * self.scale[c] + abs(float(np.mean(self.meas[c])))
                   for c in self.outputs}
-        self.library = effects_for(self.kind, self.outputs, spread)
+        self.library = effects_for(self.kind, self.outputs, spread, self.available)
         names = [e.name for e in self.library]
         for n in options.declared_effects + options.candidates:
             if n not in names:
@@ -236,10 +246,10 @@ class Calibration:
 
     def setting(self, effects: Sequence[Effect], x: np.ndarray) -> ModelSetting:
         """The :class:`ModelSetting` of a structure at normalised parameters ``x``."""
-        s = lean_setting(self.kind)
-        base = self.replay.base_row
-        for d, f in zip(self.declared, x):
-            s.row[d.index] = float(base[d.index] * f)
+        s = lean_setting(self.kind, self.available)
+        for labels, f in zip(self.declared_labels, x):
+            for lab in labels:
+                s.row[lab] = self.replay.value(lab) * float(f)
         k = len(self.declared)
         for e in effects:
             vals = [float(x[k + j] * p.scale) for j, p in enumerate(e.parameters)]
@@ -250,9 +260,8 @@ class Calibration:
     def physical(self, effects: Sequence[Effect], x: np.ndarray) -> dict[str, float]:
         """Parameter name → value in SI of a structure at ``x``."""
         out = {}
-        base = self.replay.base_row
-        for d, f in zip(self.declared, x):
-            out[d.name] = float(base[d.index] * f)
+        for d, labels, f in zip(self.declared, self.declared_labels, x):
+            out[d.name] = self.replay.value(labels[0]) * float(f)
         k = len(self.declared)
         for e in effects:
             for p in e.parameters:
@@ -490,8 +499,8 @@ class Calibration:
         params = self.physical(current.effects, current.x)
         sd_phys = {}
         k = 0
-        for d in self.declared:
-            sd_phys[d.name] = float(ident["sd"][k] * self.replay.base_row[d.index])
+        for d, labels in zip(self.declared, self.declared_labels):
+            sd_phys[d.name] = float(ident["sd"][k] * self.replay.value(labels[0]))
             k += 1
         for e in current.effects:
             for p in e.parameters:

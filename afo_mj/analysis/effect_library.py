@@ -1,8 +1,11 @@
 """Candidate effects for calibration: physical terms a model may lack, each switchable.
 
-Every effect is a named, physically parameterised term of a component: the kernels' cylinder,
-seal, hose, oil, pump, driver and valve (:mod:`afo_mj.devices.pump_ankle_actuator`,
-:mod:`afo_mj.devices.valve_ankle_actuator`), the cable transmission
+Every effect is a named, physically parameterised term of a component of the generated
+circuits (:mod:`afo_mj.circuits.components`, :mod:`afo_mj.circuits.valves`): the cylinders'
+seals, leakage and series cable, the hoses, the oil, the pump, the driver and the servo valve,
+each written into the circuit's packed parameter row **by label** (``component.key``,
+:attr:`afo_mj.circuits.codegen.CompiledCircuit.param_labels`; every one of them is built into
+the circuit whatever its preset value, so varying it never recompiles); the cable transmission
 (:mod:`afo_mj.hydraulics.transmission`), the oil's temperature (viscosity, Walther/ASTM D341)
 and the sensors (:mod:`afo_mj.hydraulics.sensor`). The calibration
 (:mod:`afo_mj.analysis.calibration`) starts from the **lean model**, the preset with every
@@ -10,9 +13,9 @@ effect of this library switched off (:func:`lean_setting`), adds effects one at 
 those that pay.
 
 Each effect knows how to switch itself on in a :class:`ModelSetting` (:meth:`Effect.apply`):
-kernel parameter-row entries for the hydraulic terms, the backlash width and temperature drift
-of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a sensor transform applied
-to the replayed outputs.
+packed circuit parameters (label → value) for the hydraulic terms, the backlash width and
+temperature drift of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a
+sensor transform applied to the replayed outputs.
 
 =========================  ==============================================================
 effect                      term (component: equation; source)
@@ -22,10 +25,10 @@ stribeck_friction           seal: ``F_S exp(−(v/v_St)²) v/v_St`` (Stribeck pe
 pressure_friction           seal: ``c_p |Δp| tanh(v/v_C)`` (seed §2.3, ref. [48])
 entrained_air               oil: bulk modulus with air fraction ``a`` (seed eq. 2.5)
 hose_wall_compliance        hose: ``C += V_h/(2 K_wall)`` per end (Merritt §2.5)
-piston_leakage              cylinder: ``Q = G_l Δp/μ`` across the piston (laminar gap)
+piston_leakage              cylinder: ``Q = G_l Δp/μ`` across each piston (laminar gap)
 pump_leakage                pump: extra ``Q = G_p Δp/μ`` between the ports (worn port plate)
 motor_current_limit         driver: voltage clamped to ``Kω ± R I_max`` (current limit)
-series_compliance           cable: differential capacitance ``r²A_e²/k`` (transmission)
+series_compliance           cable: differential capacitance ``(n A r)²/k`` (transmission)
 backlash                    cable: play operator of width ``b`` on the kinematics
 viscosity_drift             oil: ``T = T_0 + Ṫ t`` → ``μ(T)`` (Walther, ASTM D341)
 sensor_delay                sensors: every output read ``d`` late
@@ -34,20 +37,18 @@ valve_overlap               servo valve: lap ``x_0`` of the spool (dead band)
 spool_lag                   servo valve: first-order spool ``τ ẋ = u − x``
 =========================  ==============================================================
 
-Fluid inertance is not in the library: the hoses' inertance needs flow states the kernels do not
-carry (a known gap; its signature, a line resonance in the pressures, is reported as
+Fluid inertance is not in the library: the hoses' inertance needs flow states the lumped hose
+does not carry (a known gap; its signature, a line resonance in the pressures, is reported as
 ``unexplained_residual`` with where it lives).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Sequence
+from typing import Callable, Collection, Sequence
 
 import numpy as np
 
-from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices import valve_ankle_actuator as va
 from afo_mj.hydraulics.params import ParameterError
 
 __all__ = ["EffectParameter", "Effect", "ModelSetting", "DeclaredParameter", "effects_for",
@@ -82,10 +83,10 @@ class EffectParameter:
 
 @dataclasses.dataclass
 class ModelSetting:
-    """What one replay runs with: kernel row entries, replay options and sensor transforms
-    (``(channel or "*", gain, offset, delay_s)``, applied in order)."""
+    """What one replay runs with: packed circuit parameters by label, replay options and
+    sensor transforms (``(channel or "*", gain, offset, delay_s)``, applied in order)."""
 
-    row: dict[int, float] = dataclasses.field(default_factory=dict)
+    row: dict[str, float] = dataclasses.field(default_factory=dict)
     backlash_rad: float = 0.0
     temperature_rate_k_s: float = 0.0
     sensors: list[tuple[str, float, float, float]] = dataclasses.field(default_factory=list)
@@ -98,7 +99,9 @@ class ModelSetting:
 @dataclasses.dataclass(frozen=True)
 class Effect:
     """A candidate effect: name, the component it belongs to, its equation and source, its
-    parameters and how to switch it on (``setter(setting, values, context)``)."""
+    parameters and how to switch it on (``setter(setting, values, context)``); ``labels``:
+    the packed circuit parameters it writes (an effect whose circuit lacks one is not
+    offered)."""
 
     name: str
     component: str
@@ -109,6 +112,7 @@ class Effect:
     kinds: tuple[str, ...] = ("hafo", "valve")
     signature: str = ""
     channel: str = ""
+    labels: tuple[str, ...] = ()
 
     def apply(self, setting: ModelSetting, values: Sequence[float], context: dict) -> None:
         if len(values) != len(self.parameters):
@@ -119,37 +123,37 @@ class Effect:
 
 @dataclasses.dataclass(frozen=True)
 class DeclaredParameter:
-    """A parameter of the declared model the calibration always fits: a kernel row entry,
-    bounded to ``[lo_factor, hi_factor]`` times the preset's value."""
+    """A parameter of the declared model the calibration always fits: packed circuit
+    parameters (``labels``: those the circuit has are all set to the same factor times their
+    preset values; the first present is the one reported), bounded to
+    ``[lo_factor, hi_factor]`` times the preset's value."""
 
     name: str
     unit: str
-    index: int
+    labels: tuple[str, ...]
     lo_factor: float
     hi_factor: float
     doc: str = ""
 
 
 # ---------------------------------------------------------------------------- the effects
-def _row(index):
+def _row(*labels):
+    """A setter writing the effect's parameters, in order, into the packed ``labels`` (a
+    label that is a tuple receives the same value in each of its entries)."""
     def set_(s: ModelSetting, v, ctx):
-        s.row[index] = float(v[0])
+        for lab, x in zip(labels, v):
+            for one in (lab if isinstance(lab, tuple) else (lab,)):
+                s.row[one] = float(x)
     return set_
 
 
-def _set_stribeck(s, v, ctx):
-    s.row[pa.P_SEAL_STRIB] = float(v[0])
-    s.row[pa.P_SEAL_VST] = float(v[1])
+def _flat(*labels) -> tuple[str, ...]:
+    return tuple(x for lab in labels for x in (lab if isinstance(lab, tuple) else (lab,)))
 
 
 def _set_current_limit(s, v, ctx):
-    s.row[pa.P_CUR_LIM_ON] = 1.0
-    s.row[pa.P_I_LIM] = float(v[0])
-
-
-def _set_series(s, v, ctx):
-    r, ae = ctx["pulley_radius_m"], ctx["effective_area_m2"]
-    s.row[pa.P_SERIES_COMP] = r * r * ae * ae * float(v[0])   # v = 1/k (rad/(N·m))
+    s.row["motor.limit_on"] = 1.0
+    s.row["motor.current_limit"] = float(v[0])
 
 
 def _set_backlash(s, v, ctx):
@@ -170,6 +174,20 @@ def _set_gain_offset(channel):
     return set_
 
 
+#: the packed circuit parameters the effects write (``component.key`` of
+#: :func:`afo_mj.devices.hafo.hafo_circuit` / :func:`afo_mj.devices.valve_afo.valve_circuit`)
+_STRIBECK = ("cylinders.seal_stribeck", "cylinders.seal_v_st")
+_CP = "cylinders.seal_cp"
+_AIR = "fluid.air_fraction"
+_WALL = ("hose_a.wall_inv", "hose_b.wall_inv")
+_LEAK = "cylinders.leak_g"
+_PUMP_LEAK = "pump.extra_leak"
+_CURRENT_LIMIT = ("motor.limit_on", "motor.current_limit")
+_SERIES = "cylinders.series_compliance"
+_LAP = "servo.lap"
+_SPOOL_TAU = "servo.tau"
+
+
 def _common_effects() -> list[Effect]:
     P = EffectParameter
     return [
@@ -178,46 +196,51 @@ def _common_effects() -> list[Effect]:
                "Stribeck breakaway peak; Simscape translational friction (facts.md)",
                (P("stribeck_force_n", "N", 0.0, 500.0, 30.0, "Stribeck gain F_S per cylinder"),
                 P("stribeck_velocity_m_s", "m/s", 1e-3, 0.1, 0.01, "v_St")),
-               _set_stribeck, signature="torque residual odd in piston speed, peaked at low "
-                                        "speed (velocity reversals)"),
+               _row(*_STRIBECK), signature="torque residual odd in piston speed, peaked at "
+                                           "low speed (velocity reversals)",
+               labels=_flat(*_STRIBECK)),
         Effect("pressure_friction", "seal",
                "c_p |Δp| tanh(v/v_C) per cylinder",
                "seed §2.3 (pressure-energised seals, ref. [48]); afo_mj.hydraulics.seal",
                (P("pressure_coefficient_m2", "m^2", 0.0, 5e-5, 2e-6,
                   "friction force per Pa across the piston"),),
-               _row(pa.P_SEAL_CP), signature="torque residual ∝ |Δp|·sign(v)"),
+               _row(_CP), signature="torque residual ∝ |Δp|·sign(v)", labels=(_CP,)),
         Effect("entrained_air", "oil",
                "B_eff(p) of seed eq. 2.5 with air fraction a at atmospheric pressure",
                "seed eq. 2.5 (entrained air)",
                (P("air_fraction", "-", 0.0, 0.1, 0.005, "free air volume fraction at 1 atm"),),
-               _row(pa.P_AIR), signature="pressure lag growing at low pressure"),
+               _row(_AIR), signature="pressure lag growing at low pressure", labels=(_AIR,)),
         Effect("hose_wall_compliance", "hose",
                "C += V_h/(2 K_wall) at each hose end",
                "Merritt, Hydraulic Control Systems (1967) §2.5",
                (P("wall_compliance_1_pa", "1/Pa", 0.0, 1e-7, 1e-9,
                   "1/K_wall of the hose wall"),),
-               _row(pa.P_KWALL_INV), signature="pressure lag independent of pressure"),
+               _row(_WALL), signature="pressure lag independent of pressure",
+               labels=_flat(_WALL)),
         Effect("piston_leakage", "cylinder",
                "Q = G_l Δp/μ across the piston (laminar gap)",
                "Merritt §3 (annular clearance flow); afo_mj.hydraulics.cylinder",
-               (P("leakage_conductance_m3", "m^3", 0.0, 1e-12, 2e-15, "G_l"),),
-               _row(pa.P_G_LEAK), signature="chamber Δp decays under load; residual ∝ ∫Δp"),
+               (P("leakage_conductance_m3", "m^3", 0.0, 1e-12, 2e-15, "G_l per cylinder"),),
+               _row(_LEAK), signature="chamber Δp decays under load; residual ∝ ∫Δp",
+               labels=(_LEAK,)),
         Effect("pump_leakage", "pump",
                "Q = G_p Δp/μ between the pump ports (in addition to the slip coefficient)",
                "Wilson slip flow, McCandlish & Dorey (1984); afo_mj.hydraulics.pump",
                (P("extra_leakage_conductance_m3", "m^3", 0.0, 1e-12, 2e-15, "G_p"),),
-               _row(pa.P_PUMP_G_EXTRA), signature="speed/pressure residual ∝ Δp_pump"),
+               _row(_PUMP_LEAK), signature="speed/pressure residual ∝ Δp_pump",
+               labels=(_PUMP_LEAK,)),
         Effect("motor_current_limit", "driver",
                "v clamped to K ω ± R I_max (the driver's current limit)",
                "afo_mj.hydraulics.motor (driver)",
                (P("current_limit_a", "A", 0.3, 40.0, 5.0, "I_max"),),
                _set_current_limit, signature="current residual where |i| is large: a flat "
-                                             "top"),
+                                             "top", labels=_CURRENT_LIMIT),
         Effect("series_compliance", "transmission",
-               "differential chamber capacitance r² A_e²/k (cable stiffness k)",
-               "afo_mj.hydraulics.transmission.series_compliance_m3_pa",
+               "differential chamber capacitance (n A r)²/k (cable stiffness k)",
+               "afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa, "
+               "coupled_node_rate_pa_s",
                (P("compliance_rad_per_nm", "rad/(N m)", 0.0, 1e-2, 2e-4, "1/k"),),
-               _set_series, signature="torque/pressure lag ∝ dτ/dt"),
+               _row(_SERIES), signature="torque/pressure lag ∝ dτ/dt", labels=(_SERIES,)),
         Effect("backlash", "transmission",
                "play operator of total width b on the ankle angle the cylinders see",
                "Tao & Kokotović (1996) ch. 3; afo_mj.hydraulics.transmission.play_operator",
@@ -258,14 +281,15 @@ def _valve_effects() -> list[Effect]:
                "edge area w x_max ramp(|x| − x_0): no flow inside the lap x_0 (dead band)",
                "afo_mj.hydraulics.servo_valve (Merritt §3.4, overlapped spool)",
                (P("overlap", "-", 0.0, 0.4, 0.05, "lap x_0 as a fraction of the stroke"),),
-               _row(va.P_SV_LAP), kinds=("valve",),
-               signature="flow missing at small commands: residual where |u| < x_0"),
+               _row(_LAP), kinds=("valve",),
+               signature="flow missing at small commands: residual where |u| < x_0",
+               labels=(_LAP,)),
         Effect("spool_lag", "servo valve",
                "τ ẋ = u − x (the spool's first-order lag)",
                "afo_mj.hydraulics.servo_valve (bandwidth f = 1/(2πτ))",
                (P("spool_time_constant_s", "s", 1e-4, 0.1, 0.01, "τ"),),
-               _row(va.P_SV_TAU), kinds=("valve",),
-               signature="pressure residual ∝ −τ du/dt"),
+               _row(_SPOOL_TAU), kinds=("valve",),
+               signature="pressure residual ∝ −τ du/dt", labels=(_SPOOL_TAU,)),
     ]
 
 
@@ -273,23 +297,30 @@ def _valve_effects() -> list[Effect]:
 EFFECT_NAMES = tuple(e.name for e in _common_effects()) + ("sensor_gain_offset",) + tuple(
     e.name for e in _valve_effects())
 
-#: the lean model's values of what the effects switch on (the HAFO row's shared entries)
-_LEAN_ROW = {pa.P_SEAL_STRIB: 0.0, pa.P_SEAL_CP: 0.0, pa.P_AIR: 0.0, pa.P_KWALL_INV: 0.0,
-             pa.P_G_LEAK: 0.0, pa.P_PUMP_G_EXTRA: 0.0, pa.P_CUR_LIM_ON: 0.0,
-             pa.P_SERIES_COMP: 0.0}
-#: the valve circuit's: critical-centre spool, and a fast one (0.5 ms: 320 Hz)
-_LEAN_VALVE = {va.P_SV_LAP: 0.0, va.P_SV_TAU: 5e-4}
+#: the lean model's values of what the effects switch on (the circuits' shared entries)
+_LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _AIR: 0.0, _WALL[0]: 0.0, _WALL[1]: 0.0, _LEAK: 0.0,
+             _PUMP_LEAK: 0.0, _CURRENT_LIMIT[0]: 0.0, _SERIES: 0.0}
+#: the servo valve's: critical-centre spool, and a fast one (0.5 ms: 320 Hz)
+_LEAN_VALVE = {_LAP: 0.0, _SPOOL_TAU: 5e-4}
+
+
+def _offered(e: Effect, available) -> bool:
+    return available is None or all(lab in available for lab in e.labels)
 
 
 def effects_for(kind: str, outputs: Sequence[str],
-                output_spread: dict[str, float] | None = None) -> list[Effect]:
+                output_spread: dict[str, float] | None = None,
+                available: Collection[str] | None = None) -> list[Effect]:
     """The candidate effects for a ``kind`` (``"hafo"``/``"valve"``) replay whose record has
-    the output channels ``outputs`` (one gain/offset effect per output)."""
+    the output channels ``outputs`` (one gain/offset effect per output). ``available``: the
+    circuit's packed parameter labels; an effect writing a label the circuit has not (the
+    servo valve's lap in the digital circuit) is left out."""
     if kind not in ("hafo", "valve"):
         raise ParameterError(f"kind = {kind!r}; allowed: hafo, valve")
     out = [e for e in _common_effects() if kind in e.kinds]
     if kind == "valve":
         out += _valve_effects()
+    out = [e for e in out if _offered(e, available)]
     spread = output_spread or {}
     for ch in outputs:
         out.append(_gain_offset_effect(ch, float(spread.get(ch, 1.0))))
@@ -303,22 +334,27 @@ def effect_by_name(effects: Sequence[Effect], name: str) -> Effect:
     raise ParameterError(f"effect = {name!r}; allowed: {', '.join(e.name for e in effects)}")
 
 
-def lean_setting(kind: str) -> ModelSetting:
-    """The lean model: every effect of the library off."""
+def lean_setting(kind: str, available: Collection[str] | None = None) -> ModelSetting:
+    """The lean model: every effect of the library off (the entries of ``available`` labels
+    only, when given)."""
     row = dict(_LEAN_ROW)
     if kind == "valve":
         row.update(_LEAN_VALVE)
+    if available is not None:
+        row = {k: v for k, v in row.items() if k in available}
     return ModelSetting(row=row)
 
 
 def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
     """The declared model's parameters the calibration fits before looking for effects."""
     D = DeclaredParameter
-    common = (D("seal_coulomb_force_n", "N", pa.P_SEAL_FC, 0.0, 20.0,
+    common = (D("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 20.0,
                 "Coulomb friction of one cylinder's seals"),
-              D("liquid_bulk_modulus_pa", "Pa", pa.P_B_L, 0.3, 2.0, "oil bulk modulus"))
+              D("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
+                "oil bulk modulus"))
     if kind == "hafo":
-        return (D("motor_resistance_ohm", "ohm", pa.P_R, 0.5, 2.0, "winding resistance"),
-                D("torque_constant_nm_a", "N m/A", pa.P_K, 0.7, 1.4, "motor K")) + common
-    return (D("valve_full_area_m2", "m^2", va.P_SV_AFULL, 0.5, 2.0,
-              "servo valve metering area at full stroke"),) + common
+        return (D("motor_resistance_ohm", "ohm", ("motor.R",), 0.5, 2.0, "winding resistance"),
+                D("torque_constant_nm_a", "N m/A", ("motor.K",), 0.7, 1.4, "motor K")) + common
+    # the servo valve's metering area, or the digital circuit's open edges sized like it
+    return (D("valve_full_area_m2", "m^2", ("servo.full_area", "edge_pa.area", "edge_bt.area"),
+              0.5, 2.0, "servo valve metering area at full stroke"),) + common

@@ -36,10 +36,8 @@ from scipy.signal import bilinear, lfilter
 
 from afo_mj.analysis.effect_library import (
     declared_parameters, effect_by_name, effects_for, lean_setting)
-from afo_mj.analysis.calibration import model_outputs
+from afo_mj.analysis.calibration import declared_labels, model_outputs
 from afo_mj.analysis.measured_data import write_measured
-from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices import valve_ankle_actuator as va
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.scenarios.bench_replay import BenchReplay
 
@@ -97,21 +95,23 @@ def bench_protocol(replay: BenchReplay, duration_s: float = 20.0, fs_hz: float =
         raise ParameterError(f"fs_hz = {fs_hz!r}; allowed: 200 … 10000 Hz")
     rng = np.random.default_rng(seed)
     t = np.arange(int(round(duration_s * fs_hz))) / fs_hz
-    P = replay.base_row
-    r, ae = P[pa.P_R_PULLEY], P[pa.P_A_E]
+    p = replay.params
+    ktp = p.torque_per_pressure_m3      # joint torque per pascal of p_a − p_b (n A r)
     if replay.kind == "hafo":
         env = _fade_in(t)
         theta = env * (0.12 * np.sin(2 * np.pi * t) + 0.03 * np.sin(6 * np.pi * t))
         thd = np.gradient(theta, t)
-        w_ff = -ae * r * thd / P[pa.P_D]
-        volt = (P[pa.P_K] * w_ff + env * _slew(_steps(t, rng, 1.0, 4.0, 0.2, 0.6), fs_hz)
+        w_ff = -ktp * thd / (p.pump.displacement_m3_rev / (2.0 * math.pi))
+        volt = (p.motor.torque_constant_nm_a * w_ff
+                + env * _slew(_steps(t, rng, 1.0, 4.0, 0.2, 0.6), fs_hz)
                 + env * np.sin(2 * np.pi * 2.3 * t))
         return t, {"motor_voltage_v": volt, "ankle_angle_rad": theta}
     env = _fade_in(t)
     theta = env * 0.04 * np.sin(2 * np.pi * t)
     thd = np.gradient(theta, t)
-    dpe = 0.5 * (replay.params.initial_supply_pressure_pa - P[pa.P_P_RES])
-    u_ff = -ae * r * thd / (P[va.P_SV_CD] * P[va.P_SV_AFULL] * math.sqrt(2 * dpe / P[pa.P_RHO]))
+    dpe = 0.5 * (p.initial_supply_pressure_pa - p.reservoir_pressure_pa)
+    u_ff = -ktp * thd / (p.servo_valve.discharge_coefficient * p.servo_full_area_m2
+                         * math.sqrt(2 * dpe / p.fluid.density_kg_m3))
     u = np.clip(u_ff + env * _slew(_steps(t, rng, 0.03, 0.15, 0.1, 0.4), fs_hz), -1.0, 1.0)
     return t, {"valve_command": u, "ankle_angle_rad": theta}
 
@@ -143,7 +143,8 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
         raise ParameterError(f"preset = {preset!r} is a {replay.kind} preset; kind = {kind!r}")
     outputs = tuple(outputs or RECORD_OUTPUTS[kind])
     t, inputs = bench_protocol(replay, duration_s, fs_hz, seed)
-    setting = lean_setting(kind)
+    available = set(replay.param_labels)
+    setting = lean_setting(kind, available)
     declared = {d.name: d for d in declared_parameters(kind)}
     for name, f in mismatch.items():
         if name not in declared:
@@ -152,10 +153,10 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
         if not d.lo_factor <= f <= d.hi_factor:
             raise ParameterError(f"mismatch.{name} = {f!r}; allowed: {d.lo_factor} … "
                                  f"{d.hi_factor}")
-        setting.row[d.index] = float(replay.base_row[d.index] * f)
-    library = effects_for(kind, outputs, {c: 1e9 for c in outputs})
-    context = {"pulley_radius_m": float(replay.base_row[pa.P_R_PULLEY]),
-               "effective_area_m2": float(replay.base_row[pa.P_A_E])}
+        for lab in declared_labels(replay, d):
+            setting.row[lab] = replay.value(lab) * float(f)
+    library = effects_for(kind, outputs, {c: 1e9 for c in outputs}, available)
+    context = {}
     truth = []
     for name, values in effects.items():
         e = effect_by_name(library, name)

@@ -31,7 +31,7 @@ import numpy as np
 
 from afo_mj.circuits import stepper
 from afo_mj.circuits.circuit import Circuit
-from afo_mj.circuits.components import BUS, HYDRAULIC, JOINT, SHAFT, CircuitError
+from afo_mj.circuits.components import BUS, HYDRAULIC, JOINT, SHAFT, CircuitError, gated
 from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 
@@ -102,6 +102,7 @@ class Emitter:
         self.vols = defaultdict(list)
         self.walls = defaultdict(list)
         self.caps = defaultdict(list)
+        self.couplings: list = []       # (node a, node b, differential capacitance expr)
         self.torques = defaultdict(list)
         self.inertias = defaultdict(list)
         self.joint_terms: list = []
@@ -197,6 +198,19 @@ class Emitter:
 
     def capacitance(self, comp, port, expr):
         self.caps[self._node(comp, port, HYDRAULIC)].append(expr)
+
+    def couple(self, comp, port_a, port_b, expr):
+        """Join the nodes at ``port_a`` and ``port_b`` by the differential capacitance
+        ``expr`` (m³/Pa; a series spring between two chambers): their continuity equations
+        are solved together (:func:`~afo_mj.hydraulics.laws.coupled_node_rate_pa_s`)."""
+        na = self._node(comp, port_a, HYDRAULIC)
+        nb = self._node(comp, port_b, HYDRAULIC)
+        for node in (na, nb):
+            if not self.node_ref[node].startswith("y[") or any(
+                    node in pair[:2] for pair in self.couplings):
+                raise CircuitError(f"{comp.name}: node {node!r} cannot be coupled (allowed: a "
+                                   "pressure-state node in at most one coupled pair)")
+        self.couplings.append((na, nb, expr))
 
     def torque(self, comp, port, expr):
         self.torques[self._node(comp, port, SHAFT)].append(expr)
@@ -314,7 +328,8 @@ def generate(circuit: Circuit):
     rf = _Recorder(fu, used_fluid)
     own = type("FluidOwner", (), {"name": "fluid"})()
     b_l = g.param(own, "liquid_bulk_modulus", rf.liquid_bulk_modulus_pa)
-    air = g.param(own, "air_fraction", rf.air_fraction if rf.entrained_air_enabled else 0.0)
+    # gated: both fields are read, so switching the air off is not an unused parameter
+    air = g.param(own, "air_fraction", gated(rf.entrained_air_enabled, rf.air_fraction))
     npoly = g.param(own, "polytropic_index", rf.polytropic_index)
     p_atm = g.param(own, "atmospheric_pressure", ATMOSPHERIC_PRESSURE_PA)
     floor = g.param(own, "pressure_floor", rf.pressure_floor_pa)
@@ -390,7 +405,9 @@ def generate(circuit: Circuit):
             if g.caps[node]:
                 cexpr += " + " + _expr_sum(g.caps[node])
             body.append(f"C_{node} = {cexpr}")
-            body.append(f"dy[{k}] = ({_expr_sum(g.flows[node])}) / C_{node}")
+            body.append(f"QN_{node} = {_expr_sum(g.flows[node])}")
+            if not any(node in pair[:2] for pair in g.couplings):
+                body.append(f"dy[{k}] = QN_{node} / C_{node}")
             cap_expr[k] = f"C_{node}"
         else:
             if not g.inertias[node]:
@@ -398,6 +415,10 @@ def generate(circuit: Circuit):
             body.append(f"J_{node} = {_expr_sum(g.inertias[node])}")
             body.append(f"dy[{k}] = ({_expr_sum(g.torques[node])}) / J_{node}")
             cap_expr[k] = f"J_{node}"
+    for na, nb, cs in g.couplings:
+        for me, other in ((na, nb), (nb, na)):
+            body.append(f"d{g.node_ref[me]} = coupled_node_rate_pa_s(QN_{me}, QN_{other}, "
+                        f"C_{me}, C_{other}, {cs})")
     for k, st in enumerate(g.states):
         if st["kind"] == "own":
             if k not in g.derivs:

@@ -444,7 +444,11 @@ class PulleyCylinders(Component):
     internal leakage across the piston (laminar gap, Merritt §3.2); piston-seal drag-out film
     (Müller & Nau) carried from the chamber the piston enters. Losses: ``seal_friction``,
     ``leakage``. Store: ``end_stops`` (the work done on them; the joint angle is held over a
-    step, so stores that depend on it are booked as the work done on them). Cable-seal (external) drag-out is refused:
+    step, so stores that depend on it are booked as the work done on them). A series cable
+    compliance ``1/k`` joins the chambers by the differential capacitance
+    :func:`~afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa` (their continuity solved
+    together, :func:`~afo_mj.hydraulics.laws.coupled_node_rate_pa_s`; store
+    ``series_spring``). Cable-seal (external) drag-out is refused:
     the film returns on the in-stroke and the circuit has no ambient node for it."""
 
     kind = "pulley_cylinders"
@@ -457,6 +461,10 @@ class PulleyCylinders(Component):
         cylinder: CylinderParams = CylinderParams()
         count: float = param(1.0, unit="-", lo=1.0, hi=4.0, doc="cylinders on the pulley")
         pulley_radius_m: float = param(0.04, unit="m", lo=0.005, hi=0.2)
+        series_compliance_rad_per_nm: float = param(
+            0.0, unit="rad/(N m)", lo=0.0, hi=1.0,
+            doc="1/k of the cable between pulley and pistons (0: rigid); always built, so "
+                "that a fit can vary it without recompiling")
 
     params_type = Params
 
@@ -496,6 +504,12 @@ class PulleyCylinders(Component):
         th, thd = "th", "thd"
         x, xd, f_s, f_e, q_l, q_d = (g.local(self, k) for k in
                                      ("x", "xd", "fseal", "fstop", "qleak", "qdrag"))
+        # series cable spring: the chambers' differential capacitance (massless cable
+        # stretched by the hydraulic torque; seals and stops still slide at r θ̇)
+        comp_s = g.param(self, "series_compliance", p.series_compliance_rad_per_nm)
+        c_s = g.local(self, "cs")
+        g.line(f"{c_s} = series_spring_capacitance_m3_pa({n} * {area} * {r}, {comp_s})")
+        g.couple(self, "a", "b", c_s)
         g.line(f"{x} = 0.5 * {stroke} - {r} * {th}")
         g.line(f"{xd} = -{r} * {thd}")
         g.line(f"{f_s} = {n} * seal_friction_n({xd}, {pa} - {pb}, {seal})")
@@ -513,6 +527,8 @@ class PulleyCylinders(Component):
         g.loss(self, "seal_friction", f"{f_s} * {xd}")
         g.loss(self, "leakage", f"({pa} - {pb}) * {q_l} + ({pb} - {pa}) * {q_d}")
         g.store_rate(self, "end_stops", f"-{f_e} * {xd}")
+        # the cable spring's energy ½ c_s Δp², booked at its rate c_s Δp Δṗ
+        g.store_rate(self, "series_spring", f"{c_s} * ({pa} - {pb}) * (d{pa} - d{pb})")
         g.probe(self, "piston_position_m", x)
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
 

@@ -206,16 +206,64 @@ class CircuitDevice:
                                      f"at step {n}")
         return self._log_dict(log, n)
 
-    def run_imposed(self, command, angle_rad, velocity_rad_s) -> dict:
-        """Replay with the joint motion imposed (per-step angle and velocity)."""
+    def input_slot(self, name: str) -> int:
+        """Index into the held input vector ``U`` of an actuated input: ``"command"`` (the
+        controller's output, ``U_CMD``: the motor voltage of a motor-driven circuit) or a named
+        input ``component.key`` (:attr:`CompiledCircuit.input_names`, e.g. a valve's
+        ``servo.command``)."""
+        from afo_mj.circuits.codegen import U_NAMES
+        if name == "command":
+            return 0
+        if name in self.cc.input_names:
+            return len(U_NAMES) + self.cc.input_names.index(name)
+        raise CircuitError(f"imposed input {name!r}; allowed: command, "
+                           f"{', '.join(self.cc.input_names) or '(no named inputs)'}")
+
+    def run_imposed(self, command, angle_rad, velocity_rad_s, inputs=None, temperature_k=None,
+                    substeps: int = 1) -> dict:
+        """Replay with the joint motion imposed (per-sample angle and velocity, side 0).
+
+        ``command`` is the controller's command per sample; ``inputs`` maps actuated inputs
+        (:meth:`input_slot` names) to per-sample values that replace what the controller set
+        (a measured motor voltage or valve command); ``temperature_k`` imposes the oil
+        temperature per sample (else the lumped thermal model runs); each sample interval is
+        ``substeps`` steps of ``timestep_s``. Returns the logged signals per sample (the state
+        at the end of each interval): ``time_s, angle_rad, velocity_rad_s, torque_nm,
+        actuated_input``, the states and probes by name, ``battery_current_a``,
+        ``bus_voltage_v``, ``oil_temperature_k``."""
         cmd = np.ascontiguousarray(command, dtype=float)
         th = np.ascontiguousarray(angle_rad, dtype=float)
         thd = np.ascontiguousarray(velocity_rad_s, dtype=float)
-        log = np.zeros((cmd.shape[0], 5 + len(self.cc.state_names)))
-        n = self.k.run_imposed(self.Y[:1], self.P[:1], self.W[:1], self.S[:1], th, thd, cmd,
-                               log)
-        self.steps += n
-        if n < cmd.shape[0]:
+        n = cmd.shape[0]
+        names = list(inputs or {})
+        slots = np.array([self.input_slot(k) for k in names], dtype=np.int64)
+        imposed = np.zeros((n, len(names)))
+        for j, k in enumerate(names):
+            imposed[:, j] = np.asarray(inputs[k], dtype=float)[:n]
+        temp = (np.zeros(0) if temperature_k is None
+                else np.ascontiguousarray(temperature_k, dtype=float))
+        if temp.shape[0] not in (0, th.shape[0]):
+            raise CircuitError(f"temperature_k has {temp.shape[0]} samples; allowed: "
+                               f"{th.shape[0]} (one per angle sample)")
+        if th.shape[0] < n or thd.shape[0] < n:
+            raise CircuitError(f"run_imposed: {n} commands for {th.shape[0]} angles; allowed: "
+                               "at least one angle and velocity per command")
+        sub = int(substeps)
+        if sub < 1:
+            raise CircuitError(f"run_imposed substeps = {substeps!r}; allowed: >= 1")
+        if temp.shape[0]:
+            self.W[0, self.k.W_TEMP_K] = temp[0]
+        ny, npr = len(self.cc.state_names), len(self.cc.probe_names)
+        log = np.zeros((n, 8 + ny + npr))
+        done = self.k.run_imposed(self.Y[:1], self.P[:1], self.W[:1], self.S[:1], th, thd,
+                                  cmd, imposed, slots, temp, sub, log)
+        self.steps += done * sub
+        if done < n:
             raise FloatingPointError(f"circuit {self.cc.circuit.name!r}: non-finite state "
-                                     f"at step {n}")
-        return self._log_dict(log, n)
+                                     f"at sample {done}")
+        out = self._log_dict(log, done)
+        for i, name in enumerate(self.cc.probe_names):
+            out[name] = log[:done, 5 + ny + i]
+        for i, name in enumerate(("battery_current_a", "bus_voltage_v", "oil_temperature_k")):
+            out[name] = log[:done, 5 + ny + npr + i]
+        return out

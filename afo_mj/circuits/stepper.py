@@ -285,29 +285,37 @@ def finish_step(y, P, W, theta_dot_new, S):
     return tau
 
 
+def hold_inputs(y, Ps, Ws, theta, theta_dot, cmd, h):
+    """Hold one side's inputs over the coming step: the joint motion, the viscosity and bus
+    voltage (``begin_extra``), and the controller's actuated input from the command."""
+    Ws[W_THETA] = theta
+    Ws[W_THETA_DOT] = theta_dot
+    begin_extra(y, Ps, Ws)
+    Ws[W_CMD] = cmd
+    Ws[W_U] = controller(y, theta, theta_dot, cmd, h, Ps, Ws)
+
+
+def couple(y, Ps, Ws, Ss, theta_dot, out_s):
+    """Linearise one side about its held inputs; ``out_s = (τ_0 − G θ̇_n, −G)``: the joint
+    force and the extra joint damping for MuJoCo. A positive ``G`` (a rising friction branch)
+    is never handed over as negative damping: it is applied at the current velocity."""
+    linearise(y, Ps, Ws, Ss)
+    g = Ws[W_G]
+    if g > 0.0:
+        Ws[W_G] = 0.0
+        out_s[0] = Ws[W_TAU0]
+        out_s[1] = 0.0
+    else:
+        out_s[0] = Ws[W_TAU0] - g * theta_dot
+        out_s[1] = -g
+
+
 def begin_step(Y, P, W, S, theta, theta_dot, cmd, out):
-    """First half of the coupled step for every side ``s``: hold the inputs (viscosity, bus
-    voltage), run the controller, linearise. ``out[s] = (τ_0 − G θ̇_n, −G)``: the joint force
-    and the extra joint damping for MuJoCo. A positive ``G`` (a rising friction branch) is
-    never handed over as negative damping: it is applied at the current velocity."""
+    """First half of the coupled step for every side ``s``: :func:`hold_inputs`, then
+    :func:`couple` (``out[s]``: joint force and extra damping)."""
     for s in range(Y.shape[0]):
-        Ws = W[s]
-        Ps = P[s]
-        h = S[s, 0, 0]
-        Ws[W_THETA] = theta[s]
-        Ws[W_THETA_DOT] = theta_dot[s]
-        begin_extra(Y[s], Ps, Ws)
-        Ws[W_CMD] = cmd[s]
-        Ws[W_U] = controller(Y[s], theta[s], theta_dot[s], cmd[s], h, Ps, Ws)
-        linearise(Y[s], Ps, Ws, S[s])
-        g = Ws[W_G]
-        if g > 0.0:
-            Ws[W_G] = 0.0
-            out[s, 0] = Ws[W_TAU0]
-            out[s, 1] = 0.0
-        else:
-            out[s, 0] = Ws[W_TAU0] - g * theta_dot[s]
-            out[s, 1] = -g
+        hold_inputs(Y[s], P[s], W[s], theta[s], theta_dot[s], cmd[s], S[s, 0, 0])
+        couple(Y[s], P[s], W[s], S[s], theta_dot[s], out[s])
 
 
 def finish_all(Y, P, W, S, theta_dot_new, tau_out):
@@ -363,33 +371,56 @@ def run_load(Y, P, W, S, theta0, theta_dot0, inertia, stiffness, damping, rest_a
     return n
 
 
-def run_imposed(Y, P, W, S, theta, theta_dot, cmd, log):
+def run_imposed(Y, P, W, S, theta, theta_dot, cmd, imposed, slots, temp_k, sub, log):
     """The replay loop with the joint motion imposed (a recorded angle and its velocity per
-    step, e.g. a bench record): the same coupled step with the measured velocity as the end
-    velocity. ``log`` as in :func:`run_load`. Returns the steps done."""
+    sample, e.g. a bench record): the same coupled step with the measured velocity as the end
+    velocity. Sample ``i`` → ``i + 1`` is ``sub`` equal steps of ``h = S[0, 0, 0]`` over which
+    the angle, velocity and (when ``temp_k`` is not empty) the oil temperature are
+    interpolated linearly and ``cmd[i]`` is held. ``imposed[i, j]`` (samples × inputs, held
+    likewise) replaces the held input ``U[slots[j]]`` after the controller has run: a measured
+    actuated input (the motor voltage ``U_CMD``, a valve's command) drives the circuit
+    whatever its controller computed. ``log`` (samples × columns) gets, at the end of each
+    sample, ``t, θ, θ̇, τ, u`` (``τ`` the joint torque at the step's end), every state, every
+    probe, then the battery current, the bus voltage and the oil temperature. Returns the
+    samples done (fewer when a state became non-finite)."""
     n = cmd.shape[0]
+    nt = theta.shape[0]
     h = S[0, 0, 0]
     th = np.zeros(1)
     thd = np.zeros(1)
-    c1 = np.zeros(1)
     out = np.zeros((1, 2))
     vnew = np.zeros(1)
     tau = np.zeros(1)
+    nimp = slots.shape[0]
     for i in range(n):
-        th[0] = theta[i]
-        thd[0] = theta_dot[i]
-        c1[0] = cmd[i]
-        begin_step(Y, P, W, S, th, thd, c1, out)
-        vnew[0] = theta_dot[i + 1] if i + 1 < theta_dot.shape[0] else theta_dot[i]
-        if not finish_all(Y, P, W, S, vnew, tau):
-            return i
-        log[i, 0] = (i + 1) * h
-        log[i, 1] = theta[i + 1] if i + 1 < theta.shape[0] else theta[i]
+        i1 = i + 1 if i + 1 < nt else i
+        for j in range(sub):
+            f0 = j / sub
+            f1 = (j + 1) / sub
+            if temp_k.shape[0] > 0:
+                W[0, W_TEMP_K] = temp_k[i] + f0 * (temp_k[i1] - temp_k[i])
+            th[0] = theta[i] + f0 * (theta[i1] - theta[i])
+            thd[0] = theta_dot[i] + f0 * (theta_dot[i1] - theta_dot[i])
+            hold_inputs(Y[0], P[0], W[0], th[0], thd[0], cmd[i], h)
+            for m in range(nimp):
+                W[0, W_U + slots[m]] = imposed[i, m]
+            couple(Y[0], P[0], W[0], S[0], thd[0], out[0])
+            vnew[0] = theta_dot[i] + f1 * (theta_dot[i1] - theta_dot[i])
+            if not finish_all(Y, P, W, S, vnew, tau):
+                return i
+        log[i, 0] = (i + 1) * sub * h
+        log[i, 1] = theta[i1]
         log[i, 2] = vnew[0]
         log[i, 3] = W[0, W_TAU_END]
         log[i, 4] = W[0, W_U]
         for k in range(N_Y):
             log[i, 5 + k] = Y[0, k]
+        for k in range(N_PROBE):
+            log[i, 5 + N_Y + k] = S[0, 2, F_PROBE + k]
+        c = 5 + N_Y + N_PROBE
+        log[i, c] = W[0, W_I_BAT]
+        log[i, c + 1] = W[0, W_U + U_VBUS]
+        log[i, c + 2] = W[0, W_TEMP_K]
     return n
 
 
@@ -509,5 +540,5 @@ def write_log_row(row, t, y, W, S, phase, theta_dot):
 
 #: the template functions, in the order the generated module defines them
 TEMPLATE = (solve_linear, scratch_views, jacobian, linearise, newton, close_substep,
-            finish_step, begin_step, finish_all, run_load, run_imposed, device_views,
-            write_log_row, device_begin, device_end)
+            finish_step, hold_inputs, couple, begin_step, finish_all, run_load, run_imposed,
+            device_views, write_log_row, device_begin, device_end)

@@ -102,7 +102,10 @@ def _refs(ctrl, circuit, keys):
 
 
 class _ValveTorqueBase(Controller):
-    """Shared parts: the pressure-error loop and the supply's speed loop."""
+    """Shared parts: the pressure-error loop and the supply's speed loop. The packed switch
+    ``controller.valve_command_on`` (0 by default) makes the command the valve command ``u``
+    itself, open loop (a bench replay of a measured valve command), with no torque demand
+    reaching the supply loop."""
 
     def _torque_loop(self, g, p, circuit, act):
         own = circuit.controller_owner
@@ -113,9 +116,12 @@ class _ValveTorqueBase(Controller):
         lim = g.param(own, "valve_int_limit", p.valve_integral_limit_pa_s)
         rho = g.param(own, "ff_density", p.feedforward_density_kg_m3)
         integ = g.ctrl_slot("pressure_integral")
+        # open-loop bench replay: the command is the valve command itself (no torque demand)
+        self.open_loop = g.param(own, "valve_command_on", 0.0)
         pa = g.p(act, "a")
         pb = g.p(act, "b") if "b" in act.ports else "0.0"
-        for line in (f"tau_cmd = min(max(cmd, -{tmax}), {tmax})",
+        for line in (f"tau_cmd = 0.0 if {self.open_loop} != 0.0 else "
+                     f"min(max(cmd, -{tmax}), {tmax})",
                      f"dp_meas = {pa} - {pb}",
                      f"W[W_TAU_MEAS] = -{ktp} * dp_meas",
                      f"dp_des = -tau_cmd / {ktp}",
@@ -205,7 +211,9 @@ class ServoValveTorque(_ValveTorqueBase):
         cmd = g.input_slot(valve, "command")
         for line in (f"dpe = max(0.5 * ({ps} - {pt}), 2e5)",
                      f"u_ff = q_ff / ({cd} * {af} * math.sqrt(2.0 * dpe / {rho}))",
-                     f"{cmd} = min(max(u_ff + {kv} * err + {kvi} * integ, -1.0), 1.0)"):
+                     f"u = cmd if {self.open_loop} != 0.0 else "
+                     f"u_ff + {kv} * err + {kvi} * integ",
+                     f"{cmd} = min(max(u, -1.0), 1.0)"):
             g.ctrl_line(line)
         self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], ps, pt)
 
@@ -277,7 +285,8 @@ class DigitalValveTorque(_ValveTorqueBase):
                 "else:\n"
                 f"    u_ff = q_ff / max({rcd} * {ramax} * math.sqrt(2.0 * max({pca} - {pt}, "
                 f"2e5) / {rho}), 1e-12)",
-                f"u = min(max(u_ff + {kv} * err + {kvi} * integ, -1.0), 1.0)"):
+                f"u = cmd if {self.open_loop} != 0.0 else u_ff + {kv} * err + {kvi} * integ",
+                "u = min(max(u, -1.0), 1.0)"):
             g.ctrl_line(line)
         _emit_pwm(g, own, r, p.pwm_frequency_hz)
         rail = g.p(r["pump"], "a")

@@ -200,6 +200,37 @@ def node_capacitance_m3_pa(volume_m3, bulk_modulus, wall_volume_m3, wall_bulk_mo
     return volume_m3 / bulk_modulus + wall_volume_m3 * wall_bulk_modulus_inv
 
 
+@law
+def series_spring_capacitance_m3_pa(torque_per_pa_m3, compliance_rad_per_nm):
+    """Differential capacitance of a series spring between a joint pulley and its pistons:
+    ``c_s = (n A r)² / k`` with ``n A r`` the joint torque per pascal of ``p_a − p_b`` and
+    ``1/k`` the spring's rotational compliance. A pressure difference ``Δp`` loads the spring
+    with ``τ = n A r Δp``, which stretches it by ``τ/k`` rad and moves the pistons by
+    ``r τ/k``, displacing ``n A r τ/k = c_s Δp`` of oil out of the loaded chamber into the
+    other (massless cable, stretched by the hydraulic torque alone; the lumping of
+    :func:`afo_mj.hydraulics.transmission.series_compliance_m3_pa`). Example: ``n A r`` =
+    6.4e-6 m³, 1/k = 5e-4 rad/(N m) → 2.048e-14 m³/Pa."""
+    return torque_per_pa_m3 * torque_per_pa_m3 * compliance_rad_per_nm
+
+
+@law
+def coupled_node_rate_pa_s(net_inflow_m3_s, other_inflow_m3_s, capacitance_m3_pa,
+                           other_capacitance_m3_pa, coupling_m3_pa):
+    """Pressure rate of one of two nodes joined by a differential capacitance ``c_s`` (a
+    series spring between two chambers, :func:`series_spring_capacitance_m3_pa`): the
+    solution of ``(C_a + c_s) ṗ_a − c_s ṗ_b = n_a``,
+    ``−c_s ṗ_a + (C_b + c_s) ṗ_b = n_b``
+    (continuity of each chamber with the oil the stretching spring lets the pistons sweep,
+    ``c_s (ṗ_a − ṗ_b)``), by Cramer's rule: ``ṗ_a = ((C_b + c_s) n_a + c_s n_b) / det``,
+    ``det = (C_a + c_s)(C_b + c_s) − c_s²``; called with the nodes swapped for ``ṗ_b``.
+    ``c_s = 0`` gives ``n_a/C_a``. Example: n_a = 3e-6, n_b = −1e-6 m³/s, C_a = 3e-15,
+    C_b = 4e-15, c_s = 2e-15 m³/Pa → 6.154e8 Pa/s (and ṗ_b = 3.85e7 Pa/s)."""
+    caa = capacitance_m3_pa + coupling_m3_pa
+    cbb = other_capacitance_m3_pa + coupling_m3_pa
+    det = caa * cbb - coupling_m3_pa * coupling_m3_pa
+    return (cbb * net_inflow_m3_s + coupling_m3_pa * other_inflow_m3_s) / det
+
+
 # ---- conduits and orifices ------------------------------------------------------------------
 
 #: Reynolds number where the laminar law ends and where the turbulent one is in full force

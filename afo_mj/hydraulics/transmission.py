@@ -8,8 +8,9 @@ common on a real orthosis and are available as switchable effects for calibratio
 * **series (cable) compliance**: the cable, its terminations and the brace's shell stretch
   under load. With a rotational stiffness ``k`` (N·m/rad) at the ankle, the cylinders' side of
   the loop lags the ankle by ``τ_h/k``; for the hydraulics this is a differential capacitance
-  ``c_s = r² A_e²/k`` between the two chambers (:func:`series_compliance_m3_pa`; used in
-  :func:`afo_mj.devices.pump_ankle_actuator.chamber_rates`).
+  ``c_s = r² A_e²/k`` between the two chambers (:func:`series_compliance_m3_pa`, the law
+  :func:`afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa`; the generated circuits'
+  ``pulley_cylinders`` solve the two chambers together through it).
 * **backlash** (play): slack in the loop or a loose pulley key lets the ankle turn through a
   dead band ``b`` before the cylinders follow. On an imposed-angle bench this is the classic
   play (backlash) operator on the kinematics (:func:`play_operator`, e.g. Tao & Kokotović,
@@ -21,6 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .laws import series_spring_capacitance_m3_pa
 from .params import ParameterError
 
 
@@ -42,7 +44,8 @@ def series_compliance_m3_pa(pulley_radius_m: float, effective_area_m2: float,
     if not stiffness_nm_rad > 0.0:
         raise ParameterError(f"stiffness_nm_rad = {stiffness_nm_rad!r}; allowed: > 0 (inf for "
                              "a rigid cable)")
-    return pulley_radius_m ** 2 * effective_area_m2 ** 2 / stiffness_nm_rad
+    return float(series_spring_capacitance_m3_pa(pulley_radius_m * effective_area_m2,
+                                                 1.0 / stiffness_nm_rad))
 
 
 @numba.njit(cache=True)
