@@ -33,9 +33,8 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   emulated stiffness = −slope of the least-squares line of delivered torque on angle.
   Refused for ``open_loop``.
 * ``flow_vs_duty`` — a circuit metered by on/off valves under PWM (controller
-  ``digital_valve_torque`` or ``digital_valve_duty``; seed ch. 5). The controller is replaced
-  by ``digital_valve_duty`` (the command is the metering fraction ``u``, open loop; the
-  supply at its set speed). Per duty ``u`` in ``duties``: the pump spun up with the ankle
+  ``digital_valve_torque``; seed ch. 5). The controller's ``valve_command_on`` switch is set
+  (the command is the metering fraction ``u``, open loop; the supply at its set speed). Per duty ``u`` in ``duties``: the pump spun up with the ankle
   locked at 80 % of the dorsiflexion stroke and the valves at rest (``u = 0``), then the
   inertia ``flow_inertia_kg_m2`` (an adult foot about the ankle, 0.01 kg m²) released (no
   spring: a spring's torque would pull the line below the tank) against a damper
@@ -77,7 +76,7 @@ PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "positi
 #: controller kinds that take a joint-torque command
 TORQUE_CONTROLLERS = ("pump_torque", "servo_valve_torque", "digital_valve_torque")
 #: controllers of a circuit metered by PWM on/off valves (``flow_vs_duty``)
-DIGITAL_CONTROLLERS = ("digital_valve_torque", "digital_valve_duty")
+DIGITAL_CONTROLLERS = ("digital_valve_torque",)
 LEDGER_TOLERANCE = 1e-9
 _RAMP_S = 0.05
 
@@ -212,22 +211,6 @@ class _Bench:
         self._open = None
         self._open_factory = lambda: build(with_controller(self.circuit, OpenLoop()))
         self.ledgers: dict = {}
-
-    @property
-    def duty_loop(self):
-        """The circuit under ``digital_valve_duty`` (its references and supply kept)."""
-        from afo_mj.circuits.codegen import build
-        from afo_mj.circuits.valve_controllers import DigitalValveDuty, DigitalValveDutyParams
-        from afo_mj.scenarios.circuit_scenario import with_controller
-        ctrl = self.circuit.controller
-        if ctrl.kind == "digital_valve_duty":
-            return self.cc
-        if getattr(self, "_duty", None) is None:
-            p = DigitalValveDutyParams(pwm_frequency_hz=ctrl.params.pwm_frequency_hz,
-                                       supply=ctrl.params.supply)
-            self._duty = build(with_controller(self.circuit,
-                                               DigitalValveDuty(p, **ctrl.refs)))
-        return self._duty
 
     @property
     def open_loop(self):
@@ -480,8 +463,10 @@ def tracking(b: _Bench) -> tuple[dict, list]:
 
 def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
     c = b.cfg
-    cc = b.duty_loop
+    cc = b.cc
     ctrl = cc.circuit.controller
+    # the controller's valve_command_on switch: the command is the metering fraction itself
+    open_slot = cc.param_labels.index("controller.valve_command_on")
     f = ctrl.params.pwm_frequency_hz
     h = c.timestep_s
     spp = 1.0 / (f * h)
@@ -507,6 +492,7 @@ def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
     traces = {}
     for u in c.duties:
         dev = b._dev(cc)
+        dev.P[:, open_slot] = 1.0
         dev.run_imposed(np.zeros_like(spin), np.full(spin.size, theta0), np.zeros_like(spin))
         n = int(round(c.flow_max_duration_s / h))
         log = dev.run_load(np.full(n, float(u)), c.flow_inertia_kg_m2, 0.0,

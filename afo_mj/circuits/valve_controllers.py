@@ -10,8 +10,6 @@ on/off valves' PWM on-fractions and switching rates.
 * :class:`ServoValveTorque` (``servo_valve_torque``) — servo valve + supply.
 * :class:`DigitalValveTorque` (``digital_valve_torque``) — PWM switching (unloading) valve
   and release valve + constant-speed supply.
-* :class:`DigitalValveDuty` (``digital_valve_duty``) — the same valves metered open loop by
-  the command (the flow-vs-duty bench test) + constant-speed supply.
 """
 
 from __future__ import annotations
@@ -293,50 +291,7 @@ class DigitalValveTorque(_ValveTorqueBase):
         self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], rail, pt, wset)
 
 
-@dataclasses.dataclass(frozen=True)
-class DigitalValveDutyParams(Parameters):
-    """The PWM frequency of the on/off valves and the constant-speed supply's loop."""
-
-    pwm_frequency_hz: float = param(50.0, unit="Hz", lo=1.0, hi=2000.0,
-                                    doc="PWM frequency of the on/off valves")
-    supply: SupplyControlParams = SupplyControlParams()
-
-
-class DigitalValveDuty(_ValveTorqueBase):
-    """Open-loop metering of the digital circuit (seed ch. 5's flow-vs-duty bench test): the
-    command is the metering fraction ``u`` itself, clipped to [−1, 1] (``u > 0``: the
-    switching valve shut for ``u`` of each PWM period, passing the pump's flow into line A;
-    ``u < 0``: the release valve open for ``−u``; :func:`_emit_pwm`); the supply runs at its
-    set speed as under :class:`DigitalValveTorque`. The chamber pressures are measured for
-    the log only. References as :class:`DigitalValveTorque`."""
-
-    kind = "digital_valve_duty"
-    params_type = DigitalValveDutyParams
-    summary = "digital circuit's PWM metering fraction open loop + constant-speed supply"
-
-    def emit(self, g, p, circuit):
-        r = _refs(self, circuit, ("motor", "pump", "switching", "release", "actuator"))
-        _check_digital_refs(r)
-        if p.supply.pressure_control_enabled:
-            raise CircuitError("controller.supply.pressure_control_enabled = True: the "
-                               "digital circuit meters a constant-speed pump (allowed: False)")
-        own = circuit.controller_owner
-        act = r["actuator"]
-        ktp = g.param(own, "torque_per_pa", act.torque_per_pa())
-        pb = g.p(act, "b") if "b" in act.ports else "0.0"
-        g.ctrl_line(f"W[W_TAU_MEAS] = -{ktp} * ({g.p(act, 'a')} - {pb})")
-        g.ctrl_line("u = min(max(cmd, -1.0), 1.0)")
-        g.ctrl_line("dp_des = 0.0")       # read by the supply loop's (refused) pressure branch
-        g.ctrl_line("q_ff = 0.0")
-        _emit_pwm(g, own, r, p.pwm_frequency_hz)
-        wset = g.param(own, "speed_set", p.supply.speed_set_rad_s)
-        rail = g.p(r["pump"], "a")
-        self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], rail,
-                          g.p(r["release"], "b"), wset)
-
-
-CONTROLLERS = (ServoValveTorque, DigitalValveTorque, DigitalValveDuty)
+CONTROLLERS = (ServoValveTorque, DigitalValveTorque)
 
 __all__ = ["SupplyControlParams", "ValveTorqueParams", "DigitalValveTorqueParams",
-           "DigitalValveDutyParams", "ServoValveTorque", "DigitalValveTorque",
-           "DigitalValveDuty", "CONTROLLERS"]
+           "ServoValveTorque", "DigitalValveTorque", "CONTROLLERS"]

@@ -463,7 +463,9 @@ class HafoDevice(CircuitDevice):
         "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
         "oil": ("oil.line_a", "oil.line_b", "oil.chamber_a", "oil.chamber_b"),
         # the reservoir gives energy when it feeds the lines: its store falls
-        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",)}
+        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
+        # the cable between pulley and pistons (zero with the rigid cable)
+        "series_spring": ("cylinders.series_spring",)}
     #: the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
     #: input less their losses and the change of their stores (energy balance of that part)
     upstream_losses = ("battery_internal", "driver", "motor_copper", "motor_friction",
