@@ -111,6 +111,16 @@ def test_mean_compliance_is_the_integral_of_one_over_b():
                    epsrel=1e-12, limit=400)[0] / (hi - lo)
         got = L.oil_mean_compliance_per_pa(p0, p1, bl, alpha, n, pa, fl)
         assert got == pytest.approx(ref, rel=5e-5), (alpha, n, p0, p1)
+    # narrow intervals (p1/p0 <= 1.05) take the midpoint rule: within 5e-4 of the integral
+    for alpha, n, p0, p1 in ((0.01, 1.4, 1e5, 1.049e5), (0.05, 1.2, 2.1e3, 2.2e3),
+                             (0.01, 1.4, 4.0e6, 3.9e6), (0.001, 1.4, 2e5, 2.1e5)):
+        def inv_b(p, alpha=alpha, n=n):
+            return 1.0 / L.bulk_modulus_pa(max(p, fl), bl, alpha, n, pa)
+        lo, hi = min(p0, p1), max(p0, p1)
+        ref = quad(inv_b, lo, hi, epsabs=0.0, epsrel=1e-12)[0] / (hi - lo)
+        got = L.oil_mean_compliance_per_pa(p0, p1, bl, alpha, n, pa, fl)
+        assert got == pytest.approx(ref, rel=5e-4), (alpha, n, p0, p1)
+        assert got == L.oil_mean_compliance_per_pa(p1, p0, bl, alpha, n, pa, fl)
     for p in (1e3, 0.2e6, 5e6):
         assert L.oil_mean_compliance_per_pa(p, p, bl, 0.01, 1.4, pa, fl) == \
             1.0 / L.bulk_modulus_pa(max(p, fl), bl, 0.01, 1.4, pa)

@@ -479,7 +479,7 @@ def generate(circuit: Circuit):
     off += max(len(g.monitors), 1)
     n_w = off
     s_width = max(n_y, n_f, 2)
-    n_scratch = 13 + 3 * n_y
+    n_scratch = 14 + 3 * n_y
 
     # begin / close / controller / floor
     begin = [f"W[W_U + U_MU] = dynamic_viscosity_pa_s(W[W_TEMP_K], {wb}, {wc}, {rho0}, "
