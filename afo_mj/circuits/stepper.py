@@ -25,7 +25,7 @@ After ``mj_step`` the new velocity closes the step: Newton iterations on
 redone as adaptive sub-steps (halved on failure, doubled after success, down to
 ``MIN_SUBSTEP_FRACTION``) with the velocity ramped linearly, each a converged backward-Euler
 step. Jacobians are forward differences of ``rhs``; systems are solved by Gaussian elimination
-with partial pivoting (:func:`solve_linear`).
+with partial pivoting (:func:`lu_factor`, :func:`lu_solve`).
 
 The backward-Euler residual is written with ``rhs_step(y, y_old, …)``: the same right-hand side
 with each node's oil compliance the mean of ``1/B`` over ``[p_old, p]``
@@ -55,41 +55,6 @@ MIN_SUBSTEP_FRACTION = 1.0 / 1024.0
 # step; 6: f0; 7: F0; 8: y perturbed; 9: f perturbed; 10: F perturbed; 11: dτ/dy; 12: y_start;
 # 13 … 13+N_Y: matrix; then its copy (the prediction's LU factors); then N_Y rows of
 # right-hand sides (2 columns); then the factors' pivot rows
-
-
-def solve_linear(M, rhs_mat, n, ncol):
-    """Solve ``M X = rhs`` in place (``n×n``, Gaussian elimination with partial pivoting);
-    ``rhs_mat`` is ``n×ncol``."""
-    for c in range(n):
-        piv = c
-        big = abs(M[c, c])
-        for r_ in range(c + 1, n):
-            if abs(M[r_, c]) > big:
-                big = abs(M[r_, c])
-                piv = r_
-        if piv != c:
-            for k in range(n):
-                tmp = M[c, k]
-                M[c, k] = M[piv, k]
-                M[piv, k] = tmp
-            for k in range(ncol):
-                tmp = rhs_mat[c, k]
-                rhs_mat[c, k] = rhs_mat[piv, k]
-                rhs_mat[piv, k] = tmp
-        inv = 1.0 / M[c, c]
-        for r_ in range(c + 1, n):
-            fac = M[r_, c] * inv
-            if fac != 0.0:
-                for k in range(c, n):
-                    M[r_, k] -= fac * M[c, k]
-                for k in range(ncol):
-                    rhs_mat[r_, k] -= fac * rhs_mat[c, k]
-    for c in range(n - 1, -1, -1):
-        for k in range(ncol):
-            s = rhs_mat[c, k]
-            for j in range(c + 1, n):
-                s -= M[c, j] * rhs_mat[j, k]
-            rhs_mat[c, k] = s / M[c, c]
 
 
 def lu_factor(M, piv, n):
@@ -246,7 +211,9 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
             lu_solve(Mcopy, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         else:
             jacobian(y, yold, theta, theta_dot, h, U, P, S, Mw)
-            solve_linear(Mw, rv, N_Y, 1)
+            # a fresh matrix ends the chord: its factors may take the pivot row
+            lu_factor(Mw, S[13 + 3 * N_Y, :N_Y], N_Y)
+            lu_solve(Mw, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         for k in range(N_Y):
             ybest[k] = y[k]
             step[k] = rv[k, 0]
@@ -591,6 +558,6 @@ def write_log_row(row, t, y, W, S, phase, theta_dot):
 
 
 #: the template functions, in the order the generated module defines them
-TEMPLATE = (solve_linear, lu_factor, lu_solve, scratch_views, jacobian, linearise, newton,
+TEMPLATE = (lu_factor, lu_solve, scratch_views, jacobian, linearise, newton,
             close_substep, finish_step, hold_inputs, couple, begin_step, finish_all, run_load,
             run_imposed, device_views, write_log_row, device_begin, device_end)
