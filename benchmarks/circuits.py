@@ -6,7 +6,8 @@
   module text and numba's machine code are loaded from disk);
 * walking (``scenarios/gait_assist_hafo.toml``, assist condition, 10 strides, in this
   process, alternated, medians over the repeats): µs per 1 ms step of the bare walker, of the
-  walker coupled to the hand-written HAFO kernel (:class:`afo_mj.devices.hafo.HafoKernelDevice`),
+  walker coupled to the hand-written HAFO kernel the circuit replaced (kept as the tests'
+  reference: ``tests/kernel_reference``, :class:`kernel_devices.HafoKernelDevice`),
   and of the walker coupled to the generated circuit of the same preset
   (:class:`afo_mj.circuits.device.CircuitDevice` with :func:`afo_mj.devices.hafo.hafo_circuit`),
   both with the device log on. Issue 18: the generated kernel must be no slower than the
@@ -58,7 +59,9 @@ def main(repeats: int = 5) -> dict:
         warm_import, warm = _start(cache)
 
     from afo_mj.circuits.device import CircuitDevice
-    from afo_mj.devices.hafo import HafoDevice, HafoKernelDevice, hafo_circuit
+    from afo_mj.devices.hafo import HafoDevice, hafo_circuit
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from kernel_reference.kernel_devices import HafoKernelDevice
     from afo_mj.gait.walk import run_walk
     from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import load_scenario

@@ -1,6 +1,6 @@
 """The HAFO presets as circuit descriptions (issue 18 item 5) against the hand-written kernel.
 
-The generated circuit and the old kernel (``afo_mj.devices.pump_ankle_actuator``) were written
+The generated circuit and the old kernel (``tests/kernel_reference/pump_kernel.py``) were written
 separately; the old one is the reference until it is deleted. The differences that remain are
 deliberate and each is isolated here:
 
@@ -30,9 +30,9 @@ import pytest
 from afo_mj.circuits.codegen import build, leaf_fields
 from afo_mj.circuits.catalogue import COMPONENT_KINDS
 from afo_mj.circuits.device import CircuitDevice
-from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices.hafo import (HAFO, HAFO_GAIT, HafoKernelDevice, hafo_circuit,
-                                 pack_parameters)
+from afo_mj.devices.hafo import HAFO, HAFO_GAIT, hafo_circuit
+from kernel_reference import pump_kernel as pa
+from kernel_reference.kernel_devices import HafoKernelDevice, pack_parameters
 from afo_mj.hydraulics.params import replace_named
 
 STATES = ("motor.current_a", "shaft", "line_a", "line_b", "chamber_a", "chamber_b")

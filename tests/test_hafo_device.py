@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from afo_mj.control import assistance as asst
-from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices.hafo import (HAFO, HafoDevice, HafoKernelDevice, hafo_params, mass_budget,
-                                 pack_parameters)
+from afo_mj.devices.hafo import HAFO, HafoDevice, hafo_params, mass_budget
+from kernel_reference import pump_kernel as pa
+from kernel_reference.kernel_devices import HafoKernelDevice, pack_parameters
 from afo_mj.human.test_stand import AnkleTestStand, StandLoad
 from afo_mj.hydraulics.conduit import laminar_resistance_pa_s_m3
 from afo_mj.hydraulics.cylinder import Cylinder

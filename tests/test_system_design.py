@@ -149,12 +149,15 @@ def test_laws_reproduce_the_preset_anchors():
 
 
 def test_oil_viscosity_is_the_simulators():
-    from afo_mj.devices import pump_ankle_actuator as pa
-    from afo_mj.devices.hafo import HAFO, pack_parameters
-    P = pack_parameters(HAFO)
+    """The viscosity the generated HAFO circuit holds over a step at oil temperature t."""
+    from afo_mj.devices.hafo import HAFO, HafoDevice
+    dev = HafoDevice(HAFO)
+    k = dev.k
     for t in (280.0, 298.15, 330.0):
+        dev.W[0, k.W_TEMP_K] = t
+        k.begin_extra(dev.Y[0], dev.P[0], dev.W[0])
         assert float(dm.oil_viscosity_pa_s(HAFO.fluid, t)) == pytest.approx(
-            pa.viscosity_pa_s(t, P), rel=1e-9)
+            dev.W[0, k.W_U + k.U_MU], rel=1e-9)
 
 
 def test_chain_against_hand_calculation():

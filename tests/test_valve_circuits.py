@@ -42,9 +42,9 @@ import pytest
 from afo_mj.circuits.codegen import build
 from afo_mj.circuits.components import CircuitError
 from afo_mj.circuits.device import CircuitDevice
-from afo_mj.devices import valve_ankle_actuator as va
-from afo_mj.devices.valve_afo import (VALVE_PRESETS, ValveAfoDevice, valve_circuit,
-                                      valve_initial_state)
+from afo_mj.devices.valve_afo import VALVE_PRESETS, valve_circuit, valve_initial_state
+from kernel_reference import valve_kernel as va
+from kernel_reference.kernel_devices import ValveKernelDevice
 
 H = 1e-3
 N = 400
@@ -69,7 +69,7 @@ def _torque(t, th, thd):
 
 def _run_both(params, n=N):
     th, v = _motion(n)
-    old = ValveAfoDevice(params, torque_fn=_torque, timestep_s=H)
+    old = ValveKernelDevice(params, torque_fn=_torque, timestep_s=H)
     new = CircuitDevice(valve_circuit(params), timestep_s=H, torque_fn=_torque)
     for label, value in valve_initial_state(params).items():
         new.Y[:, new.cc.index(label)] = value

@@ -1,6 +1,9 @@
-"""Valve-controlled / digital-valve ankle kernel: equations vs the component library.
+"""Valve-controlled / digital-valve ankle orthosis: the reference kernel's equations vs the
+component library, then the device.
 
-The compiled right-hand side (:func:`afo_mj.devices.valve_ankle_actuator.rhs`) is evaluated at
+The hand-written kernel the generated valve circuits are held to (``test_valve_circuits``) is
+checked here: its compiled right-hand side (``tests/kernel_reference/valve_kernel.py``) is
+evaluated at
 chosen states and its node equations are compared with the library components of
 :mod:`afo_mj.hydraulics` (each checked against analytic solutions in its own tests): servo valve
 edges, gas accumulator, on/off valve, PWM on-fraction, orifice, pump and motor, unloading valve.
@@ -16,9 +19,10 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.devices import valve_ankle_actuator as va
-from afo_mj.devices.valve_afo import (VALVE_PRESETS, ValveAfoDevice, pack_valve_parameters,
-                                      valve_params)
+from afo_mj.circuits.codegen import build
+from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAfoDevice, valve_circuit, valve_params
+from kernel_reference import valve_kernel as va
+from kernel_reference.kernel_devices import pack_valve_parameters
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
 from afo_mj.hydraulics.accumulator import GasAccumulator
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
@@ -413,6 +417,7 @@ def test_presets_validate(preset):
     assert again == p
     P = pack_valve_parameters(p)
     assert P.shape == (va.N_P,) and np.all(np.isfinite(P))
+    assert np.all(np.isfinite(build(valve_circuit(p)).P))
 
 
 @pytest.mark.parametrize("overrides,preset,key", [

@@ -10,8 +10,8 @@ Two kinds of model live here, both vectorised over numpy arrays (any broadcastab
    * seal friction per cylinder (piston seal + two cable seals), the Stribeck form of
      :class:`afo_mj.hydraulics.seal.OringSeal` with its Coulomb level from seed eq. 2.7
      (``F_C = μ_f E π D d λ^1.5``), so the ankle torque is
-     ``τ = −r A_e Δp_c − r n F_seal(r θ̇)`` (kernel :func:`~afo_mj.devices.
-     pump_ankle_actuator.rhs`);
+     ``τ = −r A_e Δp_c − r n F_seal(r θ̇)`` (the ``pulley_cylinders`` component
+     of :mod:`afo_mj.circuits.components`);
    * internal piston leakage ``G_l Δp_c / μ`` (laminar annular gap, Merritt §3.2);
    * line loss per hose ``Δp = R_lam Q φ(Re)`` (:mod:`afo_mj.hydraulics.conduit`: Hagen–
      Poiseuille times the laminar/turbulent friction-factor ratio; the compiled actuator is

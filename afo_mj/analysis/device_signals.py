@@ -1,9 +1,9 @@
 """Device signals derived from an orthosis run's log: flows, the power at each stage of the
 chain and the running efficiency, in SI units, per worn side.
 
-The devices log states and a few outputs (the HAFO's generated circuit under the names of
-:attr:`~afo_mj.devices.hafo.HafoDevice.log_names`, the valve kernel's
-:data:`~afo_mj.devices.valve_ankle_actuator.LOG_FIELDS`); what follows from them
+The devices log states and a few outputs (their generated circuits' log under the names of
+:attr:`~afo_mj.devices.hafo.HafoDevice.log_names` and
+:attr:`~afo_mj.devices.valve_afo.ValveAfoDevice.log_names`); what follows from them
 and the device's parameters is computed here, after the run, so the hot loop stays lean.
 
 Stages of the power chain (HAFO, Neubauer ch. 2; the valve circuit the same up to the pump):

@@ -1374,7 +1374,7 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
                   full_voltage_v: float | None = None) -> dict:
     """Steady-state stall torque and no-load speed of ``params`` as the torque–velocity bench
     (:func:`afo_mj.scenarios.hafo_bench.torque_velocity`) measures them, from the simulator's
-    own packed parameters (:func:`afo_mj.devices.hafo.pack_parameters`).
+    own parameters and laws (:mod:`afo_mj.hydraulics.laws`).
 
     * full voltage command ``1.25 × 4.2 V × cells`` through the driver's clamps (current limit
       ``K ω ± R I_max``, duty ``± d V_bus``, both with the 0.05 V rounded corners of

@@ -310,6 +310,10 @@ class CompiledCircuit:
     s_width: int
     #: named actuated inputs after ``U_NAMES`` (``W[W_U + len(U_NAMES) + k]``)
     input_names: tuple = ()
+    #: the controller's own slots (``W[W_CTRL + k]``: integrators, clocks, logged values)
+    ctrl_names: tuple = ()
+    #: whether each state keeps energy (a capacitance, inductance or inertia)
+    state_stores: tuple = ()
 
     def index(self, state_label: str) -> int:
         return self.state_names.index(state_label)
@@ -477,6 +481,10 @@ def generate(circuit: Circuit):
     off += n_y
     consts["W_MON"] = off
     off += max(len(g.monitors), 1)
+    consts["W_Y_MAX"] = off          # peak of every state over the run
+    off += n_y
+    consts["W_PROBE_INT"] = off      # time integral of every probe (right-point rule)
+    off += max(len(g.probes), 1)
     n_w = off
     s_width = max(n_y, n_f, 2)
     n_scratch = 14 + 3 * n_y
@@ -506,6 +514,10 @@ def generate(circuit: Circuit):
     for i, (label, expr, in_close) in enumerate(g.monitors):
         val = expr if in_close else f"F[{f_mon + i}]"
         close.append(f"W[W_MON + {i}] = max(W[W_MON + {i}], {val})")
+    for k in range(n_y):
+        close.append(f"if y[{k}] > W[W_Y_MAX + {k}]:\n    W[W_Y_MAX + {k}] = y[{k}]")
+    for i in range(len(g.probes)):
+        close.append(f"W[W_PROBE_INT + {i}] += h * F[{f_probe + i}]")
     floor_lines = [f"fl = {floor} - {p_atm}", "clipped = False"]
     for k in pressure_states:
         floor_lines.append(f"if y[{k}] < fl:\n    y[{k}] = fl\n    clipped = True")
@@ -523,6 +535,7 @@ def generate(circuit: Circuit):
            "import math", "import numba", "import numpy as np",
            f"from afo_mj.hydraulics.laws import ({', '.join(law_names)})",
            "from afo_mj.control.assistance import N_PH, PH_PHASE, phase_update, table_lookup",
+           "from afo_mj.control.impedance import impedance_torque",
            ""]
     src.append(f"N_Y = {n_y}")
     src.append(f"N_F = {n_f}")
@@ -534,6 +547,9 @@ def generate(circuit: Circuit):
     src.append(f"N_SCRATCH = {n_scratch}")
     src.append(f"S_WIDTH = {s_width}")
     src.append(f"N_PROBE = {len(g.probes)}")
+    src.append(f"N_INPUT = {len(g.inputs)}")
+    src.append(f"N_U_HEAD = {len(U_NAMES)}")
+    src.append(f"N_CTRL = {len(g.ctrl_slots)}")
     for name in stepper.LAYOUT_CONSTANTS:
         src.append(f"{name} = {getattr(stepper, name)!r}")
     for i, n in enumerate(U_NAMES):
@@ -603,7 +619,8 @@ def build(circuit: Circuit) -> CompiledCircuit:
         probe_names=tuple(p for p, _ in g.probes),
         monitor_names=tuple(m for m, _, _ in g.monitors), y0=y0, w_init=dict(g.work_init),
         n_w=layout["n_w"], n_scratch=layout["n_scratch"], s_width=layout["s_width"],
-        input_names=tuple(g.inputs))
+        input_names=tuple(g.inputs), ctrl_names=tuple(g.ctrl_slots),
+        state_stores=tuple(s["kind"] != "own" or s["store"] is not None for s in g.states))
 
 
 __all__ = ["build", "generate", "CompiledCircuit", "Emitter", "cache_dir", "leaf_fields"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from afo_mj.control import assistance as asst
+from afo_mj.control.impedance import impedance_table
 from afo_mj.circuits import stepper
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import CompiledCircuit, build
@@ -23,7 +24,8 @@ SIDE_NAMES = ("right", "left")
 class CircuitLog:
     """Preallocated per-step device signals, ``data[step, field, side]`` (one step's signals
     side by side in memory), written by the compiled ``device_end``: the header
-    (:data:`afo_mj.circuits.stepper.LOG_HEADER`), every state by name, every probe by name."""
+    (:data:`afo_mj.circuits.stepper.LOG_HEADER`), every state by name, every probe by name,
+    every actuated input by name, every controller slot as ``controller.<name>``."""
 
     def __init__(self, n: int, ns: int, fields):
         self.n = 0
@@ -40,8 +42,11 @@ class CircuitDevice:
     The command per step is, in this order of precedence: ``torque_fn(t, angle, velocity)``
     (a torque for a torque controller, a voltage for ``open_loop``; bench tests), the
     tabulated ``profile`` of torque vs stride phase (+dorsiflexion, N·m,
-    :mod:`afo_mj.control.assistance`) with the phase estimated from the foot switch, or 0
-    (transparent). ``max_steps`` > 0 keeps a device log of that many steps."""
+    :mod:`afo_mj.control.assistance`) or the emulated ``impedance`` (rows of
+    :func:`afo_mj.control.impedance.impedance_table`) with the phase estimated from the foot
+    switch, or 0 (transparent). ``initial_state`` maps state labels to their values at t = 0
+    (else the circuit's: pressures at ``options.initial_pressure_pa``, the rest at 0).
+    ``max_steps`` > 0 keeps a device log of that many steps."""
 
     coupled = True
     #: log column renames (generic name → the name a subclass's consumers read); the
@@ -50,7 +55,8 @@ class CircuitDevice:
 
     def __init__(self, circuit: Circuit | CompiledCircuit, sides=("right",),
                  timestep_s: float = 1e-3, torque_fn=None, profile=None, max_steps: int = 0,
-                 min_stride_s: float = 0.4, max_stride_s: float = 3.0):
+                 min_stride_s: float = 0.4, max_stride_s: float = 3.0, impedance=None,
+                 initial_state: dict | None = None):
         cc = circuit if isinstance(circuit, CompiledCircuit) else build(circuit)
         bad = [s for s in sides if s not in SIDE_NAMES]
         if bad or not sides or len(set(sides)) != len(sides):
@@ -65,7 +71,12 @@ class CircuitDevice:
         ns = len(self.sides)
         self.timestep_s = float(timestep_s)
         self.torque_fn = torque_fn
-        self.transparent = profile is None and torque_fn is None
+        if impedance is not None and profile is not None:
+            raise CircuitError("device: both profile and impedance given; allowed: one")
+        self.impedance = impedance
+        self.transparent = profile is None and torque_fn is None and impedance is None
+        if impedance is not None:
+            profile = impedance_table(impedance)
         profile = (np.zeros(asst.TABLE_POINTS) if profile is None
                    else np.ascontiguousarray(profile, dtype=float))
         # one buffer, laid out by meta (stepper.device_views), so that the compiled
@@ -80,12 +91,19 @@ class CircuitDevice:
             meta[m] = off
             off += sizes[m]
         meta[k.M_END], meta[k.M_NS], meta[k.M_NPROF] = off, ns, profile.shape[0]
+        meta[k.M_CMD] = k.CMD_IMPEDANCE if impedance is not None else k.CMD_PROFILE
         meta[k.N_META:] = self.side_index
         self._meta = meta
         self._buf = np.zeros(off)
         (self.Y, self.P, self.W, self.S, self.phase_state, self.profile, self._V, self._out,
          self._O) = k.device_views(self._buf, meta)
         self.Y[:] = cc.y0
+        for label, v in (initial_state or {}).items():
+            if label not in cc.state_names:
+                raise CircuitError(f"initial_state[{label!r}]; allowed: "
+                                   f"{', '.join(cc.state_names)}")
+            self.Y[:, cc.index(label)] = float(v)
+        self.W[:, k.W_Y_MAX:k.W_Y_MAX + k.N_Y] = self.Y
         self.P[:] = cc.P
         self.S[:, 0, 0] = self.timestep_s
         for key, v in cc.w_init.items():
@@ -104,7 +122,8 @@ class CircuitDevice:
         self.phase2 = self._O[k.O_PHASE]
         self._out2 = (self.force2, self.damping2)
         self.log_fields = tuple(self.log_names.get(f, f) for f in (
-            stepper.LOG_HEADER + tuple(cc.state_names) + tuple(cc.probe_names)))
+            stepper.LOG_HEADER + tuple(cc.state_names) + tuple(cc.probe_names)
+            + tuple(cc.input_names) + tuple(f"controller.{n}" for n in cc.ctrl_names)))
         self.log = CircuitLog(max_steps, ns, self.log_fields) if max_steps else None
         self._log_data = (self.log.data if self.log is not None
                           else np.zeros((0, len(self.log_fields), ns)))
@@ -151,11 +170,16 @@ class CircuitDevice:
     # -- ledger ----------------------------------------------------------------------------
     def ledger(self, j: int = 0) -> dict:
         """Energy ledger of worn side ``j`` (J): input, mechanical output, every loss and
-        store by component instance, and the balance residual."""
+        store by component instance, and the balance residual; with each state's peak over the
+        run (``state_peaks``, from its initial value) and each probe's time integral
+        (``probe_integrals``: a flow probe's volume, m³)."""
         k, W, cc = self.k, self.W[j], self.cc
         losses = {n: float(W[k.W_E_LOSS + i]) for i, n in enumerate(cc.loss_names)}
         stored = {}
-        for i, (name, kind) in enumerate(zip(cc.state_names, cc.state_kinds)):
+        for i, (name, kind, keeps) in enumerate(zip(cc.state_names, cc.state_kinds,
+                                                    cc.state_stores)):
+            if not keeps:
+                continue
             label = {"pressure": "oil", "speed": "rotor"}.get(kind, "state")
             stored[f"{label}.{name}"] = float(W[k.W_E_STORE + i])
         for i, n in enumerate(cc.srate_names):
@@ -171,6 +195,10 @@ class CircuitDevice:
                 "heat_to_oil_j": float(W[k.W_HEAT_TO_OIL]),
                 "peak_pressure_pa": float(W[k.W_P_MAX]),
                 "monitors": {n: float(W[k.W_MON + i]) for i, n in enumerate(cc.monitor_names)},
+                "state_peaks": {n: float(W[k.W_Y_MAX + i])
+                                for i, n in enumerate(cc.state_names)},
+                "probe_integrals": {n: float(W[k.W_PROBE_INT + i])
+                                    for i, n in enumerate(cc.probe_names)},
                 "newton_iterations": int(W[k.W_NEWTON_ITERS]),
                 "newton_unconverged_steps": int(W[k.W_NEWTON_FAIL]),
                 "substepped_steps": int(W[k.W_SUBSTEPPED]),

@@ -450,10 +450,13 @@ def run_imposed(Y, P, W, S, theta, theta_dot, cmd, imposed, slots, temp_k, sub, 
 # array ``meta``: offsets M_*, then the walker side of each worn side.)
 
 #: ``meta`` entries: offsets of Y, P, W, S, phase state, profile, V, out, O, stride limits;
-#: then buffer length, worn sides, profile points; the worn sides' walker indices follow
+#: then buffer length, worn sides, profile points, what the profile buffer holds
+#: (``CMD_PROFILE`` a torque table, ``CMD_IMPEDANCE`` impedance rows); the worn sides' walker
+#: indices follow
 (M_Y, M_P, M_W, M_S, M_PH, M_PROFILE, M_V, M_OUT, M_O, M_LIM, M_END, M_NS,
- M_NPROF) = range(13)
-N_META = 13
+ M_NPROF, M_CMD) = range(14)
+N_META = 14
+CMD_PROFILE, CMD_IMPEDANCE = 0, 1
 #: rows of the per-worn-side work array ``V`` (N_V × sides)
 V_THETA, V_THETA_DOT, V_TAU_CMD, V_THETA_DOT_NEW, V_TAU = range(5)
 N_V = 5
@@ -463,13 +466,15 @@ N_O = 5
 #: the device log's first columns; the circuit's states and probes follow
 LOG_HEADER = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
               "phase", "actuated_input", "bus_voltage_v", "battery_current_a",
-              "mechanical_power_w", "oil_temperature_k", "ankle_velocity_rad_s")
+              "mechanical_power_w", "oil_temperature_k", "ankle_velocity_rad_s",
+              "ankle_angle_rad")
 N_LOG_HEAD = len(LOG_HEADER)
 #: constants the generated module carries with the template
 LAYOUT_CONSTANTS = ("M_Y", "M_P", "M_W", "M_S", "M_PH", "M_PROFILE", "M_V", "M_OUT", "M_O",
-                    "M_LIM", "M_END", "M_NS", "M_NPROF", "N_META", "V_THETA", "V_THETA_DOT",
+                    "M_LIM", "M_END", "M_NS", "M_NPROF", "M_CMD", "N_META", "V_THETA", "V_THETA_DOT",
                     "V_TAU_CMD", "V_THETA_DOT_NEW", "V_TAU", "N_V", "O_FORCE", "O_DAMPING",
-                    "O_DELIVERED", "O_COMMANDED", "O_PHASE", "N_O", "N_LOG_HEAD")
+                    "O_DELIVERED", "O_COMMANDED", "O_PHASE", "N_O", "N_LOG_HEAD",
+                    "CMD_PROFILE", "CMD_IMPEDANCE")
 
 
 def device_views(buf, meta):
@@ -490,8 +495,10 @@ def device_views(buf, meta):
 def device_begin(t, angle2, velocity2, stance2, buf, meta):
     """First half of the coupled step of every worn side ``k`` (walker side
     ``meta[N_META + k]``): gait phase from the foot switch and the commanded torque from the
-    tabulated profile (:mod:`afo_mj.control.assistance`), then :func:`begin_step`. Writes the
-    joint force, extra damping, commanded torque and phase into ``O`` (walker sides)."""
+    tabulated profile (:mod:`afo_mj.control.assistance`) or, with ``meta[M_CMD] =
+    CMD_IMPEDANCE``, the impedance rows (:func:`afo_mj.control.impedance.impedance_torque`),
+    then :func:`begin_step`. Writes the joint force, extra damping, commanded torque and phase
+    into ``O`` (walker sides)."""
     Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
     lo = buf[meta[M_LIM]]
     hi = buf[meta[M_LIM] + 1]
@@ -504,7 +511,10 @@ def device_begin(t, angle2, velocity2, stance2, buf, meta):
         th[k] = angle2[s]
         thd[k] = velocity2[s]
         ph = phase_update(phase_state[k], t, stance2[s] != 0, lo, hi)
-        cmd[k] = table_lookup(profile, ph)
+        if meta[M_CMD] == CMD_IMPEDANCE:
+            cmd[k] = impedance_torque(profile, ph, th[k], thd[k])
+        else:
+            cmd[k] = table_lookup(profile, ph)
         O[O_PHASE, s] = ph
     begin_step(Y, P, W, S, th, thd, cmd, out)
     for k in range(ns):
@@ -538,8 +548,10 @@ def device_end(velocity2, buf, meta, log, k, t):
 
 
 def write_log_row(row, t, y, W, S, phase, theta_dot):
-    """One side's log row (``LOG_HEADER``, then the states, then the probes at the step's
-    end, from the power flows left in scratch row 2)."""
+    """One side's log row (``LOG_HEADER``, then the states, the probes at the step's end,
+    from the power flows left in scratch row 2, the actuated inputs and the controller's
+    slots). The angle is the step's end angle ``θ_n + h θ̇_{n+1}`` (MuJoCo's semi-implicit
+    Euler)."""
     row[0] = t
     row[1] = W[W_CMD]
     row[2] = W[W_TAU]
@@ -551,10 +563,18 @@ def write_log_row(row, t, y, W, S, phase, theta_dot):
     row[8] = W[W_P_MECH]
     row[9] = W[W_TEMP_K]
     row[10] = theta_dot
+    row[11] = W[W_THETA] + S[0, 0] * theta_dot
     for i in range(N_Y):
         row[N_LOG_HEAD + i] = y[i]
+    c = N_LOG_HEAD + N_Y
     for i in range(N_PROBE):
-        row[N_LOG_HEAD + N_Y + i] = S[2, F_PROBE + i]
+        row[c + i] = S[2, F_PROBE + i]
+    c += N_PROBE
+    for i in range(N_INPUT):
+        row[c + i] = W[W_U + N_U_HEAD + i]
+    c += N_INPUT
+    for i in range(N_CTRL):
+        row[c + i] = W[W_CTRL + i]
 
 
 #: the template functions, in the order the generated module defines them

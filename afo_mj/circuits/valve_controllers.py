@@ -1,8 +1,8 @@
 """Controllers of the valve-controlled circuits (seed ch. 4, 5, 7): a torque loop on the valve(s)
 and a speed (or rail-pressure) loop on the supply motor, in one controller per circuit.
 
-The torque loop and the supply loop are those of the hand-written valve kernel
-(:func:`afo_mj.devices.valve_ankle_actuator.controller`). Besides the motor voltage (the value
+The torque loop and the supply loop are those of the hand-written valve kernel they replaced
+(``tests/kernel_reference/valve_kernel.py``, the equivalence tests' reference). Besides the motor voltage (the value
 the controller returns, ``U_CMD``) they set the valves' actuated inputs
 (:meth:`afo_mj.circuits.codegen.Emitter.input_slot`): the servo valve's spool command, or the
 on/off valves' PWM on-fractions and switching rates.
@@ -211,7 +211,8 @@ class ServoValveTorque(_ValveTorqueBase):
                      f"u_ff = q_ff / ({cd} * {af} * math.sqrt(2.0 * dpe / {rho}))",
                      f"u = cmd if {self.open_loop} != 0.0 else "
                      f"u_ff + {kv} * err + {kvi} * integ",
-                     f"{cmd} = min(max(u, -1.0), 1.0)"):
+                     f"{cmd} = min(max(u, -1.0), 1.0)",
+                     f"{g.ctrl_slot('valve_command')} = {cmd}"):
             g.ctrl_line(line)
         self._supply_loop(g, p.supply, circuit, r["motor"], r["pump"], ps, pt)
 
@@ -284,7 +285,8 @@ class DigitalValveTorque(_ValveTorqueBase):
                 f"    u_ff = q_ff / max({rcd} * {ramax} * math.sqrt(2.0 * max({pca} - {pt}, "
                 f"2e5) / {rho}), 1e-12)",
                 f"u = cmd if {self.open_loop} != 0.0 else u_ff + {kv} * err + {kvi} * integ",
-                "u = min(max(u, -1.0), 1.0)"):
+                "u = min(max(u, -1.0), 1.0)",
+                f"{g.ctrl_slot('valve_command')} = u"):
             g.ctrl_line(line)
         _emit_pwm(g, own, r, p.pwm_frequency_hz)
         rail = g.p(r["pump"], "a")

@@ -1,6 +1,6 @@
 """Valve components of the circuits: metering valves, switching valves, supply valves and pumps
-that the valve-controlled and digital-valve ankle actuators use (seed ch. 4, 5, 7; the
-hand-written kernel :mod:`afo_mj.devices.valve_ankle_actuator` they replace).
+that the valve-controlled and digital-valve ankle actuators use (seed ch. 4, 5, 7; they replaced
+a hand-written kernel, kept as the tests' reference in ``tests/kernel_reference``).
 
 * :class:`ServoValve` (``servo_valve``) — 4/3 proportional/servo valve: first-order spool,
   four metering edges with lap and centre leakage, a coil on the bus.

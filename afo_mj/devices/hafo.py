@@ -35,8 +35,8 @@ them); the reasoning, item by item:
 * **Masses** — :data:`HAFO_MASSES`, item by item; hose mass is computed (wall 45 g/m + oil).
 
 The device is stepped as a generated circuit (:func:`hafo_circuit`, :mod:`afo_mj.circuits`);
-the hand-written kernel :mod:`afo_mj.devices.pump_ankle_actuator` it replaced stays for the
-equivalence tests and the bench replay (:func:`pack_parameters` packs its parameter row).
+the hand-written kernel it replaced is kept only as the equivalence tests' reference
+(``tests/kernel_reference``).
 Torque control is through motor voltage (:class:`~afo_mj.circuits.controllers.PumpTorque`);
 its gains (:class:`HafoControlParams`) give the isometric torque-step response of
 the bench scenario (``scenarios/bench_hafo.toml``).
@@ -50,8 +50,6 @@ import math
 import numpy as np
 
 from afo_mj.circuits.device import CircuitDevice
-from afo_mj.devices import pump_ankle_actuator as pa
-from afo_mj.devices.kernel_device import KernelDevice
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
 from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
@@ -64,13 +62,14 @@ from afo_mj.hydraulics.seal import OringSealParams
 from afo_mj.human.walker import WornMass
 
 __all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
-           "HafoDevice", "HafoKernelDevice", "pack_parameters", "mass_budget", "hafo_params",
+           "HafoDevice", "mass_budget", "hafo_params",
            "HAFO_GAIT", "PRESETS"]
 
 
 @dataclasses.dataclass(frozen=True)
 class HafoControlParams(Parameters):
-    """Gains of the low-level torque controller (see ``pump_ankle_actuator.controller``)."""
+    """Gains of the low-level torque controller
+    (:class:`~afo_mj.circuits.controllers.PumpTorque`)."""
 
     pressure_gain_rad_s_per_pa: float = param(1.2e-5, unit="rad/s/Pa", lo=0.0, hi=1e-2,
                                               doc="k_p: pump speed per unit pressure error")
@@ -257,94 +256,6 @@ def hafo_params(overrides: dict | None = None, preset: str = "hafo") -> PumpAnkl
     return replace_named(base, overrides or {}) if overrides else base
 
 
-def pack_parameters(p: PumpAnkleParams, mode: float = pa.MODE_TORQUE) -> np.ndarray:
-    """The flat parameter row the compiled kernel reads (``pump_ankle_actuator.P_*``)."""
-    P = np.zeros(pa.N_P)
-    m, dr, pu, ho, cy = p.motor, p.driver, p.pump, p.hose, p.cylinder
-    fl = Fluid(p.fluid)
-    cyl = Cylinder(cy)
-    P[pa.P_R] = m.resistance_ohm
-    P[pa.P_L] = m.inductance_h
-    P[pa.P_K] = m.torque_constant_nm_a
-    P[pa.P_J] = m.rotor_inertia_kg_m2 + pu.rotor_inertia_kg_m2
-    P[pa.P_TC_M] = m.coulomb_torque_nm if m.friction_enabled else 0.0
-    P[pa.P_BV_M] = m.viscous_coefficient_nm_s_rad if m.friction_enabled else 0.0
-    P[pa.P_WC_M] = m.smoothing_speed_rad_s
-    P[pa.P_I_LIM] = dr.current_limit_a
-    P[pa.P_DUTY] = dr.max_duty
-    P[pa.P_R_ON] = dr.on_resistance_ohm
-    P[pa.P_P_Q] = dr.quiescent_power_w
-    P[pa.P_CUR_LIM_ON] = 1.0 if dr.current_limit_enabled else 0.0
-    if pu.variable_displacement_enabled:
-        raise ParameterError("pump.variable_displacement_enabled = True; the pump-controlled "
-                             "ankle uses a fixed-displacement pump (allowed: False)")
-    P[pa.P_D] = pu.displacement_m3_rev / (2 * math.pi)
-    P[pa.P_CS] = pu.slip_coefficient if pu.leakage_enabled else 0.0
-    P[pa.P_CF] = pu.coulomb_coefficient if pu.coulomb_friction_enabled else 0.0
-    P[pa.P_CV] = pu.viscous_coefficient if pu.viscous_friction_enabled else 0.0
-    P[pa.P_T0] = pu.drag_torque_nm
-    P[pa.P_WC_P] = pu.smoothing_speed_rad_s
-    P[pa.P_HOSE_K] = 128.0 * ho.length_m / (math.pi * ho.bore_m ** 4)
-    P[pa.P_V_HOSE] = p.hose_volume_m3
-    P[pa.P_KWALL_INV] = 1.0 / ho.wall_bulk_modulus_pa if ho.wall_compliance_enabled else 0.0
-    P[pa.P_A_E] = p.effective_area_m2
-    P[pa.P_N_CYL] = p.cylinders
-    P[pa.P_R_PULLEY] = p.pulley_radius_m
-    P[pa.P_V_DEAD] = cy.dead_volume_a_m3
-    P[pa.P_STROKE] = cy.stroke_m
-    P[pa.P_G_LEAK] = cyl.leakage_conductance_m3 if cy.internal_leakage_enabled else 0.0
-    if cy.seal_friction_enabled:
-        ps, rs = cyl.piston_seal, cyl.rod_seal
-        # one piston seal + two cable seals per cylinder, all sliding at the piston speed
-        P[pa.P_SEAL_FC] = ps.coulomb_force_n + 2 * rs.coulomb_force_n
-        P[pa.P_SEAL_STRIB] = ps._stribeck_gain + 2 * rs._stribeck_gain
-        P[pa.P_SEAL_VST] = ps._v_st
-        P[pa.P_SEAL_VC] = ps._v_c
-        P[pa.P_SEAL_FV] = ps._fv + 2 * rs._fv
-        P[pa.P_SEAL_CP] = ps._cp + 2 * rs._cp
-    else:
-        P[pa.P_SEAL_VST] = P[pa.P_SEAL_VC] = 1.0
-    rv = p.relief
-    P[pa.P_REL_CRACK] = rv.cracking_dp_pa
-    P[pa.P_REL_OVER] = rv.override_dp_pa
-    P[pa.P_REL_AMAX] = rv.max_area_m2
-    P[pa.P_REL_ALEAK] = rv.leakage_area_m2 if rv.leakage_enabled else 0.0
-    P[pa.P_REL_CD] = rv.discharge_coefficient
-    P[pa.P_REL_PCR] = rv.transition_pressure_pa
-    P[pa.P_FLUSH_G] = p.flushing_conductance_m3_s_pa
-    P[pa.P_P_RES] = p.reservoir_pressure_pa
-    P[pa.P_FLUSH_BAND] = p.flushing_band_pa
-    P[pa.P_MAKEUP_G] = p.makeup_conductance_m3_s_pa
-    P[pa.P_MAKEUP_BAND] = p.makeup_band_pa
-    f = p.fluid
-    P[pa.P_B_L] = f.liquid_bulk_modulus_pa
-    P[pa.P_AIR] = f.air_fraction if f.entrained_air_enabled else 0.0
-    P[pa.P_N_POLY] = f.polytropic_index
-    P[pa.P_P_ATM] = ATMOSPHERIC_PRESSURE_PA
-    P[pa.P_P_FLOOR] = f.pressure_floor_pa
-    P[pa.P_RHO] = f.density_kg_m3
-    P[pa.P_CAV_BAND] = f.cavitation_band_pa
-    P[pa.P_V_PORT] = p.pump_port_volume_m3
-    b = p.battery
-    P[pa.P_BAT_R] = b.internal_resistance_ohm
-    P[pa.P_BAT_NS] = b.cells_series
-    P[pa.P_BAT_CAP_C] = 3600.0 * b.capacity_ah
-    P[pa.P_C_TH] = p.heat_capacity_j_k
-    P[pa.P_R_TH] = p.thermal_resistance_k_w
-    P[pa.P_T_AMB] = p.ambient_temperature_k
-    P[pa.P_WALTHER_B] = fl.walther_b
-    P[pa.P_WALTHER_C] = fl.walther_c
-    P[pa.P_RHO_T_COEF] = f.thermal_expansion_per_k
-    P[pa.P_T_REF] = f.reference_temperature_k
-    c = p.control
-    P[pa.P_K_PRESSURE] = c.pressure_gain_rad_s_per_pa
-    P[pa.P_K_SPEED] = c.speed_gain_v_s_per_rad
-    P[pa.P_K_INT] = c.pressure_integral_gain_rad_per_pa
-    P[pa.P_INT_LIM] = c.integral_limit_pa_s
-    P[pa.P_MODE] = mode
-    return P
-
-
 def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
                  initial_pressure_pa: float | None = None, name: str = "hafo"):
     """The pump-controlled ankle actuator of ``p`` as a circuit description
@@ -438,9 +349,10 @@ class HafoDevice(CircuitDevice):
     ``begin_step(t, angle, velocity, stance)`` → ``(joint_force, joint_damping)`` per walker
     side (zeros where not worn); MuJoCo steps; ``end_step(velocity_new)`` → delivered torque.
     ``profile`` is a tabulated torque vs stride phase (+dorsiflexion, N·m,
-    :mod:`afo_mj.control.assistance`) or ``None`` (transparent: zero commanded torque).
-    ``torque_fn(t, angle, velocity) -> N·m`` replaces the profile (bench tests); with
-    ``mode="voltage"`` it returns the motor voltage instead (open-loop bench tests).
+    :mod:`afo_mj.control.assistance`), ``impedance`` rows of an emulated spring/damper
+    (:func:`afo_mj.control.impedance.impedance_table`), or neither (transparent: zero
+    commanded torque). ``torque_fn(t, angle, velocity) -> N·m`` replaces them (bench tests);
+    with ``mode="voltage"`` it returns the motor voltage instead (open-loop bench tests).
     """
 
     #: generic log columns under the names the gait, recording and signal code read
@@ -476,27 +388,28 @@ class HafoDevice(CircuitDevice):
                  profile: np.ndarray | None = None, timestep_s: float = 1e-3,
                  max_steps: int = 0, mode: str = "torque", torque_fn=None,
                  initial_pressure_pa: float | None = None, min_stride_s: float = 0.4,
-                 max_stride_s: float = 3.0):
+                 max_stride_s: float = 3.0, impedance=None):
         if mode not in ("torque", "voltage"):
             raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
         self.params = params
         self.mode = mode
         self._setup(self._circuit(params, mode, initial_pressure_pa), sides, profile,
-                    timestep_s, max_steps, torque_fn, min_stride_s, max_stride_s)
+                    timestep_s, max_steps, torque_fn, min_stride_s, max_stride_s,
+                    impedance=impedance)
 
     def _circuit(self, params, mode: str, initial_pressure_pa):
         """The circuit description this device steps."""
         return hafo_circuit(params, mode=mode, initial_pressure_pa=initial_pressure_pa)
 
     def _setup(self, circuit, sides, profile, timestep_s, max_steps, torque_fn, min_stride_s,
-               max_stride_s) -> None:
+               max_stride_s, **kw) -> None:
         bad = [s for s in sides if s not in SIDE_NAMES]
         if bad or not sides or len(set(sides)) != len(sides):
             raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
                                  "of ['right', 'left']")
         super().__init__(circuit, sides=sides, timestep_s=timestep_s, torque_fn=torque_fn,
                          profile=profile, max_steps=max_steps, min_stride_s=min_stride_s,
-                         max_stride_s=max_stride_s)
+                         max_stride_s=max_stride_s, **kw)
 
     # -- masses ----------------------------------------------------------------------------
     def worn_masses(self) -> list[WornMass]:
@@ -553,26 +466,3 @@ class HafoDevice(CircuitDevice):
             "temperature_rise_k": float(W[kk.W_TEMP_K] - self.params.ambient_temperature_k),
             "soc": float(W[kk.W_SOC]), "substeps": int(W[kk.W_SUBSTEPS])})
         return g
-
-
-class HafoKernelDevice(KernelDevice):
-    """The HAFO stepped by its hand-written kernel :mod:`~afo_mj.devices.pump_ankle_actuator`
-    (what :class:`HafoDevice` was before the generated circuit): the reference of the
-    equivalence tests and of the speed comparison. Same arguments as :class:`HafoDevice`;
-    log and ledger under the same names."""
-
-    kernel = pa
-    loss_names = pa.LOSS_NAMES
-    worn_masses = HafoDevice.worn_masses
-    mass_total_kg = HafoDevice.mass_total_kg
-    mass_at_ankle_kg = HafoDevice.mass_at_ankle_kg
-
-    def _pack(self, params, mode: str) -> np.ndarray:
-        return pack_parameters(params, pa.MODE_VOLTAGE if mode == "voltage" else pa.MODE_TORQUE)
-
-    def _initial_state(self, p0: float) -> None:
-        """Every pressure node at ``p0`` (gauge), the rest at zero."""
-        self.Y[:, pa.Y_PPA:pa.Y_PCB + 1] = p0
-
-    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
-        pa.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out)

@@ -3,7 +3,7 @@
 The same worn architecture as the HAFO (:mod:`afo_mj.devices.hafo`: power supply at the waist,
 two hoses, two antagonistic piston-cable cylinders on a 40 mm ankle pulley, the same oil,
 battery and driver), with the pump-controlled circuit replaced by a **valve-controlled** one
-(:mod:`afo_mj.devices.valve_ankle_actuator`): a unidirectional pump, a check valve, a rail
+(:func:`valve_circuit`, a generated circuit): a unidirectional pump, a check valve, a rail
 with a gas accumulator, an unloading valve and a relief valve, and a 4/3 servo valve that
 meters the cylinders' flow by throttling. The seed's variants for intermittent duty are
 presets and ``supply_mode`` values:
@@ -55,19 +55,15 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
 
 from afo_mj.circuits import components as _cc
 from afo_mj.circuits import valve_controllers as _vc
 from afo_mj.circuits import valves as _cv
 from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
 from afo_mj.circuits.components import CircuitError
-from afo_mj.devices import valve_ankle_actuator as va
-from afo_mj.devices.kernel_device import KernelDevice
-from afo_mj.devices.hafo import (HAFO_GAIT, HafoMassItem, PumpAnkleParams,
-                                 _hose_mass_kg, pack_parameters)
+from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleParams,
+                                 _hose_mass_kg)
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
-from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, effect, param, replace_named
@@ -76,20 +72,16 @@ from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
 __all__ = ["ValveControlParams", "ValveAnkleParams", "VALVE_PRESETS", "valve_params",
-           "valve_mass_budget", "ValveAfoDevice", "impedance_table", "CIRCUITS",
+           "valve_mass_budget", "ValveAfoDevice", "CIRCUITS", "SERVO_LOSS_TABLE", "DIGITAL_LOSS_TABLE",
            "SUPPLY_MODES", "valve_circuit", "valve_initial_state"]
 
 CIRCUITS = ("servo", "digital")
 SUPPLY_MODES = ("constant_speed", "unloading", "pressure_control", "variable_displacement")
-_SUPPLY_CODE = {"constant_speed": va.SUPPLY_CONSTANT_SPEED, "unloading": va.SUPPLY_UNLOADING,
-                "pressure_control": va.SUPPLY_PRESSURE_CONTROL,
-                "variable_displacement": va.SUPPLY_VARIABLE}
 
 
 @dataclasses.dataclass(frozen=True)
 class ValveControlParams(Parameters):
-    """Gains of the valve circuit's controllers (:func:`~afo_mj.devices.valve_ankle_actuator.
-    controller`)."""
+    """Gains of the valve circuit's controllers (:mod:`afo_mj.circuits.valve_controllers`)."""
 
     valve_gain_per_pa: float = param(2e-8, unit="1/Pa", lo=0.0, hi=1e-4,
                                      doc="k_v: valve command per unit pressure error")
@@ -297,83 +289,10 @@ def valve_mass_budget(p: ValveAnkleParams) -> tuple[HafoMassItem, ...]:
     return tuple(items)
 
 
-def pack_valve_parameters(p: ValveAnkleParams) -> np.ndarray:
-    """The flat parameter row of :mod:`~afo_mj.devices.valve_ankle_actuator`: the HAFO
-    kernel's row for the shared components, then this circuit's."""
-    P = np.zeros(va.N_P)
-    base = p.replace(pump=p.pump.replace(variable_displacement_enabled=False))
-    P[:len(pack_parameters(base))] = pack_parameters(base)
-    P[va.P_CIRCUIT] = va.CIRCUIT_SERVO if p.circuit == "servo" else va.CIRCUIT_DIGITAL
-    P[va.P_SUPPLY] = _SUPPLY_CODE[p.supply_mode]
-    a = p.accumulator
-    P[va.P_ACC_ON] = 1.0 if p.accumulator_enabled else 0.0
-    P[va.P_ACC_V0] = a.gas_volume_m3
-    P[va.P_ACC_P0] = a.precharge_pressure_pa
-    P[va.P_ACC_N] = a.polytropic_index
-    P[va.P_ACC_BAND] = p.accumulator_blend_pa
-    u = p.unloading
-    P[va.P_UL_ON] = 1.0 if p.supply_mode == "unloading" else 0.0
-    P[va.P_UL_CUT_OUT] = u.cut_out_pressure_pa
-    P[va.P_UL_CUT_IN] = u.cut_in_pressure_pa
-    P[va.P_UL_AMAX] = u.max_area_m2
-    P[va.P_UL_ALEAK] = u.leakage_area_m2 if u.leakage_enabled else 0.0
-    P[va.P_UL_TAU] = u.time_constant_s
-    P[va.P_UL_BAND] = max(u.switching_band_pa, 1.0)
-    P[va.P_UL_HYST] = 1.0 if u.hysteresis_enabled else 0.0
-    P[va.P_UL_CD] = u.discharge_coefficient
-    P[va.P_UL_PCR] = u.transition_pressure_pa
-    sv = p.servo_valve
-    S = ServoValve(sv)
-    P[va.P_SV_AFULL] = p.servo_full_area_m2
-    P[va.P_SV_LAP] = S.overlap_m / sv.spool_max_m
-    P[va.P_SV_ALEAK] = S.leakage_area_m2
-    P[va.P_SV_TAU] = 1.0 / (2 * math.pi * sv.natural_frequency_hz)
-    P[va.P_SV_CD] = sv.discharge_coefficient
-    P[va.P_SV_PCR] = sv.transition_pressure_pa
-    P[va.P_SV_COIL_W] = p.servo_coil_power_w
-    sw = p.switching_valve
-    P[va.P_SW_AMAX] = sw.max_area_m2
-    P[va.P_SW_ALEAK] = sw.leakage_area_m2 if sw.leakage_enabled else 0.0
-    P[va.P_SW_TSW] = sw.switching_time_s
-    P[va.P_SW_TAUS] = sw.approach_time_constant_s
-    P[va.P_SW_ESW] = sw.switching_energy_j
-    P[va.P_SW_HOLD] = sw.holding_power_w
-    P[va.P_SW_CD] = sw.discharge_coefficient
-    P[va.P_SW_PCR] = sw.transition_pressure_pa
-    P[va.P_PWM_F] = p.pwm_frequency_hz
-    P[va.P_RV_AMAX] = p.release_valve_area_m2
-    P[va.P_CV_G] = p.check_valve_conductance_m3_s_pa
-    P[va.P_CV_CRACK] = p.check_valve_cracking_pa
-    P[va.P_CV_BAND] = 2e4
-    P[va.P_V_MAN] = p.manifold_volume_m3
-    c = p.valve_control
-    P[va.P_W_SET] = p.motor_speed_rad_s
-    P[va.P_W_MAX] = p.motor_speed_rad_s
-    P[va.P_K_W_P] = c.speed_gain_v_s_per_rad
-    P[va.P_K_W_I] = c.speed_integral_gain_v_per_rad
-    P[va.P_WINT_LIM] = c.speed_integral_limit_rad
-    P[va.P_PS_FOLLOW] = 1.0 if p.supply_pressure_follows_demand else 0.0
-    P[va.P_PS_SET] = p.supply_pressure_set_pa
-    P[va.P_PS_MARGIN] = p.supply_pressure_margin_pa
-    P[va.P_PS_MIN] = p.supply_pressure_min_pa
-    P[va.P_K_PS_P] = c.supply_gain_rad_s_per_pa
-    P[va.P_K_PS_I] = c.supply_integral_gain_rad_per_pa
-    P[va.P_PSINT_LIM] = c.supply_integral_limit_pa_s
-    P[va.P_VD_P_COMP] = p.compensator_pressure_pa
-    P[va.P_VD_BAND] = p.compensator_band_pa
-    P[va.P_VD_EMIN] = p.min_displacement_fraction
-    P[va.P_K_V] = c.valve_gain_per_pa
-    P[va.P_K_VI] = c.valve_integral_gain_per_pa_s
-    P[va.P_VINT_LIM] = c.valve_integral_limit_pa_s
-    P[va.P_TAU_MAX] = p.max_torque_nm
-    P[va.P_CMD] = va.CMD_PROFILE
-    return P
-
-
 def valve_circuit(params: ValveAnkleParams) -> Circuit:
     """The circuit description of one side of a valve orthosis (issue 18): the components and
-    nodes of :mod:`~afo_mj.devices.valve_ankle_actuator`'s servo or digital circuit, with the
-    parameters :func:`pack_valve_parameters` packs for it.
+    nodes of the servo or digital circuit (those of the hand-written kernel it replaced,
+    ``tests/kernel_reference/valve_kernel.py``).
 
     Nodes: ``bus``, ``shaft``, ``pump_out`` (pump outlet, relief, unloading or switching
     valve, check valve), ``rail`` (behind the check valve: manifold or accumulator, servo
@@ -532,39 +451,60 @@ def valve_initial_state(params: ValveAnkleParams) -> dict:
     return out
 
 
-def impedance_table(rows) -> np.ndarray:
-    """Pack impedance rows ``(phase_end, K_nm_per_rad, B_nm_s_per_rad, theta0_rad, clutched)``
-    (phase_end: stride fraction at which the row ends, increasing, the last ≥ 1) into the
-    kernel's table (:func:`~afo_mj.devices.valve_ankle_actuator.impedance_torque`)."""
-    rows = [tuple(float(v) for v in r) for r in rows]
-    if not rows:
-        raise ParameterError("impedance = []; allowed: at least one row (phase_end, K, B, "
-                             "theta0, clutched)")
-    last = -1.0
-    for r in rows:
-        if len(r) != va.IMP_COLS:
-            raise ParameterError(f"impedance row = {r!r}; allowed: 5 numbers (phase_end, "
-                                 "stiffness_nm_per_rad, damping_nm_s_per_rad, rest_angle_rad, "
-                                 "clutched 0/1)")
-        if r[0] <= last or r[1] < 0 or r[2] < 0:
-            raise ParameterError(f"impedance row = {r!r}; allowed: phase_end increasing, "
-                                 "stiffness and damping ≥ 0")
-        last = r[0]
-    return np.array([float(len(rows))] + [v for r in rows for v in r])
+#: ledger losses of the servo circuit: each named loss the sum of these component losses
+SERVO_LOSS_TABLE = {
+    "battery_internal": ("battery.internal",), "driver": ("motor.driver",),
+    "motor_copper": ("motor.copper",), "motor_friction": ("motor.friction",),
+    "pump_volumetric": ("pump.volumetric",), "pump_mechanical": ("pump.mechanical",),
+    "unloading": ("unloading.throttling",), "check_valve": ("check.throttling",),
+    "relief": ("relief.throttling",), "servo_valve_throttling": ("servo.throttling",),
+    "makeup_valves": ("makeup_a.throttling", "makeup_b.throttling"),
+    "line": ("hose_a.line", "hose_b.line"), "seal_friction": ("cylinders.seal_friction",),
+    "leakage": ("cylinders.leakage",), "valve_actuators": ("servo.coil",)}
+#: the digital circuit's (its unloading valve is the PWM switching valve; the metering is
+#: done by the release valve and the open port edges)
+DIGITAL_LOSS_TABLE = {
+    "battery_internal": ("battery.internal",), "driver": ("motor.driver",),
+    "motor_copper": ("motor.copper",), "motor_friction": ("motor.friction",),
+    "pump_volumetric": ("pump.volumetric",), "pump_mechanical": ("pump.mechanical",),
+    "switching_valve": ("switching.throttling",), "check_valve": ("check.throttling",),
+    "relief": ("relief.throttling",),
+    "release_valve_and_ports": ("release.throttling", "edge_pa.throttling",
+                                "edge_bt.throttling"),
+    "makeup_valves": ("makeup_a.throttling", "makeup_b.throttling"),
+    "line": ("hose_a.line", "hose_b.line"), "seal_friction": ("cylinders.seal_friction",),
+    "leakage": ("cylinders.leakage",), "valve_actuators": ("switching.coil", "release.coil")}
 
 
-class ValveAfoDevice(KernelDevice):
-    """A :class:`ValveAnkleParams` orthosis worn on one or both ankles (the coupled-device
-    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`, stepped by the compiled kernel
-    :mod:`~afo_mj.devices.valve_ankle_actuator`).
+class ValveAfoDevice(HafoDevice):
+    """A :class:`ValveAnkleParams` orthosis worn on one or both ankles: :func:`valve_circuit`
+    compiled and stepped by :class:`~afo_mj.circuits.device.CircuitDevice` (the coupled-device
+    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`, whose ledger grouping it shares),
+    started from :func:`valve_initial_state`.
 
     ``profile``: assistance torque vs stride phase, or ``impedance``: rows of
-    :func:`impedance_table` (passive-AFO emulation, clutched spring, per-phase impedance), or
-    ``torque_fn(t, θ, θ̇)`` (bench; with ``mode="valve_command"`` it returns the valve command
-    ``u ∈ [−1, 1]`` instead, open loop); none of them: transparent (zero torque commanded).
+    :func:`afo_mj.control.impedance.impedance_table` (passive-AFO emulation, clutched spring,
+    per-phase impedance), or ``torque_fn(t, θ, θ̇)`` (bench; with ``mode="valve_command"`` it
+    returns the valve command ``u ∈ [−1, 1]`` instead, open loop: the controller's
+    ``valve_command_on`` switch); none of them: transparent (zero torque commanded).
     """
 
-    kernel = va
+    log_names = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
+                 "shaft": "motor_speed_rad_s", "pump_out": "pump_pa", "rail": "supply_pa",
+                 "port_a": "port_a_pa", "port_b": "port_b_pa",
+                 "chamber_a": "chamber_a_pa", "chamber_b": "chamber_b_pa",
+                 "servo.spool": "valve_position", "unloading.position": "unloading_valve_position",
+                 # the digital circuit: the PWM switching valve unloads the pump, the release
+                 # valve meters the flow out of line A
+                 "switching.position": "unloading_valve_position",
+                 "release.position": "valve_position",
+                 "controller.valve_command": "valve_command"}
+    store_table = {
+        "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
+        "oil": ("oil.pump_out", "oil.rail", "oil.port_a", "oil.port_b", "oil.chamber_a",
+                "oil.chamber_b"),
+        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
+        "series_spring": ("cylinders.series_spring",)}
 
     def __init__(self, params: ValveAnkleParams = VALVE_PRESETS["valve"], sides=("right",),
                  profile=None, impedance=None, timestep_s: float = 1e-3, max_steps: int = 0,
@@ -580,38 +520,15 @@ class ValveAfoDevice(KernelDevice):
             raise ParameterError("device.mode = 'valve_command' needs a torque_fn giving u")
         if impedance is not None and profile is not None:
             raise ParameterError("device: both profile and impedance given; allowed: one")
-        self.impedance = impedance
-        prof = impedance_table(impedance) if impedance is not None else profile
-        self.loss_names = va.LOSS_NAMES if params.circuit == "servo" else va.LOSS_NAMES_DIGITAL
-        super().__init__(params, sides=sides, profile=prof, timestep_s=timestep_s,
-                         max_steps=max_steps, mode="torque", torque_fn=torque_fn,
-                         initial_pressure_pa=params.reservoir_pressure_pa,
-                         min_stride_s=min_stride_s, max_stride_s=max_stride_s)
+        self.params = params
+        self.mode = mode
+        self.loss_table = (SERVO_LOSS_TABLE if params.circuit == "servo"
+                           else DIGITAL_LOSS_TABLE)
+        self._setup(valve_circuit(params), sides, profile, timestep_s, max_steps, torque_fn,
+                    min_stride_s, max_stride_s, impedance=impedance,
+                    initial_state=valve_initial_state(params))
         if mode == "valve_command":
-            self.P[:, va.P_MODE] = va.MODE_VALVE_COMMAND
-        if impedance is not None:
-            self.P[:, va.P_CMD] = va.CMD_IMPEDANCE
-            self.transparent = False
-        self.W[:, va.W_PS_MAX] = self.Y[:, va.Y_PS]
-
-    def _pack(self, params, mode: str) -> np.ndarray:
-        return pack_valve_parameters(params)
-
-    def _initial_state(self, p0: float) -> None:
-        Y = self.Y
-        Y[:, :] = 0.0
-        for k in (va.Y_PP, va.Y_PVA, va.Y_PVB, va.Y_PCA, va.Y_PCB):
-            Y[:, k] = p0
-        ps = self.params.initial_supply_pressure_pa
-        Y[:, va.Y_PS] = max(ps, p0)
-        Y[:, va.Y_W] = (self.params.motor_speed_rad_s
-                        if self.params.supply_mode != "pressure_control" else 0.0)
-        if self.params.supply_mode == "unloading":
-            # a charged accumulator below cut-out: the unloading valve is shut
-            Y[:, va.Y_XU] = 0.0
-
-    def _kernel_begin_step(self, th, thd, cmd, t: float) -> None:
-        va.begin_step(self.Y, self.P, self.W, self.S, th, thd, cmd, self._out, t)
+            self.P[:, self.cc.param_labels.index("controller.valve_command_on")] = 1.0
 
     def worn_masses(self):
         from afo_mj.human.walker import WornMass
@@ -637,13 +554,9 @@ class ValveAfoDevice(KernelDevice):
                    if i.site not in ("waist", "off_body"))
 
     def ledger(self, k: int = 0) -> dict:
+        """:meth:`HafoDevice.ledger` with the rail's peak pressure (``peak_supply_pressure_pa``,
+        gauge) and the volume the pump delivered (``pump_volume_m3``)."""
         out = super().ledger(k)
-        W = self.W[k]
-        out["peak_supply_pressure_pa"] = float(W[va.W_PS_MAX])
-        out["pump_volume_m3"] = float(W[va.W_Q_PUMP])
-        out["cylinder_volume_in_m3"] = float(W[va.W_Q_DELIVERED])
+        out["peak_supply_pressure_pa"] = out["state_peaks"]["rail"]
+        out["pump_volume_m3"] = out["probe_integrals"]["pump.flow_m3_s"]
         return out
-
-
-def _gauge_to_abs(p_pa: float) -> float:
-    return p_pa + ATMOSPHERIC_PRESSURE_PA

@@ -166,7 +166,8 @@ def device_config(scenario) -> DeviceConfig | None:
                    "phafo) for impedance emulation; the [circuit] controllers "
                    f"({cc.circuit.controller.kind}) take a torque or voltage command")
     if impedance is not None:
-        from afo_mj.devices.valve_afo import ValveAnkleParams, impedance_table
+        from afo_mj.control.impedance import impedance_table
+        from afo_mj.devices.valve_afo import ValveAnkleParams
         if not isinstance(params, ValveAnkleParams):
             raise fail("assistance.profile", "impedance", "a valve-circuit device.preset "
                        "(e.g. phafo) for impedance emulation")

@@ -102,10 +102,8 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from afo_mj.control.assistance import table_lookup, zhang_profile
-from afo_mj.devices import valve_ankle_actuator as va
 from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAfoDevice, ValveAnkleParams
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
-from afo_mj.hydraulics import laws
 
 __all__ = ["BenchError", "digital_flow_vs_duty", "tracking_efficiency", "flow_table",
            "tracking_table", "TRACKING_TASKS"]
@@ -147,33 +145,6 @@ def _params(params, circuit: str | None = None) -> ValveAnkleParams:
     if circuit is not None and params.circuit != circuit:
         raise BenchError(f"params.circuit = {params.circuit!r}; allowed: {circuit!r}")
     return params
-
-
-# -- device wrapper: state after every step ---------------------------------------------------
-class _Recorder:
-    """Passes the coupled-device protocol through to ``dev`` and keeps ``Y`` after each step."""
-
-    def __init__(self, dev: ValveAfoDevice):
-        self.dev = dev
-        self.rows: list[np.ndarray] = []
-
-    def begin_step(self, t, angle, velocity, stance):
-        return self.dev.begin_step(t, angle, velocity, stance)
-
-    def end_step(self, velocity_new):
-        out = self.dev.end_step(velocity_new)
-        self.rows.append(self.dev.Y[0].copy())
-        return out
-
-
-def _check_and_makeup_flows(Y: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check-valve flow pump → rail and make-up flow tank → port A at states ``Y`` (rows): the
-    conductance check valve :func:`afo_mj.hydraulics.laws.check_valve_flow_m3_s`."""
-    q_cv = laws.check_valve_flow_m3_s(Y[:, va.Y_PP] - Y[:, va.Y_PS], P[va.P_CV_G],
-                                      P[va.P_CV_CRACK], P[va.P_CV_BAND])
-    q_ma = laws.check_valve_flow_m3_s(P[va.P_P_RES] - Y[:, va.Y_PVA], P[va.P_MAKEUP_G], 0.0,
-                                      P[va.P_MAKEUP_BAND])
-    return q_cv, q_ma
 
 
 def _stand_kw(body_mass_kg, height_m, timestep_s) -> dict:
@@ -238,7 +209,6 @@ def digital_flow_vs_duty(params=VALVE_PRESETS["digital"],
     r, ae = p.pulley_radius_m, p.effective_area_m2
     q_nom = p.nominal_pump_flow_m3_s
     k_spring = p_bias * r * ae / math.pi
-    P = None
     keys = ("delivered_flow_m3_s", "pump_flow_m3_s", "ideal_flow_m3_s", "flow_fraction",
             "ratio_to_ideal", "check_valve_flow_m3_s", "makeup_flow_m3_s",
             "switching_valve_loss_w", "switching_valve_loss_j_per_period",
@@ -262,25 +232,21 @@ def digital_flow_vs_duty(params=VALVE_PRESETS["digital"],
         n_total = n_settle + n_max
         dev = ValveAfoDevice(p, mode="valve_command", torque_fn=(lambda u: lambda t, q, w: u)(d),
                              timestep_s=h, max_steps=n_total * spp + 2)
-        P = dev.P[0]
-        rec = _Recorder(dev)
         if n_settle:
-            stand.run_device(rec, n_settle * period)
+            stand.run_device(dev, n_settle * period)
         led0 = dev.ledger()
         k0 = dev.steps
         room = stand.angle_rad - q1
         n = max(1, min(n_max, int(room / (1.15 * per_period)))) if room > 0 else 1
-        r2 = stand.run_device(rec, n * period)
+        r2 = stand.run_device(dev, n * period)
         led1 = dev.ledger()
         tw = n * period
         dq = float(r2.angle_rad[0] - stand.angle_rad)
         q_del = ae * r * dq / tw
         q_p = (led1["pump_volume_m3"] - led0["pump_volume_m3"]) / tw
-        Y = np.asarray(rec.rows[k0:])
-        q_cv, q_ma = _check_and_makeup_flows(Y, P)
-        log = dev.log.arrays()
-        pca = log["chamber_a_pa"][k0:dev.steps, 0]
-        pcb = log["chamber_b_pa"][k0:dev.steps, 0]
+        log = {key: v[k0:dev.steps, 0] for key, v in dev.log.arrays().items()}
+        q_cv, q_ma = log["check.flow_m3_s"], log["makeup_a.flow_m3_s"]
+        pca, pcb = log["chamber_a_pa"], log["chamber_b_pa"]
 
         def de(key, sub=None):
             if sub is None:
@@ -305,9 +271,9 @@ def digital_flow_vs_duty(params=VALVE_PRESETS["digital"],
         out["chamber_a_min_above_tank_pa"].append(float(np.min(pca)) - p.reservoir_pressure_pa)
         # pump pressure above the tank while the switching valve is shut, and the predicted
         # fraction D − (1 − 2 x*) T_sw f (module docstring)
-        shut = Y[:, va.Y_XU] <= 0.01
-        p_on = (float(np.mean(Y[shut, va.Y_PP])) - p.reservoir_pressure_pa if np.any(shut)
-                else math.nan)
+        shut = log["unloading_valve_position"] <= 0.01
+        p_on = (float(np.mean(log["pump_pa"][shut])) - p.reservoir_pressure_pa
+                if np.any(shut) else math.nan)
         dp_open = (q_p / k_or) ** 2
         x_star = min(1.0, math.sqrt(dp_open / p_on)) if p_on > 0 else 1.0
         out["pump_pressure_on_pa"].append(p_on)

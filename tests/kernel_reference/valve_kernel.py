@@ -1,7 +1,7 @@
 """Valve-controlled and digital-valve ankle actuators: one orthosis side, compiled.
 
 Two circuits on the same components as the pump-controlled HAFO
-(:mod:`afo_mj.devices.pump_ankle_actuator`), both fed by a motor-driven **unidirectional**
+(:mod:`pump_kernel`), both fed by a motor-driven **unidirectional**
 pump that draws from a pressurised reservoir (gauge ``p_t``, the "tank"):
 
 **Servo circuit** (``CIRCUIT = 0``; the valve-controlled circuit the seed compares with the
@@ -75,8 +75,8 @@ import numpy as np
 from afo_mj.control.assistance import (
     N_PH as _N_PH, PH_PHASE as _PH_PHASE, phase_update as _phase_update,
     table_lookup as _table_lookup)
-from afo_mj.devices import pump_ankle_actuator as _pa
-from afo_mj.devices.pump_ankle_actuator import (
+from kernel_reference import pump_kernel as _pa
+from kernel_reference.pump_kernel import (
     _bulk_modulus, _ramp_c1, _relief_flow, _seal_force, _smoothstep01, _soft_clip,
     chamber_rates,
     battery_ocv, solve_linear, viscosity_pa_s)
@@ -558,7 +558,7 @@ def controller(y, P, W, tau_cmd, t, h):
 @numba.njit(cache=True)
 def begin_step(Y, P, W, S, theta, theta_dot, tau_cmd, out, t):
     """First half of the coupled step for every side (see the HAFO kernel's
-    :func:`~afo_mj.devices.pump_ankle_actuator.begin_step`)."""
+    :func:`pump_kernel.begin_step`)."""
     for s in range(Y.shape[0]):
         Ws = W[s]
         Ps = P[s]
@@ -637,7 +637,7 @@ def _newton(y, yold, h, theta, theta_dot, P, W, S, first_matrix):
 @numba.njit(cache=True)
 def finish_step(y, P, W, theta_dot_new, S):
     """Second half: Newton-corrected end point, adaptive sub-steps where Newton fails (as the
-    HAFO kernel's :func:`~afo_mj.devices.pump_ankle_actuator.finish_step`); returns the
+    HAFO kernel's :func:`pump_kernel.finish_step`); returns the
     torque MuJoCo integrated."""
     h = S[0, 0]
     thd0 = W[W_THETA_DOT]
@@ -770,36 +770,8 @@ def finish_all(Y, P, W, S, theta_dot_new, tau_out):
     return ok
 
 
-# ---- impedance emulation (stiffness emulator) ------------------------------------------------
-#: Impedance table in the profile buffer: ``[n_rows, (phase_end, K, B, θ0, clutch) × n]``.
-IMP_COLS = 5
-
-
-@numba.njit(cache=True)
-def impedance_torque(table, phase, theta, theta_dot):
-    """Commanded torque of a passive-AFO emulation (+dorsiflexion, N·m).
-
-    Row = the first whose ``phase_end`` exceeds the gait phase (phase < 0, not yet known: the
-    first row). ``τ = −K (θ − θ0) − B θ̇``; a clutched row (``clutch = 1``) is a spring engaged
-    only past ``θ0`` in dorsiflexion: ``τ = −K max(θ − θ0, 0) − B θ̇ [θ > θ0]`` (Nuckols &
-    Sawicki 2020's clutched spring; per-phase impedance state machines, facts.md)."""
-    n = int(table[0])
-    row = 0
-    if phase >= 0.0:
-        row = n - 1
-        for k in range(n):
-            if phase < table[1 + k * IMP_COLS]:
-                row = k
-                break
-    b = 1 + row * IMP_COLS
-    K = table[b + 1]
-    B = table[b + 2]
-    th0 = table[b + 3]
-    if table[b + 4] != 0.0:
-        if theta <= th0:
-            return 0.0
-        return -K * (theta - th0) - B * theta_dot
-    return -K * (theta - th0) - B * theta_dot
+# ---- impedance emulation (stiffness emulator): the package's law ----------------------------
+from afo_mj.control.impedance import IMP_COLS, impedance_torque  # noqa: E402,F401
 
 
 # ---- the whole coupled step in two compiled calls (as the HAFO kernel) ----------------------
