@@ -69,3 +69,24 @@ def test_hafo_emulates_a_spring_on_the_stand():
     assert np.sqrt(np.mean((tau + k * theta) ** 2)) < 0.1 * k * 0.15
     with pytest.raises(Exception, match="both profile and impedance"):
         HafoDevice(HAFO_GAIT, impedance=ROWS, profile=np.zeros(11))
+
+
+def test_scenarios_give_impedance_to_any_torque_controlled_device(tmp_path):
+    """``profile = "impedance"`` on the pump-controlled HAFO builds a HAFO device emulating the
+    rows; on a [circuit] with the open-loop controller it is refused, naming the key."""
+    from afo_mj.devices.hafo import HafoDevice
+    from afo_mj.scenarios.device_scenario import device_config, make_device
+    from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
+    path = tmp_path / "imp.toml"
+    path.write_text('[device]\npreset = "hafo_gait"\n[assistance]\nprofile = "impedance"\n'
+                    'stiffness_nm_per_deg = 2.0\n')
+    cfg = device_config(load_scenario(path))
+    dev = make_device(cfg, "assist", 1e-3, 0)
+    assert isinstance(dev, HafoDevice) and not dev.transparent
+    table = dev.profile
+    assert impedance_torque(table, 0.5, 0.1, 0.0) == pytest.approx(-2.0 * 180 / math.pi * 0.1)
+    assert make_device(cfg, "transparent", 1e-3, 0).transparent
+    path.write_text('[circuit]\nlibrary = "lab_bench"\n[assistance]\nprofile = "impedance"\n'
+                    'stiffness_nm_per_deg = 2.0\n')
+    with pytest.raises(ScenarioError, match="open_loop"):
+        device_config(load_scenario(path))

@@ -161,16 +161,12 @@ def device_config(scenario) -> DeviceConfig | None:
                 raise fail("assistance.profile", kind, '"zhang" | "spline" | "impedance"')
         except ParameterError as exc:
             raise ScenarioError(f"{origin}: {exc}") from None
-    if impedance is not None and cc is not None:
-        raise fail("assistance.profile", "impedance", "a valve-circuit device.preset (e.g. "
-                   "phafo) for impedance emulation; the [circuit] controllers "
-                   f"({cc.circuit.controller.kind}) take a torque or voltage command")
+    if impedance is not None and cc is not None and cc.circuit.controller.kind == "open_loop":
+        raise fail("assistance.profile", "impedance", "a torque controller "
+                   "(circuit.controller.kind = \"pump_torque\", \"servo_valve_torque\", …): "
+                   "open_loop passes the command through as the motor voltage")
     if impedance is not None:
         from afo_mj.control.impedance import impedance_table
-        from afo_mj.devices.valve_afo import ValveAnkleParams
-        if not isinstance(params, ValveAnkleParams):
-            raise fail("assistance.profile", "impedance", "a valve-circuit device.preset "
-                       "(e.g. phafo) for impedance emulation")
         for rows in [impedance] + [r for _, r in sweep]:
             try:
                 impedance_table(rows)
@@ -371,27 +367,23 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
 
 
 def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int):
-    """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled) or a valve /
-    digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`), with the
-    assistance profile or the impedance rows when the condition is ``assist``."""
+    """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled), a valve /
+    digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`) or a described
+    circuit, with the assistance profile or the impedance rows (any torque-controlled
+    device emulates them) when the condition is ``assist`` or a stiffness condition."""
     from afo_mj.devices.hafo import HafoDevice
     from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
     active = condition == "assist" or condition in cfg.impedance_conditions
+    imp = cfg.impedance_conditions.get(condition, cfg.impedance) if active else None
+    prof = cfg.profile if active and cfg.impedance is None else None
+    kw = dict(sides=cfg.sides, profile=prof, impedance=imp, timestep_s=timestep_s,
+              max_steps=max_steps)
     if cfg.circuit is not None:
         from afo_mj.circuits.device import CircuitDevice
-        return CircuitDevice(cfg.circuit, sides=cfg.sides, timestep_s=timestep_s,
-                             profile=cfg.profile if active else None, max_steps=max_steps)
+        return CircuitDevice(cfg.circuit, **kw)
     if isinstance(cfg.params, ValveAnkleParams):
-        imp = cfg.impedance_conditions.get(condition, cfg.impedance)
-        return ValveAfoDevice(cfg.params, sides=cfg.sides,
-                              profile=cfg.profile if active and cfg.impedance is None else None,
-                              impedance=imp if active else None,
-                              timestep_s=timestep_s, max_steps=max_steps)
-    if cfg.impedance is not None:
-        raise ScenarioError(f"[impedance] needs a valve-circuit device; device.preset = "
-                            f"{cfg.preset!r} is pump-controlled")
-    return HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile if active else None,
-                      timestep_s=timestep_s, max_steps=max_steps)
+        return ValveAfoDevice(cfg.params, **kw)
+    return HafoDevice(cfg.params, **kw)
 
 
 def run_device_scenario(scenario, reference, cfg: DeviceConfig):
