@@ -499,6 +499,9 @@ class ValveAfoDevice(HafoDevice):
                  "switching.position": "unloading_valve_position",
                  "release.position": "valve_position",
                  "controller.valve_command": "valve_command"}
+    #: the valves' coils draw from the bus too: the hydraulic energy the pump delivered is
+    #: the input less the drive train's losses and the coils' power
+    upstream_losses = HafoDevice.upstream_losses + ("valve_actuators",)
     store_table = {
         "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
         "oil": ("oil.pump_out", "oil.rail", "oil.port_a", "oil.port_b", "oil.chamber_a",
