@@ -42,6 +42,7 @@ cycles does not blow up). Overall NRMSE: the root mean square over the fitted ou
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 import time
@@ -60,7 +61,7 @@ from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.scenarios.bench_replay import BenchReplay, ReplayError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
-           "model_outputs"]
+           "model_outputs", "sensor_outputs"]
 
 
 class CalibrationError(RuntimeError):
@@ -119,12 +120,27 @@ def model_outputs(replay: BenchReplay, time_s: np.ndarray, inputs: Mapping[str, 
     outputs ``channels`` through its sensor transforms."""
     sim = replay.simulate(time_s, inputs, setting.row, setting.backlash_rad,
                           setting.temperature_rate_k_s)
-    out = {c: sim[c] for c in channels}
-    for ch, gain, offset, delay in setting.sensors:
-        for c in (channels if ch == "*" else [ch]):
+    return sensor_outputs(time_s, {c: sim[c] for c in channels}, setting.sensors)
+
+
+def sensor_outputs(time_s: np.ndarray, out: Mapping[str, np.ndarray],
+                   sensors: Sequence[tuple[str, float, float, float]]
+                   ) -> dict[str, np.ndarray]:
+    """The replayed channels ``out`` read through the sensor transforms ``sensors``
+    (:attr:`ModelSetting.sensors`, applied in order); ``out`` itself is left as it was."""
+    out = dict(out)
+    for ch, gain, offset, delay in sensors:
+        for c in (list(out) if ch == "*" else [ch]):
             if c in out:
                 out[c] = sensor_reading(time_s, out[c], gain, offset, delay)
     return out
+
+
+#: relative forward-difference step of the fits' Jacobians (on the normalised parameters)
+DIFF_STEP = 1e-2
+#: replays kept by :meth:`Calibration.simulate` (the least recently used is dropped): enough
+#: for a Jacobian's columns and the point they start from
+REPLAY_CACHE_SIZE = 16
 
 
 @dataclasses.dataclass
@@ -138,6 +154,9 @@ class _Model:
     held_out: dict | None = None        # channel → NRMSE, "overall"
     jac: np.ndarray | None = None
     nfev: int = 0
+    fun: np.ndarray | None = None       # training residuals at x
+    raw_jac: np.ndarray | None = None   # their forward-difference Jacobian at x (no loss)
+    jac_steps: np.ndarray | None = None  # ... and its steps
     cov: np.ndarray | None = None
 
     def n_params(self) -> int:
@@ -226,6 +245,7 @@ class Calibration:
         noise_norm = [self.noise[c] / self.scale[c] for c in self.outputs]
         self.f_scale = 3.0 * float(np.median(noise_norm))
         self.evaluations = 0
+        self._replays: collections.OrderedDict = collections.OrderedDict()
         self.log: list[str] = []
 
     # ---------------------------------------------------------------- model evaluation
@@ -271,11 +291,32 @@ class Calibration:
 
     def simulate(self, effects: Sequence[Effect], x: np.ndarray, n: int | None = None
                  ) -> dict[str, np.ndarray]:
+        """The model's outputs over the first ``n`` samples (all by default).
+
+        The circuit is replayed only when its packed parameters, backlash or temperature
+        drift differ from those of the last :data:`REPLAY_CACHE_SIZE` replays: a change of
+        the sensor effects alone (delay, gain, offset: a Jacobian column, a ranking probe)
+        re-reads a kept replay through the new sensor transforms. :attr:`evaluations`
+        counts the replays run."""
         n = self.i_end if n is None else n
-        self.evaluations += 1
         setting = self.setting(effects, x)
-        inputs = {c: v[:n] for c, v in self.inputs.items()}
-        return model_outputs(self.replay, self.t[:n], inputs, setting, self.outputs)
+        key = (n, tuple(sorted(setting.row.items())), setting.backlash_rad,
+               setting.temperature_rate_k_s)
+        raw = self._replays.get(key)
+        if raw is None:
+            self.evaluations += 1
+            inputs = {c: v[:n] for c, v in self.inputs.items()}
+            sim = self.replay.simulate(self.t[:n], inputs, setting.row, setting.backlash_rad,
+                                       setting.temperature_rate_k_s)
+            raw = {c: sim[c] for c in self.outputs}
+            self._replays[key] = raw
+            while len(self._replays) > REPLAY_CACHE_SIZE:
+                self._replays.popitem(last=False)
+        else:
+            self._replays.move_to_end(key)
+        # copies: what the caller does with its outputs never reaches the kept replay
+        return {c: np.array(v) for c, v in sensor_outputs(self.t[:n], raw,
+                                                           setting.sensors).items()}
 
     def _residual_vector(self, out: Mapping[str, np.ndarray], idx: np.ndarray) -> np.ndarray:
         return np.concatenate([(out[c][idx] - self.meas[c][idx]) / self.scale[c]
@@ -306,17 +347,57 @@ class Calibration:
         # keep the start strictly inside (trf needs an interior point)
         span = hi - lo
         x0 = np.clip(x0, lo + 1e-9 * span, hi - 1e-9 * span)
-        res = least_squares(lambda x: self.train_residuals(effects, x), x0, bounds=(lo, hi),
-                            method="trf", loss="soft_l1", f_scale=self.f_scale,
-                            diff_step=1e-2, x_scale=1.0,
+        last = {}
+
+        def jac(x):
+            last["x"] = x.copy()
+            last["J"], last["h"] = self.jacobian(effects, x, lo, hi)
+            return last["J"]
+
+        res = least_squares(lambda x: self.train_residuals(effects, x), x0, jac=jac,
+                            bounds=(lo, hi), method="trf", loss="soft_l1",
+                            f_scale=self.f_scale, x_scale=1.0,
                             max_nfev=max_nfev or self.options.max_nfev)
         r = res.fun
         if not np.all(np.isfinite(r)):
             raise CalibrationError("non-finite residual in the fit")
         m = _Model(list(effects), res.x, cost=float(res.cost), sse=float(r @ r),
-                   jac=res.jac, nfev=int(res.nfev))
+                   jac=res.jac, nfev=int(res.nfev), fun=np.array(r))
+        if "x" in last and np.array_equal(last["x"], res.x):
+            m.raw_jac, m.jac_steps = last["J"], last["h"]
         m.held_out, _ = self.held_out_errors(effects, res.x)
         return m
+
+    def jacobian(self, effects: Sequence[Effect], x: np.ndarray, lo: np.ndarray,
+                 hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(J, steps)``: the forward-difference Jacobian of :meth:`train_residuals` at
+        ``x`` and the step of each column, with the steps of
+        ``scipy.optimize.least_squares(diff_step=DIFF_STEP)`` (``2-point``): ``DIFF_STEP
+        · |x_j|`` (``√ε · max(1, |x_j|)`` where that is no step), taken backwards where the
+        forward step would leave the bounds ``[lo, hi]``. The residuals at ``x`` and a
+        column whose parameter only changes the sensor transforms come from kept replays
+        (:meth:`simulate`)."""
+        x = np.asarray(x, dtype=float)
+        f0 = self.train_residuals(effects, x)
+        sign = np.where(x >= 0.0, 1.0, -1.0)
+        h = DIFF_STEP * sign * np.abs(x)
+        dx = (x + h) - x
+        h = np.where(dx == 0.0, np.sqrt(np.finfo(float).eps) * sign
+                     * np.maximum(1.0, np.abs(x)), h)
+        # one-sided steps kept inside the bounds (scipy's _adjust_scheme_to_bounds)
+        lower, upper = x - lo, hi - x
+        xh = x + h
+        violated = (xh < lo) | (xh > hi)
+        fitting = np.abs(h) <= np.maximum(lower, upper)
+        h = np.where(violated & fitting, -h, h)
+        h = np.where(~fitting & (upper >= lower), upper, h)
+        h = np.where(~fitting & (upper < lower), -lower, h)
+        J = np.empty((f0.size, x.size))
+        for j in range(x.size):
+            x1 = x.copy()
+            x1[j] = x[j] + h[j]
+            J[:, j] = (self.train_residuals(effects, x1) - f0) / (x1[j] - x[j])
+        return J, h
 
     def information(self, m: _Model) -> dict[str, float]:
         """Gaussian AIC/BIC on the training residuals (normalised), ``m`` residuals,
@@ -348,10 +429,16 @@ class Calibration:
 
     # ---------------------------------------------------------------- ranking
     def _declared_jacobian(self, m: _Model, f0: np.ndarray) -> np.ndarray:
+        """Forward-difference sensitivities of the training residuals to the declared
+        parameters at ``m.x`` (steps ``0.01 · max(|x_j|, 0.1)``); a column the fit's last
+        Jacobian took with the same step is reused, not replayed again."""
         cols = []
         for j in range(len(self.declared)):
             x = m.x.copy()
             step = 0.01 * max(abs(x[j]), 0.1)
+            if m.raw_jac is not None and m.jac_steps[j] == step:
+                cols.append(m.raw_jac[:, j])
+                continue
             x[j] += step
             cols.append((self.train_residuals(m.effects, x) - f0) / step)
         return np.array(cols).T
@@ -372,7 +459,7 @@ class Calibration:
 
     def rank(self, m: _Model, pool: Sequence[Effect]) -> list[dict]:
         """Score every candidate by the linearised projection (module docstring, step 4)."""
-        f0 = self.train_residuals(m.effects, m.x)
+        f0 = self.train_residuals(m.effects, m.x) if m.fun is None else m.fun
         J = self._declared_jacobian(m, f0)
         r = -f0
         rr = float(r @ r)
