@@ -77,15 +77,17 @@ def test_compiled_code_is_shared_by_parameter_sets():
 def test_a_changed_law_gives_a_new_compiled_module():
     """numba's disk cache does not see a change in a function called from another file, so
     the generated text (whose hash names the cached module) carries the hash of the law,
-    phase and impedance modules it calls: here recomputed from the files themselves."""
+    phase, impedance and buffer-view modules it calls: here recomputed from the files
+    themselves."""
     import hashlib
     from pathlib import Path
+    import afo_mj.circuits.buffer_views as v_mod
     import afo_mj.control.assistance as a_mod
     import afo_mj.control.impedance as i_mod
     import afo_mj.hydraulics.laws as l_mod
     from afo_mj.circuits.codegen import generate
     h = hashlib.sha256()
-    for mod in (l_mod, a_mod, i_mod):
+    for mod in (l_mod, a_mod, i_mod, v_mod):
         h.update(Path(mod.__file__).read_bytes())
     text, _, _ = generate(lab_bench())
     assert h.hexdigest()[:20] in text.splitlines()[1]

@@ -144,12 +144,7 @@ class CircuitDevice:
             self._th[j] = angle_rad[s]
             self._thd[j] = velocity_rad_s[s]
             self._cmd[j] = self.torque_fn(t, self._th[j], self._thd[j])
-        self.k.begin_step(self.Y, self.P, self.W, self.S, self._th, self._thd, self._cmd,
-                          self._out)
-        for j in range(len(si)):
-            self.force2[si[j]] = self._out[j, 0]
-            self.damping2[si[j]] = self._out[j, 1]
-            self.commanded2[si[j]] = self._cmd[j]
+        self.k.device_couple(self._buf, self._meta)
         return self._out2
 
     def end_step(self, velocity_new_rad_s):
@@ -225,7 +220,7 @@ class CircuitDevice:
         if not inertia_kg_m2 > 0:
             raise CircuitError(f"load inertia_kg_m2 = {inertia_kg_m2!r}; allowed: > 0")
         log = np.zeros((cmd.shape[0], 5 + len(self.cc.state_names)))
-        n = self.k.run_load(self.Y[:1], self.P[:1], self.W[:1], self.S[:1], float(theta0_rad),
+        n = self.k.run_load(self._buf, self._meta, float(theta0_rad),
                             0.0, float(inertia_kg_m2), float(stiffness_nm_rad),
                             float(damping_nm_s_rad), float(rest_angle_rad), cmd, ext, log)
         self.steps += n
@@ -283,7 +278,7 @@ class CircuitDevice:
             self.W[0, self.k.W_TEMP_K] = temp[0]
         ny, npr = len(self.cc.state_names), len(self.cc.probe_names)
         log = np.zeros((n, 8 + ny + npr))
-        done = self.k.run_imposed(self.Y[:1], self.P[:1], self.W[:1], self.S[:1], th, thd,
+        done = self.k.run_imposed(self._buf, self._meta, th, thd,
                                   cmd, imposed, slots, temp, sub, log)
         self.steps += done * sub
         if done < n:

@@ -349,24 +349,27 @@ def finish_all(Y, P, W, S, theta_dot_new, tau_out):
     return ok
 
 
-def run_load(Y, P, W, S, theta0, theta_dot0, inertia, stiffness, damping, rest_angle,
+def run_load(buf, meta, theta0, theta_dot0, inertia, stiffness, damping, rest_angle,
              cmd, ext_torque, log):
-    """The replay/bench loop with the joint load simulated: a rigid inertia ``J`` on a
-    torsional spring ``k`` (rest angle ``θ_r``) and damper ``c`` driven by the circuit and an
-    external torque, integrated like MuJoCo integrates the walker (semi-implicit Euler with the
-    device damping, the load's damping and the spring implicit):
+    """The replay/bench loop of worn side 0 of the device buffer (:func:`device_views`) with
+    the joint load simulated: a rigid inertia ``J`` on a torsional spring ``k`` (rest angle
+    ``θ_r``) and damper ``c`` driven by the circuit and an external torque, integrated like
+    MuJoCo integrates the walker (semi-implicit Euler with the device damping, the load's
+    damping and the spring implicit):
     ``(J + h(c + D + h k)) θ̇_{n+1} = J θ̇_n + h(F − k(θ_n − θ_r) + τ_ext)``,
     ``θ_{n+1} = θ_n + h θ̇_{n+1}``. ``cmd[n]`` is the controller's command per step. ``log``
     (steps × columns) gets ``t, θ, θ̇, τ, u`` then every state. Returns the steps done
-    (fewer when a state became non-finite)."""
+    (fewer when a state became non-finite). (Every array the stepper sees is a view of the
+    buffer, as in gait, so that one compilation serves both.)"""
+    Ya, Pa, Wa, Sa, ph, prof, V, outa, O = device_views(buf, meta)
+    Y, P, W, S, out = Ya[:1], Pa[:1], Wa[:1], Sa[:1], outa[:1]
+    th = V[V_THETA, :1]
+    thd = V[V_THETA_DOT, :1]
+    c1 = V[V_TAU_CMD, :1]
+    vnew = V[V_THETA_DOT_NEW, :1]
+    tau = V[V_TAU, :1]
     n = cmd.shape[0]
     h = S[0, 0, 0]
-    th = np.zeros(1)
-    thd = np.zeros(1)
-    c1 = np.zeros(1)
-    out = np.zeros((1, 2))
-    vnew = np.zeros(1)
-    tau = np.zeros(1)
     th[0] = theta0
     thd[0] = theta_dot0
     for i in range(n):
@@ -390,8 +393,8 @@ def run_load(Y, P, W, S, theta0, theta_dot0, inertia, stiffness, damping, rest_a
     return n
 
 
-def run_imposed(Y, P, W, S, theta, theta_dot, cmd, imposed, slots, temp_k, sub, log):
-    """The replay loop with the joint motion imposed (a recorded angle and its velocity per
+def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, log):
+    """The replay loop of worn side 0 of the device buffer with the joint motion imposed (a recorded angle and its velocity per
     sample, e.g. a bench record): the same coupled step with the measured velocity as the end
     velocity. Sample ``i`` → ``i + 1`` is ``sub`` equal steps of ``h = S[0, 0, 0]`` over which
     the angle, velocity and (when ``temp_k`` is not empty) the oil temperature are
@@ -402,14 +405,15 @@ def run_imposed(Y, P, W, S, theta, theta_dot, cmd, imposed, slots, temp_k, sub, 
     sample, ``t, θ, θ̇, τ, u`` (``τ`` the joint torque at the step's end), every state, every
     probe, then the battery current, the bus voltage and the oil temperature. Returns the
     samples done (fewer when a state became non-finite)."""
+    Ya, Pa, Wa, Sa, ph, prof, V, outa, O = device_views(buf, meta)
+    Y, P, W, S, out = Ya[:1], Pa[:1], Wa[:1], Sa[:1], outa[:1]
+    th = V[V_THETA, :1]
+    thd = V[V_THETA_DOT, :1]
+    vnew = V[V_THETA_DOT_NEW, :1]
+    tau = V[V_TAU, :1]
     n = cmd.shape[0]
     nt = theta.shape[0]
     h = S[0, 0, 0]
-    th = np.zeros(1)
-    thd = np.zeros(1)
-    out = np.zeros((1, 2))
-    vnew = np.zeros(1)
-    tau = np.zeros(1)
     nimp = slots.shape[0]
     for i in range(n):
         i1 = i + 1 if i + 1 < nt else i
@@ -478,17 +482,21 @@ LAYOUT_CONSTANTS = ("M_Y", "M_P", "M_W", "M_S", "M_PH", "M_PROFILE", "M_V", "M_O
 
 
 def device_views(buf, meta):
-    """``(Y, P, W, S, phase_state, profile, V, out, O)``: views of the device buffer."""
+    """``(Y, P, W, S, phase_state, profile, V, out, O)``: views of the device buffer (float64,
+    C-contiguous, laid out by ``meta``: :class:`afo_mj.circuits.device.CircuitDevice` sizes
+    it to hold every block), made by :mod:`afo_mj.circuits.buffer_views` (a ``reshape``
+    costs ~25 ns in numba: nine of them twice a step were a tenth of the HAFO's compiled
+    gait step)."""
     ns = meta[M_NS]
-    Y = buf[meta[M_Y]:meta[M_Y] + ns * N_Y].reshape((ns, N_Y))
-    P = buf[meta[M_P]:meta[M_P] + ns * N_P].reshape((ns, N_P))
-    W = buf[meta[M_W]:meta[M_W] + ns * N_W].reshape((ns, N_W))
-    S = buf[meta[M_S]:meta[M_S] + ns * N_SCRATCH * S_WIDTH].reshape((ns, N_SCRATCH, S_WIDTH))
-    ph = buf[meta[M_PH]:meta[M_PH] + ns * N_PH].reshape((ns, N_PH))
+    Y = view2(buf, meta[M_Y], ns, N_Y)
+    P = view2(buf, meta[M_P], ns, N_P)
+    W = view2(buf, meta[M_W], ns, N_W)
+    S = view3(buf, meta[M_S], ns, N_SCRATCH, S_WIDTH)
+    ph = view2(buf, meta[M_PH], ns, N_PH)
     prof = buf[meta[M_PROFILE]:meta[M_PROFILE] + meta[M_NPROF]]
-    V = buf[meta[M_V]:meta[M_V] + N_V * ns].reshape((N_V, ns))
-    out = buf[meta[M_OUT]:meta[M_OUT] + ns * 2].reshape((ns, 2))
-    O = buf[meta[M_O]:meta[M_O] + N_O * 2].reshape((N_O, 2))
+    V = view2(buf, meta[M_V], N_V, ns)
+    out = view2(buf, meta[M_OUT], ns, 2)
+    O = view2(buf, meta[M_O], N_O, 2)
     return Y, P, W, S, ph, prof, V, out, O
 
 
@@ -516,7 +524,18 @@ def device_begin(t, angle2, velocity2, stance2, buf, meta):
         else:
             cmd[k] = table_lookup(profile, ph)
         O[O_PHASE, s] = ph
-    begin_step(Y, P, W, S, th, thd, cmd, out)
+    device_couple(buf, meta)
+
+
+def device_couple(buf, meta):
+    """:func:`begin_step` of every worn side with the angle, velocity and command held in
+    ``V``; writes the joint force, extra damping and commanded torque into ``O`` (walker
+    sides). The second half of :func:`device_begin`, and the whole of it for a device whose
+    command comes from Python."""
+    Y, P, W, S, phase_state, profile, V, out, O = device_views(buf, meta)
+    ns = meta[M_NS]
+    cmd = V[V_TAU_CMD]
+    begin_step(Y, P, W, S, V[V_THETA], V[V_THETA_DOT], cmd, out)
     for k in range(ns):
         s = meta[N_META + k]
         O[O_FORCE, s] = out[k, 0]
@@ -577,7 +596,10 @@ def write_log_row(row, t, y, W, S, phase, theta_dot):
         row[c + i] = W[W_CTRL + i]
 
 
+#: template functions that return views: compiled inline into their callers (a compiled call
+#: that returns a tuple of arrays reference-counts each of them, ~0.3 µs per call)
+INLINE = (scratch_views, device_views)
 #: the template functions, in the order the generated module defines them
 TEMPLATE = (lu_factor, lu_solve, scratch_views, jacobian, linearise, newton,
-            close_substep, finish_step, hold_inputs, couple, begin_step, finish_all, run_load,
-            run_imposed, device_views, write_log_row, device_begin, device_end)
+            close_substep, finish_step, hold_inputs, couple, begin_step, finish_all, device_views,
+            run_load, run_imposed, write_log_row, device_couple, device_begin, device_end)
