@@ -202,3 +202,35 @@ def test_kernel_with_the_reference_motion_imposed(name):
     led = dev.ledger()
     assert abs(led["balance_error_rel"]) < 1e-9
     assert led["newton_unconverged_steps"] == 0
+
+
+def _coupled_at(name, h):
+    """NRMSE of the coupled run at step ``h`` (a divisor of 1 ms), sampled at the reference's
+    1 ms grid."""
+    circuit, ref = _reference(name)
+    case = CASES[name]
+    m = int(round(H / h))
+    n = int(round(case["t_end"] / h))
+    cmd = np.array([case["cmd"](k * h) for k in range(n)])
+    ext = None if case["ext"] is None else np.array([case["ext"](k * h) for k in range(n)])
+    dev = CircuitDevice(circuit, timestep_s=h)
+    log = dev.run_load(cmd, inertia_kg_m2=INERTIA, stiffness_nm_rad=case["k"],
+                       damping_nm_s_rad=DAMPING, external_torque_nm=ext)
+    assert abs(dev.ledger()["balance_error_rel"]) < 1e-9
+    return {key: nrmse(log[key][m - 1::m], ref.y[ROWS[key]]) for key in SIGNALS}
+
+
+@pytest.mark.parametrize("name", ["air_low_pressure", "closed_valves"])
+def test_coupled_error_shrinks_with_the_step(name):
+    """What the open 1 % lacks is the step of the mechanics, not the circuit: the load's mode
+    on the trapped oil rings at ~125 Hz in ``closed_valves`` (8 samples a period at 1 ms) and
+    the coupled step (the load's velocity updated once a step, the circuit by backward Euler
+    with the end-of-step velocity) damps it. With the motion imposed the same kernel meets 1 %
+    at 1 ms (``test_kernel_with_the_reference_motion_imposed``); coupled, the error falls
+    with the step towards Radau's solution (measured 2026-11-24: chamber pressures 4.3 → 1.4 %
+    and 5.0 → 2.4 % from 1 to 0.25 ms), the mark of a consistent scheme whose remaining error
+    is its step."""
+    coarse = _coupled_at(name, H)
+    fine = _coupled_at(name, H / 4)
+    for key in CIRCUIT_SIGNALS[1:]:
+        assert fine[key] <= 0.6 * coarse[key], (key, coarse[key], fine[key])
