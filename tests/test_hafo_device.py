@@ -106,6 +106,10 @@ def test_energy_balance_closes_on_the_stand():
     led = dev.ledger()
     assert led["electrical_drawn_j"] > 1.0
     assert abs(led["balance_error_rel"]) < 0.005
+    # what the drive delivered to the oil (the input less the upstream losses and stores) is
+    # the pump's hydraulic work Σ h Δp Q, integrated by the probe (a separate sum)
+    assert led["hydraulic_j"] == pytest.approx(led["probe_integrals"]["pump.hydraulic_power_w"],
+                                               abs=1e-9 * led["energy_throughput_j"])
     assert set(led["losses_j"]) == set(pa.LOSS_NAMES)
     assert all(v >= -1e-9 for v in led["losses_j"].values())
 

@@ -192,7 +192,8 @@ class Pump(Component):
     positive speed (reversible): flow :func:`~afo_mj.hydraulics.laws.pump_flow_m3_s`, shaft
     torque ``d Δp + T_f`` with :func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm`
     (Wilson / McCandlish–Dorey; ``Δp = p_a − p_b``). Losses: ``volumetric`` (slip flow × Δp),
-    ``mechanical`` (friction torque × ω)."""
+    ``mechanical`` (friction torque × ω). Probes: ``flow_m3_s``, ``hydraulic_power_w``
+    (``Δp Q``, the power the pump gives the oil)."""
 
     kind = "pump"
     ports = {"shaft": SHAFT, "a": HYDRAULIC, "b": HYDRAULIC}
@@ -230,6 +231,9 @@ class Pump(Component):
         g.loss(self, "volumetric", f"{dp} * ({d} * {w} - {q})")
         g.loss(self, "mechanical", f"{tf} * {w}")
         g.probe(self, "flow_m3_s", q)
+        # the hydraulic power delivered at the ports: its integral is the hydraulic energy
+        # the pump gave the oil (a device's ``hydraulic_j``, to the Newton tolerance)
+        g.probe(self, "hydraulic_power_w", f"{dp} * {q}")
         g.monitor(self, "speed_over_rating", f"abs({w}) / {wmax}")
 
 

@@ -257,7 +257,8 @@ class VariablePump(Component):
     of the full displacement, Wilson); torque ``ε d Δp + T_f`` with the Coulomb and drag part
     of :func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm` at ``ε d`` and its viscous part
     at the full ``d`` (the rotating group churns whatever the stroke). Losses:
-    ``volumetric``, ``mechanical``. Probes: ``flow_m3_s``, ``displacement_fraction``. The
+    ``volumetric``, ``mechanical``. Probes: ``flow_m3_s``, ``hydraulic_power_w`` (``Δp Q``),
+    ``displacement_fraction``. The
     component is variable-displacement whatever the library's switch says."""
 
     kind = "variable_pump"
@@ -298,6 +299,7 @@ class VariablePump(Component):
         g.loss(self, "volumetric", f"{dp} * ({eps} * {d} * {w} - {q})")
         g.loss(self, "mechanical", f"{tf} * {w}")
         g.probe(self, "flow_m3_s", q)
+        g.probe(self, "hydraulic_power_w", f"{dp} * {q}")
         g.probe(self, "displacement_fraction", eps)
         g.monitor(self, "speed_over_rating", f"abs({w}) / {wmax}")
 
