@@ -343,3 +343,31 @@ def test_csv_time_default_mapping_and_errors(tmp_path):
     with pytest.raises(ReferenceGaitError, match="deg/s"):
         load_reference_csv(write("u.csv", data), {"ankle_angle_rad": {"column": "time_s",
                                                                       "unit": "deg/s"}})
+
+
+def _percent_csv(path, pc):
+    g = load_normative()
+    ang = g.angles_rad(np.arange(len(pc)) / (len(pc) - 1))
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["percent_cycle", "hip_angle_rad", "knee_angle_rad", "ankle_angle_rad"])
+        w.writerows([[repr(float(x)) for x in (pc[k], *ang[k])] for k in range(len(pc))])
+    return path
+
+
+def test_csv_percent_cycle_given_as_fraction_is_refused(tmp_path):
+    """A percent_cycle column running 0..1 (a fraction) is refused, not read as 0..1 %."""
+    path = _percent_csv(tmp_path / "frac.csv", np.linspace(0.0, 1.0, 51))
+    with pytest.raises(ReferenceGaitError, match=r"percent_cycle' runs 0\.\.1, a fraction.*"
+                                                 r"0\.\.100"):
+        load_reference_csv(path)
+    load_reference_csv(_percent_csv(tmp_path / "pct.csv", np.linspace(0.0, 100.0, 51)))
+
+
+def test_csv_errors_show_numbers_plainly(tmp_path):
+    """No numpy scalar reprs (np.float64(...)) in the messages."""
+    pc = np.linspace(0.0, 100.0, 51)
+    pc[10] = pc[9]
+    with pytest.raises(ReferenceGaitError) as err:
+        load_reference_csv(_percent_csv(tmp_path / "dup.csv", pc))
+    assert "np.float64" not in str(err.value) and "(0.18 then 0.18)" in str(err.value)

@@ -181,3 +181,54 @@ def test_reference_id_path_needs_an_opensim_reference_path(tmp_path):
     with pytest.raises(ScenarioError, match="reference_id_path.*without gait.reference_path"):
         parse_scenario('[gait]\nreference_id_path = "id.sto"\n', origin="x.toml",
                        base_dir=tmp_path)
+
+
+HAFO = SCENARIO_DIR / "gait_assist_hafo.toml"
+
+
+def test_set_strides_moves_the_analysed_window():
+    """`--set gait.strides=6` on a file analysing [4, 10]: the window follows (start kept, end
+    clipped), with a note; both set and inconsistent stays an error."""
+    sc = load_scenario(HAFO, overrides=["gait.strides=6"])
+    assert (sc.strides, sc.analyse_strides) == (6, (4, 6))
+    assert any("gait.analyse_strides = [4, 10] -> [4, 6]" in n for n in sc.notes)
+    sc = load_scenario(SCENARIO_DIR / "walk_healthy.toml", overrides=["gait.strides=3"])
+    assert sc.analyse_strides == (2, 3)
+    sc = load_scenario(SCENARIO_DIR / "walk_healthy.toml", overrides=["gait.strides=14"])
+    assert sc.analyse_strides == (4, 14)                  # the window ended at the last stride
+    assert load_scenario(HAFO).notes == ()
+    with pytest.raises(ScenarioError, match=r"gait.analyse_strides = \[4, 10\] is out of range"
+                                            r".*gait.strides \(6\)"):
+        load_scenario(HAFO, overrides=["gait.strides=6", "gait.analyse_strides=[4, 10]"])
+
+
+def test_device_key_on_a_scenario_without_device_is_an_error():
+    with pytest.raises(ScenarioError, match=r"--set device.params.hose.length_m: this scenario "
+                                            r"has no device"):
+        load_scenario(SCENARIO_DIR / "walk_healthy.toml",
+                      overrides=["device.params.hose.length_m=2.2"])
+    with pytest.raises(ScenarioError, match="--set device.preset"):
+        parse_scenario(BASE, overrides=["device.preset=hafo"])
+    sc = load_scenario(HAFO, overrides=["device.params.hose.length_m=2.2"])
+    assert sc.device["params"]["hose.length_m"] == 2.2
+
+
+def test_unknown_key_suggests_the_close_one():
+    with pytest.raises(ScenarioError, match=r"unknown key 'gait.stride'.*did you mean "
+                                            r"'gait.strides'\?"):
+        parse_scenario(BASE, overrides=["gait.stride=3"])
+    with pytest.raises(ScenarioError, match=r"did you mean 'walker.body_mass_kg'\?"):
+        parse_scenario(BASE.replace("body_mass_kg", "body_mas_kg"))
+    with pytest.raises(ScenarioError, match=r"did you mean 'impairment'\?"):
+        parse_scenario(BASE + "[impairement]\nx = 1\n")
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(BASE, overrides=["zzz.q=1"])
+    assert "did you mean" not in str(err.value)
+
+
+def test_empty_scenario_file_is_refused(tmp_path):
+    for text in ("", "# only a comment\n\n"):
+        p = tmp_path / "empty.toml"
+        p.write_text(text, encoding="utf-8")
+        with pytest.raises(ScenarioError, match=r"empty\.toml: empty scenario"):
+            load_scenario(p)

@@ -758,7 +758,7 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
 
     path = Path(scenario)
     if not path.suffix == ".toml":
-        kind_of_preset(scenario)          # raises with the allowed presets
+        kind_of_preset(scenario, key="--scenario")    # raises with the allowed presets
         return scenario, {}, CalibrationOptions()
     if not path.is_file():
         raise ParameterError(f"--scenario {scenario!r}: no such file (allowed: a .toml scenario "
@@ -771,7 +771,7 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
     if not isinstance(dev, dict) or "preset" not in dev:
         raise ParameterError(f"{path}: device.preset is missing; allowed: a device preset name")
     preset = dev["preset"]
-    kind_of_preset(preset)
+    kind_of_preset(preset, key=f"{path}: device.preset")
     overrides = dict(dev.get("params", {}))
     cal = doc.get("calibration", {})
     if not isinstance(cal, dict):

@@ -82,6 +82,8 @@ import math
 import re
 from pathlib import Path
 
+from afo_mj.scenarios.walk_scenario import strides_overrides  # re-exported: compare --strides
+
 __all__ = ["CompareError", "CompareItem", "Comparison", "FIXED_COLUMNS", "load_compare_items",
            "strides_overrides", "run_comparison", "comparison_row", "order_rows",
            "loss_columns", "all_columns"]
@@ -140,10 +142,6 @@ def loss_column(name: str) -> str:
     return "loss_" + re.sub(r"[^a-z0-9_]", "_", str(name).lower()) + "_j_per_stride"
 
 
-def strides_overrides(n: int) -> list[str]:
-    """The ``--set`` overrides for ``--strides N``: N strides, the last ones analysed."""
-    first = min(max(2, n - 4), n)
-    return [f"gait.strides={n}", f"gait.analyse_strides=[{first}, {n}]"]
 
 
 def load_compare_items(paths, overrides=(), strides: int | None = None) -> list[CompareItem]:

@@ -136,10 +136,10 @@ class ReferenceGait:
         if bad.size:
             raise ReferenceGaitError(
                 f"{origin}: phase/time not strictly increasing at sample {bad[0] + 1} "
-                f"({ph[bad[0]]!r} then {ph[bad[0] + 1]!r}); samples must increase")
+                f"({ph[bad[0]]:g} then {ph[bad[0] + 1]:g}); samples must increase")
         if abs(ph[0]) > 1e-12 or ph[-1] > 1.0 + 1e-12:
             raise ReferenceGaitError(f"{origin}: phase must span [0, 1] from heel strike; got "
-                                     f"{ph[0]!r}..{ph[-1]!r}")
+                                     f"{ph[0]:g}..{ph[-1]:g}")
         keep = ph < 1.0 - 1e-12
         missing = [c for c in ANGLE_CHANNELS if c not in channels]
         if missing:
@@ -255,7 +255,7 @@ def _check_finite(v: np.ndarray, column: str, origin: str) -> None:
     bad = np.flatnonzero(~np.isfinite(v))
     if bad.size:
         raise ReferenceGaitError(f"{origin}: column {column!r} has non-finite value "
-                                 f"{v[bad[0]]!r} at data row {bad[0] + 1}; all values must be "
+                                 f"{v[bad[0]]:g} at data row {bad[0] + 1}; all values must be "
                                  f"finite numbers")
 
 
@@ -428,12 +428,12 @@ def _cycle_window(t: np.ndarray, values: dict[str, np.ndarray], start: float | N
     if bad.size:
         raise ReferenceGaitError(
             f"{origin}: column {time_col!r} not strictly increasing at data row {bad[0] + 2} "
-            f"({t[bad[0]]!r} then {t[bad[0] + 1]!r}); time must increase")
+            f"({t[bad[0]]:g} then {t[bad[0] + 1]:g}); time must increase")
     t0 = t[0] if start is None else float(start)
     t1 = t[-1] if end is None else float(end)
     if not (t[0] - 1e-12 <= t0 < t1 <= t[-1] + 1e-12):
-        raise ReferenceGaitError(f"{origin}: cycle {t0!r}..{t1!r} s must lie inside the data "
-                                 f"{t[0]!r}..{t[-1]!r} s with start < end")
+        raise ReferenceGaitError(f"{origin}: cycle {t0:g}..{t1:g} s must lie inside the data "
+                                 f"{t[0]:g}..{t[-1]:g} s with start < end")
     period = t1 - t0
     tol = 1e-9 * period
     inside = (t > t0 + tol) & (t < t1 - tol)
@@ -502,6 +502,15 @@ def load_reference_csv(path, mapping: Mapping[str, Any] | None = None, *,
     if "percent_cycle" in cols:
         pc = cols["percent_cycle"]
         _check_finite(pc, "percent_cycle", origin)
+        if pc.size >= 4 and float(pc.max()) <= 1.0:
+            raise ReferenceGaitError(
+                f"{origin}: column 'percent_cycle' runs {pc.min():g}..{pc.max():g}, a fraction "
+                f"of the cycle; allowed: percent of the cycle, 0..100 from heel strike "
+                f"(multiply the column by 100)")
+        if pc.size and (abs(pc[0]) > 1e-10 or float(pc.max()) > 100.0):
+            raise ReferenceGaitError(
+                f"{origin}: column 'percent_cycle' runs {pc[0]:g}..{pc.max():g}; allowed: "
+                f"0..100, starting at 0 (heel strike)")
         phase = pc / 100.0
     elif "time_s" in cols:
         series = {**values, **{("sd:" + k): v for k, v in sds.items()}}
@@ -510,8 +519,8 @@ def load_reference_csv(path, mapping: Mapping[str, Any] | None = None, *,
         values = {k: v for k, v in series.items() if not k.startswith("sd:")}
         sds = {k[3:]: v for k, v in series.items() if k.startswith("sd:")}
         if cycle_time_s is not None and abs(cycle_time_s - period) > 1e-9 * period:
-            raise ReferenceGaitError(f"{origin}: cycle_time_s={cycle_time_s!r} contradicts the "
-                                     f"time column's cycle {period!r} s")
+            raise ReferenceGaitError(f"{origin}: cycle_time_s={cycle_time_s:g} contradicts the "
+                                     f"time column's cycle {period:g} s")
         cycle_time_s = period
     else:
         raise ReferenceGaitError(f"{origin}: needs a 'percent_cycle' or 'time_s' column; "

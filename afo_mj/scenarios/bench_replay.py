@@ -88,14 +88,18 @@ _SIGNALS = {
 }
 
 
-def kind_of_preset(preset: str) -> str:
-    """``"hafo"`` for a pump-controlled preset, ``"valve"`` for a valve circuit's."""
+def kind_of_preset(preset: str, key: str = "source.preset") -> str:
+    """``"hafo"`` for a pump-controlled preset, ``"valve"`` for a valve circuit's; ``key``
+    names where the preset came from in the error (a record's ``source.preset``, a command's
+    ``--scenario`` option, ...)."""
     if preset in HAFO_PRESETS:
         return "hafo"
     if preset in VALVE_PRESETS:
         return "valve"
-    raise ParameterError(f"source.preset = {preset!r}; allowed: "
-                         f"{', '.join(list(HAFO_PRESETS) + list(VALVE_PRESETS))}")
+    from afo_mj.scenarios.walk_scenario import did_you_mean
+    names = list(HAFO_PRESETS) + list(VALVE_PRESETS)
+    raise ParameterError(f"{key} = {preset!r} is not a device preset{did_you_mean(preset, names)}"
+                         f"; allowed: {', '.join(names)}")
 
 
 def ankle_velocity(theta_rad: np.ndarray, dt_s: float) -> np.ndarray:

@@ -47,6 +47,7 @@ is allowed. ``afo-mj run`` maps it to exit code 2 and writes nothing.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import re
 import tomllib
@@ -58,7 +59,7 @@ from afo_mj.hydraulics.params import ParameterError
 from afo_mj.human.walker import WalkerParams
 
 __all__ = ["ScenarioError", "WalkScenario", "load_scenario", "parse_scenario",
-           "REFERENCES", "IMPAIRMENT_KEYS"]
+           "REFERENCES", "IMPAIRMENT_KEYS", "did_you_mean", "strides_overrides"]
 
 REFERENCES: dict[str, tuple[str, ...]] = {
     "winter": ("normal",),
@@ -85,6 +86,19 @@ class ScenarioError(ValueError):
     """An invalid scenario: names the file, the dotted key, the value and what is allowed."""
 
 
+def did_you_mean(key: str, allowed, prefix: str = "") -> str:
+    """`` (did you mean 'prefix.x'?)`` for the closest of ``allowed`` to ``key``, or ''."""
+    near = difflib.get_close_matches(str(key), [str(a) for a in allowed], n=1, cutoff=0.6)
+    return f" (did you mean {prefix + near[0]!r}?)" if near else ""
+
+
+def strides_overrides(n: int) -> list[str]:
+    """The ``--set`` overrides of ``--strides N`` (``run`` and ``compare``): N strides
+    simulated, strides ``[max(2, N - 4), N]`` analysed (stride 1 for N = 1)."""
+    first = max(2, n - 4) if n >= 2 else 1
+    return [f"gait.strides={n}", f"gait.analyse_strides=[{first}, {n}]"]
+
+
 @dataclasses.dataclass(frozen=True)
 class WalkScenario:
     """A validated walking scenario (see the module docstring for the TOML schema).
@@ -109,6 +123,9 @@ class WalkScenario:
     reference_id_path: Path | None = None
     source_path: Path | None = None
     text: str = ""
+    #: what the parser adjusted on the user's behalf (e.g. the analysed strides following a
+    #: ``--set gait.strides``), one sentence each, for the command line to print
+    notes: tuple[str, ...] = ()
     #: raw ``[device]`` and ``[assistance]`` tables (validated by
     #: :mod:`afo_mj.scenarios.device_scenario`); empty for a walk without an orthosis
     device: Mapping[str, Any] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
@@ -197,7 +214,8 @@ class _Ctx:
         for k, v in table.items():
             if k not in allowed:
                 dotted = f"{section}.{k}" if section else k
-                raise ScenarioError(f"{self.origin}: unknown key {dotted!r} (= {v!r}); allowed "
+                raise ScenarioError(f"{self.origin}: unknown key {dotted!r} (= {v!r})"
+                                    f"{did_you_mean(k, allowed, f'{section}.' if section else '')}; allowed "
                                     f"keys{' in [' + section + ']' if section else ''}: "
                                     f"{', '.join(allowed)}")
 
@@ -349,6 +367,26 @@ def apply_overrides(doc: dict, overrides, origin: str = "<scenario>") -> dict:
     return doc
 
 
+def _override_keys(overrides) -> list[str]:
+    """The dotted keys of ``key=value`` override strings."""
+    return [str(item).partition("=")[0].strip() for item in overrides or ()]
+
+
+def _follow_window(window, old_strides, strides: int) -> list[int] | None:
+    """The file's analysed window carried to ``strides`` set on the command line: its start
+    kept, its end clipped to ``strides`` (or moved with it when it ended at the file's last
+    stride); a start past the new end becomes ``max(2, strides - 4)`` (1 for one stride).
+    None when ``window`` is not a well-formed ``[first, last]`` (the validation reports it)."""
+    if (not isinstance(window, list) or len(window) != 2
+            or any(isinstance(x, bool) or not isinstance(x, int) for x in window)):
+        return None
+    first, last = window
+    last = strides if last == old_strides else min(last, strides)
+    if not 1 <= first <= last:
+        first = max(2, last - 4) if last >= 2 else 1
+    return [first, last]
+
+
 def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None = None,
                    default_name: str = "scenario", source_path: Path | None = None,
                    overrides=()) -> WalkScenario:
@@ -360,6 +398,16 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{origin}: not valid TOML: {exc}") from None
+    ov_keys = _override_keys(overrides)
+    if not any(isinstance(doc.get(t), dict) and doc.get(t) for t in ("device", "circuit")):
+        for key in ov_keys:
+            if key == "device" or key.startswith("device."):
+                raise ScenarioError(
+                    f"{origin}: --set {key}: this scenario has no device (no [device] or "
+                    f"[circuit] table), so device keys do not apply; allowed: device.* keys on "
+                    f"a scenario with a [device] table, e.g. scenarios/gait_assist_hafo.toml")
+    file_gait = doc.get("gait") if isinstance(doc.get("gait"), dict) else {}
+    file_strides, file_window = file_gait.get("strides", 10), file_gait.get("analyse_strides")
     apply_overrides(doc, overrides, origin)
     ctx.unknown("", doc, _TOP_KEYS)
     name = ctx.string("name", doc.get("name", default_name), "a name of letters, digits, _ . -")
@@ -429,6 +477,14 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                              *CADENCE_RANGE, "steps/min")
     strides = ctx.integer("gait.strides", gait.get("strides", 10), *STRIDES_RANGE)
     raw_an = gait.get("analyse_strides", [min(4, strides), strides])
+    notes = []
+    if "gait.strides" in ov_keys and "gait.analyse_strides" not in ov_keys:
+        followed = _follow_window(file_window, file_strides, strides)
+        if followed is not None and followed != raw_an:
+            notes.append(f"gait.analyse_strides = {raw_an} -> {followed} to follow "
+                         f"--set gait.strides={strides} (set gait.analyse_strides to choose "
+                         f"another window)")
+            raw_an = followed
     allowed_an = f"[first, last] integers with 1 <= first <= last <= gait.strides ({strides})"
     if (not isinstance(raw_an, list) or len(raw_an) != 2
             or any(isinstance(x, bool) or not isinstance(x, int) for x in raw_an)):
@@ -465,7 +521,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),
                         controller=MappingProxyType(controller), source_path=source_path,
-                        text=text, device=MappingProxyType(ctx.table(doc, "device")),
+                        text=text, notes=tuple(notes), device=MappingProxyType(ctx.table(doc, "device")),
                         assistance=MappingProxyType(ctx.table(doc, "assistance")),
                         circuit=MappingProxyType(ctx.table(doc, "circuit")))
 
@@ -479,5 +535,12 @@ def load_scenario(path, overrides=()) -> WalkScenario:
         raise ScenarioError(f"{p}: cannot read the scenario file ({exc.strerror or exc})") from None
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{p}: not UTF-8 text ({exc})") from None
+    try:
+        empty = not tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        empty = False                 # parse_scenario reports the syntax error
+    if empty:
+        raise ScenarioError(f"{p}: empty scenario (no keys); allowed: a scenario with at least "
+                            f"a name or a [walker]/[gait] table, e.g. scenarios/walk_healthy.toml")
     return parse_scenario(text, origin=str(p), base_dir=p.parent, default_name=p.stem,
                           source_path=p, overrides=overrides)
