@@ -175,21 +175,40 @@ def _run(args: argparse.Namespace) -> int:
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
 
+    from afo_mj.outputs.result_dir import ResultDirError, check_result_dir
     from afo_mj.scenarios.bench_scenario import is_bench_document
     from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import strides_overrides
     try:
         text = Path(args.scenario).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
         text = ""          # load_scenario reports it
-    if is_bench_document(text):
-        return _run_bench(args)
     try:
-        scenario = load_scenario(args.scenario, overrides=args.set or ())
+        check_result_dir(args.out)
+    except ResultDirError as exc:
+        print(f"afo-mj run: {exc}; nothing written", file=sys.stderr)
+        return 2
+    if args.strides is not None and args.strides < 1:
+        print(f"afo-mj run: --strides = {args.strides} is not allowed; allowed: an integer "
+              f">= 1", file=sys.stderr)
+        return 2
+    if is_bench_document(text):
+        if args.strides is not None:
+            print(f"afo-mj run: --strides: {args.scenario} is a bench scenario (no strides); "
+                  f"allowed: --strides on walking scenarios only", file=sys.stderr)
+            return 2
+        return _run_bench(args)
+    overrides = ((strides_overrides(args.strides) if args.strides is not None else [])
+                 + list(args.set or ()))
+    try:
+        scenario = load_scenario(args.scenario, overrides=overrides)
         reference = scenario.load_reference()
         dev_cfg = device_config(scenario)
     except ScenarioError as exc:
         print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
         return 2
+    for note in scenario.notes:
+        print(f"afo-mj run: note: {note}", file=sys.stderr)
     if dev_cfg is not None:
         return _run_device(args, scenario, reference, dev_cfg)
     from afo_mj.gait.walk import WalkNumericsError
@@ -487,14 +506,21 @@ def _compare(args) -> int:
                                                    run_comparison)
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.comparison_report import format_tables, write_comparison
-    from afo_mj.outputs.result_dir import ResultDirError
+    from afo_mj.outputs.result_dir import ResultDirError, check_result_dir
     from afo_mj.scenarios.walk_scenario import ScenarioError
+    try:
+        check_result_dir(args.out)
+    except ResultDirError as exc:
+        print(f"afo-mj compare: {exc}; nothing written", file=sys.stderr)
+        return 2
     try:
         items = load_compare_items(args.scenarios, overrides=args.set or (),
                                    strides=args.strides)
     except (ScenarioError, CompareError) as exc:
         print(f"afo-mj compare: invalid scenario: {exc}; nothing written", file=sys.stderr)
         return 2
+    for note in dict.fromkeys(n for it in items for n in it.scenario.notes):
+        print(f"afo-mj compare: note: {note}", file=sys.stderr)
     kept: list | None = [] if args.rrd else None
     try:
         comp = run_comparison(items, progress=lambda m: print(f"  running {m}", flush=True),
@@ -589,9 +615,14 @@ def _calibrate(args) -> int:
     from afo_mj.analysis.measured_data import MeasuredDataError, load_measured
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.outputs.calibration_report import write_calibration_report
-    from afo_mj.outputs.result_dir import ResultDirError, write_atomically
+    from afo_mj.outputs.result_dir import ResultDirError, check_result_dir, write_atomically
     from afo_mj.scenarios.bench_replay import ReplayError
 
+    try:
+        check_result_dir(args.out)
+    except ResultDirError as exc:
+        print(f"afo-mj calibrate: {exc}; nothing written", file=sys.stderr)
+        return 2
     try:
         preset, overrides, options = load_calibration_setup(args.scenario)
         with warnings.catch_warnings(record=True) as caught:
@@ -660,6 +691,9 @@ def _make_bench_record(args) -> int:
         return out
 
     try:
+        if args.preset is not None:
+            from afo_mj.scenarios.bench_replay import kind_of_preset
+            kind_of_preset(args.preset, key="--preset")
         effects = {}
         for spec in args.effect or []:
             name, _, rest = spec.partition(":")
@@ -787,8 +821,21 @@ def _design(args) -> int:
     return 0 if out["feasible"] else 1
 
 
+def _version() -> str:
+    """The installed package's version (the source tree's when not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("afo_mj")
+    except PackageNotFoundError:
+        from afo_mj import __version__
+        return __version__
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="afo-mj", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="afo-mj", description="Simulate human walking in MuJoCo with a hydraulic ankle "
+        "orthosis: walks, device benches, comparisons, calibration, studies and design.")
+    parser.add_argument("--version", action="version", version=f"afo-mj {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("hydraulics-demo",
                           help="run the hydraulic cylinder demo headless and print results")
@@ -798,10 +845,14 @@ def main(argv: list[str] | None = None) -> int:
     demo.set_defaults(func=_demo)
     run = sub.add_parser("run", help="simulate a walking scenario (TOML) and write its results")
     run.add_argument("scenario", help="scenario file, e.g. scenarios/walk_healthy.toml")
-    run.add_argument("--out", required=True, help="output directory (created or updated)")
+    run.add_argument("--out", required=True, help="output directory: a new path, an empty "
+                     "directory or a previous result directory (replaced by this run's files)")
     run.add_argument("--set", action="append", metavar="KEY=VALUE",
                      help="override a scenario value by its dotted key, e.g. gait.strides=4 "
                           "or device.params.hose.length_m=2.2 (repeatable)")
+    run.add_argument("--strides", type=int, default=None, metavar="N",
+                     help="simulate N strides, analyse [max(2, N-4), N] (as for compare); "
+                          "an explicit --set gait.strides/gait.analyse_strides wins")
     run.add_argument("--rrd", metavar="FILE.rrd", default=None,
                      help="also save a rerun recording of the run (3D body, orthosis, every "
                           "signal on one timeline) to FILE.rrd; open it with `afo-mj view`")
@@ -922,7 +973,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--duration-s = {args.duration_s}; allowed: > 0")
     if getattr(args, "substeps", 1) < 1:
         parser.error(f"--substeps = {args.substeps}; allowed: integer >= 1")
-    return args.func(args)
+    with np.printoptions(legacy="1.25"):    # messages show numbers as 1.5, not np.float64(1.5)
+        return args.func(args)
 
 
 if __name__ == "__main__":

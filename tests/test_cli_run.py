@@ -133,23 +133,25 @@ def analysis(record):
     return analyse_gait(record, ref, (4, 10)), ref
 
 
-def test_existing_dir_keeps_unrelated_files(tmp_path, analysis, record):
+def test_existing_dir_with_unrelated_files_is_refused(tmp_path, analysis, record):
     a, ref = analysis
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("keep me", encoding="utf-8")
     (out / "summary.json").write_text("old", encoding="utf-8")
-    write_run_outputs(out, a.summary, a.cycles, ref, record, None)
+    with pytest.raises(ReportError, match=r"holds files afo-mj did not write \(notes.txt, "
+                                          r"summary.json\)"):
+        write_run_outputs(out, a.summary, a.cycles, ref, record, None)
     assert (out / "notes.txt").read_text(encoding="utf-8") == "keep me"
-    assert _strict_json(out / "summary.json")["n_cycles_used"] == 14
-    assert not (out / "scenario.toml").exists()
+    assert (out / "summary.json").read_text(encoding="utf-8") == "old"
 
 
 def test_failure_leaves_previous_results(tmp_path, analysis, record, monkeypatch):
     a, ref = analysis
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "summary.json").write_text("previous", encoding="utf-8")
+    monkeypatch.setattr(gait_report, "_plot", lambda path, *a, **k: path.write_bytes(b"png"))
+    write_run_outputs(out, {**a.summary, "marker": "previous"}, a.cycles, ref, record, None)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
 
     def broken_plot(*args, **kwargs):
         raise RuntimeError("plot failed")
@@ -157,7 +159,7 @@ def test_failure_leaves_previous_results(tmp_path, analysis, record, monkeypatch
     monkeypatch.setattr(gait_report, "_plot", broken_plot)
     with pytest.raises(RuntimeError, match="plot failed"):
         write_run_outputs(out, a.summary, a.cycles, ref, record, "x = 1\n")
-    assert (out / "summary.json").read_text(encoding="utf-8") == "previous"
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]      # temp dir removed
     with pytest.raises(RuntimeError):
         write_run_outputs(tmp_path / "new", a.summary, a.cycles, ref, record, None)
@@ -174,3 +176,130 @@ def test_nan_key_metric_raises_and_other_nan_becomes_null(tmp_path, analysis, re
     write_run_outputs(tmp_path / "ok", odd, a.cycles, ref, record, None)
     assert _strict_json(tmp_path / "ok" / "summary.json")["extra_metric"] == {
         "mean": None, "sd": None, "n": 0}
+
+
+# ------------------------------------------------------------------------------------------
+# what a new user hit (issue 19)
+# ------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def no_png(monkeypatch):
+    """Figures replaced by a stub file: these tests are about the command, not the plots."""
+    monkeypatch.setattr(gait_report, "_plot", lambda path, *a, **k: path.write_bytes(b"png"))
+
+
+def test_set_strides_moves_the_analysed_window(tmp_path, fake_sim, no_png, capsys):
+    """`--set gait.strides=6` on a scenario analysing [4, 10] used to exit 2."""
+    out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=6"]) == 0
+    assert (fake_sim[0].strides, fake_sim[0].analyse_strides) == (6, (4, 6))
+    assert "gait.analyse_strides = [4, 10] -> [4, 6]" in capsys.readouterr().err
+    assert _strict_json(out / "summary.json")["scenario"]["analyse_strides"] == [4, 6]
+    bad = tmp_path / "bad"
+    assert cli.main(["run", str(HEALTHY), "--out", str(bad), "--set", "gait.strides=6",
+                     "--set", "gait.analyse_strides=[4, 10]"]) == 2
+    assert "gait.analyse_strides = [4, 10] is out of range" in capsys.readouterr().err
+    assert not bad.exists()
+
+
+def test_run_strides_option(tmp_path, fake_sim, no_png, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out), "--strides", "5"]) == 0
+    assert (fake_sim[0].strides, fake_sim[0].analyse_strides) == (5, (2, 5))
+    assert cli.main(["run", str(HEALTHY), "--out", str(tmp_path / "z"), "--strides", "0"]) == 2
+    assert "--strides = 0" in capsys.readouterr().err and not (tmp_path / "z").exists()
+
+
+def test_device_key_on_a_walk_without_device_exit_2(tmp_path, fake_sim, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set",
+                     "device.params.hose.length_m=2.2"]) == 2
+    err = capsys.readouterr().err
+    assert "device.params.hose.length_m" in err and "has no device" in err
+    assert not out.exists() and not fake_sim
+
+
+def test_reused_out_holds_only_this_runs_files(tmp_path, fake_sim, no_png, monkeypatch):
+    out = tmp_path / "out"
+    assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
+                     "--set", "gait.analyse_strides=[2, 3]"]) == 0
+    assert (out / "gait_curves.png").exists()
+    monkeypatch.setattr(cli, "_simulate_walk",
+                        lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9))
+    assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
+                     "--set", "gait.analyse_strides=[2, 3]"]) == 0
+    names = {p.name for p in out.iterdir() if not p.name.startswith(".")}
+    assert names == {"summary.json", "scenario.toml", "run_info.json"}     # no stale curves
+    assert _strict_json(out / "summary.json")["fell"] is True
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp dirs left
+
+
+def test_out_with_foreign_files_or_a_file_is_refused_before_the_run(tmp_path, fake_sim,
+                                                                   capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine", encoding="utf-8")
+    assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "notes.txt" in err and "did not write" in err
+    assert [p.name for p in out.iterdir()] == ["notes.txt"] and not fake_sim
+    f = tmp_path / "afile"
+    f.write_text("x", encoding="utf-8")
+    assert cli.main(["run", str(HEALTHY), "--out", str(f)]) == 2
+    assert "is not a directory" in capsys.readouterr().err
+    assert f.read_text(encoding="utf-8") == "x" and not fake_sim
+
+
+def test_errors_show_numbers_plainly(tmp_path, fake_sim, capsys):
+    """A reference CSV whose time column repeats: the values, not np.float64(...) reprs."""
+    ph = [i / 20 for i in range(21)]
+    ph[5] = ph[4]
+    csv_path = tmp_path / "ref.csv"
+    csv_path.write_text("time_s,hip_angle_rad,knee_angle_rad,ankle_angle_rad\n" + "".join(
+        f"{t},0.1,0.2,0.0\n" for t in ph), encoding="utf-8")
+    sc = tmp_path / "mine.toml"
+    sc.write_text('[gait]\nreference_path = "ref.csv"\n', encoding="utf-8")
+    assert cli.main(["run", str(sc), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "np.float64" not in err and "(0.2 then 0.2)" in err
+
+
+def test_calibrate_unknown_preset_names_the_option(tmp_path, capsys):
+    assert cli.main(["calibrate", "--scenario", "hafoo", "--data", str(tmp_path / "d.csv"),
+                     "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--scenario = 'hafoo'" in err and "did you mean 'hafo'?" in err
+    assert "source.preset" not in err
+    assert cli.main(["make-bench-record", "--preset", "hafoo", "--out",
+                     str(tmp_path / "r.csv")]) == 2
+    assert "--preset = 'hafoo'" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_set_key_suggests_the_close_one(tmp_path, fake_sim, capsys):
+    assert cli.main(["run", str(HEALTHY), "--out", str(tmp_path / "o"), "--set",
+                     "gait.stride=3"]) == 2
+    assert "did you mean 'gait.strides'?" in capsys.readouterr().err
+
+
+def test_empty_scenario_exit_2(tmp_path, fake_sim, capsys):
+    empty = tmp_path / "empty.toml"
+    empty.write_text("", encoding="utf-8")
+    assert cli.main(["run", str(empty), "--out", str(tmp_path / "o")]) == 2
+    assert "empty scenario" in capsys.readouterr().err
+    assert not fake_sim and not (tmp_path / "o").exists()
+
+
+def test_help_opens_with_a_description_and_version(capsys):
+    import afo_mj
+    with pytest.raises(SystemExit) as ex:
+        cli.main(["--help"])
+    assert ex.value.code == 0
+    text = capsys.readouterr().out
+    description = text.split("\n\n")[1]
+    assert "Command-line interface" not in text and "``" not in text
+    assert description.startswith("Simulate human walking in MuJoCo")
+    with pytest.raises(SystemExit) as ex:
+        cli.main(["--version"])
+    assert ex.value.code == 0
+    assert capsys.readouterr().out.strip() == f"afo-mj {afo_mj.__version__}"
