@@ -680,14 +680,16 @@ def _make_bench_record(args) -> int:
 
 
 def _sweep(args) -> int:
-    """``afo-mj sweep``: exit 0 all runs done (failed runs recorded), 2 invalid study,
+    """``afo-mj sweep``: exit 0 all runs done (failed runs recorded and reported), 1 every run
+    failed, 2 invalid study (a key the scenario does not accept: checked before any run),
     130 interrupted (finished runs kept: run again to resume)."""
     from afo_mj.analysis.study import StudyError, load_study
-    from afo_mj.analysis.sweep import Sweep, SweepInterrupted
+    from afo_mj.analysis.sweep import Sweep, SweepInterrupted, check_study_keys
 
     try:
         study = load_study(args.study)
         points = study.points()
+        check_study_keys(study, points)
     except StudyError as exc:
         print(f"afo-mj sweep: invalid study: {exc}", file=sys.stderr)
         return 2
@@ -716,6 +718,13 @@ def _sweep(args) -> int:
     for r in failed[:5]:
         print(f"  failed {r['run_id']}: {r['error']}")
     print(json.dumps({"runs": len(rows), "failed": len(failed), "table": str(sw.table_path)}))
+    if rows and len(failed) == len(rows):
+        print(f"afo-mj sweep: every run failed ({len(rows)} of {len(rows)}), e.g. "
+              f"{failed[0]['error']}; see {sw.table_path}", file=sys.stderr)
+        return 1
+    if failed:
+        print(f"afo-mj sweep: {len(failed)} of {len(rows)} runs failed (recorded in "
+              f"{sw.table_path})", file=sys.stderr)
     return 0
 
 
