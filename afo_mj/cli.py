@@ -534,8 +534,13 @@ def _compare(args) -> int:
 
 
 def _view(args) -> int:
-    """``afo-mj view FILE.rrd``: the rerun viewer (installed with rerun-sdk) on the file."""
+    """``afo-mj view FILE.rrd``: the rerun viewer (installed with rerun-sdk) on the file; with
+    ``--web`` rerun's web viewer served over HTTP (works without a display). Without a display
+    and without ``--web``: exit 2 with the ways to see the file."""
+    import os
+    import shlex
     import shutil
+    import socket
     import subprocess
     p = Path(args.rrd)
     if p.suffix != ".rrd" or not p.is_file():
@@ -543,10 +548,26 @@ def _view(args) -> int:
               f"`afo-mj run SCENARIO --out DIR --rrd FILE.rrd`)", file=sys.stderr)
         return 2
     exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
-    cmd = [exe, str(p)]
+    web = getattr(args, "web", False)
+    cmd = [exe, "--serve-web", str(p)] if web else [exe, str(p)]
     if args.print_command:
         print(" ".join(cmd))
         return 0
+    headless = (sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
+                and not os.environ.get("WAYLAND_DISPLAY"))
+    if headless and not web:
+        host = socket.gethostname()
+        q = shlex.quote(str(p.resolve()))
+        print(f"afo-mj view: no display here (DISPLAY and WAYLAND_DISPLAY are unset), so the "
+              f"rerun viewer cannot open a window. Either\n"
+              f"  serve rerun's web viewer and open it in a browser:\n"
+              f"    afo-mj view {q} --web      (runs `rerun --serve-web FILE`)\n"
+              f"    then open http://localhost:9090 (from another machine, forward the web "
+              f"and data ports first: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
+              f"{host})\n"
+              f"  or copy the recording to a machine with a display and open it there:\n"
+              f"    scp {host}:{q} . && rerun {shlex.quote(p.name)}", file=sys.stderr)
+        return 2
     if not Path(exe).exists():
         print("afo-mj view: the rerun viewer executable is missing (pip install "
               "rerun-sdk)", file=sys.stderr)
@@ -819,6 +840,9 @@ def main(argv: list[str] | None = None) -> int:
     view.add_argument("rrd", metavar="FILE.rrd", help="a recording written by --rrd")
     view.add_argument("--print-command", action="store_true",
                       help="print the viewer command instead of starting it")
+    view.add_argument("--web", action="store_true",
+                      help="serve rerun's web viewer over HTTP (http://localhost:9090) instead "
+                           "of opening a window; works on a machine without a display")
     view.set_defaults(func=_view)
     render = sub.add_parser("render", help="render a video of a walking scenario offscreen "
                             "(MuJoCo renderer, MUJOCO_GL=egl), ankle torque shown")
