@@ -560,8 +560,13 @@ def _compare(args) -> int:
 
 
 def _view(args) -> int:
-    """``afo-mj view FILE.rrd``: the rerun viewer (installed with rerun-sdk) on the file."""
+    """``afo-mj view FILE.rrd``: the rerun viewer (installed with rerun-sdk) on the file; with
+    ``--web`` rerun's web viewer served over HTTP (works without a display). Without a display
+    and without ``--web``: exit 2 with the ways to see the file."""
+    import os
+    import shlex
     import shutil
+    import socket
     import subprocess
     p = Path(args.rrd)
     if p.suffix != ".rrd" or not p.is_file():
@@ -569,10 +574,26 @@ def _view(args) -> int:
               f"`afo-mj run SCENARIO --out DIR --rrd FILE.rrd`)", file=sys.stderr)
         return 2
     exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
-    cmd = [exe, str(p)]
+    web = getattr(args, "web", False)
+    cmd = [exe, "--serve-web", str(p)] if web else [exe, str(p)]
     if args.print_command:
         print(" ".join(cmd))
         return 0
+    headless = (sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
+                and not os.environ.get("WAYLAND_DISPLAY"))
+    if headless and not web:
+        host = socket.gethostname()
+        q = shlex.quote(str(p.resolve()))
+        print(f"afo-mj view: no display here (DISPLAY and WAYLAND_DISPLAY are unset), so the "
+              f"rerun viewer cannot open a window. Either\n"
+              f"  serve rerun's web viewer and open it in a browser:\n"
+              f"    afo-mj view {q} --web      (runs `rerun --serve-web FILE`)\n"
+              f"    then open http://localhost:9090 (from another machine, forward the web "
+              f"and data ports first: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
+              f"{host})\n"
+              f"  or copy the recording to a machine with a display and open it there:\n"
+              f"    scp {host}:{q} . && rerun {shlex.quote(p.name)}", file=sys.stderr)
+        return 2
     if not Path(exe).exists():
         print("afo-mj view: the rerun viewer executable is missing (pip install "
               "rerun-sdk)", file=sys.stderr)
@@ -714,14 +735,16 @@ def _make_bench_record(args) -> int:
 
 
 def _sweep(args) -> int:
-    """``afo-mj sweep``: exit 0 all runs done (failed runs recorded), 2 invalid study,
+    """``afo-mj sweep``: exit 0 all runs done (failed runs recorded and reported), 1 every run
+    failed, 2 invalid study (a key the scenario does not accept: checked before any run),
     130 interrupted (finished runs kept: run again to resume)."""
     from afo_mj.analysis.study import StudyError, load_study
-    from afo_mj.analysis.sweep import Sweep, SweepInterrupted
+    from afo_mj.analysis.sweep import Sweep, SweepInterrupted, check_study_keys
 
     try:
         study = load_study(args.study)
         points = study.points()
+        check_study_keys(study, points)
     except StudyError as exc:
         print(f"afo-mj sweep: invalid study: {exc}", file=sys.stderr)
         return 2
@@ -750,6 +773,13 @@ def _sweep(args) -> int:
     for r in failed[:5]:
         print(f"  failed {r['run_id']}: {r['error']}")
     print(json.dumps({"runs": len(rows), "failed": len(failed), "table": str(sw.table_path)}))
+    if rows and len(failed) == len(rows):
+        print(f"afo-mj sweep: every run failed ({len(rows)} of {len(rows)}), e.g. "
+              f"{failed[0]['error']}; see {sw.table_path}", file=sys.stderr)
+        return 1
+    if failed:
+        print(f"afo-mj sweep: {len(failed)} of {len(rows)} runs failed (recorded in "
+              f"{sw.table_path})", file=sys.stderr)
     return 0
 
 
@@ -861,6 +891,9 @@ def main(argv: list[str] | None = None) -> int:
     view.add_argument("rrd", metavar="FILE.rrd", help="a recording written by --rrd")
     view.add_argument("--print-command", action="store_true",
                       help="print the viewer command instead of starting it")
+    view.add_argument("--web", action="store_true",
+                      help="serve rerun's web viewer over HTTP (http://localhost:9090) instead "
+                           "of opening a window; works on a machine without a display")
     view.set_defaults(func=_view)
     render = sub.add_parser("render", help="render a video of a walking scenario offscreen "
                             "(MuJoCo renderer, MUJOCO_GL=egl), ankle torque shown")

@@ -317,7 +317,7 @@ def test_unit_mistakes_of_other_channels(tmp_path, channel, values, expect):
 
 def test_implausible_but_possible_warns_and_unit_checks_off(tmp_path):
     data = signals()
-    data["ankle_angle_rad"] = 2.0 * np.sin(data["time_s"])   # 2 rad: beyond the ankle
+    data["ankle_angle_rad"] = 1.35 * np.sin(data["time_s"])  # 1.35 rad: beyond the ankle
     path = write_raw(tmp_path, data, SIDECAR)
     with pytest.warns(UnitWarning, match="ankle_angle_rad.*outside the plausible"):
         load_measured(path)
@@ -433,3 +433,63 @@ def test_write_fmt_must_match_suffix_and_lengths(tmp_path):
     with pytest.raises(MeasuredDataError, match=r"\.csv or \.parquet"):
         write_measured(tmp_path / "a.txt", signals(), INPUTS, OUTPUTS, SOURCE)
     assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------- unit mistakes in a real (synthetic) record
+
+
+@pytest.fixture(scope="module")
+def bench_record(tmp_path_factory):
+    """A 2 s synthetic HAFO bench record (columns as arrays, and its sidecar text)."""
+    from afo_mj.analysis.synthetic_records import generate_record
+    path = tmp_path_factory.mktemp("bench") / "rec.csv"
+    d = generate_record(path, duration_s=2.0)
+    table = {"time_s": np.array(d.time_s), **{k: np.array(v) for k, v in d.channels.items()}}
+    return table, path.with_suffix(".toml").read_text()
+
+
+def _corrupt(bench_record, tmp_path, how):
+    table, side = bench_record
+    table = {k: v.copy() for k, v in table.items()}
+    how(table)
+    return write_raw(tmp_path, table, side, name="bad.csv")
+
+
+def _deg(table):
+    table["ankle_angle_rad"] = np.degrees(table["ankle_angle_rad"])
+
+
+def _absolute(table):
+    for k in ("pressure_a_pa", "pressure_b_pa"):  # a line at rest reads 1 atm absolute
+        table[k] = table[k] - table[k].min() + 101325.0
+
+
+def _ms(table):
+    table["time_s"] = table["time_s"] * 1e3
+
+
+@pytest.mark.parametrize("how, column, expect", [
+    (_deg, "ankle_angle_rad", ["looks like degrees", "expected rad", "-6.1"]),
+    (_absolute, "pressure_a_pa", ["absolute", "gauge", "101325…"]),
+    (_ms, "time_s", ["milliseconds", "expected s", "0…1999"]),
+], ids=["degrees", "absolute-pressure", "milliseconds"])
+def test_unit_mistakes_in_a_bench_record_are_refused(bench_record, tmp_path, how, column,
+                                                      expect):
+    """Issue 19 item 3: degrees, absolute pressure and ms time are errors naming the column,
+    the range seen and the unit expected (not a warning, not a confident fit)."""
+    assert load_measured(write_raw(tmp_path, *bench_record, name="ok.csv")).n_samples > 0
+    msg = load_err(_corrupt(bench_record, tmp_path, how))
+    assert f"{column}:" in msg
+    for e in expect:
+        assert e in msg, (e, msg)
+
+
+def test_calibrate_refuses_a_record_in_degrees(bench_record, tmp_path, capsys):
+    """``afo-mj calibrate`` on a record with the angle in degrees: exit 2, nothing written."""
+    from afo_mj import cli
+    path = _corrupt(bench_record, tmp_path, _deg)
+    out = tmp_path / "cal"
+    rc = cli.main(["calibrate", "--scenario", "hafo", "--data", str(path), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and not out.exists()
+    assert "ankle_angle_rad" in err and "degrees" in err

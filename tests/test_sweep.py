@@ -262,3 +262,54 @@ def test_study_and_optimize_commands(grid_sweep, tmp_path):
     with contextlib.redirect_stderr(io.StringIO()) as err:
         assert cli.main(["optimize", str(bad), "--out", str(tmp_path / "o")]) == 2
     assert "method" in err.getvalue()
+
+
+def _study_file(tmp_path, body, fixed='["gait.strides=3", "gait.analyse_strides=[2, 3]"]'):
+    p = tmp_path / "study.toml"
+    p.write_text(f'name = "typo"\nscenario = "{WALK.as_posix()}"\nset = {fixed}\n' + body)
+    return p
+
+
+@pytest.mark.parametrize("body, fixed, key, suggestion", [
+    ('[[parameter]]\nkey = "walker.body_mas_kg"\nlevels = [70.0]\n', None,
+     "walker.body_mas_kg", "walker.body_mass_kg"),
+    ('[[parameter]]\nkey = "controler.ankle_kp_nm_per_rad"\nlevels = [300.0]\n', None,
+     "controler.ankle_kp_nm_per_rad", "controller.ankle_kp_nm_per_rad"),
+    ('[[parameter]]\nkey = "walker.height_m"\nlevels = [1.7]\n', '["gait.stridez=3"]',
+     "gait.stridez", "gait.strides"),
+], ids=["parameter", "table", "fixed-set"])
+def test_misspelt_key_is_refused_before_any_run(tmp_path, body, fixed, key, suggestion):
+    """Issue 19 item 4: a misspelt key exits 2 naming it (with a difflib suggestion), before
+    any run: no sweep directory is written."""
+    path = _study_file(tmp_path, body, *(() if fixed is None else (fixed,)))
+    out = tmp_path / "out"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = cli.main(["sweep", str(path), "--out", str(out), "--workers", "1", "--quiet"])
+    msg = err.getvalue()
+    assert rc == 2, msg
+    assert key in msg and "nothing was run" in msg
+    if suggestion:
+        assert f"did you mean {suggestion!r}" in msg
+    assert not out.exists()
+    with pytest.raises(StudyError, match=key.replace(".", r"\.")):   # the API checks too
+        Sweep(load_study(path), out, workers=1, progress=False).run()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("statuses, code, note", [
+    (["failed", "failed"], 1, "every run failed (2 of 2)"),
+    (["ok", "failed"], 0, "1 of 2 runs failed"),
+])
+def test_sweep_exit_code_reflects_failed_runs(tmp_path, monkeypatch, statuses, code, note):
+    """Every run failed: exit 1; some failed: exit 0 with the failures reported on stderr."""
+    def fake_run(self, points=None):
+        return [{"run_id": f"r{i}", "status": s, "error": "" if s == "ok" else "boom"}
+                for i, s in enumerate(statuses)]
+    monkeypatch.setattr(Sweep, "run", fake_run)
+    path = _study_file(tmp_path, '[[parameter]]\nkey = "walker.height_m"\n'
+                                 'levels = [1.7, 1.8]\n')
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = cli.main(["sweep", str(path), "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == code and note in err.getvalue()

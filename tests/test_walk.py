@@ -126,7 +126,8 @@ def test_weak_walker_completes_ten_strides_on_weak_residuals(weak):
 
 def test_foot_drop_lowers_swing_dorsiflexion_and_clearance(healthy):
     """Dorsiflexors at 2 % strength, same controller: the swinging foot hangs, clears the floor
-    less and catches it more often; a stumble or fall would be reported with its time."""
+    less and catches it more often, yet the walker completes its strides (README's table
+    reports all of them): no fall in the record or the summary."""
     _, rec_h, an_h = healthy
     sc, rec = _walk("walk_foot_drop")
     an = analyse_gait(rec, sc.load_reference(), sc.analyse_strides)
@@ -135,7 +136,8 @@ def test_foot_drop_lowers_swing_dorsiflexion_and_clearance(healthy):
     assert _mean(d, "swing_mean_ankle_angle_deg") < _mean(h, "swing_mean_ankle_angle_deg") - 5.0
     assert _mean(d, "min_toe_clearance_m") < _mean(h, "min_toe_clearance_m") - 0.005
     assert d["swing_toe_contacts_in_analysed_span"] >= h["swing_toe_contacts_in_analysed_span"]
-    assert (d["fall_time_s"] is None) == (rec.events.fall_time_s is None)
+    assert rec.events.fall_time_s is None, rec.events.fall_time_s
+    assert "fall_time_s" in d and d["fall_time_s"] is None
 
 
 def test_fall_is_an_outcome_not_a_crash():

@@ -50,13 +50,15 @@ Decisions on ambiguous cases (documented in ``docs/measured_data.md``)
 * Columns that are neither inputs nor outputs are kept (``channels``) and reported with a
   :class:`MeasuredDataWarning`; replay ignores them.
 * Unit mistakes: an error where the magnitude is impossible in SI and typical of the other
-  unit (pressure peak < 1000 Pa → bar or MPa; |angle| > 2π → degrees; temperature median
+  unit (pressure peak < 1000 Pa → bar or MPa; pressure minimum at 1 atm → absolute;
+  |angle| > 1.5 rad → degrees; median time step ≥ 0.1 s → ms; temperature median
   < 150 K → °C; |piston position| > 0.5 m → mm; …); a :class:`UnitWarning` where the value is
   merely implausible (outside the channel's plausible range). ``unit_checks=False`` turns both
   off for a record that is known to be right.
 * Sampling: ``time_s`` strictly increasing; every interval within 0.5…1.5 × the median
   interval (else an error naming the row and the largest gap); at least
-  :data:`MIN_SAMPLES` samples. Jitter inside the tolerance is allowed: replay uses ``time_s``
+  :data:`MIN_SAMPLES` samples; median interval < :data:`MAX_SAMPLE_PERIOD_S` (unit check: else
+  time in ms). Jitter inside the tolerance is allowed: replay uses ``time_s``
   itself, ``sample_period_s`` is the median interval.
 * Noise standard deviations must be finite and > 0 (zero would give a channel infinite weight)
   and name a channel present in the file.
@@ -90,6 +92,15 @@ FORMAT = "afo_mj measured data v1"
 MIN_SAMPLES = 50
 #: Sampling tolerance: each interval within ``[1 − tol, 1 + tol]`` × the median interval.
 SAMPLING_TOLERANCE = 0.5
+#: Longest median sample period [s] a record may have (with unit checks): slower sampling
+#: resolves no hydraulic or gait dynamics and is typical of time logged in milliseconds.
+MAX_SAMPLE_PERIOD_S = 0.1
+#: Largest |ankle angle| [rad] an ankle reaches (≈ 86°); beyond it the angle is in degrees.
+MAX_ANKLE_ANGLE_RAD = 1.5
+#: Atmospheric pressure [Pa] and the band around it (altitude, weather) in which the minimum of
+#: a pressure channel says "absolute, not gauge": a line at rest reads ≈ 0 Pa gauge.
+ATMOSPHERE_PA = 101325.0
+ABSOLUTE_PRESSURE_BAND_PA = (0.8e5, 1.1e5)
 
 _TOP_KEYS = ("format", "source", "inputs", "outputs", "noise", "segments")
 _SOURCE_KEYS = ("scenario", "preset", "description", "licence", "origin")
@@ -224,9 +235,16 @@ def _unit_check(path, spec: ChannelSpec, x: np.ndarray) -> None:
     if kind == "pressure" and 0.0 < peak < 1000.0:
         fail(f"largest |value| is {peak:g} Pa, i.e. below 0.01 bar everywhere: looks like bar "
              f"(multiply by 1e5) or MPa (multiply by 1e6); pressures are gauge Pa")
-    if kind == "angle" and peak > 2.0 * math.pi:
-        fail(f"largest |value| is {peak:g} rad (> 2π): looks like degrees "
-             f"(multiply by π/180 to give radians)")
+    if kind == "angle" and peak > MAX_ANKLE_ANGLE_RAD:
+        fail(f"values {float(np.min(x)):g}…{float(np.max(x)):g} rad: |θ| up to {peak:g} rad "
+             f"(> {MAX_ANKLE_ANGLE_RAD:g} rad ≈ {math.degrees(MAX_ANKLE_ANGLE_RAD):.0f}°, "
+             f"beyond any ankle): looks like degrees (multiply by π/180 to give radians)")
+    lo_atm, hi_atm = ABSOLUTE_PRESSURE_BAND_PA
+    if kind == "pressure" and lo_atm <= float(np.min(x)) <= hi_atm:
+        fail(f"values {float(np.min(x)):g}…{float(np.max(x)):g} Pa: the minimum sits at "
+             f"atmospheric pressure ({lo_atm:g}…{hi_atm:g} Pa), typical of absolute pressure; "
+             f"pressures are gauge Pa (subtract {ATMOSPHERE_PA:g} Pa, or the sensor's reading "
+             f"at rest); a record known to be gauge can pass unit_checks=False")
     if kind == "joint_velocity" and peak > 50.0:
         fail(f"largest |value| is {peak:g} rad/s (> 50 rad/s, beyond any ankle): looks like "
              f"deg/s (multiply by π/180)")
@@ -268,7 +286,7 @@ def _row(i: int, csv: bool) -> str:
     return f"row {i} (line {i + 2} of the CSV)" if csv else f"row {i}"
 
 
-def _check_time(path, t: np.ndarray, csv: bool) -> float:
+def _check_time(path, t: np.ndarray, csv: bool, unit_checks: bool = True) -> float:
     """Validate ``time_s``; return the median sample period [s]."""
     n = len(t)
     if n < MIN_SAMPLES:
@@ -291,9 +309,13 @@ def _check_time(path, t: np.ndarray, csv: bool) -> float:
             f"first before {_row(first, csv)} (t = {t[first]:g} s, interval "
             f"{dt[first - 1]:g} s); largest gap {dt[k]:g} s before {_row(k + 1, csv)} "
             f"(t = {t[k + 1]:g} s). Resample to a uniform rate or split the record")
-    if med >= 0.5:
-        warnings.warn(f"{path}: time_s: median sample period {med:g} s (≤ 2 Hz): is time in "
-                      f"milliseconds (multiply by 1e-3)?", UnitWarning, stacklevel=3)
+    if unit_checks and med >= MAX_SAMPLE_PERIOD_S:
+        raise MeasuredDataError(
+            path, "time_s", f"median sample period {med:g} (values {t[0]:g}…{t[-1]:g}, "
+            f"{n} samples, i.e. {1.0 / med:g} Hz and {t[-1] - t[0]:g} s if in seconds): "
+            f"looks like milliseconds (multiply by 1e-3); expected s, sampled faster than "
+            f"{1.0 / MAX_SAMPLE_PERIOD_S:g} Hz (period < {MAX_SAMPLE_PERIOD_S:g} s), as a "
+            f"hydraulic or gait signal needs")
     return med
 
 
@@ -553,7 +575,7 @@ def _build(path, side, table: dict[str, np.ndarray], meta: Mapping, csv: bool,
     for name, x in table.items():
         _check_values(path, name, x, csv)
     t = table["time_s"]
-    dt = _check_time(path, t, csv)
+    dt = _check_time(path, t, csv, unit_checks)
     channels = {k: v for k, v in table.items() if k != "time_s"}
     inputs, outputs = meta.get("inputs", []), meta.get("outputs", [])
     _check_roles(side, inputs, outputs, list(channels))

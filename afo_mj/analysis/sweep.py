@@ -30,11 +30,13 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import difflib
 import io
 import json
 import math
 import multiprocessing
 import os
+import re
 import shutil
 import signal
 import sys
@@ -44,10 +46,10 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
-from afo_mj.analysis.study import Study
+from afo_mj.analysis.study import Study, StudyError
 
-__all__ = ["run_point", "flatten_summary", "Sweep", "SweepInterrupted", "read_rows",
-           "write_table", "PARAM_PREFIX"]
+__all__ = ["run_point", "flatten_summary", "check_study_keys", "Sweep", "SweepInterrupted",
+           "read_rows", "write_table", "PARAM_PREFIX"]
 
 PARAM_PREFIX = "param:"
 _SKIP_TOP = ("scenario", "definitions", "format")
@@ -131,6 +133,68 @@ def run_point(scenario_path: str, overrides: Sequence[str], run_id: str,
         shutil.move(str(out_dir), str(dest))
     shutil.rmtree(tmp, ignore_errors=True)
     return row
+
+
+def _load_with(scenario_path: Path, overrides: Sequence[str]):
+    """Parse the base scenario with ``overrides`` as ``afo-mj run --set`` would (walk or bench
+    scenario, and the device it names), without running anything."""
+    from afo_mj.scenarios.bench_scenario import is_bench_document, load_bench_scenario
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+
+    if is_bench_document(scenario_path.read_text(encoding="utf-8")):
+        return load_bench_scenario(scenario_path, overrides=overrides)
+    scenario = load_scenario(scenario_path, overrides=overrides)
+    device_config(scenario)
+    return scenario
+
+
+def _did_you_mean(key: str, message: str) -> str:
+    """A difflib suggestion for the misspelt part of the dotted ``key`` among the names the
+    scenario's error lists as allowed/known."""
+    if "did you mean" in message:
+        return ""
+    m = re.search(r"(?:allowed|known)[^:]*:(.*)$", message, flags=re.S)
+    names = sorted(set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", m.group(1)))) if m else []
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        if part in names:
+            continue
+        near = difflib.get_close_matches(part, names, n=1, cutoff=0.6)
+        if near:
+            return f" (did you mean {'.'.join(parts[:i] + near[:1] + parts[i + 1:])!r}?)"
+    return ""
+
+
+def check_study_keys(study: Study, points: Sequence[dict] | None = None) -> None:
+    """Check, before any run, that the study's fixed ``set`` overrides and every parameter key
+    (with its value at the first point) are accepted by the base scenario, exactly as
+    ``afo-mj run --set`` parses them. Raises :class:`StudyError` naming the key, the
+    scenario's reason and a difflib "did you mean"; a misspelt key would otherwise fail every
+    run of the sweep."""
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+
+    origin = str(study.source_path) if study.source_path else study.name
+    fixed = list(study.fixed)
+    try:
+        _load_with(study.scenario_path, fixed)
+    except (ScenarioError, ValueError, OSError) as exc:
+        bad = next((f for f in fixed if f.partition("=")[0].strip() in str(exc)), None)
+        key = bad.partition("=")[0].strip() if bad else ""
+        raise StudyError(f"{origin}: set = {bad or fixed!r} is not accepted by the scenario "
+                         f"{study.scenario_path}: {exc}{_did_you_mean(key, str(exc))}; "
+                         f"nothing was run") from None
+    points = list(study.points() if points is None else points)
+    first = points[0] if points else {}
+    for p in study.parameters:
+        value = first.get(p.key, p.levels[0] if p.levels else p.lo)
+        override = study.overrides({p.key: value})[len(fixed):]
+        try:
+            _load_with(study.scenario_path, fixed + override)
+        except (ScenarioError, ValueError, OSError) as exc:
+            raise StudyError(f"{origin}: parameter key = {p.key!r} (first value {value!r}) is "
+                             f"not accepted by the scenario {study.scenario_path}: {exc}"
+                             f"{_did_you_mean(p.key, str(exc))}; nothing was run") from None
 
 
 def _write_json_atomic(path: Path, obj) -> None:
@@ -257,6 +321,7 @@ class Sweep:
             raise ValueError(f"format = {self.fmt!r}; allowed: parquet, csv")
         self.keep_runs = keep_runs
         self.progress = progress
+        self._keys_checked = False
 
     @property
     def table_path(self) -> Path:
@@ -278,9 +343,14 @@ class Sweep:
 
     def run(self, points: Sequence[dict] | None = None) -> list[dict]:
         """Run every point that has no row yet; returns all rows of these points (in point
-        order). Raises :class:`SweepInterrupted` on SIGINT/SIGTERM after saving the table."""
-        self._prepare()
+        order). Raises :class:`SweepInterrupted` on SIGINT/SIGTERM after saving the table,
+        and :class:`StudyError` before any run (nothing written) when a key is not accepted by
+        the base scenario (:func:`check_study_keys`, on the first call)."""
         points = list(self.study.points() if points is None else points)
+        if not self._keys_checked:          # once per sweep (the optimiser calls run often)
+            check_study_keys(self.study, points)
+            self._keys_checked = True
+        self._prepare()
         ids = [self.study.run_id(p) for p in points]
         # rows of runs lost to the infrastructure (a worker that died, a lost Dask task) are
         # not results: they are run again
