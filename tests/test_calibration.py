@@ -114,6 +114,20 @@ def test_undeclared_effect_is_found_first(results, kind, effect, values):
         assert abs(got - truth) <= max(4 * sd, 0.3 * abs(truth)), (key, got, sd, truth)
 
 
+def test_collinear_hose_wall_is_still_found_with_its_value(results):
+    """The hose wall is collinear with the fitted bulk modulus on this protocol (the xfail
+    above): it cannot come first, but it must not be lost: it is selected in a later round with
+    the truth's compliance (within 30 %), and the held-out error still falls by ≥ 70 %."""
+    rep = results["hafo-hose_wall_compliance"]
+    assert rep["verdict"] == "effect_found", rep["unexplained_where"]
+    sel = {s["effect"]: s for s in rep["effects_selected"]}
+    assert "hose_wall_compliance" in sel, list(sel)
+    got = sel["hose_wall_compliance"]["parameters"]["hose_wall_compliance.wall_compliance_1_pa"]
+    assert abs(got - 4e-9) <= 0.3 * 4e-9, got
+    drop = 1.0 - rep["error_after"]["overall"] / rep["error_before"]["overall"]
+    assert drop >= 0.70, drop
+
+
 def test_at_least_eight_effects_on_both_circuits(results):
     found = {(k, e) for k, e, _ in SINGLE
              if [s["effect"] for s in results[f"{k}-{e}"]["effects_selected"]][:1] == [e]}
