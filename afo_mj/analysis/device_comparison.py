@@ -274,8 +274,8 @@ def mechanical_role(net_j: float, positive_j: float) -> tuple[str, str]:
         return "brake", (f"brake: absorbs net work from the ankle ({work}); its low energy "
                          f"draw is not efficiency: {what}")
     if net >= NET_WORK_MIN_J_PER_STRIDE:
-        return "near_zero", (f"absorbs back more than {1 - NET_WORK_MIN_FRACTION:.0%} of what it "
-                             f"puts out ({work}): {what}")
+        return "near_zero", (f"absorbs back more than {1 - NET_WORK_MIN_FRACTION:.0%} of "
+                             f"what it puts out ({work}): {what}")
     return "near_zero", (f"net work below {NET_WORK_MIN_J_PER_STRIDE:g} J/stride ({work}): "
                          f"no measurable assistance: {what}")
 
