@@ -848,6 +848,8 @@ def _design(args) -> int:
         print(f"afo-mj design: {exc}", file=sys.stderr)
         return 2
     print(out["text"])
+    for w in out.get("warnings") or []:
+        print(f"afo-mj design: WARNING: {w}", file=sys.stderr)
     return 0 if out["feasible"] else 1
 
 

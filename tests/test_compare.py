@@ -64,9 +64,9 @@ def test_files_rows_and_columns(compared):
     for name in ("comparison.csv", "comparison.json", "comparison.png", "comparison.md"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     assert not [p for p in out.parent.iterdir() if ".tmp-" in p.name]
-    assert [r["label"] for r in rows][0] == "gait_assist_hafo"
-    assert sorted(r["label"] for r in rows[1:]) == ["gait_assist_hafo_hoses:long_hose",
-                                                    "gait_assist_hafo_hoses:short_hose"]
+    assert sorted(r["label"] for r in rows) == ["gait_assist_hafo",
+                                                "gait_assist_hafo_hoses:long_hose",
+                                                "gait_assist_hafo_hoses:short_hose"]
     cols = set(rows[0])
     for c in ("scenario", "variant", "preset", "torque_tracking_rmse_nm",
               "device_positive_work_j_per_stride", "electrical_j_per_stride",
@@ -75,7 +75,8 @@ def test_files_rows_and_columns(compared):
               "loss_line_j_per_stride", "loss_motor_copper_j_per_stride", "peak_pressure_mpa",
               "fluid_temperature_rise_k", "mass_total_kg", "mass_at_ankle_kg",
               "battery_runtime_h", "human_ankle_positive_work_j_per_stride", "speed_m_s",
-              "energy_balance_error_rel", "efficiency_rank_in_scenario"):
+              "energy_balance_error_rel", "efficiency_rank", "efficiency_rank_in_scenario",
+              "mechanical_role", "not_comparable_reason"):
         assert c in cols, c
     for r in rows:
         assert r["preset"] == "hafo_gait" and r["fell"] == "false"
@@ -129,16 +130,19 @@ def test_longer_hose_loses_more_in_the_line(compared):
             < _f(short["efficiency_hydraulic_to_mechanical"]))
 
 
-def test_rows_ordered_by_efficiency_within_scenario(compared):
-    _, rows, _, hoses = compared
-    groups: dict[str, list] = {}
-    for r in rows:
-        groups.setdefault(r["scenario_file"], []).append(r)
-    assert list(groups) == [str(HAFO), str(hoses)]          # scenarios keep the given order
-    for grp in groups.values():
-        eff = [_f(r["efficiency_total"]) for r in grp]
-        assert eff == sorted(eff, reverse=True)
-        assert [int(r["efficiency_rank_in_scenario"]) for r in grp] == list(range(1, len(grp) + 1))
+def test_rows_ranked_together_over_all_scenarios(compared):
+    _, rows, stdout, hoses = compared
+    eff = [_f(r["efficiency_total"]) for r in rows]
+    assert all(math.isfinite(e) for e in eff)          # all three are actuators
+    assert eff == sorted(eff, reverse=True)            # one ranking, best first
+    assert [int(r["efficiency_rank"]) for r in rows] == [1, 2, 3]
+    for file in (str(HAFO), str(hoses)):               # the per-scenario rank is labelled so
+        grp = [r for r in rows if r["scenario_file"] == file]
+        assert [int(r["efficiency_rank_in_scenario"]) for r in grp] == list(
+            range(1, len(grp) + 1))
+    assert "rank (all rows)" in stdout and "rank in scenario" in stdout
+    assert all(r["mechanical_role"] == "actuator" and r["not_comparable_reason"] == ""
+               for r in rows)
 
 
 @pytest.mark.parametrize("scenario, needle", [
@@ -180,16 +184,24 @@ def test_failing_run_writes_nothing(tmp_path, monkeypatch):
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
-def _block(losses: dict, elec=10.0, mech=4.0):
-    """A synthetic condition block with the given named losses (J per stride)."""
-    return {"device": {"torque_tracking_rmse_nm": 1.0, "mass_total_kg": 2.0},
-            "energy": {"run_duration_s": 10.0, "electrical_regenerated_j": 0.0,
-                       "mechanical_out_j": 10 * mech, "stored_change_j": {"x": 0.0},
+def _block(losses: dict, elec=10.0, mech=4.0, mech_net=None, regen=0.0, runtime_h=None):
+    """A synthetic condition block with the given named losses (J per stride); the run is 10
+    strides of 1 s, so whole-run figures are 10 × the per-stride ones."""
+    mech_net = mech if mech_net is None else mech_net
+    return {"device": {"torque_tracking_rmse_nm": 1.0, "mass_total_kg": 2.0,
+                       "battery_runtime_h": runtime_h},
+            "energy": {"run_duration_s": 10.0, "electrical_regenerated_j": 10 * regen,
+                       "mechanical_out_j": 10 * mech_net, "stored_change_j": {"x": 0.0},
                        "balance_error_rel": 0.0},
             "energy_per_stride": {"stride_time_s": 1.0, "electrical_in_j": elec,
                                   "hydraulic_j": 6.0, "mechanical_positive_out_j": mech,
                                   "losses_j": losses},
             "human": {"ankle_positive_work_j_per_stride": 5.0}, "ankle": {}, "gait": None}
+
+
+def _item(scenario: str, variant: str = "", preset: str = "hafo_gait"):
+    return dc.CompareItem(0, f"{scenario}.toml", types.SimpleNamespace(name=scenario), None,
+                          types.SimpleNamespace(preset=preset, sides=("right",)), variant)
 
 
 def test_losses_are_the_union_of_whatever_the_devices_name():
@@ -211,3 +223,58 @@ def test_losses_are_the_union_of_whatever_the_devices_name():
     assert "loss_motor_copper_j_per_stride" not in rows[0]       # missing, not zero
     assert rows[0]["efficiency_total"] == pytest.approx(0.5)
     assert rows[0]["efficiency_hydraulic_to_mechanical"] == pytest.approx(5 / 6)  # net/net
+
+
+def test_one_ranking_over_all_rows_not_one_per_scenario():
+    """Issue 19 item 11: rows of different scenarios are ranked together (one rank 1)."""
+    rows = [dc.comparison_row(_item("s1", "a"), _block({"x": 6.0}, elec=10.0, mech=4.0)),
+            dc.comparison_row(_item("s1", "b"), _block({"x": 7.0}, elec=10.0, mech=3.0)),
+            dc.comparison_row(_item("s2"), _block({"x": 5.0}, elec=10.0, mech=5.0))]
+    rows = dc.order_rows(rows)
+    assert [r["label"] for r in rows] == ["s2", "s1:a", "s1:b"]
+    assert [r["efficiency_rank"] for r in rows] == [1, 2, 3]
+    assert [r["efficiency_rank_in_scenario"] for r in rows] == [1, 1, 2]
+    assert [r["efficiency_rank"] for r in rows].count(1) == 1
+
+
+def test_a_brake_gets_no_efficiency_no_battery_runtime_and_a_stated_reason():
+    """Issue 19 item 11: the prototype HAFO, back-driven past its no-load speed, measured
+    (compare --strides 3): 3.77 J/stride drawn, 1.79 J/stride positive mechanical output,
+    -63.5 J/stride net (37.5 J/stride regenerated), 21.7 h battery. On positive output it read
+    47.5 % efficient; it is a brake: no efficiency, no battery runtime, no rank, a reason."""
+    from afo_mj.outputs import comparison_report as cr
+
+    brake = dc.comparison_row(_item("proto", preset="hafo"),
+                              _block({"relief": 4.0, "line": 6.0, "motor_copper": 6.3},
+                                     elec=3.77, mech=1.79, mech_net=-63.5, regen=37.5,
+                                     runtime_h=21.7))
+    assist = dc.comparison_row(_item("gait"), _block({"line": 2.0}, elec=21.2, mech=12.3,
+                                                     mech_net=9.9, runtime_h=3.8))
+    rows = dc.order_rows([brake, assist])
+    assert [r["label"] for r in rows] == ["gait", "proto"]
+    b, a = rows[1], rows[0]
+    assert b["mechanical_role"] == "brake"
+    assert math.isnan(b["efficiency_total"]) and math.isnan(b["battery_runtime_h"])
+    assert b["efficiency_rank"] is None and b["efficiency_rank_in_scenario"] is None
+    assert "brake" in b["not_comparable_reason"] and "-63.50 J/stride" in b["not_comparable_reason"]
+    # the actuator: efficiency on net work delivered, its battery runtime kept, rank 1
+    assert a["mechanical_role"] == "actuator" and a["not_comparable_reason"] == ""
+    assert a["efficiency_total"] == pytest.approx(9.9 / 21.2)
+    assert a["battery_runtime_h"] == pytest.approx(3.8) and a["efficiency_rank"] == 1
+    # printed tables and comparison.md carry the caveat; the csv cells are empty
+    comp = dc.Comparison(rows, dc.all_columns(rows), [{"file": "proto.toml"},
+                                                      {"file": "gait.toml"}])
+    text = cr.format_tables(comp)
+    md = cr._markdown_report(comp)
+    for doc in (text, md):
+        assert "NOT COMPARABLE: proto: brake" in doc and "47.5" not in doc
+        assert "21.70" not in doc and "net mechanical work delivered" in doc
+    assert cr._csv_value(b["efficiency_total"]) == "" == cr._csv_value(b["battery_runtime_h"])
+
+
+@pytest.mark.parametrize("net, pos, role", [
+    (9.9, 12.3, "actuator"), (-63.5, 1.79, "brake"), (0.4, 0.5, "near_zero"),
+    (3.0, 10.0, "near_zero"), (float("nan"), 1.0, "")])
+def test_mechanical_role(net, pos, role):
+    got, reason = dc.mechanical_role(net, pos)
+    assert got == role and (reason == "") == (role == "actuator")

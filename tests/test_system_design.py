@@ -469,3 +469,62 @@ def test_design_command_exit_codes(tmp_path):
     with contextlib.redirect_stderr(io.StringIO()) as err:
         assert cli.main(["design", str(bad), "--out", str(tmp_path / "bad")]) == 2
     assert "peak_torque_nm" in err.getvalue() and not (tmp_path / "bad").exists()
+
+
+# -- the written walk: assist or brake (issue 19 item 13) ---------------------------------------
+def test_design_warns_when_its_written_walk_brakes(tmp_path):
+    """The HAFO requirements ask for 105 deg/s (the prototype's corner); the written walk is a
+    normal-speed walk (Winter, peak plantarflexion ~222 deg/s), so the ankle back-drives the
+    pump and the device brakes (simulated: -71 J/stride net). ``afo-mj design`` says so on
+    stderr, in design.md, design.json and the walk's description, from its quasi-static model."""
+    import contextlib
+    import io
+
+    from afo_mj import cli
+
+    out = tmp_path / "d"
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        assert cli.main(["design", str(HAFO_REQ), "--out", str(out), "--no-studies"]) == 0
+    msg = err.getvalue()
+    assert "WARNING" in msg and "net negative work on the ankle" in msg and "brakes" in msg
+    assert "no-load speed 108.8 deg/s" in msg and "back-drives the pump" in msg
+    s = json.loads((out / "design.json").read_text())
+    wc = s["walk_check"]
+    assert wc["brakes"] and wc["conditions"]["assist"]["net_work_j_per_stride"] < -10.0
+    assert wc["conditions"]["transparent"]["net_work_j_per_stride"] < -10.0
+    assert wc["peak_plantarflexion_velocity_deg_s"] > 200.0 > wc["no_load_speed_deg_s"]
+    assert s["warnings"] == [wc["warning"]]
+    assert "## WARNING" in (out / "design.md").read_text()
+    walk = tomllib.loads((out / "design_walk.toml").read_text())
+    assert "WARNING" in walk["description"] and "brakes the walker" in walk["description"]
+
+
+def test_quasi_static_envelope_assists_below_and_brakes_above_no_load_speed():
+    from afo_mj.analysis.system_design import quasi_static_device_torque_nm as qs
+    w0 = math.radians(100.0)
+    # still ankle: any command up to the stall torque; plantarflexing at half the no-load
+    # speed: half the stall torque in plantarflexion at most (+dorsiflexion convention)
+    assert qs(-50.0, 0.0, 90.0, w0) == pytest.approx(-50.0)
+    assert qs(-80.0, -0.5 * w0, 90.0, w0) == pytest.approx(-45.0)
+    # plantarflexing at twice the no-load speed: the ankle drives the pump; whatever is
+    # commanded the device pushes back (dorsiflexion torque), so its power is negative
+    for cmd in (0.0, -40.0):
+        tau = qs(cmd, -2.0 * w0, 90.0, w0)
+        assert tau > 0.0 and tau * (-2.0 * w0) < 0.0
+    assert qs(0.0, -5.0 * w0, 90.0, w0) == pytest.approx(90.0)   # the current limit
+
+
+def test_walk_check_of_a_fast_enough_design_does_not_warn(hafo_design):
+    from afo_mj.analysis.system_design import walk_work_check
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    _, out = hafo_design
+    sc = load_scenario(out / "design_walk.toml")
+    cfg = device_config(sc)
+    fast = walk_work_check(sc, cfg, {"stall_torque_nm": 90.0, "no_load_speed_deg_s": 300.0})
+    assert not fast["brakes"] and fast["warning"] is None
+    assert fast["conditions"]["assist"]["net_work_j_per_stride"] > 3.0
+    assert fast["conditions"]["transparent"]["net_work_j_per_stride"] == 0.0
+    slow = walk_work_check(sc, cfg, {"stall_torque_nm": 90.0, "no_load_speed_deg_s": 105.0})
+    assert slow["brakes"] and "brakes the walker" in slow["warning"]

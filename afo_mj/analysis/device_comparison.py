@@ -48,30 +48,61 @@ label; nothing written).
 Columns (per stride = per mean analysed right-leg stride; the ledger is the whole run's, scaled
 by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``afo-mj run``):
 
-``scenario, variant, label, scenario_file, preset, sides, fell, fall_time_s``;
-``torque_tracking_rmse_nm, peak_torque_nm``; ``device_positive_work_j_per_stride`` and
-``device_negative_work_j_per_stride`` (the device's work on the ankle, i.e. delivered);
-``ankle_positive_work_j_per_stride`` and ``ankle_push_off_positive_work_j_per_stride`` (the whole
-joint, muscles + device); ``electrical_j_per_stride`` (battery energy drawn),
-``electrical_regenerated_j_per_stride``, ``electrical_net_j_per_stride``,
-``hydraulic_j_per_stride``, ``mechanical_j_per_stride`` (positive mechanical output),
-``mechanical_net_j_per_stride``, ``stored_j_per_stride`` (change of stored energy);
-``efficiency_total`` (positive mechanical out / electrical drawn),
-``efficiency_electrical_to_hydraulic`` (net hydraulic work leaving the pump / electrical
-drawn), ``efficiency_hydraulic_to_mechanical`` (net mechanical work / net hydraulic work: what
-the lines, valves, seals and leakage let through; empty where a stage's net energy flows
-backwards, i.e. the ankle drives it);
-``loss_<name>_j_per_stride`` for every loss any of the devices reports (the union, in ledger
-order; the names come from the device, none is assumed here); ``peak_pressure_mpa,
-fluid_temperature_rise_k, mass_total_kg, mass_at_ankle_kg, battery_runtime_h``;
-``human_ankle_positive_work_j_per_stride``, ``human_ankle_positive_work_no_device_j_per_stride``,
-``human_ankle_positive_work_change_j_per_stride``; ``speed_m_s``; ``energy_balance_error_rel``
-(the ledger residual / energy drawn); ``efficiency_rank_in_scenario`` (1 = best).
+* ``scenario, variant, label, scenario_file, preset, sides, fell, fall_time_s``: what the row
+  is (``fall_time_s`` empty when the walker did not fall).
+* ``torque_tracking_rmse_nm, peak_torque_nm``: commanded against delivered device torque.
+* ``device_positive_work_j_per_stride``, ``device_negative_work_j_per_stride``: the device's
+  work on the ankle over the analysed strides (delivered; the negative part is what it absorbs).
+* ``ankle_positive_work_j_per_stride``, ``ankle_push_off_positive_work_j_per_stride``: the
+  whole joint (muscles + device).
+* ``electrical_j_per_stride`` (battery energy drawn), ``electrical_regenerated_j_per_stride``
+  (energy returned into the battery), ``electrical_net_j_per_stride`` (drawn − regenerated),
+  ``hydraulic_j_per_stride`` (net hydraulic work leaving the pump), ``mechanical_j_per_stride``
+  (positive mechanical output of the actuator), ``mechanical_net_j_per_stride`` (net mechanical
+  work of the actuator on the ankle: positive output − work absorbed from the ankle),
+  ``stored_j_per_stride`` (change of stored energy).
+* ``mechanical_role``: ``actuator`` when the device adds net work to the ankle (see below),
+  ``brake`` when its net mechanical work is negative (it mostly absorbs, e.g. a back-driven pump
+  or a damper), ``near_zero`` otherwise (it neither adds nor takes a meaningful net amount).
+* ``efficiency_total``: **net** mechanical work delivered to the ankle / electrical energy drawn
+  (``mechanical_net / electrical``; regeneration is not credited, it is its own column). Given
+  only for an ``actuator``: ``mechanical_net >= NET_WORK_MIN_J_PER_STRIDE`` and
+  ``mechanical_net >= NET_WORK_MIN_FRACTION × mechanical`` (it absorbs back at most half of what
+  it puts out). Why net and why not for the others: the energy a device absorbs from the ankle
+  and gives back later is not assistance, so positive output over drawn energy flatters a
+  device that pushes and brakes in turn, and a brake draws little because the walker powers it;
+  its "efficiency" would be a ratio of two small numbers describing no assistance (the
+  prototype HAFO, back-driven past its 105 deg/s, shows ~48 % on positive output while taking
+  ~60 J/stride from the ankle). Empty otherwise, with the reason in ``not_comparable_reason``.
+* ``efficiency_electrical_to_hydraulic`` (net hydraulic work leaving the pump / electrical
+  drawn), ``efficiency_hydraulic_to_mechanical`` (net mechanical work / net hydraulic work:
+  what the lines, valves, seals and leakage let through): stage efficiencies, empty where a
+  stage's net energy flows backwards (the ankle drives it).
+* ``loss_<name>_j_per_stride`` for every loss any of the devices reports (the union, in ledger
+  order; the names come from the device, none is assumed here).
+* ``peak_pressure_mpa, fluid_temperature_rise_k, mass_total_kg, mass_at_ankle_kg``.
+* ``battery_runtime_h``: the battery's usable energy / the mean electrical power drawn over
+  this walk (regeneration not credited), i.e. hours of walking at this gait with this
+  assistance. Given only for an ``actuator``, on the same basis for every row; empty for a
+  brake or a near-zero device, whose small draw comes from not assisting (the walker powers
+  it), so its long runtime is not comparable with an assisting device's (reason in
+  ``not_comparable_reason``).
+* ``not_comparable_reason``: empty for an actuator; otherwise why ``efficiency_total``,
+  ``battery_runtime_h`` and the ranks are empty, with the net and positive mechanical work.
+* ``human_ankle_positive_work_j_per_stride``, ``human_ankle_positive_work_no_device_j_per_
+  stride``, ``human_ankle_positive_work_change_j_per_stride`` (muscles alone, with and without
+  the device); ``speed_m_s``; ``energy_balance_error_rel`` (the ledger residual / energy drawn).
+* ``efficiency_rank``: one ranking of **all** the rows compared (every scenario and variant
+  together) by ``efficiency_total``, 1 = best, each rank given once (ties keep the given
+  order); empty for a row without an efficiency (not an actuator).
+* ``efficiency_rank_in_scenario``: the same ranking restricted to the rows of one scenario file
+  (its variants), 1 = best within that file; empty where ``efficiency_rank`` is.
 
 The per-stride ledger closes: ``electrical_net = mechanical_net + stored + sum(loss_*)`` and
-``electrical = that + electrical_regenerated`` (to ``energy_balance_error_rel``). Within one
-scenario (file) the variant rows are ordered by ``efficiency_total``, best first; scenarios keep
-the order given.
+``electrical = that + electrical_regenerated`` (to ``energy_balance_error_rel``), so
+``efficiency_total = 1 − (losses + stored + regenerated) / electrical``. The rows are ordered by
+``efficiency_rank`` (best first), then the rows without one in the order given; the printed
+tables and ``comparison.md`` carry the same caveat for every row that is not an actuator.
 """
 
 from __future__ import annotations
@@ -86,7 +117,8 @@ from afo_mj.scenarios.walk_scenario import strides_overrides  # re-exported: com
 
 __all__ = ["CompareError", "CompareItem", "Comparison", "FIXED_COLUMNS", "load_compare_items",
            "strides_overrides", "run_comparison", "comparison_row", "order_rows",
-           "loss_columns", "all_columns"]
+           "loss_columns", "all_columns", "mechanical_role", "NET_WORK_MIN_J_PER_STRIDE",
+           "NET_WORK_MIN_FRACTION"]
 
 
 class CompareError(ValueError):
@@ -125,16 +157,24 @@ HEAD_COLUMNS = (
     "ankle_positive_work_j_per_stride", "ankle_push_off_positive_work_j_per_stride",
     "electrical_j_per_stride", "electrical_regenerated_j_per_stride",
     "electrical_net_j_per_stride", "hydraulic_j_per_stride", "mechanical_j_per_stride",
-    "mechanical_net_j_per_stride", "stored_j_per_stride",
+    "mechanical_net_j_per_stride", "stored_j_per_stride", "mechanical_role",
     "efficiency_total", "efficiency_electrical_to_hydraulic",
     "efficiency_hydraulic_to_mechanical")
 TAIL_COLUMNS = (
     "peak_pressure_mpa", "fluid_temperature_rise_k", "mass_total_kg", "mass_at_ankle_kg",
-    "battery_runtime_h", "human_ankle_positive_work_j_per_stride",
+    "battery_runtime_h", "not_comparable_reason", "human_ankle_positive_work_j_per_stride",
     "human_ankle_positive_work_no_device_j_per_stride",
     "human_ankle_positive_work_change_j_per_stride", "speed_m_s", "energy_balance_error_rel",
-    "efficiency_rank_in_scenario")
+    "efficiency_rank", "efficiency_rank_in_scenario")
 FIXED_COLUMNS = HEAD_COLUMNS + TAIL_COLUMNS
+
+#: An actuator adds at least this net mechanical work to the ankle per stride [J]; below it a
+#: device does not assist measurably (a healthy 75 kg walker's ankle does ~20 J/stride of
+#: positive work, Winter 2009, so 1 J is ~5 %, well below any assistance worth comparing).
+NET_WORK_MIN_J_PER_STRIDE = 1.0
+#: ... and its net work is at least this fraction of its positive output, i.e. it absorbs back
+#: at most half of what it puts out (otherwise it is mostly a damper that also pushes).
+NET_WORK_MIN_FRACTION = 0.5
 
 
 def loss_column(name: str) -> str:
@@ -216,6 +256,30 @@ def _mean(entry):
     return _num(entry.get("mean")) if isinstance(entry, dict) else _num(entry)
 
 
+def mechanical_role(net_j: float, positive_j: float) -> tuple[str, str]:
+    """``(role, reason)`` of a device from its net and positive mechanical work on the ankle
+    per stride [J] (the classification of the module docstring): ``("actuator", "")`` when
+    ``net >= NET_WORK_MIN_J_PER_STRIDE`` and ``net >= NET_WORK_MIN_FRACTION × positive``;
+    ``"brake"`` when ``net < 0`` (it takes energy out of the ankle, e.g. a back-driven pump or a
+    damper); ``"near_zero"`` otherwise; the reason says why efficiency and battery runtime are
+    not given. Unknown (non-finite) work gives ``("", reason)``."""
+    net, pos = _num(net_j), _num(positive_j)
+    what = "efficiency_total, battery_runtime_h and the ranks are not given"
+    if not (math.isfinite(net) and math.isfinite(pos)):
+        return "", f"net mechanical work unknown: {what}"
+    work = f"net {net:.2f} J/stride, positive {pos:.2f} J/stride"
+    if net >= NET_WORK_MIN_J_PER_STRIDE and net >= NET_WORK_MIN_FRACTION * pos:
+        return "actuator", ""
+    if net < 0:
+        return "brake", (f"brake: absorbs net work from the ankle ({work}); its low energy "
+                         f"draw is not efficiency: {what}")
+    if net >= NET_WORK_MIN_J_PER_STRIDE:
+        return "near_zero", (f"absorbs back more than {1 - NET_WORK_MIN_FRACTION:.0%} of "
+                             f"what it puts out ({work}): {what}")
+    return "near_zero", (f"net work below {NET_WORK_MIN_J_PER_STRIDE:g} J/stride ({work}): "
+                         f"no measurable assistance: {what}")
+
+
 def comparison_row(item: CompareItem, block: dict, record=None,
                    human_no_device: float | None = None) -> dict:
     """One table row from a condition block of
@@ -245,6 +309,9 @@ def comparison_row(item: CompareItem, block: dict, record=None,
               else _num(stored_d)) * scale
     hyd = _num(eps.get("hydraulic_j"))
     mech = _num(eps.get("mechanical_positive_out_j"))
+    mech_net = _num(en.get("mechanical_out_j")) * scale
+    role, reason = mechanical_role(mech_net, mech)
+    actuator = role == "actuator"
     row.update({
         "torque_tracking_rmse_nm": _num(dev.get("torque_tracking_rmse_nm")),
         "peak_torque_nm": _num(dev.get("peak_torque_nm")),
@@ -258,14 +325,15 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         "electrical_net_j_per_stride": elec - regen,
         "hydraulic_j_per_stride": hyd,
         "mechanical_j_per_stride": mech,
-        "mechanical_net_j_per_stride": _num(en.get("mechanical_out_j")) * scale,
+        "mechanical_net_j_per_stride": mech_net,
         "stored_j_per_stride": stored,
-        "efficiency_total": _ratio(mech, elec),
+        "mechanical_role": role,
+        # net work delivered / energy drawn, for an actuator only (module docstring)
+        "efficiency_total": _ratio(mech_net, elec) if actuator else math.nan,
         "efficiency_electrical_to_hydraulic": _ratio(hyd, elec),
         # net through the stage: the ankle's negative work flows back through the lines,
         # so positive mechanical output over net hydraulic work could exceed 1
-        "efficiency_hydraulic_to_mechanical": _ratio(_num(en.get("mechanical_out_j")) * scale,
-                                                     hyd),
+        "efficiency_hydraulic_to_mechanical": _ratio(mech_net, hyd),
     })
     for name, v in (eps.get("losses_j") or {}).items():
         row[loss_column(name)] = _num(v)
@@ -276,7 +344,9 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         "fluid_temperature_rise_k": _num(dev.get("fluid_temperature_rise_k")),
         "mass_total_kg": _num(dev.get("mass_total_kg")),
         "mass_at_ankle_kg": _num(dev.get("mass_at_ankle_kg")),
-        "battery_runtime_h": _num(dev.get("battery_runtime_h")),
+        # same basis for every row (usable energy / mean drawn power); actuators only
+        "battery_runtime_h": _num(dev.get("battery_runtime_h")) if actuator else math.nan,
+        "not_comparable_reason": reason,
         "human_ankle_positive_work_j_per_stride": human,
         "human_ankle_positive_work_no_device_j_per_stride": ref,
         "human_ankle_positive_work_change_j_per_stride": human - ref,
@@ -303,21 +373,25 @@ def all_columns(rows) -> list[str]:
 
 
 def order_rows(rows, group_key=lambda r: r["scenario_file"]) -> list[dict]:
-    """Rows grouped by scenario in first-seen order, each group by ``efficiency_total`` (best
-    first, missing last); sets ``efficiency_rank_in_scenario`` (1 = best)."""
-    groups: dict = {}
-    for r in rows:
-        groups.setdefault(group_key(r), []).append(r)
-    out = []
-    for grp in groups.values():
-        def key(r):
-            e = _num(r.get("efficiency_total"))
-            return (0, -e) if math.isfinite(e) else (1, 0.0)
-        grp = sorted(grp, key=key)           # stable: ties keep the variant order
-        for rank, r in enumerate(grp, start=1):
-            r["efficiency_rank_in_scenario"] = rank
-        out.extend(grp)
-    return out
+    """All rows ranked together by ``efficiency_total`` (best first), then the rows without one
+    in the given order; sets ``efficiency_rank`` (1 = best of all rows compared, each rank once,
+    ties in the given order) and ``efficiency_rank_in_scenario`` (1 = best of the rows with the
+    same ``group_key``, i.e. of one scenario file); both ``None`` for a row without an
+    efficiency."""
+    rows = list(rows)
+    ranked = sorted((r for r in rows if math.isfinite(_num(r.get("efficiency_total")))),
+                    key=lambda r: -_num(r.get("efficiency_total")))   # stable: ties keep order
+    unranked = [r for r in rows if not math.isfinite(_num(r.get("efficiency_total")))]
+    in_group: dict = {}
+    for rank, r in enumerate(ranked, start=1):
+        r["efficiency_rank"] = rank
+        g = group_key(r)
+        in_group[g] = in_group.get(g, 0) + 1
+        r["efficiency_rank_in_scenario"] = in_group[g]
+    for r in unranked:
+        r["efficiency_rank"] = None
+        r["efficiency_rank_in_scenario"] = None
+    return ranked + unranked
 
 
 def _walker_gait_key(item: CompareItem) -> str:

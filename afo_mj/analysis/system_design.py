@@ -68,7 +68,8 @@ from afo_mj.hydraulics.fluid import FLUID_PRESETS, Fluid
 __all__ = ["DesignError", "DesignResult", "load_requirements", "parse_requirements",
            "size_system", "evaluate_designs", "design_overrides", "design_params",
            "predict_bench", "mass_check", "guideline_studies", "hose_bore_study",
-           "run_design", "CONSTRAINTS", "BORE_WINDOW"]
+           "run_design", "CONSTRAINTS", "BORE_WINDOW", "quasi_static_device_torque_nm",
+           "walk_work_check", "WALK_CHECK_SAMPLES"]
 
 #: Bores kept per (pressure, arm): those whose ``A_e r`` is within this fraction of the smallest
 #: that carries the torque (friction and line loss at speed need a little more).
@@ -94,6 +95,9 @@ DIAGNOSE_DESIGNS = 3000
 #: Up to this many constraint points the screening's motor stage checks each exactly; a
 #: profile's many points are screened through per-design envelope bounds.
 ENVELOPE_EXACT_POINTS = 8
+
+#: Samples of the written walk's stride in :func:`walk_work_check`.
+WALK_CHECK_SAMPLES = 1000
 
 #: Constraint names, in chain order, with what each one checks.
 CONSTRAINTS = {
@@ -1612,10 +1616,15 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
     ``hose_bore_tradeoff.csv/png``. ``verify=True`` also runs the torque–velocity bench on the
     written parameters and reports simulated against predicted figures.
 
+    The written walk is checked (:func:`walk_work_check`, quasi-static, no simulation): a
+    device that does net negative work on the ankle over that walk's gait brakes the walker,
+    which is reported as a warning (``design.json`` ``warnings`` and ``walk_check``,
+    ``design.md``, the description of ``design_walk.toml``, and stderr of ``afo-mj design``).
+
     Returns ``{"feasible": bool, "summary": dict (what design.json holds), "text": str (what
-    to print), "out_dir": str}``. Raises :class:`DesignError` for invalid requirements (nothing
-    written). An infeasible requirement is not an error: the explanation is written and
-    returned (``feasible`` False).
+    to print), "out_dir": str, "warnings": list[str]}``. Raises :class:`DesignError` for
+    invalid requirements (nothing written). An infeasible requirement is not an error: the
+    explanation is written and returned (``feasible`` False).
     """
     from pathlib import Path
 
@@ -1662,7 +1671,8 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
     write_design_report(out_dir, result, summary, written, study, hose, top=top,
                         requirements_text=text)
     return {"feasible": result.feasible, "summary": summary,
-            "text": summary_text(summary, out_dir), "out_dir": str(out_dir)}
+            "text": summary_text(summary, out_dir), "out_dir": str(out_dir),
+            "warnings": list(summary.get("warnings") or [])}
 
 
 def _validate_written(req: Requirements, written: dict) -> None:
@@ -1678,9 +1688,107 @@ def _validate_written(req: Requirements, written: dict) -> None:
         parse_bench_scenario(toml_dumps(bench_scenario(req, ov)), origin="design_bench.toml")
         sc = parse_scenario(toml_dumps(walk_scenario(
             req, ov, written["predicted_bench"]["stall_torque_nm"])), origin="design_walk.toml")
-        device_config(sc)
+        cfg = device_config(sc)
     except ScenarioError as exc:
         raise RuntimeError(f"afo-mj design wrote a scenario afo-mj run rejects: {exc}") from exc
+    written["walk_check"] = walk_work_check(sc, cfg, written["predicted_bench"])
+
+
+def quasi_static_device_torque_nm(command_nm, velocity_rad_s, stall_torque_nm: float,
+                                  no_load_speed_rad_s: float):
+    """Torque [N·m] a pump-controlled actuator puts on the ankle, quasi-static (ankle sign
+    convention, +dorsiflexion for torque and velocity): the command clipped to the
+    four-quadrant torque–speed envelope of its voltage- and current-limited DC motor.
+
+    The motor's steady torque at full voltage falls linearly with speed,
+    ``T = K (V − K ω) / R`` (the DC motor's torque–speed line, e.g. Hughes & Drury, *Electric
+    Motors and Drives*, the d.c. motor chapter), and a fixed-displacement pump driving the
+    cylinders is a fixed ratio of torque to pressure and of speed to flow (the ideal pump,
+    ``T = d Δp / 2π``, ``Q = d ω / 2π``; Manring, *Hydraulic Control Systems*). At the ankle
+    the line runs through the stall torque ``T_s`` and the no-load speed ``ω_0``
+    (:func:`predict_bench`): plantarflexion torque up to ``T_s (1 − ω_pf/ω_0)`` at
+    plantarflexion speed ``ω_pf``, dorsiflexion torque the same way, and the driver's current
+    limit bounds either at ``T_s``. Past ``ω_0`` the bound
+    changes sign: the ankle back-drives the pump, the motor's EMF exceeds what the driver
+    applies, and the device resists the motion whatever it is commanded (it brakes). Losses
+    (friction, leakage, line drop) are left out: they only take more work from the ankle, so a
+    net negative work predicted here is not an artefact of the simplification.
+    """
+    cmd = np.asarray(command_nm, dtype=float)
+    w = np.asarray(velocity_rad_s, dtype=float)
+    lo = -stall_torque_nm * (1.0 + w / no_load_speed_rad_s)    # most plantarflexion torque
+    hi = stall_torque_nm * (1.0 - w / no_load_speed_rad_s)     # most dorsiflexion torque
+    return np.clip(np.clip(cmd, lo, hi), -stall_torque_nm, stall_torque_nm)
+
+
+def walk_work_check(scenario, cfg, predicted_bench: dict, n: int = WALK_CHECK_SAMPLES) -> dict:
+    """Does the written device assist or brake the walk it is written for? The net work of the
+    design on the ankle per stride, from the design's quasi-static model
+    (:func:`quasi_static_device_torque_nm` with the predicted stall torque and no-load speed),
+    over the written walk's own gait: the reference ankle velocity of ``design_walk.toml``
+    (its ``[gait]``, at its cycle time) and, per condition, its command (``transparent``: zero
+    torque; ``assist``: the ``[assistance]`` profile). No walk is simulated.
+
+    Work per stride ``W = Σ τ_dev ω Δt`` (ankle power = moment × angular velocity, both
+    +dorsiflexion; Winter, *Biomechanics and Motor Control of Human Movement*, the chapter on
+    mechanical work, energy and power).
+    Returns per condition the positive, negative and net work [J/stride], the peak
+    plantarflexion velocity of the gait, the fraction of the stride the ankle plantarflexes
+    faster than the no-load speed (back-driven), ``brakes`` (a net work < 0 in any condition)
+    and ``warning`` (a sentence naming the cause and the requirement to change, or None).
+
+    A ``corner`` requirement's duty cycle is Winter's stride scaled to the corner's speed, so it
+    cannot show this; the written walk is at the reference's own speed."""
+    ref = scenario.load_reference()
+    cyc = float(scenario.cycle_time_s(ref))
+    phase = (np.arange(n) + 0.5) / n
+    w = np.asarray(ref.velocities_rad_s(phase, cyc))[..., 2]
+    stall = float(predicted_bench["stall_torque_nm"])
+    w0 = math.radians(float(predicted_bench["no_load_speed_deg_s"]))
+    dt = cyc / n
+    commands = {"transparent": np.zeros(n)}
+    if cfg.profile is not None:
+        prof = np.asarray(cfg.profile, dtype=float)
+        commands["assist"] = np.interp(phase, np.linspace(0.0, 1.0, prof.size), prof)
+    out: dict[str, Any] = {
+        "model": "quasi-static: command clipped to the DC motor's torque-speed envelope through "
+                 "the predicted stall torque and no-load speed, lossless, over the reference "
+                 "gait (not a simulated walk)",
+        "gait": f"{scenario.reference}/{scenario.condition}", "cycle_time_s": cyc,
+        "samples": n, "stall_torque_nm": stall,
+        "no_load_speed_deg_s": math.degrees(w0),
+        "peak_plantarflexion_velocity_deg_s": math.degrees(float(max(-np.min(w), 0.0))),
+        "back_driven_fraction_of_stride": float(np.mean(-w > w0)),
+        "conditions": {}}
+    for name, cmd in commands.items():
+        if name not in cfg.conditions:
+            continue
+        p = quasi_static_device_torque_nm(cmd, w, stall, w0) * w
+        pos = float(np.sum(np.clip(p, 0.0, None)) * dt)
+        neg = float(np.sum(np.clip(p, None, 0.0)) * dt)
+        out["conditions"][name] = {"positive_work_j_per_stride": pos,
+                                   "negative_work_j_per_stride": neg,
+                                   "net_work_j_per_stride": pos + neg}
+    negative = {k: v["net_work_j_per_stride"] for k, v in out["conditions"].items()
+                if v["net_work_j_per_stride"] < 0.0}
+    out["brakes"] = bool(negative)
+    out["warning"] = None
+    if negative:
+        works = ", ".join(f"{k} {v:.1f} J/stride" for k, v in negative.items())
+        msg = (f"design_walk.toml: the designed device does net negative work on the ankle "
+               f"over the walk's gait ({out['gait']}, {cyc:.2f} s stride; {works}, "
+               f"quasi-static, no walk simulated): it brakes the walker")
+        if out["peak_plantarflexion_velocity_deg_s"] > out["no_load_speed_deg_s"]:
+            msg += (f". Cause: its no-load speed {out['no_load_speed_deg_s']:.1f} deg/s is below "
+                    f"the gait's peak plantarflexion velocity "
+                    f"{out['peak_plantarflexion_velocity_deg_s']:.1f} deg/s, so the ankle "
+                    f"back-drives the pump for {100 * out['back_driven_fraction_of_stride']:.0f} "
+                    f"% of the stride; to assist this walk, require a no-load speed >= "
+                    f"{math.ceil(out['peak_plantarflexion_velocity_deg_s'])} deg/s "
+                    f"(requirement.peak_velocity_deg_s of a corner profile, or profile = "
+                    f"\"normative\" with this gait)")
+        out["warning"] = msg
+    return out
 
 
 def _oil_resistance(row: dict) -> float:

@@ -12,14 +12,15 @@ import json
 import math
 from pathlib import Path
 
-__all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison"]
+__all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison",
+           "caveats"]
 
 #: (column, header with unit, format) of the headline tables: the energy chain, then the device
 #: and the walker
 CHAIN = (
     ("label", "device", "s"),
     ("preset", "preset", "s"),
-    ("efficiency_total", "eff total [%]", "pct"),
+    ("efficiency_total", "eff net [%]", "pct"),
     ("efficiency_electrical_to_hydraulic", "el->hyd [%]", "pct"),
     ("efficiency_hydraulic_to_mechanical", "hyd->mech [%]", "pct"),
     ("electrical_j_per_stride", "electrical [J/stride]", ".2f"),
@@ -27,7 +28,10 @@ CHAIN = (
     ("mechanical_j_per_stride", "mech + [J/stride]", ".2f"),
     ("device_positive_work_j_per_stride", "delivered + [J/stride]", ".2f"),
     ("energy_balance_error_rel", "balance err [%]", "pct3"),
-    ("efficiency_rank_in_scenario", "rank", "d"),
+    ("mechanical_net_j_per_stride", "mech net [J/stride]", ".2f"),
+    ("mechanical_role", "role", "s"),
+    ("efficiency_rank", "rank (all rows)", "d"),
+    ("efficiency_rank_in_scenario", "rank in scenario", "d"),
 )
 DEVICE = (
     ("label", "device", "s"),
@@ -36,7 +40,7 @@ DEVICE = (
     ("fluid_temperature_rise_k", "dT oil [K]", ".3f"),
     ("mass_total_kg", "mass [kg]", ".2f"),
     ("mass_at_ankle_kg", "at ankle [kg]", ".2f"),
-    ("battery_runtime_h", "battery [h]", ".2f"),
+    ("battery_runtime_h", "battery (actuators) [h]", ".2f"),
     ("human_ankle_positive_work_j_per_stride", "human ankle + [J/stride]", ".2f"),
     ("human_ankle_positive_work_no_device_j_per_stride", "no device [J/stride]", ".2f"),
     ("speed_m_s", "speed [m/s]", ".3f"),
@@ -97,21 +101,48 @@ def _markdown(header, body) -> str:
     return "\n".join(lines)
 
 
+#: How efficiency, battery runtime and ranks are defined (printed and in ``comparison.md``).
+DEFINITIONS = (
+    "eff net = net mechanical work delivered to the ankle / electrical energy drawn (absorbed "
+    "work is subtracted, regeneration not credited); battery = usable battery energy / mean "
+    "drawn power of this walk; both only for an actuator (net work >= {min_j:g} J/stride and "
+    ">= {frac:.0%} of its positive output); rank (all rows) = one ranking of every row "
+    "compared by eff net, rank in scenario = within one scenario file; '-' = not given.")
+
+
+def _definitions() -> str:
+    from afo_mj.analysis.device_comparison import (NET_WORK_MIN_FRACTION,
+                                                   NET_WORK_MIN_J_PER_STRIDE)
+    return DEFINITIONS.format(min_j=NET_WORK_MIN_J_PER_STRIDE, frac=NET_WORK_MIN_FRACTION)
+
+
+def caveats(rows) -> list[str]:
+    """One line per row that is not an actuator: why its efficiency, battery runtime and ranks
+    are not given (``not_comparable_reason``)."""
+    return [f"NOT COMPARABLE: {r['label']}: {r['not_comparable_reason']}" for r in rows
+            if r.get("not_comparable_reason")]
+
+
 def format_tables(comp) -> str:
-    """The two tables as printed on stdout."""
+    """The two tables as printed on stdout, with the definitions and the caveats."""
     h2, b2 = loss_table(comp.rows, comp.columns)
-    return ("energy chain (per mean analysed stride; eff total = mech + / electrical drawn):\n"
+    notes = caveats(comp.rows)
+    return ("energy chain (per mean analysed stride):\n"
             + _text(*headline_table(comp.rows, CHAIN))
             + "\n\ndevice and walker:\n" + _text(*headline_table(comp.rows, DEVICE))
+            + "\n\n" + _definitions()
+            + ("\n" + "\n".join(notes) if notes else "")
             + "\n\nwhere the electrical energy goes, per stride [J]:\n" + _text(h2, b2))
 
 
 def _markdown_report(comp) -> str:
     h2, b2 = loss_table(comp.rows, comp.columns)
     names = ", ".join(f"`{s['file']}`" for s in comp.scenarios)
+    notes = caveats(comp.rows)
     return (f"# Device comparison\n\nScenarios: {names}; the `assist` condition, per mean "
-            "analysed stride; efficiency total = positive mechanical output / electrical "
-            "energy drawn. Full table: `comparison.csv`.\n\n## Energy chain\n\n"
+            "analysed stride. Full table: `comparison.csv`.\n\n" + _definitions() + "\n\n"
+            + "".join(f"> **{n}**\n>\n" for n in notes) + ("\n" if notes else "")
+            + "## Energy chain\n\n"
             + _markdown(*headline_table(comp.rows, CHAIN))
             + "\n\n## Device and walker\n\n" + _markdown(*headline_table(comp.rows, DEVICE))
             + "\n\n## Where the electrical energy goes (J/stride)\n\n" + _markdown(h2, b2)
@@ -172,8 +203,9 @@ def plot_comparison(comp, path: Path) -> None:
     for yi, r, e, right in zip(y, rows, elec, pos):
         eff = r.get("efficiency_total")
         if np.isfinite(e):
-            ax.text(right, yi, f" {e:.1f} J drawn\n eff {100 * eff:.1f} %" if _finite(eff)
-                    else f" {e:.1f} J drawn", va="center", ha="left", fontsize=8)
+            tail = (f"\n eff net {100 * eff:.1f} %" if _finite(eff)
+                    else f"\n efficiency not comparable ({r.get('mechanical_role') or 'unknown'})")
+            ax.text(right, yi, f" {e:.1f} J drawn" + tail, va="center", ha="left", fontsize=8)
     lo, hi = float(neg.min()), float(np.nanmax(np.append(pos, elec)))
     ax.set_xlim(min(lo * 1.05, 0.0), hi * 1.3 + 1e-9)
     ax.set_yticks(y)
@@ -226,8 +258,8 @@ def write_comparison(out_dir, comp, run_info: dict | None = None) -> Path:
                "scenarios": comp.scenarios,
                "run_info": {"wall_time_s": comp.wall_time_s, **(run_info or {})},
                "note": "assist condition only; per stride = whole-run ledger scaled to the "
-                       "mean analysed stride; efficiency_total = mechanical positive output / "
-                       "electrical energy drawn; null = not applicable to that device"}
+                       "mean analysed stride; " + _definitions()
+                       + " null = not applicable to that device (see not_comparable_reason)"}
         text = json.dumps(json_ready(doc), indent=2, allow_nan=False)
         (tmp / "comparison.json").write_text(text + "\n", encoding="utf-8")
         (tmp / "comparison.md").write_text(_markdown_report(comp), encoding="utf-8")

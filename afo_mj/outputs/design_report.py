@@ -10,7 +10,11 @@ Files (``DIR``):
   infeasibility explanation and the binding constraint), the best design with its mass
   breakdown (ankle / waist), efficiencies per stage, losses per stride, heat, temperatures,
   runtime, the predicted bench figures and the mass check against the simulator's mass budget,
-  the ranked designs, the studies, the assumptions; no NaN (``null`` instead);
+  the ranked designs, the studies, the assumptions; ``walk_check``: the device's quasi-static
+  work on the ankle over the written walk's gait
+  (:func:`afo_mj.analysis.system_design.walk_work_check`) and ``warnings`` (a device that
+  brakes that walk; also at the top of ``design.md``, in the description of
+  ``design_walk.toml`` and on stderr); no NaN (``null`` instead);
 * ``design.md`` — the same for reading;
 * ``designs.csv`` — the ranked feasible designs, one row each;
 * ``design_bench.toml`` — the best design on the torque–velocity bench
@@ -84,10 +88,13 @@ def bench_scenario(req, overrides: dict) -> dict:
             "bench": {"tests": ["torque_velocity"], "body_mass_kg": mass, "height_m": 1.75}}
 
 
-def walk_scenario(req, overrides: dict, stall_torque_nm: float) -> dict:
+def walk_scenario(req, overrides: dict, stall_torque_nm: float,
+                  warning: str | None = None) -> dict:
     """Walking with the design: ``scenarios/gait_assist_hafo.toml`` with the design's device
     parameters, the wearer's mass, and the Zhang assistance capped at 80 % of the design's
-    stall torque (the torque loop needs headroom above its command)."""
+    stall torque (the torque loop needs headroom above its command). ``warning`` (the
+    :func:`~afo_mj.analysis.system_design.walk_work_check` warning) is appended to the
+    description, so whoever runs the file reads it."""
     try:
         doc = tomllib.loads(_WALK_TEMPLATE.read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError):
@@ -96,7 +103,8 @@ def walk_scenario(req, overrides: dict, stall_torque_nm: float) -> dict:
     doc["description"] = (f"Designed by afo-mj design from {req.name}: a "
                           f"{req.body_mass_kg:g} kg walker wearing the lightest "
                           f"pump-controlled design on the right ankle (no device, "
-                          f"transparent, Zhang assistance).")
+                          f"transparent, Zhang assistance)."
+                          + (f" WARNING: {warning}" if warning else ""))
     doc.setdefault("walker", {})["body_mass_kg"] = req.body_mass_kg
     dev = doc.setdefault("device", {})
     dev["preset"] = "hafo"
@@ -164,6 +172,11 @@ def build_summary(result, written: dict | None, study: dict | None, hose: dict |
         s["mass_check"] = written["mass_check"]
         s["scenarios"] = {"bench": "design_bench.toml", "walk": "design_walk.toml",
                           "run": "afo-mj run DIR/design_bench.toml --out OUT"}
+        wc = written.get("walk_check")
+        if wc is not None:
+            s["walk_check"] = wc
+            if wc.get("warning"):
+                s["warnings"] = [wc["warning"]]
     if written is None and result.feasible:
         s["scenarios"] = written_note(req)
     if bench is not None:
@@ -352,6 +365,18 @@ def _md(s: dict) -> str:
         L += [f"* {k}: {v}" for k, v in s["designs_ruled_out_by_constraint"].items()]
         return "\n".join(L) + "\n"
     b = s["best"]
+    for w in s.get("warnings") or []:
+        L += ["## WARNING", "", f"**{w}**", ""]
+    wc = s.get("walk_check")
+    if wc:
+        works = "; ".join(f"{k}: {v['positive_work_j_per_stride']:.1f} / "
+                          f"{v['negative_work_j_per_stride']:.1f} / "
+                          f"{v['net_work_j_per_stride']:.1f}"
+                          for k, v in wc["conditions"].items())
+        L += [f"Written walk check (`design_walk.toml`, {wc['gait']} gait, {wc['model']}): "
+              f"device work on the ankle +/−/net J/stride {works}; no-load speed "
+              f"{wc['no_load_speed_deg_s']:.1f} deg/s against the gait's peak plantarflexion "
+              f"velocity {wc['peak_plantarflexion_velocity_deg_s']:.1f} deg/s.", ""]
     L += ["## Best design", "", "| variable | value |", "|---|---|",
           f"| operating pressure | {b['operating_pressure_pa'] / 1e6:.2f} MPa "
           f"(relief cracks at {b['relief_cracking_pa'] / 1e6:.2f} MPa) |",
@@ -482,7 +507,8 @@ def write_design_report(out_dir, result, summary: dict, written: dict | None,
             (tmp / "design_bench.toml").write_text(toml_dumps(bench_scenario(req, ov)),
                                                    encoding="utf-8")
             (tmp / "design_walk.toml").write_text(toml_dumps(walk_scenario(
-                req, ov, written["predicted_bench"]["stall_torque_nm"])), encoding="utf-8")
+                req, ov, written["predicted_bench"]["stall_torque_nm"],
+                (written.get("walk_check") or {}).get("warning"))), encoding="utf-8")
             files += ["design_bench.toml", "design_walk.toml"]
         if study is not None:
             for key, xkey, xl, kw in (
