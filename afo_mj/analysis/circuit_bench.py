@@ -22,9 +22,12 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   (:func:`~afo_mj.analysis.response_metrics.step_metrics`).
 * ``frequency_response`` — a motor-driven circuit (open loop, as ``torque_velocity``):
   motor-voltage sine about 0 V, plantarflexion velocity ``−θ̇`` of the inertia on its spring
-  at ``freq_points`` log-spaced frequencies; gain and phase by the three-parameter sine fit;
-  the resonance is the frequency of the largest gain (the inertia on the oil column) and its
-  peak in dB above the lowest frequency's gain.
+  at ``freq_points`` log-spaced frequencies, then ``freq_refine_points`` more log-spaced
+  inside the bracket of the largest gain (20 + 12 by default,
+  :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`); gain and phase by the
+  three-parameter sine fit; the resonance (the inertia on the oil column) is the vertex of the
+  parabola through the largest gain and its neighbours in (log f, dB) and its peak the largest
+  measured gain in dB above the lowest frequency's gain.
 * ``position_step`` — a torque controller: ``τ_cmd = K_p (θ_ref − θ) − K_d θ̇`` (clipped to
   ``±torque_limit_nm``) on the inertia and spring; step metrics of the angle.
 * ``stiffness`` — a torque controller, which renders a spring through its command
@@ -69,6 +72,7 @@ import math
 
 import numpy as np
 
+from afo_mj.analysis.frequency_sweep import adaptive_log_sweep, resonance_peak
 from afo_mj.analysis.response_metrics import sine_response, step_metrics
 
 PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
@@ -97,7 +101,10 @@ class CircuitBenchConfig:
     step_duration_s: float = 0.4
     freq_min_hz: float = 2.0
     freq_max_hz: float = 300.0
-    freq_points: int = 18
+    freq_points: int = 20
+    #: frequencies added about the gain's peak after the ``freq_points`` log-spaced ones
+    #: (:func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`): 32 in all by default
+    freq_refine_points: int = 12
     voltage_amplitude_v: float = 3.0
     tv_points: int = 6
     position_step_rad: float = -0.2
@@ -334,31 +341,29 @@ def isometric_steps(b: _Bench) -> tuple[dict, list]:
 def frequency_response(b: _Bench) -> tuple[dict, list]:
     cc = b.open_loop
     c = b.cfg
-    freqs = np.geomspace(c.freq_min_hz, c.freq_max_hz, c.freq_points)
-    gains, phases = [], []
-    for f in freqs:
+
+    def measure(f: float) -> dict:
         dur = max(8.0 / f, 0.25)
         t = b.t(dur)
         u = c.voltage_amplitude_v * np.sin(2 * np.pi * f * t)
-        log = b.load(cc, u, f"frequency_response.{f:.3g}hz")
-        r = sine_response(log["time_s"], u, -log["velocity_rad_s"], f, settle_cycles=3.0)
-        gains.append(r["gain"])
-        phases.append(r["phase_deg"])
-    gains = np.array(gains)
+        log = b.load(cc, u, f"frequency_response.{f:.4g}hz")
+        return sine_response(log["time_s"], u, -log["velocity_rad_s"], f, settle_cycles=3.0)
+
+    freqs, results, refined = adaptive_log_sweep(measure, c.freq_min_hz, c.freq_max_hz,
+                                                 n_coarse=c.freq_points,
+                                                 n_refine=c.freq_refine_points)
+    gains = np.array([r["gain"] for r in results])
+    phases = [r["phase_deg"] for r in results]
     db = 20 * np.log10(gains / gains[0])
+    # the peak: a parabola through the largest gain and its neighbours in (log f, dB)
+    f_peak, _db_peak, inside = resonance_peak(freqs, gains)
     k = int(np.argmax(gains))
     summary = {"frequencies_hz": freqs.tolist(), "gain_rad_s_per_v": gains.tolist(),
                "gain_db": db.tolist(), "phase_deg": phases,
-               "resonance_hz": float(freqs[k]), "resonance_peak_db": float(db[k]),
-               "resonance_at_range_end": bool(k in (0, freqs.size - 1)),
+               "resonance_hz": float(f_peak), "resonance_peak_db": float(db[k]),
+               "resonance_at_range_end": not inside, "n_frequencies": int(freqs.size),
+               "refined": refined,
                "output": "plantarflexion velocity per motor volt (open loop)"}
-    # refine the peak: a parabola through the three points about the maximum in log f
-    if 0 < k < freqs.size - 1:
-        x = np.log(freqs[k - 1:k + 2])
-        y = db[k - 1:k + 2]
-        a, bb, _ = np.polyfit(x, y, 2)
-        if a < 0:
-            summary["resonance_hz"] = float(np.exp(-bb / (2 * a)))
     return summary, [{"x": freqs, "y": {"gain [dB]": db}, "xlabel": "frequency [Hz]",
                       "ylabel": "−θ̇ / V gain [dB re lowest]", "log_x": True,
                       "markers": True},

@@ -23,7 +23,10 @@
 * ``gait_conditions.png`` -- the worn side's hip, knee and ankle (3×3: angle, moment,
   power vs % gait cycle), one mean curve per condition (``no_device``, ``transparent``,
   ``assist``, ``assist_k<K>``, ... those present) over the reference
-  mean ± 1 SD band, so walking with and without the device is on one figure. Moments and
+  mean (± 1 SD band where the reference has one, named with its source; the title says when
+  there is none), so walking with and without the device is on one figure. Moments and
+  powers are low-pass filtered for the figure only (zero-lag 4th-order Butterworth, 6 Hz,
+  :mod:`afo_mj.analysis.kinetics_filter`, stated in the title). Moments and
   powers are the human's (muscles); in the ankle column the whole joint (muscles + device)
   is dashed for the device conditions. A condition that fell is named in the legend;
 * ``device_stride_hydraulics.png`` -- per device condition, one mean stride of the worn
@@ -45,13 +48,17 @@ to draw (no device condition) is not written.
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from afo_mj.analysis.gait_metrics import PERCENT_CYCLE, curve_statistics, reference_band
+from afo_mj.analysis.kinetics_filter import filter_note, filtered_kinetic_cycles
+from afo_mj.outputs.reference_display import (
+    reference_band_note, reference_has_band, reference_label)
 
-__all__ = ["plot_device_run", "DEVICE_FIGURES", "FIGURES_BY_KIND"]
+__all__ = ["plot_device_run", "gait_conditions_title", "DEVICE_FIGURES", "FIGURES_BY_KIND"]
 
 #: Figures :func:`plot_device_run` writes (in this order) for a run with a device condition.
 DEVICE_FIGURES = ("ankle_angle_conditions.png", "gait_conditions.png", "device_torque.png",
@@ -165,7 +172,9 @@ def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str,
         for i, (cond, (rec, analysis, dev)) in enumerate(conds.items()):
             if device_only and dev is None:
                 continue
-            cycles = [c for c in analysis.cycles if c.side == side]
+            source = (analysis.cycles if ch in ("ankle_angle_rad",)
+                      else filtered_kinetic_cycles(rec, analysis.cycles))
+            cycles = [c for c in source if c.side == side]
             if not cycles or ch not in cycles[0].curves:
                 continue
             mean, sd = curve_statistics(cycles, ch)
@@ -178,14 +187,28 @@ def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str,
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize="small", loc="best")
     axes[-1].set_xlabel(f"{leg} gait cycle [%] (heel strike to heel strike)")
+    has_band = reference_has_band(reference, ("ankle_angle_rad", "ankle_power_w_per_kg"))
+    note = ("" if reference is None
+            else "\n" + textwrap.fill(reference_band_note(reference, has_band), 100))
     fig.suptitle(f"{title}\n{leg} ankle by condition: simulation mean ± 1 SD over the analysed "
-                 "cycles;\nreference mean dashed (± 1 SD grey where the reference has one)")
+                 f"cycles{note}\n" + textwrap.fill(filter_note(), 100))
     fig.savefig(path, dpi=_DPI)
 
 
 # ------------------------------------------------------------------------------------------
 # 1b. hip, knee, ankle per condition (with and without the device on one figure)
 # ------------------------------------------------------------------------------------------
+
+def gait_conditions_title(title: str, leg: str, reference, has_band: bool) -> str:
+    """The title of ``gait_conditions.png``: what is drawn, what the reference band is (or
+    that there is none: :func:`afo_mj.outputs.reference_display.reference_band_note`) and the
+    display filter of the moments and powers."""
+    ref = "" if reference is None else "; " + reference_band_note(reference, has_band)
+    return (f"{title}\n{leg} hip, knee and ankle by condition (with and without the device): "
+            f"simulation mean per condition{ref}\n"
+            "moments in the biomechanics convention (the negative of the record's sign); "
+            "heel strike to heel strike\n" + textwrap.fill(filter_note(), 110))
+
 
 def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title: str,
                           colours: dict) -> None:
@@ -205,10 +228,15 @@ def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title
                     "power_w_per_kg": "ankle_device_power_w_per_kg"}
     handles = [Line2D([], [], color="0.35", ls="--", lw=1.2)]
     labels = [f"{ref_name} mean"]
-    if any((reference_band(reference, f"{j}_{k}") or (None, None))[1] is not None
-           for j in JOINTS for k in ("angle_rad", "moment_nm_per_kg", "power_w_per_kg")):
+    has_band = reference_has_band(reference, [f"{j}_{k}" for j in JOINTS for k in (
+        "angle_rad", "moment_nm_per_kg", "power_w_per_kg")])
+    if reference is not None:
+        labels[0] = reference_label(reference, False) if not has_band else f"{ref_name} mean"
+    if has_band:
         handles.append(Patch(color="0.5", alpha=0.25))
-        labels.append(f"{ref_name} ± 1 SD")
+        labels.append(reference_label(reference, True))
+    shown = {cond: filtered_kinetic_cycles(rec, analysis.cycles)
+             for cond, (rec, analysis, dev) in results.items() if analysis is not None}
     any_total = False
     for cond, (rec, analysis, dev) in results.items():
         col = colours.get(cond, "C7")
@@ -236,7 +264,8 @@ def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title
             for cond, (rec, analysis, dev) in results.items():
                 if analysis is None:
                     continue
-                cycles = [cy for cy in analysis.cycles if cy.side == side]
+                cycles = [cy for cy in (shown[cond] if kind != "angle_rad" else analysis.cycles)
+                          if cy.side == side]
                 if not cycles or ch not in cycles[0].curves:
                     continue
                 col = colours.get(cond, "C7")
@@ -263,10 +292,7 @@ def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title
         labels.append("ankle: whole joint, human + device (device conditions)")
     fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize="small",
                frameon=False)
-    fig.suptitle(f"{title}\n{leg} hip, knee and ankle by condition (with and without the "
-                 "device): simulation mean per condition over the reference band\n"
-                 "moments in the biomechanics convention (the negative of the record's sign); "
-                 "heel strike to heel strike")
+    fig.suptitle(gait_conditions_title(title, leg, reference, has_band))
     fig.savefig(path, dpi=_DPI)
 
 

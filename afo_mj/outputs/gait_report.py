@@ -11,8 +11,13 @@
   reference mean/SD, on 0..100 % of the cycle;
 * ``gait_curves.png`` -- 3×3 figure: joint angle, moment and power vs % cycle for hip, knee
   and ankle; simulation mean ± 1 SD shaded, reference mean (with its ±1 SD band where it has
-  one; Winter has none: dashed line only). Moments are drawn in the biomechanics convention,
-  extensor/plantarflexor positive (the negative of the record's sign);
+  one, named with its source in the title and legend; Winter's table has no SD: dashed line
+  only, and the title says no band is drawn:
+  :mod:`afo_mj.outputs.reference_display`). Moments are drawn in the biomechanics convention,
+  extensor/plantarflexor positive (the negative of the record's sign). With the run's record
+  the moments and powers are low-pass filtered for the figure only (zero-lag 4th-order
+  Butterworth, 6 Hz, :mod:`afo_mj.analysis.kinetics_filter`; stated in the title);
+  ``summary.json`` and ``gait_curves.csv`` stay unfiltered;
 * ``scenario.toml`` -- the scenario text, when given.
 
 Everything is first written into a temporary sibling directory, then each file is moved into
@@ -25,6 +30,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -33,8 +39,13 @@ import numpy as np
 from afo_mj.outputs.result_dir import ResultDirError, write_atomically
 from afo_mj.analysis.gait_metrics import (
     CURVE_CHANNELS, JOINTS, PERCENT_CYCLE, GaitCycle, reference_band, curve_statistics)
+from afo_mj.analysis.kinetics_filter import (
+    KINETIC_CHANNELS, KINETICS_CUTOFF_HZ, filter_note, filtered_kinetic_cycles)
+from afo_mj.outputs.reference_display import (
+    reference_band_note, reference_curve, reference_label)
 
-__all__ = ["ReportError", "write_run_outputs", "OUTPUT_FILES", "json_ready"]
+__all__ = ["ReportError", "write_run_outputs", "gait_curve_panels", "OUTPUT_FILES",
+           "json_ready"]
 
 OUTPUT_FILES = ("summary.json", "cycles.csv", "gait_curves.csv", "gait_curves.png",
                 "scenario.toml")
@@ -109,49 +120,83 @@ def _write_curves(path: Path, cycles: Sequence[GaitCycle], reference) -> None:
                         for _, v in cols])
 
 
-def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str) -> None:
+_ROWS = (("angle_rad", math.degrees(1.0), "angle [deg]\n(+ flexion / dorsiflexion)"),
+         ("moment_nm_per_kg", -1.0,
+          "moment [N·m/kg]\n(+ extensor / plantarflexor,\n= −moment of the record)"),
+         ("power_w_per_kg", 1.0, "power [W/kg]\n(+ generation)"))
+
+
+def gait_curve_panels(cycles: Sequence[GaitCycle], reference, record=None,
+                      cutoff_hz: float = KINETICS_CUTOFF_HZ) -> dict:
+    """The data ``gait_curves.png`` draws, as drawn (scaled, degrees, biomechanics signs).
+
+    Returns ``{"panels": {channel: {"simulation_mean", "simulation_lower",
+    "simulation_upper", "reference": ReferenceCurve | None, "filtered": bool}}, "band":
+    whether any reference band is drawn, "filtered": whether moments/powers were low-pass
+    filtered (with ``record``; see :mod:`afo_mj.analysis.kinetics_filter`), "notes": the
+    caption lines (what the reference and its band are, the filter)}``.
+    """
+    shown = filtered_kinetic_cycles(record, cycles, cutoff_hz) if record is not None else cycles
+    panels = {}
+    for kind, scale, _ in _ROWS:
+        for joint in JOINTS:
+            ch = f"{joint}_{kind}"
+            filt = record is not None and ch in KINETIC_CHANNELS
+            mean, sd = curve_statistics(shown if filt else cycles, ch)
+            lo = hi = None
+            if sd is not None:
+                a, b = scale * (mean - sd), scale * (mean + sd)
+                lo, hi = np.minimum(a, b), np.maximum(a, b)
+            panels[ch] = {"simulation_mean": scale * mean, "simulation_lower": lo,
+                          "simulation_upper": hi,
+                          "reference": reference_curve(reference, ch, scale),
+                          "filtered": filt}
+    band = any(p["reference"] is not None and p["reference"].has_band for p in panels.values())
+    notes = [] if reference is None else [reference_band_note(reference, band)]
+    notes.append(filter_note(cutoff_hz) if record is not None
+                 else "moments and powers unfiltered (no record given)")
+    return {"panels": panels, "band": band, "filtered": record is not None, "notes": notes}
+
+
+def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str,
+          record=None) -> None:
     import matplotlib
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 9), layout="constrained")
+    data = gait_curve_panels(cycles, reference, record)
+    fig = Figure(figsize=(12, 9.4), layout="constrained")
     axes = fig.subplots(3, 3, sharex=True)
-    rows = (("angle_rad", math.degrees(1.0), "angle [deg]\n(+ flexion / dorsiflexion)"),
-            ("moment_nm_per_kg", -1.0,
-             "moment [N·m/kg]\n(+ extensor / plantarflexor,\n= −moment of the record)"),
-            ("power_w_per_kg", 1.0, "power [W/kg]\n(+ generation)"))
-    ref_name = (f"{getattr(reference, 'source', 'reference')} "
-                f"{getattr(reference, 'condition', '')}").strip()
-    for r, (kind, scale, ylabel) in enumerate(rows):
+    for r, (kind, scale, ylabel) in enumerate(_ROWS):
         for c, joint in enumerate(JOINTS):
             ax = axes[r, c]
-            ch = f"{joint}_{kind}"
-            mean, sd = curve_statistics(cycles, ch)
-            ax.plot(PERCENT_CYCLE, scale * mean, color="C0", lw=1.8,
+            p = data["panels"][f"{joint}_{kind}"]
+            ax.plot(PERCENT_CYCLE, p["simulation_mean"], color="C0", lw=1.8,
                     label=f"simulation (n = {len(cycles)})")
-            if sd is not None:
-                lo, hi = scale * (mean - sd), scale * (mean + sd)
-                ax.fill_between(PERCENT_CYCLE, np.minimum(lo, hi), np.maximum(lo, hi),
+            if p["simulation_lower"] is not None:
+                ax.fill_between(PERCENT_CYCLE, p["simulation_lower"], p["simulation_upper"],
                                 color="C0", alpha=0.25, lw=0, label="simulation ±1 SD")
-            band = reference_band(reference, ch)
-            if band is not None:
-                rmean, rsd = band
-                ax.plot(PERCENT_CYCLE, scale * rmean, color="k", lw=1.2, ls="--",
-                        label=f"{ref_name} mean")
-                if rsd is not None:
-                    a, b = scale * (rmean - rsd), scale * (rmean + rsd)
-                    ax.fill_between(PERCENT_CYCLE, np.minimum(a, b), np.maximum(a, b),
-                                    color="0.5", alpha=0.25, lw=0, label=f"{ref_name} ±1 SD")
+            ref = p["reference"]
+            if ref is not None:
+                ax.plot(PERCENT_CYCLE, ref.mean, color="k", lw=1.2, ls="--",
+                        label="reference mean")
+                if ref.has_band:
+                    ax.fill_between(PERCENT_CYCLE, ref.lower, ref.upper, color="0.5",
+                                    alpha=0.25, lw=0, label="reference ± 1 SD")
             ax.axhline(0.0, color="0.7", lw=0.6)
             if r == 0:
                 ax.set_title(joint)
             if c == 0:
-                ax.set_ylabel(ylabel)
+                ax.set_ylabel(ylabel + ("\nfiltered, see title" if p["filtered"] else ""))
             if r == 2:
                 ax.set_xlabel("gait cycle [%] (heel strike to heel strike)")
             ax.set_xlim(0, 100)
     axes[0, 0].legend(fontsize="small", loc="best")
-    fig.suptitle(title)
+    lines = [title]
+    if reference is not None:
+        lines.append(reference_label(reference, data["band"]))
+    lines += data["notes"]
+    fig.suptitle("\n".join(textwrap.fill(x, 130) for x in lines), fontsize="medium")
     fig.savefig(path, dpi=110)
 
 
@@ -189,7 +234,7 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
         if cycles:
             _write_cycles(tmp / "cycles.csv", cycles)
             _write_curves(tmp / "gait_curves.csv", cycles, reference)
-            _plot(tmp / "gait_curves.png", cycles, reference, title)
+            _plot(tmp / "gait_curves.png", cycles, reference, title, record)
         if scenario_text is not None:
             (tmp / "scenario.toml").write_text(scenario_text, encoding="utf-8")
         for fname, (header, data) in (extra_tables or {}).items():

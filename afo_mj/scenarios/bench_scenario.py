@@ -295,7 +295,8 @@ CIRCUIT_BENCH_RANGES = {
     "tracking_amplitude_rad": (0.0, 0.5), "tracking_frequency_hz": (0.1, 5.0),
     "flow_bias_pressure_pa": (0.0, 2e7), "flow_damping_nm_s_rad": (0.0, 100.0),
     "flow_inertia_kg_m2": (1e-4, 1.0), "flow_max_duration_s": (0.1, 20.0)}
-CIRCUIT_BENCH_INTS = {"freq_points": (15, 200), "tv_points": (2, 40),
+CIRCUIT_BENCH_INTS = {"freq_points": (15, 200), "freq_refine_points": (0, 100),
+                      "tv_points": (2, 40),
                       "tracking_cycles": (2, 50)}
 CIRCUIT_BENCH_LISTS = {"step_torques_nm": (0.5, 200.0), "stiffnesses_nm_rad": (0.5, 1e4),
                        "duties": (0.01, 1.0)}

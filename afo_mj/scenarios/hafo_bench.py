@@ -77,6 +77,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from afo_mj.analysis.frequency_sweep import adaptive_log_sweep, resonance_peak
 from afo_mj.analysis.response_metrics import bandwidth_hz, sine_response, step_metrics
 from afo_mj.devices.hafo import HAFO, HafoDevice, PumpAnkleParams
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
@@ -92,9 +93,12 @@ PUBLISHED = {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}
 
 DEFAULT_TIMESTEP_S = 2.5e-4
 DEFAULT_TV_VELOCITIES_DEG_S = tuple(-12.0 * k for k in range(11))      # 0 … −120 deg/s
-DEFAULT_TORQUE_FREQS_HZ = (0.2, 0.5, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0)
-DEFAULT_VELOCITY_FREQS_HZ = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 150.0, 200.0, 250.0,
-                             300.0, 400.0)
+#: Frequency ranges of the default sweeps (Hz): :func:`frequency_response` measures 20
+#: log-spaced frequencies over the range, then 12 more inside the bracket of the gain's peak
+#: (or, without an interior peak, of the −3 dB crossing):
+#: :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`, 32 frequencies in all.
+DEFAULT_TORQUE_RANGE_HZ = (0.2, 30.0)
+DEFAULT_VELOCITY_RANGE_HZ = (1.0, 400.0)
 #: The velocity sweep reaches the foot-on-oil resonance (≈ 150 Hz); 0.1 ms resolves it.
 VELOCITY_SWEEP_TIMESTEP_S = 1e-4
 
@@ -346,11 +350,21 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
     reversal is a small part of the cycle; at 3 V it distorts the response by ~50 %); output
     plantarflexion velocity ``−θ̇`` [rad/s].
 
+    ``freqs_hz``: the frequencies to measure; default (None) an adaptive sweep over
+    :data:`DEFAULT_TORQUE_RANGE_HZ` / :data:`DEFAULT_VELOCITY_RANGE_HZ` (20 log-spaced, then 12
+    more about the gain's peak or the −3 dB crossing; 32 in all,
+    :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`), enough to draw a resonance
+    and place it (``resonance_hz``: parabola through the peak in log f).
+
     Each frequency: ``preload_s`` at the bias (50 ms ramp), then the sine for ``settle_s``
     (transient allowance) plus ``measure_cycles`` whole periods (at least 0.5 s); the fit uses
     the measured periods. Summary: ``bandwidth_hz`` (−3 dB re the lowest frequency, NaN plus
     ``bandwidth_note`` if not reached), ``dc_gain`` (gain at the lowest frequency, N·m/V or
-    rad/s/V), ``energy_error_max``; series ``frequency_response_<kind>``: ``freq_hz``, ``gain``
+    rad/s/V), ``resonance_hz`` / ``resonance_peak_db`` / ``resonance_inside_range``
+    (:func:`afo_mj.analysis.frequency_sweep.resonance_peak`), ``n_frequencies``,
+    ``refined`` (what the adaptive sweep refined: ``peak``, ``bandwidth``, ``top``, or
+    ``none`` for given frequencies), ``energy_error_max``; series
+    ``frequency_response_<kind>``: ``freq_hz``, ``gain``
     (absolute), ``gain_db`` (re the lowest frequency), ``phase_deg``, ``distortion`` (fit
     residual RMS ÷ fundamental RMS).
     """
@@ -360,13 +374,17 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
     if timestep_s is None:
         timestep_s = DEFAULT_TIMESTEP_S if kind == "torque" else VELOCITY_SWEEP_TIMESTEP_S
     kw = _stand_kw(body_mass_kg, height_m, timestep_s)
-    if freqs_hz is None:
-        freqs_hz = DEFAULT_TORQUE_FREQS_HZ if kind == "torque" else DEFAULT_VELOCITY_FREQS_HZ
     nyq = 0.5 / kw["timestep_s"]
-    freqs = _check_seq("freqs_hz", freqs_hz, 0.0, nyq / 10.0, lo_open=True)
-    if len(freqs) < 2 or len(set(freqs)) != len(freqs):
-        raise BenchError(f"freqs_hz = {list(freqs)!r}; allowed: at least 2 distinct frequencies")
-    freqs = tuple(sorted(freqs))
+    if freqs_hz is not None:
+        freqs = _check_seq("freqs_hz", freqs_hz, 0.0, nyq / 10.0, lo_open=True)
+        if len(freqs) < 2 or len(set(freqs)) != len(freqs):
+            raise BenchError(f"freqs_hz = {list(freqs)!r}; allowed: at least 2 distinct "
+                             "frequencies")
+        freqs = tuple(sorted(freqs))
+    else:
+        freqs = None
+        f_range = DEFAULT_TORQUE_RANGE_HZ if kind == "torque" else DEFAULT_VELOCITY_RANGE_HZ
+        _check_seq("frequency range", f_range, 0.0, nyq / 10.0, lo_open=True)
     if kind == "torque":
         amp = _check_number("amplitude_v", 0.75 if amplitude_v is None else amplitude_v,
                             0.0, 20.0, lo_open=True)
@@ -387,12 +405,13 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
     settle = _check_number("settle_s", settle_s, 0.0, 10.0)
     mc = int(_check_number("measure_cycles", measure_cycles, 1.0, 100.0))
     t_pre = _check_number("preload_s", preload_s, 0.0, 10.0)
-    gains, phases, dist, errors = [], [], [], {}
-    for f in freqs:
+
+    def measure(f: float) -> dict:
         period = 1.0 / f
         n_settle = settle / period
         n_meas = max(mc, math.ceil(0.5 / period))
-        dur = t_pre + (n_settle + n_meas) * period
+        # two steps' margin: the record must hold the whole periods despite rounding to steps
+        dur = t_pre + (n_settle + n_meas) * period + 2.0 * kw["timestep_s"]
         w = 2 * math.pi * f
 
         def fn(t, q, v, w=w):
@@ -412,16 +431,30 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
         else:
             y = -run.rec.velocity_rad_s[sel]
         r = sine_response(t[sel], u, y, f, settle_cycles=n_settle)
-        gains.append(r["gain"])
-        phases.append(r["phase_deg"])
-        dist.append(r["distortion_y"])
-        errors[f"frequency_response_{kind}_{f:g}Hz"] = run.energy_error
+        return {"gain": r["gain"], "phase_deg": r["phase_deg"], "distortion": r["distortion_y"],
+                "energy_error": run.energy_error}
+
+    if freqs is None:
+        f_arr, results, refined = adaptive_log_sweep(measure, *f_range)
+        freqs = tuple(float(f) for f in f_arr)
+    else:
+        results, refined = [measure(f) for f in freqs], "none"
+    gains = [r["gain"] for r in results]
+    phases = [r["phase_deg"] for r in results]
+    dist = [r["distortion"] for r in results]
+    errors = {f"frequency_response_{kind}_{f:g}Hz": r["energy_error"]
+              for f, r in zip(freqs, results)}
     g = np.asarray(gains)
     g_db = 20 * np.log10(g / g[0])
     ph = np.degrees(np.unwrap(np.radians(phases)))
     bw, note = bandwidth_hz(freqs, g_db, return_note=True)
+    f_peak, peak_db, inside = resonance_peak(freqs, g)
     summary = {"kind": kind, "bandwidth_hz": bw, "bandwidth_note": note,
                "dc_gain": float(g[0]), "bias_v": bias, "amplitude_v": amp,
+               "resonance_hz": f_peak if inside else math.nan,
+               "resonance_peak_db": peak_db if inside else math.nan,
+               "resonance_inside_range": inside, "n_frequencies": len(freqs),
+               "refined": refined,
                "energy_error_max": max(errors.values()), "energy_errors": errors}
     series = {f"frequency_response_{kind}": {"freq_hz": np.asarray(freqs), "gain": g,
                                               "gain_db": g_db, "phase_deg": ph,
@@ -553,6 +586,8 @@ def run_bench(params: PumpAnkleParams = HAFO, tests: Iterable[str] = BENCH_TESTS
             s, ser = frequency_response(params, kind, **kw)
             summary[key] = s["bandwidth_hz"]
             summary[f"{kind}_dc_gain"] = s["dc_gain"]
+            summary[f"{kind}_resonance_hz"] = s["resonance_hz"]
+            summary[f"{kind}_frequency_count"] = s["n_frequencies"]
             if s["bandwidth_note"]:
                 summary[f"{key.removesuffix('_hz')}_note"] = s["bandwidth_note"]
             errors.update(s["energy_errors"])
@@ -645,8 +680,13 @@ def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[
             lab = {"torque": "isometric torque (foot locked)",
                    "velocity": "ankle velocity (free foot)"}.get(
                        k.removeprefix("frequency_response_"), k)
-            a1.semilogx(s["freq_hz"], s["gain_db"], "o-", label=lab)
-            a2.semilogx(s["freq_hz"], s["phase_deg"], "o-", label=lab)
+            lab += f", {len(s['freq_hz'])} frequencies"
+            line, = a1.semilogx(s["freq_hz"], s["gain_db"], "o-", ms=3, label=lab)
+            a2.semilogx(s["freq_hz"], s["phase_deg"], "o-", ms=3, label=lab)
+            f_pk, db_pk, inside = resonance_peak(s["freq_hz"], s["gain"])
+            if inside:
+                a1.plot([f_pk], [db_pk], "v", color=line.get_color(), ms=7,
+                        label=f"peak {f_pk:.0f} Hz, {db_pk:+.1f} dB")
         a1.axhline(-3.0, color="0.5", ls=":", lw=1, label="−3 dB (bandwidth)")
         a1.set_ylabel("gain re low frequency [dB]")
         a1.set_title("Open-loop response to motor voltage")
