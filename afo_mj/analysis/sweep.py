@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import difflib
 import io
 import json
 import math
@@ -150,19 +149,20 @@ def _load_with(scenario_path: Path, overrides: Sequence[str]):
 
 
 def _did_you_mean(key: str, message: str) -> str:
-    """A difflib suggestion for the misspelt part of the dotted ``key`` among the names the
-    scenario's error lists as allowed/known."""
-    if "did you mean" in message:
-        return ""
+    """A suggestion for the whole dotted ``key`` with its misspelt part replaced by the
+    closest of the names the scenario's error lists as allowed/known (the scenario's own
+    suggestion names only that part), or '' when there is none or the message has it."""
+    from afo_mj.scenarios.walk_scenario import did_you_mean
+
     m = re.search(r"(?:allowed|known)[^:]*:(.*)$", message, flags=re.S)
     names = sorted(set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", m.group(1)))) if m else []
     parts = key.split(".")
     for i, part in enumerate(parts):
         if part in names:
             continue
-        near = difflib.get_close_matches(part, names, n=1, cutoff=0.6)
-        if near:
-            return f" (did you mean {'.'.join(parts[:i] + near[:1] + parts[i + 1:])!r}?)"
+        hint = did_you_mean(part, names, prefix="".join(p + "." for p in parts[:i]),
+                            suffix="".join("." + p for p in parts[i + 1:]))
+        return hint if hint and hint.strip() not in message else ""
     return ""
 
 

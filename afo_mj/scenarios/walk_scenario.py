@@ -86,10 +86,11 @@ class ScenarioError(ValueError):
     """An invalid scenario: names the file, the dotted key, the value and what is allowed."""
 
 
-def did_you_mean(key: str, allowed, prefix: str = "") -> str:
-    """`` (did you mean 'prefix.x'?)`` for the closest of ``allowed`` to ``key``, or ''."""
+def did_you_mean(key: str, allowed, prefix: str = "", suffix: str = "") -> str:
+    """`` (did you mean 'prefix' + x + 'suffix'?)`` for the closest ``x`` of ``allowed`` to
+    ``key`` (difflib, cutoff 0.6), or ''."""
     near = difflib.get_close_matches(str(key), [str(a) for a in allowed], n=1, cutoff=0.6)
-    return f" (did you mean {prefix + near[0]!r}?)" if near else ""
+    return f" (did you mean {prefix + near[0] + suffix!r}?)" if near else ""
 
 
 def strides_overrides(n: int) -> list[str]:
