@@ -157,7 +157,8 @@ def _fake_results(rt, speed=1.0612):
            "schwartz_bands": {"free": {"knee_angle_rad": 0.74}},
            "stiffness_bench": {"stiffness": {"1": _stiff(1.0)}},
            "phafo_power": {"stiffness": {"1": _stiff(1.0)}},
-           "foot_drop": {"no_device": _walk()}}
+           "foot_drop": {"no_device": _walk()},
+           "hafo_gait": {"healthy": {"no_device": _walk()}}}
     assert set(res) == set(rt.BLOCKS)
     return res
 
@@ -198,3 +199,30 @@ def test_list(rt, capsys):
     assert rt.main(["--list"]) == 0
     out = capsys.readouterr().out
     assert all(name in out for name in rt.BLOCKS)
+
+
+def test_hafo_gait_table_deficit_regeneration_and_losses(rt):
+    dev = dict(device_positive_work_j_per_stride=16.42, device_negative_work_j_per_stride=-2.51,
+               electrical_in_j=276.3, electrical_regenerated_j=0.4, balance_error_rel=4.2e-13,
+               efficiency_total=0.5912, battery_runtime_h=3.21, peak_pressure_mpa=7.31,
+               fluid_temperature_rise_k=0.3, losses_j={"motor_copper": 40.2, "line": 25.1,
+                                                      "unloading": 0.0})
+    res = {"healthy": {"no_device": _walk(human_ankle_positive_work_j_per_stride=22.4,
+                                          push_off_work_j_per_stride=21.7),
+                       "assist": _walk(human_ankle_positive_work_j_per_stride=13.4,
+                                       push_off_work_j_per_stride=22.7, **dev)},
+           "prototype": {"transparent": _walk(push_off_work_j_per_stride=16.6,
+                                              **{**dev, "electrical_regenerated_j": 391.6})},
+           "weak": {"no_device": _walk(push_off_work_j_per_stride=15.2),
+                    "assist": _walk(push_off_work_j_per_stride=20.6, **dev)}}
+    md = rt.format_hafo_gait(res)
+    rows = {r[0]: r for r in _rows(md.split("\n\n")[0])}
+    assert rows["healthy, no device"][3] == rows["healthy, no device"][5] == "–"
+    assert rows["healthy, `hafo_gait` assist (Zhang, 40 N·m)"][3:] == [
+        "16.4 / −2.5", "22.7", "276 J / 4e-13"]                       # < 1 J regen: not shown
+    assert rows["healthy, `hafo` (prototype) transparent"][5] == "276 J (392 J regenerated) / 4e-13"
+    assert rows["weak, `hafo_gait` assist"][4] == "20.6 (83 % of the deficit restored)"
+    assert rows["healthy, `hafo_gait` transparent"][1:] == ["–"] * 5    # not run
+    assert ("total efficiency (positive ankle work / electrical) 0.59. Its losses over the run: "
+            "motor copper 40 J, line 25 J. Battery runtime at this gait is 3.2 h; peak pressure "
+            "7.3 MPa; oil temperature rise 0.3 K.") in md

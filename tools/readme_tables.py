@@ -273,6 +273,68 @@ def format_foot_drop(results: Mapping[str, Mapping]) -> str:
     return table(header, rows)
 
 
+HAFO_GAIT_ROWS = (("healthy", "no_device", "healthy, no device"),
+                  ("healthy", "transparent", "healthy, `hafo_gait` transparent"),
+                  ("healthy", "assist", "healthy, `hafo_gait` assist (Zhang, 40 N·m)"),
+                  ("prototype", "transparent", "healthy, `hafo` (prototype) transparent"),
+                  ("weak", "no_device", "weak plantarflexors (× 0.5), no device"),
+                  ("weak", "assist", "weak, `hafo_gait` assist"))
+LOSS_WORDS = {"motor_copper": "motor copper", "pump_mechanical": "pump mechanical",
+              "line": "line", "pump_volumetric": "pump volumetric", "driver": "driver",
+              "battery_internal": "battery", "seal_friction": "seal friction",
+              "motor_friction": "motor friction"}
+
+
+def format_hafo_gait(results: Mapping[str, Mapping]) -> str:
+    """The HAFO in gait: ``results[run][condition]`` (runs ``healthy``, ``prototype``,
+    ``weak``: :func:`device_walk_result` of the three gait scenarios), then a sentence on
+    the assisted healthy run's efficiency and losses."""
+    header = ["scenario, condition", "speed m/s", "human ankle +work J/stride",
+              "device +/− work J/stride", "push-off work (whole ankle) J/stride",
+              "electrical in / balance error"]
+    rows = []
+
+    def get(run, cond):
+        return (results.get(run) or {}).get(cond)
+    h0, w0, wa = get("healthy", "no_device"), get("weak", "no_device"), get("weak", "assist")
+    for run, cond, label in HAFO_GAIT_ROWS:
+        r = get(run, cond)
+        if r is None:
+            rows.append([label] + [MISSING] * 5)
+            continue
+        if r.get("fell"):
+            rows.append([label, fall_text(r)] + [""] * 4)
+            continue
+        po = num(r.get("push_off_work_j_per_stride"), ".1f")
+        if (run, cond) == ("weak", "assist") and None not in (h0, w0):
+            a, b, c = (x.get("push_off_work_j_per_stride") for x in (wa, w0, h0))
+            if None not in (a, b, c) and c != b:
+                po += f" ({num(100 * (a - b) / (c - b), '.0f')} % of the deficit restored)"
+        if cond == "no_device":
+            dev = elec = MISSING
+        else:
+            dev = (f"{num(r.get('device_positive_work_j_per_stride'), '.1f')} / "
+                   f"{num(r.get('device_negative_work_j_per_stride'), '.1f')}")
+            regen = r.get("electrical_regenerated_j")
+            elec = (f"{num(r.get('electrical_in_j'), '.0f')} J"
+                    + (f" ({num(regen, '.0f')} J regenerated)" if regen and regen >= 1.0 else "")
+                    + f" / {num(r.get('balance_error_rel'), '.0e')}")
+        rows.append([label, num(r.get("speed_m_s")),
+                     num(r.get("human_ankle_positive_work_j_per_stride"), ".1f"), dev, po, elec])
+    out = table(header, rows)
+    ha = get("healthy", "assist")
+    if ha is not None and not ha.get("fell"):
+        losses = sorted(((v, k) for k, v in (ha.get("losses_j") or {}).items()
+                         if k in LOSS_WORDS), reverse=True)
+        out += ("\n\nThe assisted healthy run: total efficiency (positive ankle work / "
+                f"electrical) {num(ha.get('efficiency_total'), '.2f')}. Its losses over the run: "
+                + ", ".join(f"{LOSS_WORDS[k]} {num(v, '.0f')} J" for v, k in losses)
+                + f". Battery runtime at this gait is {num(ha.get('battery_runtime_h'), '.1f')} h;"
+                f" peak pressure {num(ha.get('peak_pressure_mpa'), '.1f')} MPa; oil temperature "
+                f"rise {num(ha.get('fluid_temperature_rise_k'), '.1f')} K.")
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # runs (through the functions the CLI calls)
 # --------------------------------------------------------------------------------------------
@@ -390,6 +452,20 @@ def device_walk_result(scenario_path: str) -> dict:
             r["electrical_in_j_per_stride"] = None if eps is None else eps["electrical_in_j"]
             r["human_ankle_positive_work_j_per_stride"] = (
                 v["human"].get("ankle_positive_work_j_per_stride"))
+            r["push_off_work_j_per_stride"] = (
+                (v.get("ankle") or {}).get("push_off_positive_work_j_per_stride"))
+            if "device" in v:
+                d, e = v["device"], v["energy"]
+                r.update(device_positive_work_j_per_stride=d["positive_work_j_per_stride"],
+                         device_negative_work_j_per_stride=d["negative_work_j_per_stride"],
+                         peak_pressure_mpa=d.get("peak_pressure_mpa"),
+                         fluid_temperature_rise_k=d.get("fluid_temperature_rise_k"),
+                         battery_runtime_h=d.get("battery_runtime_h"),
+                         electrical_in_j=e.get("electrical_in_j"),
+                         electrical_regenerated_j=e.get("electrical_regenerated_j"),
+                         efficiency_total=e.get("efficiency_total"),
+                         balance_error_rel=e.get("balance_error_rel"),
+                         losses_j=dict(e.get("losses_j") or {}))
             out[cond] = r
         return out
     return _memo("device:" + scenario_path, run)
@@ -428,6 +504,12 @@ def collect_foot_drop() -> dict:
     return device_walk_result("scenarios/gait_stiffness_emulation.toml")
 
 
+def collect_hafo_gait() -> dict:
+    return {"healthy": device_walk_result("scenarios/gait_assist_hafo.toml"),
+            "prototype": device_walk_result("scenarios/gait_assist_hafo_prototype.toml"),
+            "weak": device_walk_result("scenarios/gait_weak_plantarflexors_hafo.toml")}
+
+
 # --------------------------------------------------------------------------------------------
 # blocks
 # --------------------------------------------------------------------------------------------
@@ -453,6 +535,9 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
           "walk_healthy and walk_weak_plantarflexors runs"),
     Block("schwartz_bands", collect_schwartz_bands, format_schwartz_bands,
           "scenarios/walk_schwartz_free.toml, walk_schwartz_fast.toml"),
+    Block("hafo_gait", collect_hafo_gait, format_hafo_gait,
+          "scenarios/gait_assist_hafo.toml, gait_assist_hafo_prototype.toml, "
+          "gait_weak_plantarflexors_hafo.toml, right ankle, strides 4–10"),
     Block("stiffness_bench", collect_stiffness_bench, format_stiffness_bench,
           "scenarios/stiffness_bench.toml"),
     Block("phafo_power", collect_stiffness_bench, format_phafo_power,
