@@ -158,7 +158,8 @@ def _fake_results(rt, speed=1.0612):
            "stiffness_bench": {"stiffness": {"1": _stiff(1.0)}},
            "phafo_power": {"stiffness": {"1": _stiff(1.0)}},
            "foot_drop": {"no_device": _walk()},
-           "hafo_gait": {"healthy": {"no_device": _walk()}}}
+           "hafo_gait": {"healthy": {"no_device": _walk()}},
+           "hafo_bench": {"hafo": {"bench": {"stall_torque_nm": 65.44}}}}
     assert set(res) == set(rt.BLOCKS)
     return res
 
@@ -226,3 +227,18 @@ def test_hafo_gait_table_deficit_regeneration_and_losses(rt):
     assert ("total efficiency (positive ankle work / electrical) 0.59. Its losses over the run: "
             "motor copper 40 J, line 25 J. Battery runtime at this gait is 3.2 h; peak pressure "
             "7.3 MPa; oil temperature rise 0.3 K.") in md
+
+
+def test_hafo_bench_table_units(rt):
+    res = {"hafo": {"bench": {"stall_torque_nm": 65.44, "no_load_speed_deg_s": 105.49,
+                              "rise_time_s": 0.03492, "overshoot_pct": 13.27,
+                              "bandwidth_hz": 2.387, "velocity_bandwidth_hz": 199.26,
+                              "position_rise_time_s": 0.18476},
+                    "device": {"mass_total_kg": 3.3045, "mass_at_ankle_kg": 0.97},
+                    "energy": {"balance_error_rel": 2.2537e-10},
+                    "published": {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}},
+           "hafo_gait": {"bench": {"overshoot_pct": 0.004, "rise_time_s": 0.0521}}}
+    rows = _rows(rt.format_hafo_bench(res))
+    assert rows[0] == ["stall torque", "65.4 N·m (current limit)", "65 N·m", "– N·m"]
+    assert rows[3][1] == "34.9 ms, 13.3 %" and rows[3][3] == "52.1 ms, 0 %"   # s → ms
+    assert rows[2][1] == "3.30 / 0.97 kg" and rows[7][1] == "2.3e-10"

@@ -198,6 +198,49 @@ def format_schwartz_bands(results: Mapping[str, Mapping]) -> str:
     return table(["channel"] + cols, rows)
 
 
+# what the prototype's publication gives beyond the bench summary's "published" entries
+HAFO_PUBLISHED_TEXT = {"mass": "3.3 / 0.97 kg", "step": "not quantified", "bandwidth": "—",
+                       "velocity_bandwidth": "—", "position": '"slow"', "balance": ""}
+
+
+def format_hafo_bench(results: Mapping[str, Mapping]) -> str:
+    """The HAFO presets on the test stand: ``results["hafo"]``, ``results["hafo_gait"]`` =
+    bench summaries (``bench``: stall torque N·m, no-load speed deg/s, rise time s,
+    overshoot %, bandwidths Hz, position rise time s; ``device`` masses; ``energy``
+    balance; ``published``)."""
+    def b(preset):
+        return ((results.get(preset) or {}).get("bench")) or {}
+
+    def d(preset):
+        return ((results.get(preset) or {}).get("device")) or {}
+    pub = (results.get("hafo") or {}).get("published") or {}
+
+    def col(preset):
+        x, m = b(preset), d(preset)
+        stall = f"{num(x.get('stall_torque_nm'), '.1f')} N·m"
+        if preset == "hafo":
+            stall += " (current limit)"
+        return [stall, f"{num(x.get('no_load_speed_deg_s'), '.1f')} deg/s",
+                f"{num(m.get('mass_total_kg'), '.2f')} / {num(m.get('mass_at_ankle_kg'), '.2f')} kg",
+                f"{num(x.get('rise_time_s'), '.1f', 1e3)} ms, {num(x.get('overshoot_pct'), '.1f')} %"
+                .replace(", 0.0 %", ", 0 %"),
+                f"{num(x.get('bandwidth_hz'), '.1f')} Hz",
+                f"{num(x.get('velocity_bandwidth_hz'), '.0f')} Hz",
+                f"{num(x.get('position_rise_time_s'), '.3f')} s",
+                num((results.get(preset) or {}).get("energy", {}).get("balance_error_rel"), ".1e")]
+    published = [f"{num(pub.get('stall_torque_nm'), 'g')} N·m",
+                 f"{num(pub.get('no_load_speed_deg_s'), 'g')} deg/s",
+                 HAFO_PUBLISHED_TEXT["mass"], HAFO_PUBLISHED_TEXT["step"],
+                 HAFO_PUBLISHED_TEXT["bandwidth"], HAFO_PUBLISHED_TEXT["velocity_bandwidth"],
+                 HAFO_PUBLISHED_TEXT["position"], HAFO_PUBLISHED_TEXT["balance"]]
+    labels = ["stall torque", "no-load speed", "mass, total / at the ankle",
+              "40 N·m isometric step: rise time, overshoot", "open-loop isometric-torque bandwidth",
+              "open-loop velocity bandwidth", "closed-loop position step (15°) rise",
+              "worst energy-balance error of any bench run"]
+    rows = [[lbl, a, p, g] for lbl, a, p, g in zip(labels, col("hafo"), published, col("hafo_gait"))]
+    return table(["figure", "`hafo` model", "published", "`hafo_gait`"], rows)
+
+
 def format_stiffness_bench(results: Mapping) -> str:
     """The PHAFO on the stiffness rig: ``results["stiffness"]`` = the bench summary's
     per-stiffness entries (``commanded_nm_per_deg``, ``emulated_nm_per_deg``,
@@ -496,6 +539,11 @@ def collect_schwartz_bands() -> dict:
     return out
 
 
+def collect_hafo_bench() -> dict:
+    return {"hafo": bench_result("scenarios/bench_hafo.toml"),
+            "hafo_gait": bench_result("scenarios/bench_hafo_gait.toml")}
+
+
 def collect_stiffness_bench() -> dict:
     return bench_result("scenarios/stiffness_bench.toml")
 
@@ -535,6 +583,9 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
           "walk_healthy and walk_weak_plantarflexors runs"),
     Block("schwartz_bands", collect_schwartz_bands, format_schwartz_bands,
           "scenarios/walk_schwartz_free.toml, walk_schwartz_fast.toml"),
+    Block("hafo_bench", collect_hafo_bench, format_hafo_bench,
+          "scenarios/bench_hafo.toml, bench_hafo_gait.toml, each preset stepping its "
+          "generated circuit"),
     Block("hafo_gait", collect_hafo_gait, format_hafo_gait,
           "scenarios/gait_assist_hafo.toml, gait_assist_hafo_prototype.toml, "
           "gait_weak_plantarflexors_hafo.toml, right ankle, strides 4–10"),
