@@ -1,0 +1,692 @@
+"""Regenerate the measured tables of README.md from the scenarios that produce them.
+
+Each measured table (or measured sentence turned table) in README.md sits between
+
+    <!-- generated:NAME begin -->
+    ...
+    <!-- generated:NAME end -->
+
+and is rewritten from a fresh in-process run of its scenarios, through the functions the
+``afo-mj`` CLI itself calls (``load_scenario`` → ``simulate_walk`` → ``analyse_gait``,
+``run_device_scenario``, ``run_bench_scenario``); nothing parses CLI output. Under each table a
+line states the command that produced it and the date.
+
+    python tools/readme_tables.py                 # run everything, rewrite every block
+    python tools/readme_tables.py --only NAME     # one block (repeatable)
+    python tools/readme_tables.py --check         # exit 1 listing blocks whose text would change
+    python tools/readme_tables.py --list          # block names, the scenarios each runs
+
+Blocks that share runs share them: the graded plantarflexor-weakness table takes its 100 % and
+50 % rows from the very runs of ``walk_healthy`` and ``walk_weak_plantarflexors`` that the
+scenario table shows (one in-process cache keyed by scenario file and overrides), so the two
+tables cannot disagree. ``--cache DIR`` also keeps each run's JSON-ready result on disk, so
+that ``--only`` calls in separate processes reuse them (delete DIR to rerun).
+
+The date line is not compared by ``--check`` (a block regenerated on another day with the
+same numbers is unchanged), and a rewrite keeps the old date when the numbers did not change.
+
+Each block has a pure formatting function ``format_NAME(results) -> markdown`` working on
+plain dicts (SI units in the key names, ``None`` for a missing value, shown as "–"), so the
+formatting is tested without running a walk (``tests/test_readme_tables.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import math
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+ROOT = Path(__file__).resolve().parents[1]
+MISSING = "–"
+TOOL = "tools/readme_tables.py"
+
+# --------------------------------------------------------------------------------------------
+# formatting helpers (pure)
+# --------------------------------------------------------------------------------------------
+
+
+def num(x: Any, fmt: str = ".2f", scale: float = 1.0) -> str:
+    """``x × scale`` formatted, or "–" for None/NaN; a mean-SD entry (``{"mean": …}``) gives
+    its mean. A negative number gets a real minus sign (−), as the README writes them."""
+    if isinstance(x, Mapping):
+        x = x.get("mean")
+    if x is None:
+        return MISSING
+    try:
+        v = float(x) * scale
+    except (TypeError, ValueError):
+        return MISSING
+    if not math.isfinite(v):
+        return MISSING
+    s = f"{v:{fmt}}"
+    if s.startswith("-"):
+        s = ("−" + s[1:]) if float(s) != 0.0 else s[1:]
+    return s
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    """A GitHub markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def pct(fraction: Any) -> str:
+    """A strength fraction as "50 %"."""
+    if fraction is None:
+        return MISSING
+    return f"{100 * float(fraction):g} %"
+
+
+def fall_text(r: Mapping) -> str:
+    """"falls in stride N (t = X s)" for a run that fell before an analysable stride."""
+    t = r.get("fall_time_s")
+    n = r.get("completed_strides")
+    where = "" if n is None else f" in stride {int(n) + 1}"
+    return f"falls{where}" + ("" if t is None else f" (t = {num(t, '.2f')} s)")
+
+
+# --------------------------------------------------------------------------------------------
+# block formatters (pure: results dict → markdown)
+# --------------------------------------------------------------------------------------------
+
+# Winter (2009) normal cadence, as published (not a run): the reference row of the scenario
+# table. Speed from Winter's stride 1.51 m at 105.3 steps/min.
+WINTER_PUBLISHED = {"peak_ankle_plantarflexor_moment_nm_per_kg": 1.69,
+                    "peak_ankle_power_w_per_kg": 3.24,
+                    "ankle_push_off_positive_work_j_per_kg": 0.345, "speed_m_s": 1.325}
+
+SCENARIO_ROWS = ("walk_healthy", "walk_weak_plantarflexors", "walk_foot_drop",
+                 "walk_spastic_ankle", "walk_child_healthy")
+
+
+def _walk_label(name: str, r: Mapping) -> str:
+    """"`walk_weak_plantarflexors` (50 %)", "`walk_child_healthy` (25 kg, 1.2 m)"."""
+    notes = []
+    pf, df = r.get("plantarflexor_strength_fraction"), r.get("dorsiflexor_strength_fraction")
+    if pf is not None and pf < 1.0:
+        notes.append(pct(pf))
+    if df is not None and df < 1.0:
+        notes.append(pct(df))
+    m, h = r.get("body_mass_kg"), r.get("height_m")
+    if m is not None and h is not None and (abs(m - 75.0) > 1e-9 or abs(h - 1.75) > 1e-9):
+        notes.append(f"{m:g} kg, {h:g} m")
+    return f"`{name}`" + (f" ({', '.join(notes)})" if notes else "")
+
+
+def format_scenarios(results: Mapping[str, Mapping]) -> str:
+    """The "What it reproduces" table: one row per scenario of :data:`SCENARIO_ROWS`
+    (``results[name]`` = :func:`walk_result`), Winter's published figures on top."""
+    header = ["scenario", "angle RMS vs Winter hip / knee / ankle [deg]",
+              "peak ankle plantarflexor moment [N·m/kg]", "peak push-off power [W/kg]",
+              "push-off work [J/kg]", "push-off peak plantarflexion [deg]",
+              "min toe clearance [cm]", "speed [m/s]", "residual force RMS [% BW]"]
+    w = WINTER_PUBLISHED
+    rows = [["Winter normal (reference)", MISSING,
+             num(w["peak_ankle_plantarflexor_moment_nm_per_kg"]),
+             num(w["peak_ankle_power_w_per_kg"]),
+             num(w["ankle_push_off_positive_work_j_per_kg"], ".3f"), MISSING, MISSING,
+             num(w["speed_m_s"], ".3f"), MISSING]]
+    healthy = results.get("walk_healthy", {})
+    for name in SCENARIO_ROWS:
+        r = results.get(name)
+        if r is None:
+            rows.append([f"`{name}`"] + [MISSING] * 8)
+            continue
+        label = _walk_label(name, r)
+        if r.get("fell"):
+            rows.append([label, fall_text(r)] + [""] * 7)
+            continue
+        rms = " / ".join(num(r.get(f"{j}_angle_rms_error_deg"), ".1f")
+                         for j in ("hip", "knee", "ankle"))
+        moment = num(r.get("peak_ankle_plantarflexor_moment_nm_per_kg"))
+        h = r.get("height_m")
+        hm = healthy.get("peak_ankle_plantarflexor_moment_nm_per_kg")
+        if name != "walk_healthy" and h is not None and abs(h - 1.75) > 1e-9 and hm is not None:
+            moment += f" (healthy × {h:g}/1.75 = {num(hm * h / 1.75)})"
+        rows.append([label, rms, moment, num(r.get("peak_ankle_power_w_per_kg")),
+                     num(r.get("ankle_push_off_positive_work_j_per_kg"), ".3f"),
+                     num(r.get("push_off_peak_plantarflexion_deg"), ".1f"),
+                     num(r.get("min_toe_clearance_m"), ".1f", 100.0),
+                     num(r.get("speed_m_s")),
+                     num(r.get("residual_force_rms_percent_body_weight"), ".1f")])
+    return table(header, rows)
+
+
+WEAKNESS_FRACTIONS = (1.0, 0.7, 0.6, 0.5, 0.45, 0.4, 0.35)
+
+
+def format_plantarflexor_weakness(results: Mapping[float, Mapping]) -> str:
+    """Graded plantarflexor weakness: ``results[fraction]`` = :func:`walk_result`."""
+    header = ["plantarflexor strength", "push-off work [J/kg]",
+              "push-off peak plantarflexion [deg]", "speed [m/s]",
+              "peak ankle plantarflexor moment [N·m/kg]", "ankle angle RMS vs Winter [deg]"]
+    rows = []
+    for f in sorted(results, reverse=True):
+        r = results[f]
+        label = pct(f) + {1.0: " (`walk_healthy`)", 0.5: " (`walk_weak_plantarflexors`)"
+                          }.get(float(f), "")
+        if r is None:
+            rows.append([label] + [MISSING] * 5)
+        elif r.get("fell"):
+            rows.append([label, fall_text(r)] + [""] * 4)
+        else:
+            rows.append([label, num(r.get("ankle_push_off_positive_work_j_per_kg"), ".3f"),
+                         num(r.get("push_off_peak_plantarflexion_deg"), ".1f"),
+                         num(r.get("speed_m_s")),
+                         num(r.get("peak_ankle_plantarflexor_moment_nm_per_kg")),
+                         num(r.get("ankle_angle_rms_error_deg"), ".1f")])
+    return table(header, rows)
+
+
+BAND_CHANNELS = (("knee_angle_rad", "knee"), ("ankle_angle_rad", "ankle"),
+                 ("thigh_angle_rad", "thigh from vertical"), ("hip_angle_rad", "hip"))
+
+
+def format_schwartz_bands(results: Mapping[str, Mapping]) -> str:
+    """Fraction of the cycle inside Schwartz et al. (2008) ±1 SD: ``results`` maps a column
+    label (e.g. "`walk_schwartz_free` vs Free") to ``{channel: fraction}``."""
+    cols = list(results)
+    rows = [[label] + [num((results[c] or {}).get(ch), ".2f") for c in cols]
+            for ch, label in BAND_CHANNELS]
+    return table(["channel"] + cols, rows)
+
+
+# what the prototype's publication gives beyond the bench summary's "published" entries
+HAFO_PUBLISHED_TEXT = {"mass": "3.3 / 0.97 kg", "step": "not quantified", "bandwidth": "—",
+                       "velocity_bandwidth": "—", "position": '"slow"', "balance": ""}
+
+
+def format_hafo_bench(results: Mapping[str, Mapping]) -> str:
+    """The HAFO presets on the test stand: ``results["hafo"]``, ``results["hafo_gait"]`` =
+    bench summaries (``bench``: stall torque N·m, no-load speed deg/s, rise time s,
+    overshoot %, bandwidths Hz, position rise time s; ``device`` masses; ``energy``
+    balance; ``published``)."""
+    def b(preset):
+        return ((results.get(preset) or {}).get("bench")) or {}
+
+    def d(preset):
+        return ((results.get(preset) or {}).get("device")) or {}
+    pub = (results.get("hafo") or {}).get("published") or {}
+
+    def col(preset):
+        x, m = b(preset), d(preset)
+        stall = f"{num(x.get('stall_torque_nm'), '.1f')} N·m"
+        if preset == "hafo":
+            stall += " (current limit)"
+        return [stall, f"{num(x.get('no_load_speed_deg_s'), '.1f')} deg/s",
+                f"{num(m.get('mass_total_kg'), '.2f')} / {num(m.get('mass_at_ankle_kg'), '.2f')} kg",
+                f"{num(x.get('rise_time_s'), '.1f', 1e3)} ms, {num(x.get('overshoot_pct'), '.1f')} %"
+                .replace(", 0.0 %", ", 0 %"),
+                f"{num(x.get('bandwidth_hz'), '.1f')} Hz",
+                f"{num(x.get('velocity_bandwidth_hz'), '.0f')} Hz",
+                f"{num(x.get('position_rise_time_s'), '.3f')} s",
+                num((results.get(preset) or {}).get("energy", {}).get("balance_error_rel"), ".1e")]
+    published = [f"{num(pub.get('stall_torque_nm'), 'g')} N·m",
+                 f"{num(pub.get('no_load_speed_deg_s'), 'g')} deg/s",
+                 HAFO_PUBLISHED_TEXT["mass"], HAFO_PUBLISHED_TEXT["step"],
+                 HAFO_PUBLISHED_TEXT["bandwidth"], HAFO_PUBLISHED_TEXT["velocity_bandwidth"],
+                 HAFO_PUBLISHED_TEXT["position"], HAFO_PUBLISHED_TEXT["balance"]]
+    labels = ["stall torque", "no-load speed", "mass, total / at the ankle",
+              "40 N·m isometric step: rise time, overshoot", "open-loop isometric-torque bandwidth",
+              "open-loop velocity bandwidth", "closed-loop position step (15°) rise",
+              "worst energy-balance error of any bench run"]
+    rows = [[lbl, a, p, g] for lbl, a, p, g in zip(labels, col("hafo"), published, col("hafo_gait"))]
+    return table(["figure", "`hafo` model", "published", "`hafo_gait`"], rows)
+
+
+def format_stiffness_bench(results: Mapping) -> str:
+    """The PHAFO on the stiffness rig: ``results["stiffness"]`` = the bench summary's
+    per-stiffness entries (``commanded_nm_per_deg``, ``emulated_nm_per_deg``,
+    ``hysteresis_energy_j``, ``peak_torque_nm``, ``peak_supply_pressure_pa``,
+    ``energy_balance_error_rel``)."""
+    header = ["commanded N·m/deg", "emulated N·m/deg", "hysteresis loop J/cycle",
+              "peak torque N·m", "rail MPa", "energy balance"]
+    rows = [[num(v.get("commanded_nm_per_deg"), ".1f"), num(v.get("emulated_nm_per_deg"), ".3f"),
+             num(v.get("hysteresis_energy_j"), ".2f"), num(v.get("peak_torque_nm"), ".1f"),
+             num(v.get("peak_supply_pressure_pa"), ".2f", 1e-6),
+             num(v.get("energy_balance_error_rel"), ".0e")]
+            for v in results.get("stiffness", {}).values()]
+    return table(header, rows)
+
+
+# loss names of the ledger → the words the README uses; the rest are summed as "other"
+POWER_COLUMNS = (("motor_copper", "motor copper"), ("pump_volumetric", "pump leakage"),
+                 ("servo_valve_throttling", "servo valve"), ("driver", "driver"),
+                 ("pump_mechanical", "pump mech."))
+
+
+def format_phafo_power(results: Mapping) -> str:
+    """Mean electrical power of the PHAFO holding its rail on the stiffness rig, and where it
+    goes, per commanded stiffness (W: each loss's energy over the sweep's duration, which is
+    ``electrical_in_j / mean_electrical_power_w``)."""
+    header = (["commanded N·m/deg", "electrical W"] + [f"{lbl} W" for _, lbl in POWER_COLUMNS]
+              + ["other W"])
+    rows = []
+    for v in results.get("stiffness", {}).values():
+        p, e = v.get("mean_electrical_power_w"), v.get("electrical_in_j")
+        losses = v.get("losses_j") or {}
+        scale = (p / e) if p is not None and e else None
+        row = [num(v.get("commanded_nm_per_deg"), ".1f"), num(p, ".0f")]
+        for key, _ in POWER_COLUMNS:
+            row.append(num(None if scale is None else losses.get(key), ".0f",
+                           1.0 if scale is None else scale))
+        other = sum(x for k, x in losses.items() if k not in dict(POWER_COLUMNS))
+        row.append(num(None if scale is None or not losses else other, ".0f",
+                       1.0 if scale is None else scale))
+        rows.append(row)
+    return table(header, rows)
+
+
+def _condition_label(cond: str) -> str:
+    if cond == "no_device":
+        return "no device"
+    m = re.fullmatch(r"assist_k(.+)", cond)
+    return f"{m.group(1)} N·m/deg" if m else cond
+
+
+def format_foot_drop(results: Mapping[str, Mapping]) -> str:
+    """The child with foot drop and the PHAFO on both ankles: ``results[condition]`` with
+    ``swing_mean_ankle_angle_deg``, ``min_toe_clearance_m``, ``push_off_peak_power_w``,
+    ``speed_m_s``, ``electrical_in_j_per_stride`` (right side), or a fall. Rows: no device,
+    then the stiffnesses ascending."""
+    header = ["condition", "mid-swing ankle deg", "min toe clearance mm",
+              "push-off peak power W", "speed m/s", "device electrical J/stride (right side)"]
+
+    def key(c):
+        m = re.fullmatch(r"assist_k(.+)", c)
+        return (0, 0.0) if c == "no_device" else (1, float(m.group(1)) if m else math.inf)
+    rows = []
+    for cond in sorted(results, key=key):
+        r = results[cond]
+        if r.get("fell"):
+            rows.append([_condition_label(cond), fall_text(r), "", "", "", ""])
+            continue
+        elec = r.get("electrical_in_j_per_stride")
+        rows.append([_condition_label(cond), num(r.get("swing_mean_ankle_angle_deg"), ".1f"),
+                     num(r.get("min_toe_clearance_m"), ".1f", 1e3),
+                     num(r.get("push_off_peak_power_w"), ".1f"), num(r.get("speed_m_s")),
+                     num(elec, ".0f")])
+    return table(header, rows)
+
+
+HAFO_GAIT_ROWS = (("healthy", "no_device", "healthy, no device"),
+                  ("healthy", "transparent", "healthy, `hafo_gait` transparent"),
+                  ("healthy", "assist", "healthy, `hafo_gait` assist (Zhang, 40 N·m)"),
+                  ("prototype", "transparent", "healthy, `hafo` (prototype) transparent"),
+                  ("weak", "no_device", "weak plantarflexors (× 0.5), no device"),
+                  ("weak", "assist", "weak, `hafo_gait` assist"))
+LOSS_WORDS = {"motor_copper": "motor copper", "pump_mechanical": "pump mechanical",
+              "line": "line", "pump_volumetric": "pump volumetric", "driver": "driver",
+              "battery_internal": "battery", "seal_friction": "seal friction",
+              "motor_friction": "motor friction"}
+
+
+def format_hafo_gait(results: Mapping[str, Mapping]) -> str:
+    """The HAFO in gait: ``results[run][condition]`` (runs ``healthy``, ``prototype``,
+    ``weak``: :func:`device_walk_result` of the three gait scenarios), then a sentence on
+    the assisted healthy run's efficiency and losses."""
+    header = ["scenario, condition", "speed m/s", "human ankle +work J/stride",
+              "device +/− work J/stride", "push-off work (whole ankle) J/stride",
+              "electrical in / balance error"]
+    rows = []
+
+    def get(run, cond):
+        return (results.get(run) or {}).get(cond)
+    h0, w0, wa = get("healthy", "no_device"), get("weak", "no_device"), get("weak", "assist")
+    for run, cond, label in HAFO_GAIT_ROWS:
+        r = get(run, cond)
+        if r is None:
+            rows.append([label] + [MISSING] * 5)
+            continue
+        if r.get("fell"):
+            rows.append([label, fall_text(r)] + [""] * 4)
+            continue
+        po = num(r.get("push_off_work_j_per_stride"), ".1f")
+        if (run, cond) == ("weak", "assist") and None not in (h0, w0):
+            a, b, c = (x.get("push_off_work_j_per_stride") for x in (wa, w0, h0))
+            if None not in (a, b, c) and c != b:
+                po += f" ({num(100 * (a - b) / (c - b), '.0f')} % of the deficit restored)"
+        if cond == "no_device":
+            dev = elec = MISSING
+        else:
+            dev = (f"{num(r.get('device_positive_work_j_per_stride'), '.1f')} / "
+                   f"{num(r.get('device_negative_work_j_per_stride'), '.1f')}")
+            regen = r.get("electrical_regenerated_j")
+            elec = (f"{num(r.get('electrical_in_j'), '.0f')} J"
+                    + (f" ({num(regen, '.0f')} J regenerated)" if regen and regen >= 1.0 else "")
+                    + f" / {num(r.get('balance_error_rel'), '.0e')}")
+        rows.append([label, num(r.get("speed_m_s")),
+                     num(r.get("human_ankle_positive_work_j_per_stride"), ".1f"), dev, po, elec])
+    out = table(header, rows)
+    ha = get("healthy", "assist")
+    if ha is not None and not ha.get("fell"):
+        losses = sorted(((v, k) for k, v in (ha.get("losses_j") or {}).items()
+                         if k in LOSS_WORDS), reverse=True)
+        out += ("\n\nThe assisted healthy run: total efficiency (positive ankle work / "
+                f"electrical) {num(ha.get('efficiency_total'), '.2f')}. Its losses over the run: "
+                + ", ".join(f"{LOSS_WORDS[k]} {num(v, '.0f')} J" for v, k in losses)
+                + f". Battery runtime at this gait is {num(ha.get('battery_runtime_h'), '.1f')} h;"
+                f" peak pressure {num(ha.get('peak_pressure_mpa'), '.1f')} MPa; oil temperature "
+                f"rise {num(ha.get('fluid_temperature_rise_k'), '.1f')} K.")
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# runs (through the functions the CLI calls)
+# --------------------------------------------------------------------------------------------
+
+WALK_KEYS = ("hip_angle_rms_error_deg", "knee_angle_rms_error_deg", "ankle_angle_rms_error_deg",
+             "peak_ankle_plantarflexor_moment_nm_per_kg", "peak_ankle_power_w_per_kg",
+             "ankle_push_off_positive_work_j_per_kg", "push_off_peak_plantarflexion_deg",
+             "min_toe_clearance_m", "speed_m_s", "swing_mean_ankle_angle_deg",
+             "cadence_steps_per_min")
+
+_MEMO: dict[str, Any] = {}
+CACHE_DIR: Path | None = None
+
+
+def _mean(entry: Any) -> float | None:
+    if isinstance(entry, Mapping):
+        entry = entry.get("mean")
+    return None if entry is None else float(entry)
+
+
+def _memo(key: str, fn: Callable[[], Any]) -> Any:
+    """In-process memo of a run's JSON-ready result, and on disk under ``--cache DIR``."""
+    if key in _MEMO:
+        return _MEMO[key]
+    path = None
+    if CACHE_DIR is not None:
+        path = CACHE_DIR / (re.sub(r"[^A-Za-z0-9_.=-]+", "_", key) + ".json")
+        if path.exists():
+            _MEMO[key] = json.loads(path.read_text(encoding="utf-8"))
+            return _MEMO[key]
+    print(f"[readme_tables] running {key} ...", file=sys.stderr, flush=True)
+    t0 = _dt.datetime.now()
+    out = fn()
+    print(f"[readme_tables]   done in {(_dt.datetime.now() - t0).total_seconds():.0f} s",
+          file=sys.stderr, flush=True)
+    _MEMO[key] = out
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(out, indent=1, allow_nan=False), encoding="utf-8")
+    return out
+
+
+def _gait_result(summary: Mapping | None, events) -> dict:
+    out: dict[str, Any] = {k: None for k in WALK_KEYS}
+    if summary is not None:
+        for k in WALK_KEYS:
+            out[k] = _mean(summary.get(k))
+        rf = summary.get("residual_force_rms_percent_body_weight") or {}
+        out["residual_force_rms_percent_body_weight"] = rf.get("over_analysed_span")
+    out["fell"] = events.fall_time_s is not None
+    out["fall_time_s"] = events.fall_time_s
+    out["completed_strides"] = max(len(events.heel_strikes_s[0]) - 1, 0)
+    return out
+
+
+def walk_result(scenario_path: str, overrides: tuple[str, ...] = ()) -> dict:
+    """One walk as ``afo-mj run`` does it (``load_scenario`` → ``simulate_walk`` →
+    ``analyse_gait``, band fractions as the CLI adds them): the means of the table's
+    metrics, the fall, body size and strength fractions."""
+    def run():
+        from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait, band_fraction
+        from afo_mj.gait.reference import load_normative
+        from afo_mj.gait.walk import simulate_walk
+        from afo_mj.scenarios.walk_scenario import load_scenario
+        sc = load_scenario(ROOT / scenario_path, overrides=list(overrides))
+        reference = sc.load_reference()
+        record = simulate_walk(sc)
+        try:
+            analysis = analyse_gait(record, reference, sc.analyse_strides)
+        except GaitAnalysisError:
+            if record.events.fall_time_s is None:
+                raise
+            analysis = None
+        out = _gait_result(None if analysis is None else analysis.summary, record.events)
+        out.update(name=sc.name, body_mass_kg=sc.walker.body_mass_kg,
+                   height_m=sc.walker.height_m,
+                   plantarflexor_strength_fraction=sc.walker.plantarflexor_strength_fraction,
+                   dorsiflexor_strength_fraction=sc.walker.dorsiflexor_strength_fraction)
+        if analysis is not None and sc.band_references:
+            out["band_fraction_vs"] = {
+                f"{src}:{cond}": {ch: _mean(v) for ch, v in band_fraction(
+                    analysis.cycles, load_normative(src, cond)).items()}
+                for src, cond in sc.band_references}
+        return out
+    return _memo("walk:" + scenario_path + "".join(" --set " + o for o in overrides), run)
+
+
+def bench_result(scenario_path: str) -> dict:
+    """A bench scenario as ``afo-mj run`` runs it (``load_bench_scenario`` →
+    ``run_bench_scenario``): its JSON-ready summary."""
+    def run():
+        from afo_mj.outputs.gait_report import json_ready
+        from afo_mj.scenarios.bench_scenario import load_bench_scenario, run_bench_scenario
+        summary, _series = run_bench_scenario(load_bench_scenario(ROOT / scenario_path))
+        return json_ready(summary)
+    return _memo("bench:" + scenario_path, run)
+
+
+def device_walk_result(scenario_path: str) -> dict:
+    """A device scenario as ``afo-mj run`` runs it (``run_device_scenario``): per condition
+    the gait means, the whole-ankle push-off power and the electrical energy per stride of
+    the first worn side."""
+    def run():
+        from afo_mj.scenarios.device_scenario import device_config, run_device_scenario
+        from afo_mj.scenarios.walk_scenario import load_scenario
+        sc = load_scenario(ROOT / scenario_path)
+        reference = sc.load_reference()
+        dsum, results = run_device_scenario(sc, reference, device_config(sc))
+        out = {}
+        for cond, v in dsum["device_conditions"].items():
+            rec = results[cond][0]
+            r = _gait_result(v.get("gait"), rec.events)
+            r["push_off_peak_power_w"] = (v.get("ankle") or {}).get("push_off_peak_power_w")
+            eps = v.get("energy_per_stride")
+            r["electrical_in_j_per_stride"] = None if eps is None else eps["electrical_in_j"]
+            r["human_ankle_positive_work_j_per_stride"] = (
+                v["human"].get("ankle_positive_work_j_per_stride"))
+            r["push_off_work_j_per_stride"] = (
+                (v.get("ankle") or {}).get("push_off_positive_work_j_per_stride"))
+            if "device" in v:
+                d, e = v["device"], v["energy"]
+                r.update(device_positive_work_j_per_stride=d["positive_work_j_per_stride"],
+                         device_negative_work_j_per_stride=d["negative_work_j_per_stride"],
+                         peak_pressure_mpa=d.get("peak_pressure_mpa"),
+                         fluid_temperature_rise_k=d.get("fluid_temperature_rise_k"),
+                         battery_runtime_h=d.get("battery_runtime_h"),
+                         electrical_in_j=e.get("electrical_in_j"),
+                         electrical_regenerated_j=e.get("electrical_regenerated_j"),
+                         efficiency_total=e.get("efficiency_total"),
+                         balance_error_rel=e.get("balance_error_rel"),
+                         losses_j=dict(e.get("losses_j") or {}))
+            out[cond] = r
+        return out
+    return _memo("device:" + scenario_path, run)
+
+
+def collect_scenarios() -> dict:
+    return {name: walk_result(f"scenarios/{name}.toml") for name in SCENARIO_ROWS}
+
+
+def collect_plantarflexor_weakness() -> dict:
+    out = {}
+    for f in WEAKNESS_FRACTIONS:
+        if f == 1.0:
+            out[f] = walk_result("scenarios/walk_healthy.toml")
+        elif f == 0.5:
+            out[f] = walk_result("scenarios/walk_weak_plantarflexors.toml")
+        else:
+            out[f] = walk_result("scenarios/walk_weak_plantarflexors.toml",
+                                 (f"impairment.plantarflexor_strength_fraction={f:g}",))
+    return out
+
+
+def collect_schwartz_bands() -> dict:
+    out = {}
+    for name, cond in (("walk_schwartz_free", "Free"), ("walk_schwartz_fast", "Fast")):
+        r = walk_result(f"scenarios/{name}.toml")
+        out[f"`{name}` vs {cond}"] = (r.get("band_fraction_vs") or {}).get(f"schwartz2008:{cond}")
+    return out
+
+
+def collect_hafo_bench() -> dict:
+    return {"hafo": bench_result("scenarios/bench_hafo.toml"),
+            "hafo_gait": bench_result("scenarios/bench_hafo_gait.toml")}
+
+
+def collect_stiffness_bench() -> dict:
+    return bench_result("scenarios/stiffness_bench.toml")
+
+
+def collect_foot_drop() -> dict:
+    return device_walk_result("scenarios/gait_stiffness_emulation.toml")
+
+
+def collect_hafo_gait() -> dict:
+    return {"healthy": device_walk_result("scenarios/gait_assist_hafo.toml"),
+            "prototype": device_walk_result("scenarios/gait_assist_hafo_prototype.toml"),
+            "weak": device_walk_result("scenarios/gait_weak_plantarflexors_hafo.toml")}
+
+
+# --------------------------------------------------------------------------------------------
+# blocks
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Block:
+    name: str
+    collect: Callable[[], Any]      # runs the scenarios → JSON-ready results
+    format: Callable[[Any], str]    # pure
+    runs: str                       # what it runs, for the stamp line and --list
+    file: str = "README.md"
+
+
+BLOCKS: dict[str, Block] = {b.name: b for b in (
+    Block("scenarios", collect_scenarios, format_scenarios,
+          "scenarios/walk_{healthy,weak_plantarflexors,foot_drop,spastic_ankle,child_healthy}"
+          ".toml, strides 4–10 of 10, both legs"),
+    Block("plantarflexor_weakness", collect_plantarflexor_weakness,
+          format_plantarflexor_weakness,
+          "scenarios/walk_weak_plantarflexors.toml with impairment.plantarflexor_strength_"
+          "fraction = 0.7 / 0.6 / 0.45 / 0.4 / 0.35; 100 % and 50 % are the scenario table's "
+          "walk_healthy and walk_weak_plantarflexors runs"),
+    Block("schwartz_bands", collect_schwartz_bands, format_schwartz_bands,
+          "scenarios/walk_schwartz_free.toml, walk_schwartz_fast.toml"),
+    Block("hafo_bench", collect_hafo_bench, format_hafo_bench,
+          "scenarios/bench_hafo.toml, bench_hafo_gait.toml, each preset stepping its "
+          "generated circuit"),
+    Block("hafo_gait", collect_hafo_gait, format_hafo_gait,
+          "scenarios/gait_assist_hafo.toml, gait_assist_hafo_prototype.toml, "
+          "gait_weak_plantarflexors_hafo.toml, right ankle, strides 4–10"),
+    Block("stiffness_bench", collect_stiffness_bench, format_stiffness_bench,
+          "scenarios/stiffness_bench.toml"),
+    Block("phafo_power", collect_stiffness_bench, format_phafo_power,
+          "scenarios/stiffness_bench.toml, the same run as stiffness_bench"),
+    Block("foot_drop", collect_foot_drop, format_foot_drop,
+          "scenarios/gait_stiffness_emulation.toml"),
+)}
+
+
+def collect(name: str) -> Any:
+    """Run block ``name``'s scenarios (tests monkeypatch this)."""
+    return BLOCKS[name].collect()
+
+
+STAMP_RE = re.compile(r"^(<sub>Generated by `.*?`) on \d{4}-\d{2}-\d{2}(.*)$", re.M)
+
+
+def render(name: str, results: Any, date: str) -> str:
+    b = BLOCKS[name]
+    return (b.format(results).rstrip("\n") + "\n\n"
+            f"<sub>Generated by `python {TOOL} --only {name}` on {date}; runs {b.runs}.</sub>")
+
+
+def markers(name: str) -> tuple[str, str]:
+    return f"<!-- generated:{name} begin -->", f"<!-- generated:{name} end -->"
+
+
+def block_span(text: str, name: str) -> tuple[int, int]:
+    """Start and end offsets of the block's body (between its markers); ValueError unless
+    each marker occurs exactly once, begin before end."""
+    begin, end = markers(name)
+    if text.count(begin) != 1 or text.count(end) != 1:
+        raise ValueError(f"block {name!r}: expected each of {begin!r} and {end!r} exactly once")
+    i, j = text.index(begin) + len(begin), text.index(end)
+    if j < i:
+        raise ValueError(f"block {name!r}: end marker before begin marker")
+    return i, j
+
+
+def _undated(s: str) -> str:
+    return STAMP_RE.sub(r"\1 on DATE\2", s).strip()
+
+
+def replace_block(text: str, name: str, body: str) -> tuple[str, bool]:
+    """``text`` with block ``name``'s body replaced; whether its (undated) text changed. An
+    unchanged block keeps its old date."""
+    i, j = block_span(text, name)
+    old = text[i:j]
+    if _undated(old) == _undated(body):
+        return text, False
+    return text[:i] + "\n" + body.strip() + "\n" + text[j:], True
+
+
+def main(argv: list[str] | None = None) -> int:
+    global CACHE_DIR
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", action="append", choices=sorted(BLOCKS), metavar="NAME",
+                    help="regenerate this block only (repeatable); names: --list")
+    ap.add_argument("--check", action="store_true",
+                    help="write nothing; exit 1 listing the blocks whose text would change")
+    ap.add_argument("--list", action="store_true", help="list the blocks and what each runs")
+    ap.add_argument("--root", type=Path, default=ROOT,
+                    help="directory holding README.md (default: the repository)")
+    ap.add_argument("--cache", type=Path, default=None,
+                    help="keep each run's result as JSON here and reuse it")
+    args = ap.parse_args(argv)
+    if args.list:
+        for b in BLOCKS.values():
+            print(f"{b.name:24s} {b.file}: {b.runs}")
+        return 0
+    CACHE_DIR = args.cache
+    names = args.only or list(BLOCKS)
+    date = _dt.date.today().isoformat()
+    texts: dict[Path, str] = {}
+    changed = []
+    for name in names:
+        path = args.root / BLOCKS[name].file
+        if path not in texts:
+            texts[path] = path.read_text(encoding="utf-8")
+        block_span(texts[path], name)          # fail on missing markers before any run
+    for name in names:
+        path = args.root / BLOCKS[name].file
+        body = render(name, collect(name), date)
+        texts[path], did = replace_block(texts[path], name, body)
+        if did:
+            changed.append(name)
+        if not args.check and did:             # write as we go: a later block may fail
+            path.write_text(texts[path], encoding="utf-8")
+            print(f"[readme_tables] {name}: rewritten in {path}", file=sys.stderr)
+    if args.check:
+        for name in changed:
+            print(f"{name}: would change ({BLOCKS[name].file})")
+        return 1 if changed else 0
+    if not changed:
+        print("[readme_tables] no block changed", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
