@@ -157,14 +157,25 @@ class ReferenceTable:
     def __init__(self, reference, thigh_m: float, shank_m: float, n: int = 1000):
         ph = np.arange(n + 1) / n
         self.n = n
-        angle = np.asarray(reference.angles_rad(ph), float)
+        has = getattr(reference, "has", lambda name: name != "pelvis_tilt_rad")
+        #: the walker's pelvis and trunk stay level (upright), so where the reference gives
+        #: a pelvic tilt (Schwartz 2008: 11–18° anterior) the hip tracks the thigh's angle
+        #: from vertical, hip flexion − pelvic tilt, not the hip flexion measured from a
+        #: tilted pelvis (that would flex the walker's thighs by the whole tilt)
+        self.hip_from_thigh = bool(has("pelvis_tilt_rad"))
+
+        def angles(p):
+            a = np.array(reference.angles_rad(p), float)
+            if self.hip_from_thigh:
+                a[..., 0] -= reference.channel("pelvis_tilt_rad", p)
+            return a
+
+        angle = angles(ph)
         h = 1e-4
-        rate = (np.asarray(reference.angles_rad((ph + h) % 1.0))
-                - np.asarray(reference.angles_rad((ph - h) % 1.0))) / (2 * h)
+        rate = (angles((ph + h) % 1.0) - angles((ph - h) % 1.0)) / (2 * h)
         # A user reference may come without inverse-dynamics moments (kinematics only): the
         # missing moments are fed forward as zero, and the walk rests on the servo and balance.
         from afo_mj.gait.reference import MOMENT_CHANNELS
-        has = getattr(reference, "has", lambda name: True)
         #: moment channels the reference lacks (fed forward as zero)
         self.missing_moments = tuple(m for m in MOMENT_CHANNELS if not has(m))
         if self.missing_moments:

@@ -15,7 +15,9 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # below 1.3 m (body_presets.default_timestep_s)
     [gait]
     reference = "winter"             # "winter" | "schwartz2008" (default "winter")
-    condition = "normal"             # winter: normal; schwartz2008: VerySlow|Slow|Free|Fast|VeryFast
+    condition = "normal"             # winter: normal; schwartz2008: VerySlow|Slow|Free (Fast and
+                                     # VeryFast are refused: the walker falls, see UNWALKABLE);
+                                     # schwartz2008 starts at its own speed (start_speed_m_s)
     reference_path = "my_gait.csv"   # instead of reference/condition: a user's cycle, CSV
                                      # (afo_mj.gait.reference.load_reference_csv) or OpenSim
                                      # .sto/.mot (load_opensim_storage); relative to the file
@@ -67,6 +69,28 @@ REFERENCES: dict[str, tuple[str, ...]] = {
 }
 """Shipped normative references and their conditions."""
 DEFAULT_CONDITION = {"winter": "normal", "schwartz2008": "Free"}
+
+#: shipped reference conditions this walker cannot walk, refused at load with the reason and
+#: what to set instead (tests/test_reference_walks.py walks every other one)
+UNWALKABLE: dict[tuple[str, str], str] = {
+    ("schwartz2008", cond): (
+        f"the walker falls within about 2-5 s tracking the children's {cond} kinematics "
+        f"(on the adult and on a child body, at any start speed and at cycle times up to "
+        f"1.3x the reference's: its foot placement cannot hold the long, fast strides of "
+        f"this speed group)")
+    for cond in ("Fast", "VeryFast")}
+_UNWALKABLE_INSTEAD = (
+    'walk Winter\'s kinematics at this speed group\'s cadence and judge them against its bands: '
+    'gait.reference = "winter", gait.cadence_steps_per_min = {cad:g}, gait.band_references = '
+    '["schwartz2008:{cond}"] (as scenarios/walk_schwartz_fast.toml does), or '
+    'gait.condition = "Free", "Slow" or "VerySlow"')
+
+#: the default start speed (ControllerParams.initial_speed_m_s, 1.0 m/s) is Winter's start on
+#: the 1.75 m walker: 1.11 x the no-slip speed of Winter's posture at Winter's cadence
+#: (0.9036 m/s). A schwartz2008 condition without controller.initial_speed_m_s starts at the
+#: same multiple of its own no-slip speed at the walker's cadence (VerySlow 0.62 m/s ...
+#: Free 1.25 m/s on the adult): started at Winter's 1.0 m/s, VerySlow fell at 2.5 s.
+START_SPEED_OVER_NO_SLIP = 1.0 / 0.9036
 
 IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_fraction",
                    "ankle_passive_stiffness_nm_per_rad", "ankle_passive_damping_nm_s_per_rad")
@@ -163,9 +187,28 @@ class WalkScenario:
             self.walker.body_mass_kg, self.walker.height_m).time
 
     def controller_params(self):
-        """:class:`afo_mj.gait.walk.ControllerParams` with this scenario's overrides."""
+        """:class:`afo_mj.gait.walk.ControllerParams` with this scenario's overrides; a
+        schwartz2008 reference without ``controller.initial_speed_m_s`` gets its own start
+        speed (:meth:`start_speed_m_s`)."""
         from afo_mj.gait.walk import ControllerParams
-        return ControllerParams(**dict(self.controller))
+        kw = dict(self.controller)
+        if self.reference == "schwartz2008" and "initial_speed_m_s" not in kw:
+            kw["initial_speed_m_s"] = round(self.start_speed_m_s(), 4)
+        return ControllerParams(**kw)
+
+    def start_speed_m_s(self, reference=None) -> float:
+        """Start speed derived from the reference, as ``controller.initial_speed_m_s`` (for
+        the 1.75 m walker; :func:`~afo_mj.gait.walk.run_walk` scales it by √(stature/1.75 m)):
+        :data:`START_SPEED_OVER_NO_SLIP` × the no-slip speed of the reference's posture at
+        this scenario's cycle time on this walker's legs."""
+        from afo_mj.gait.walk import ReferenceTable
+        from afo_mj.human.anthropometry import scale_body
+        from afo_mj.human.walker import DynamicScale
+        ref = reference if reference is not None else self.load_reference()
+        seg = scale_body(self.walker.body_mass_kg, self.walker.height_m)
+        table = ReferenceTable(ref, seg.thigh.length_m, seg.shank.length_m, n=200)
+        v = START_SPEED_OVER_NO_SLIP * table.geometric_stride_m / self.cycle_time_s(ref)
+        return float(v / DynamicScale.of(self.walker.body_mass_kg, self.walker.height_m).speed)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready description (for the run summary)."""
@@ -472,6 +515,13 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         if condition not in REFERENCES[reference]:
             raise ctx.fail("gait.condition", condition, f"is not a {reference} condition",
                            " | ".join(repr(c) for c in REFERENCES[reference]))
+        if (reference, condition) in UNWALKABLE:
+            from afo_mj.gait.reference import load_normative
+            own = load_normative(reference, condition).cycle_time_s
+            raise ScenarioError(
+                f"{origin}: gait.reference = {reference!r}, gait.condition = {condition!r} "
+                f"cannot be walked: {UNWALKABLE[(reference, condition)]}; allowed instead: "
+                + _UNWALKABLE_INSTEAD.format(cad=round(120.0 / own, 1), cond=condition))
     cadence = None
     if "cadence_steps_per_min" in gait:
         cadence = ctx.number("gait.cadence_steps_per_min", gait["cadence_steps_per_min"],
