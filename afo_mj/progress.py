@@ -36,10 +36,12 @@ PREFIX = "[afo-mj] "
 
 
 def fmt_duration(s: float) -> str:
-    """``7 s``, ``2 min 05 s``, ``1 h 02 min``."""
+    """``0.4 s``, ``17 s``, ``2 min 05 s``, ``1 h 02 min``."""
     if not math.isfinite(s):
         return "?"
-    s = max(0, int(round(s)))
+    if s < 9.95:
+        return f"{max(s, 0.0):.1f} s"
+    s = int(round(s))
     if s < 60:
         return f"{s} s"
     if s < 3600:
@@ -145,7 +147,7 @@ class Task:
         unit = f" {self.unit}" if self.unit else ""
         if self.total:
             frac = min(self.done / self.total, 1.0)
-            head = f"{self.label}: {self.fmt(self.done)}/{self.fmt(self.total)}{unit} ({frac:4.0%})"
+            head = f"{self.label}: {self.fmt(self.done)}/{self.fmt(self.total)}{unit} ({frac:.0%})"
         else:
             head = f"{self.label}: {self.fmt(self.done)}{unit}"
         left = self.time_left(now)
@@ -194,17 +196,22 @@ class Task:
         self.rep._write(PREFIX + (message if message is not None
                                   else f"{self.label}: done in {el}"))
 
+    def abort(self) -> None:
+        """The phase ends with an error: end an in-place line (no closing line)."""
+        if not self.closed:
+            self.closed = True
+            if self.rep._open_line:
+                self.rep._write(PREFIX + f"{self.label}: stopped after "
+                                         f"{fmt_duration(self.elapsed())}")
+
     def __enter__(self) -> "Task":
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is None:
             self.close()
-        elif not self.closed:
-            self.closed = True
-            if self.rep._open_line:          # end the in-place line before the error
-                self.rep._write(PREFIX + f"{self.label}: stopped after "
-                                         f"{fmt_duration(self.elapsed())}")
+        else:
+            self.abort()
 
 
 _SILENT = Reporter(quiet=True)
@@ -240,13 +247,13 @@ def compile_stage(dispatcher, args: tuple, what: str, first_run_s: str) -> None:
     this process has it already: with a stage line when it is compiled for the first time
     (``first_run_s``: the typical time, e.g. ``"~10 s"``) and a line with the time taken; a
     load from numba's on-disk cache is silent unless it takes longer than a second."""
-    import numba
     try:
-        sig = tuple(numba.typeof(a, numba.typing.typeof.Purpose.argument) for a in args)
-    except (ValueError, TypeError):
+        # the types the call will dispatch on (so that the call finds this compilation)
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        if sig in dispatcher.overloads:
+            return
+    except Exception:                           # noqa: BLE001 - never stop a run for this
         return                                  # the first call compiles it, unannounced
-    if sig in dispatcher.overloads:
-        return
     rep = reporter()
     index = _numba_cache_file(dispatcher)
     cached = index is not None and os.path.exists(index)
