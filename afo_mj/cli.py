@@ -668,6 +668,8 @@ def _calibrate(args) -> int:
         print(f"afo-mj calibrate: {exc}; nothing written", file=sys.stderr)
         return 1
     command = "afo-mj " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["calibrate"] else None
+    from afo_mj import progress
+    progress.reporter().stage(f"writing the report and figures to {args.out}…")
     try:
         write_atomically(args.out, lambda d: write_calibration_report(
             report, d, data_path=args.data, command=command))
