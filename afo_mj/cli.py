@@ -523,7 +523,9 @@ def _compare(args) -> int:
         print(f"afo-mj compare: note: {note}", file=sys.stderr)
     kept: list | None = [] if args.rrd else None
     try:
-        comp = run_comparison(items, progress=lambda m: print(f"  running {m}", flush=True),
+        from afo_mj import progress
+        rep = progress.reporter()
+        comp = run_comparison(items, progress=lambda m: rep.stage(f"compare: {m}"),
                               keep_runs=kept)
     except (WalkNumericsError, FloatingPointError) as exc:
         print(f"afo-mj compare: {exc}; nothing written", file=sys.stderr)
@@ -666,6 +668,8 @@ def _calibrate(args) -> int:
         print(f"afo-mj calibrate: {exc}; nothing written", file=sys.stderr)
         return 1
     command = "afo-mj " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["calibrate"] else None
+    from afo_mj import progress
+    progress.reporter().stage(f"writing the report and figures to {args.out}…")
     try:
         write_atomically(args.out, lambda d: write_calibration_report(
             report, d, data_path=args.data, command=command))
@@ -1003,12 +1007,21 @@ def main(argv: list[str] | None = None) -> int:
     de.set_defaults(func=_design)
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=_build_models)
+    for p in sub.choices.values():
+        if "--quiet" not in p._option_string_actions:
+            p.add_argument("--quiet", action="store_true",
+                           help="no progress on stderr (stage lines, time left); errors "
+                                "and warnings still go there")
     args = parser.parse_args(argv)
     if getattr(args, "duration_s", 1.0) <= 0:
         parser.error(f"--duration-s = {args.duration_s}; allowed: > 0")
     if getattr(args, "substeps", 1) < 1:
         parser.error(f"--substeps = {args.substeps}; allowed: integer >= 1")
-    with np.printoptions(legacy="1.25"):    # messages show numbers as 1.5, not np.float64(1.5)
+    from afo_mj import progress
+    # progress (stage lines, time left) on stderr only: stdout carries the results
+    rep = progress.Reporter(quiet=bool(getattr(args, "quiet", False)))
+    with np.printoptions(legacy="1.25"), progress.using(rep):
+        # (messages show numbers as 1.5, not np.float64(1.5))
         return args.func(args)
 
 

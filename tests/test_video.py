@@ -143,3 +143,28 @@ def test_failed_encode_leaves_no_file(gl, tmp_path, healthy_record):
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(RenderError, match="mp4 path"):
         render_record(healthy_record, tmp_path / "walk.avi", fps=10, width=64, height=48)
+
+
+def test_render_reports_frames_done_on_stderr(gl, tmp_path, healthy_record):
+    """With a reporter installed (``afo-mj render`` without --quiet): a stage line, frames
+    done / total and a closing line; nothing without one (the library default)."""
+    import io
+
+    from afo_mj import progress
+    clock = iter(range(0, 10_000, 2))            # 2 s per reading: every update may print
+    buf = io.StringIO()
+    rep = progress.Reporter(stream=buf, tty=False, clock=lambda: float(next(clock)),
+                            plain_interval_s=0.0)
+    with progress.using(rep):
+        info = render_record(healthy_record, tmp_path / "w.mp4", fps=10, width=64, height=48,
+                             max_seconds=0.8)
+    lines = buf.getvalue().splitlines()
+    n = info["frames"]
+    assert lines[0] == f"[afo-mj] rendering {n} frames to {tmp_path / 'w.mp4'}…"
+    assert any(f"/{n} frames (" in ln and "left" in ln for ln in lines[1:-1]), lines
+    assert lines[-1].startswith(f"[afo-mj] rendering {n} frames to") and "done in" in lines[-1]
+    quiet = io.StringIO()
+    with progress.using(progress.Reporter(stream=quiet, quiet=True)):
+        render_record(healthy_record, tmp_path / "q.mp4", fps=10, width=64, height=48,
+                      max_seconds=0.4)
+    assert quiet.getvalue() == ""

@@ -52,6 +52,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
+from afo_mj import progress
 from afo_mj.analysis import residual_analysis as ra
 from afo_mj.analysis.effect_library import (
     DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
@@ -462,8 +463,12 @@ class Calibration:
             probes.append(v)
         return probes
 
-    def rank(self, m: _Model, pool: Sequence[Effect]) -> list[dict]:
-        """Score every candidate by the linearised projection (module docstring, step 4)."""
+    def rank(self, m: _Model, pool: Sequence[Effect], label: str = "") -> list[dict]:
+        """Score every candidate by the linearised projection (module docstring, step 4);
+        progress (:mod:`afo_mj.progress`) as ``label: ranking N candidate effects``."""
+        task = progress.reporter().task(f"{label or 'calibration'}: ranking {len(pool)} "
+                                        "candidate effects", len(pool), "effects",
+                                        fmt=lambda v: f"{v:.0f}")
         f0 = self.train_residuals(m.effects, m.x) if m.fun is None else m.fun
         J = self._declared_jacobian(m, f0)
         r = -f0
@@ -513,7 +518,11 @@ class Calibration:
                                 None if xe is None else np.concatenate(
                                     [m.x[:kd] + coef[:kd], m.x[kd:], xe]))}
             scores.append(best)
+            task.advance()
         scores.sort(key=lambda s: -s["score"])
+        top = ", ".join(f"{s['effect']} {s['score']:.3f}" for s in scores[:3] if s["score"] > 0)
+        task.close(f"{task.label}: done in {progress.fmt_duration(task.elapsed())}"
+                   + (f"; best scores: {top}" if top else "; no candidate explains the residual"))
         return scores
 
     def _robust_cost(self, f: np.ndarray) -> float:
@@ -555,8 +564,17 @@ class Calibration:
         structure = list(self.declared_effects)
         x0 = np.concatenate([np.ones(len(self.declared))] + [
             [self._typical(e, p) / p.scale for p in e.parameters] for e in structure])
+        rep = progress.reporter()
         preset_err, _ = self.held_out_errors([], np.ones(len(self.declared)))
+        t_fit = time.perf_counter()
+        rep.stage(f"calibration: fitting the {len(self.declared)} declared parameters"
+                  + (f" and {len(structure)} declared effects" if structure else "") + "…")
         current = self.fit(structure, x0)
+        rep.stage(f"calibration: declared fit done in "
+                  f"{progress.fmt_duration(time.perf_counter() - t_fit)} "
+                  f"({self.evaluations} replays); held-out NRMSE "
+                  f"{current.held_out['overall']:.4f}; up to {opts.max_effects} rounds of "
+                  f"{len(self.candidates)} candidate effects follow")
         declared_fit = current
         before_err, before_out = self.held_out_errors(current.effects, current.x)
         whiteness_before = self._whiteness(before_out)
@@ -564,19 +582,24 @@ class Calibration:
         candidates_report: dict[str, dict] = {}
         pool = list(self.candidates)
         while len(current.effects) - len(structure) < opts.max_effects and pool:
-            ranking = self.rank(current, pool)
+            rnd = f"calibration round {len(steps) + 1}/{opts.max_effects}"
+            ranking = self.rank(current, pool, rnd)
             info_cur = self.information(current)
             tried = []
             for sc in ranking:
                 entry = candidates_report.setdefault(sc["effect"], {"scores": []})
                 entry["scores"].append(round(sc["score"], 6))
             top = [s for s in ranking if s["score"] > 1e-4][:opts.refit_top]
+            refits = rep.task(f"{rnd}: refitting the top {len(top)} candidates", len(top),
+                              "refits", fmt=lambda v: f"{v:.0f}")
             for sc in top:
                 e = next(c for c in pool if c.name == sc["effect"])
                 try:
                     m = self.fit(current.effects + [e], self.refit_start(current, e, sc))
                 except (CalibrationError, ReplayError) as exc:
                     candidates_report[e.name]["refit_error"] = str(exc)
+                    rep.stage(f"{rnd}: {e.name}: refit failed ({exc})")
+                    refits.advance()
                     continue
                 info = self.information(m)
                 ident = self.identifiability(m)
@@ -601,10 +624,18 @@ class Calibration:
                                       if k.startswith(e.name + ".")}}
                 candidates_report[e.name].setdefault("refits", []).append(rec)
                 tried.append((m, e, rec, ident))
+                rep.stage(f"{rnd}: {e.name}: held-out error {-100 * drop:+.0f} %, "
+                          f"ΔBIC {d_bic:+.1f}, "
+                          + ("pays" if pays else "does not pay"
+                             + ("" if identifiable else " (not identifiable)")))
+                refits.advance()
+            refits.close()
             paying = [t for t in tried if t[2]["pays"]]
             if not paying:
+                rep.stage(f"{rnd}: no candidate pays; the search ends")
                 break
             m, e, rec, ident = min(paying, key=lambda t: t[0].held_out["overall"])
+            rep.stage(f"{rnd}: selected {e.name}")
             k0 = len(current.x)
             steps.append({"effect": e.name, "component": e.component,
                           "equation": e.equation, "reference": e.reference,

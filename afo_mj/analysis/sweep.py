@@ -90,7 +90,8 @@ def run_point(scenario_path: str, overrides: Sequence[str], run_id: str,
     t0 = time.perf_counter()
     tmp = Path(tempfile.mkdtemp(prefix=f"afo-sweep-{run_id}-"))
     out_dir = tmp / "run"
-    argv = ["run", str(scenario_path), "--out", str(out_dir)]
+    # --quiet: the run's own progress would fill the captured stderr the error is read from
+    argv = ["run", str(scenario_path), "--out", str(out_dir), "--quiet"]
     for o in overrides:
         argv += ["--set", o]
     err = io.StringIO()

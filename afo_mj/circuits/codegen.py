@@ -613,6 +613,31 @@ def generate(circuit: Circuit):
     return text, g, layout
 
 
+#: a generated circuit's first compilation (numba, all its functions; loaded machine: 2 cores)
+FIRST_COMPILE_S = "~15 s"
+
+
+def _announce(name: str, d: Path, digest: str) -> None:
+    """Say (:mod:`afo_mj.progress`) whether circuit ``name`` will be compiled for the first
+    time (no numba cache beside its module; the compilation itself happens at the kernel's
+    first call, e.g. in the first simulated step) or loaded from the cache. Once per process
+    and module."""
+    from afo_mj import progress
+    rep = progress.reporter()
+    if not rep.active:
+        return
+    cache = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else None
+    if cache is None:
+        cached = any((d / "__pycache__").glob(f"circuit_{digest}.*.nbi"))
+    else:
+        cached = any(cache.rglob(f"circuit_{digest}.*.nbi"))
+    if cached:
+        rep.stage(f"circuit {name!r}: compiled kernel loaded from the cache ({d})")
+    else:
+        rep.stage(f"circuit {name!r}: compiling its kernel (first run only, {FIRST_COMPILE_S}, "
+                  f"at its first step; cached in {d})…")
+
+
 def build(circuit: Circuit) -> CompiledCircuit:
     """Generate, write (once, atomically) and import the circuit's kernel."""
     text, g, layout = generate(circuit)
@@ -627,6 +652,7 @@ def build(circuit: Circuit) -> CompiledCircuit:
     modname = f"afo_mj_circuit_{digest}"
     module = sys.modules.get(modname)
     if module is None:
+        _announce(circuit.name, d, digest)
         spec = importlib.util.spec_from_file_location(modname, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[modname] = module

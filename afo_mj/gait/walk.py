@@ -54,6 +54,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
+from afo_mj import progress
 from afo_mj.gait import control_law as law
 from afo_mj.gait.record import GaitEvents, GaitRecord
 from afo_mj.human.anthropometry import scale_body
@@ -70,6 +71,8 @@ TOE_OFF_CHATTER_S = 0.03
 #: trunk pitches more than FALL_TILT_RAD
 FALL_HEIGHT_FRACTION = 0.55
 FALL_TILT_RAD = 1.0
+#: simulated seconds between two progress updates of a walk (when a reporter is active)
+PROGRESS_EVERY_S = 0.5
 
 
 class WalkNumericsError(RuntimeError):
@@ -255,13 +258,19 @@ class _Buffers:
 
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
-             device: "AnkleDevice | CoupledAnkleDevice | None" = None, max_time_s: float | None = None) -> GaitRecord:
+             device: "AnkleDevice | CoupledAnkleDevice | None" = None, max_time_s: float | None = None,
+             label: str = "") -> GaitRecord:
     """Walk ``strides`` right-leg cycles (or until a fall) and return the record.
 
     The walker starts in the reference posture at right heel strike (left leg at phase 0.5)
     moving forward at ``controller.initial_speed_m_s``. A fall (hip below 55 % of its start
     height or trunk pitched beyond 1 rad) ends the run and is recorded with its time; a
     non-finite state raises :class:`WalkNumericsError`.
+
+    Progress (:mod:`afo_mj.progress`, silent unless a command line installed a reporter):
+    the controller's first compilation, and the simulated time every
+    ``PROGRESS_EVERY_S`` simulated seconds (one integer comparison per step otherwise);
+    ``label`` names the run in those lines (e.g. a device condition).
     """
     c = controller or ControllerParams()
     m_body = walker.body_mass_kg
@@ -394,6 +403,20 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     ev = state[law.S_EVENT:law.S_EVENT + 2]
     right_strides = 0
     k = 0
+    rep = progress.reporter()
+    # the compiled controller: compiled (first run) or loaded from numba's cache now, with a
+    # stage line, rather than silently inside the first step
+    progress.compile_stage(step_fn, (data.time, qpos, qvel, sens, gxpos, state, tab, tab_step,
+                                     const, index, ctrl, actfrc),
+                           "the walking controller", "~2 s")
+    if rep.active:
+        expected_s = min((strides + 1) * T, max_time)
+        task = rep.task(f"simulating {strides} strides" + (f" ({label})" if label else ""),
+                        expected_s, "s simulated", fmt=lambda v: f"{v:.1f}")
+        report_every = max(int(round(PROGRESS_EVERY_S / dt)), 1)
+    else:
+        task, report_every = None, n_max + 1
+    next_report = report_every
     while k < n_max:
         t = data.time
         step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
@@ -453,13 +476,23 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         buf.phase[k] = phases
         buf.device[k] = device_torque
         k += 1
+        if k >= next_report:
+            task.update(min(data.time, task.total))
+            next_report += report_every
         check = qpos.sum() + qvel.sum()
         if not math.isfinite(check):
+            if task is not None:
+                task.abort()
             raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
                                     f"(qpos={qpos.tolist()}, qvel={qvel.tolist()})")
         if qpos[pz] < fall_dz or abs(qpos[pt]) > FALL_TILT_RAD:
             events.fall_time_s = float(data.time)
             break
+    if task is not None:
+        el = progress.fmt_duration(task.elapsed())
+        task.close(f"{task.label}: {data.time:.1f} s simulated in {el}"
+                   + (f" (fell at t = {events.fall_time_s:.2f} s)"
+                      if events.fall_time_s is not None else ""))
     return _assemble(buf, k, phys, walker, events, radius, dt)
 
 

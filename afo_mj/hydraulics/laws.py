@@ -20,11 +20,19 @@ from __future__ import annotations
 
 import math
 
+import time
+
 import numba
 import numpy as np
 
+from afo_mj import progress
+
 #: Registry of the laws by name (the circuit code generator and the tests enumerate it).
 LAWS: dict = {}
+#: when the laws' import began, and whether their first compilation was announced (a law
+#: taking this long is compiled, not loaded from numba's cache)
+_COMPILE = {"t0": time.perf_counter(), "announced": False}
+_COMPILE_SLOW_S = 0.3
 
 
 def law(fn):
@@ -33,7 +41,11 @@ def law(fn):
     attribute ``LAWS[name].python`` for documentation."""
     n = fn.__code__.co_argcount
     sig = "float64(" + ", ".join(["float64"] * n) + ")"
+    t0 = time.perf_counter()
     uf = numba.vectorize([sig], cache=True)(fn)
+    if not _COMPILE["announced"] and time.perf_counter() - t0 > _COMPILE_SLOW_S:
+        _COMPILE["announced"] = True
+        progress.reporter().stage("compiling the hydraulic laws (first run only, ~10 s)…")
     LAWS[fn.__name__] = uf
     return uf
 
@@ -975,3 +987,8 @@ __all__ = ["LAWS", "law", "table_interp", "table_interp_array", "law_names", "RE
 __all__ += list(LAWS)
 
 _ = np  # numpy is the laws' array interface (ufuncs broadcast over numpy arrays)
+
+if _COMPILE["announced"]:
+    progress.reporter().stage("compiled the hydraulic laws in "
+                              + progress.fmt_duration(time.perf_counter() - _COMPILE["t0"])
+                              + " (cached for later runs)")

@@ -246,7 +246,13 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
         if extra_files is not None:
             extra_files(tmp)
 
+    from afo_mj import progress
+    rep = progress.reporter()
+    t0 = rep.clock()
+    rep.stage(f"writing the results and figures to {out}…")
     try:
-        return write_atomically(out, writer)
+        written = write_atomically(out, writer)
     except ResultDirError as exc:
         raise ReportError(str(exc)) from None
+    rep.stage(f"results written in {progress.fmt_duration(rep.clock() - t0)}")
+    return written

@@ -494,7 +494,11 @@ def render_record(record, mp4_path, fps: int = 30, width: int = 640, height: int
         raise RenderError(f"mp4 path = {str(path)!r} is a directory; allowed: a file name")
     times = _frame_times(record, fps, max_seconds)
     import av
+
+    from afo_mj import progress as _progress
     wr = _WalkRenderer(record, width, height, device_sides, label)
+    task = _progress.reporter().task(f"rendering {len(times)} frames to {path}",
+                                     len(times), "frames", fmt=lambda v: f"{v:.0f}")
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -514,11 +518,14 @@ def render_record(record, mp4_path, fps: int = 30, width: int = 640, height: int
                     container.mux(packet)
                 if progress is not None:
                     progress(k + 1, n)
+                task.update(k + 1)
             for packet in stream.encode():
                 container.mux(packet)
         os.replace(tmp, path)
         tmp = None
+        task.close()
     finally:
+        task.abort()                    # no-op after close: ends an in-place line on error
         wr.close()
         if tmp is not None:
             try:

@@ -393,7 +393,8 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
     T = scenario.cycle_time_s(reference)
     dt = scenario.walker.timestep_s
     results = {}
-    for cond in cfg.conditions:
+    n = len(cfg.conditions)
+    for i, cond in enumerate(cfg.conditions, 1):
         dev = None
         worn = ()
         if cond != "no_device":
@@ -402,7 +403,8 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
             # a circuit description has no worn-mass layout (its parts' masses are metadata)
             worn = dev.worn_masses() if hasattr(dev, "worn_masses") else ()
         rec = run_walk(scenario.walker, reference, T, scenario.strides,
-                       scenario.controller_params(), worn_masses=worn, device=dev)
+                       scenario.controller_params(), worn_masses=worn, device=dev,
+                       label=f"condition {i}/{n}: {cond}" if n > 1 else cond)
         try:
             analysis = analyse_gait(rec, reference, scenario.analyse_strides)
         except GaitAnalysisError:
