@@ -59,15 +59,20 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"  actuator force         {force.min():7.1f} .. {force.max():7.1f} N")
     print(f"  piston position        {ys[:, idx['position_m']].min() * 1e3:7.2f} .. "
           f"{ys[:, idx['position_m']].max() * 1e3:7.2f} mm")
-    print(f"  motor speed peak       {np.abs(ys[:, idx['speed_rad_s']]).max() * 60 / 2 / np.pi:7.0f} rpm")
-    print(f"  oil temperature rise   {(ys[-1, idx['fluid_temperature_k']] - ys[0, idx['fluid_temperature_k']]) * 1e3:7.2f} mK")
+    print(f"  motor speed peak       "
+          f"{np.abs(ys[:, idx['speed_rad_s']]).max() * 60 / 2 / np.pi:7.0f} rpm")
+    print(f"  oil temperature rise   "
+          f"{(ys[-1, idx['fluid_temperature_k']] - ys[0, idx['fluid_temperature_k']]) * 1e3:7.2f}"
+          f" mK")
     print("  energy chain (J):")
     print(f"    electrical input     {eb['input_j']:9.4f}")
     for k, v in eb["heat_j"].items():
         print(f"    loss {k:<22s}{v:9.4f}  ({100 * v / eb['input_j']:5.1f} %)")
     print(f"    stored change        {eb['stored_change_j']:9.4f}")
-    print(f"    delivered to load    {eb['load_out_j'] if 'load_out_j' in eb else eb['output_j']:9.4f}")
-    print(f"    balance residual     {eb['residual_j']:9.2e}  ({100 * eb['relative_residual']:.3f} % of input)")
+    print(f"    delivered to load    "
+          f"{eb['load_out_j'] if 'load_out_j' in eb else eb['output_j']:9.4f}")
+    print(f"    balance residual     {eb['residual_j']:9.2e}  "
+          f"({100 * eb['relative_residual']:.3f} % of input)")
     summary = {"duration_s": float(t[-1]), "us_per_step": wall / (len(t) - 1) * 1e6,
                "max_force_n": float(force.max()), "energy": {
                    "input_j": float(eb["input_j"]), "output_j": float(eb["output_j"]),
@@ -270,7 +275,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"  angle RMS error vs {ref_name} [deg]: hip {_fmt(s['hip_angle_rms_error_deg'])}, "
           f"knee {_fmt(s['knee_angle_rms_error_deg'])}, "
           f"ankle {_fmt(s['ankle_angle_rms_error_deg'])}")
-    print(f"  peak ankle plantarflexor moment {_fmt(s['peak_ankle_plantarflexor_moment_nm_per_kg'])} "
+    print(f"  peak ankle plantarflexor moment "
+          f"{_fmt(s['peak_ankle_plantarflexor_moment_nm_per_kg'])} "
           f"N*m/kg; peak ankle power {_fmt(s['peak_ankle_power_w_per_kg'])} W/kg; "
           f"push-off work {_fmt(s['ankle_push_off_positive_work_j_per_kg'], '.3f')} J/kg")
     print(f"  speed {_fmt(s['speed_m_s'])} m/s; cadence {_fmt(s['cadence_steps_per_min'], '.1f')} "

@@ -54,9 +54,9 @@ class Reporter:
     redirected stderr is honoured); ``quiet`` writes nothing. ``clock`` and ``tty`` are for
     tests (a fake clock; forcing in-place updates on or off)."""
 
-    def __init__(self, stream=None, quiet: bool = False, clock: Callable[[], float] = time.monotonic,
-                 tty: bool | None = None, tty_interval_s: float = 1.0,
-                 plain_interval_s: float = 5.0):
+    def __init__(self, stream=None, quiet: bool = False,
+                 clock: Callable[[], float] = time.monotonic, tty: bool | None = None,
+                 tty_interval_s: float = 1.0, plain_interval_s: float = 5.0):
         self._stream = stream
         self.quiet = quiet
         self.clock = clock

@@ -53,7 +53,8 @@ def main() -> None:
     print(f"one full replay: {replay_s * 1e3:.0f} ms")
     print(f"calibrate: {wall:.1f} s wall on one core, {report['evaluations']} replays "
           f"({wall / report['evaluations'] * 1e3:.0f} ms each incl. fitting overhead)")
-    print(f"verdict {report['verdict']}, effects {[s['effect'] for s in report['effects_selected']]}"
+    print(f"verdict {report['verdict']}, "
+          f"effects {[s['effect'] for s in report['effects_selected']]}"
           f", held-out NRMSE {report['error_before']['overall']:.4f} -> "
           f"{report['error_after']['overall']:.4f}")
     print(f"target: <= 120 s -> {'met' if wall <= 120.0 else 'MISSED'}")

@@ -59,8 +59,11 @@ def record_walk():
     dev.begin_step, dev.end_step = rec_begin, rec_end
     run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(),
              worn_masses=dev.worn_masses(), device=dev)
-    make = (lambda: HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile,
-                               timestep_s=dt, max_steps=len(rows) + 2))
+
+    def make():
+        return HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile,
+                          timestep_s=dt, max_steps=len(rows) + 2)
+
     return np.array(rows), make, dev.ledger(0), dt
 
 

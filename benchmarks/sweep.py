@@ -45,9 +45,11 @@ def main() -> None:
                             "runs_per_min": 60.0 * len(rows) / wall,
                             "mean_run_s": sum(r["wall_time_s"] for r in rows) / len(rows)}
             print(f"{workers} worker(s): {len(rows)} runs ({ok} ok) in {wall:.1f} s = "
-                  f"{out[workers]['runs_per_min']:.1f} runs/min (mean run {out[workers]['mean_run_s']:.2f} s)")
+                  f"{out[workers]['runs_per_min']:.1f} runs/min "
+                  f"(mean run {out[workers]['mean_run_s']:.2f} s)")
     speedup = out[2]["runs_per_min"] / out[1]["runs_per_min"]
-    print(f"speed-up with 2 workers: {speedup:.2f} (target >= 1.7: {'met' if speedup >= 1.7 else 'MISSED'}); "
+    print(f"speed-up with 2 workers: {speedup:.2f} "
+          f"(target >= 1.7: {'met' if speedup >= 1.7 else 'MISSED'}); "
           f"{os.cpu_count()} cores")
     print(json.dumps({"benchmark": "sweep", "runs": runs, "cores": os.cpu_count(),
                       "runs_per_min_1": round(out[1]["runs_per_min"], 2),

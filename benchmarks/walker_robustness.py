@@ -94,7 +94,8 @@ def main() -> None:
             print(f"{r['case']:<20s} FELL at {r['fall_time_s']:.2f} s")
         else:
             print(f"{r['case']:<20s} angle RMS {r['hip_angle_rms_error_deg']:4.1f} / "
-                  f"{r['knee_angle_rms_error_deg']:4.1f} / {r['ankle_angle_rms_error_deg']:4.1f} deg"
+                  f"{r['knee_angle_rms_error_deg']:4.1f} / "
+                  f"{r['ankle_angle_rms_error_deg']:4.1f} deg"
                   f"  push-off work {r['ankle_push_off_positive_work_j_per_kg']:.3f} J/kg"
                   f"  push-off PF {r['push_off_peak_plantarflexion_deg']:5.1f} deg"
                   f"  speed {r['speed_m_s']:.2f} m/s"

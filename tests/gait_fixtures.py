@@ -88,7 +88,8 @@ def synthetic_record(n_cycles: int = 12, body_mass_kg: float = 75.0, height_m: f
     w = splines or WinterSplines()
     rng = np.random.default_rng(seed)
     T = WINTER_CYCLE_TIME_S
-    durations = T * (1.0 + rng.uniform(-jitter, jitter, n_cycles)) if jitter else np.full(n_cycles, T)
+    durations = (T * (1.0 + rng.uniform(-jitter, jitter, n_cycles)) if jitter
+                 else np.full(n_cycles, T))
     hs_r = np.r_[0.0, np.cumsum(durations)]
     hs_l = hs_r[:-1] + 0.5 * durations            # left heel strike half a cycle later
     t_end = hs_r[-1] + 0.3 * T                      # a bit of the next cycle
@@ -113,8 +114,10 @@ def synthetic_record(n_cycles: int = 12, body_mass_kg: float = 75.0, height_m: f
         rec.grf_n[:, side, 1] = w.grf[1](ph) * m
         swing = ph >= TOE_OFF_FRACTION
         s = np.where(swing, (ph - TOE_OFF_FRACTION) / (1 - TOE_OFF_FRACTION), 0.0)
-        rec.contact_height_m[:, side, 1] = np.where(swing, TOE_CLEARANCE[0] + TOE_CLEARANCE[1] * np.sin(np.pi * s), 0.0)
-        rec.contact_height_m[:, side, 0] = np.where(swing, HEEL_CLEARANCE[0] + HEEL_CLEARANCE[1] * np.sin(np.pi * s), 0.0)
+        rec.contact_height_m[:, side, 1] = np.where(
+            swing, TOE_CLEARANCE[0] + TOE_CLEARANCE[1] * np.sin(np.pi * s), 0.0)
+        rec.contact_height_m[:, side, 0] = np.where(
+            swing, HEEL_CLEARANCE[0] + HEEL_CLEARANCE[1] * np.sin(np.pi * s), 0.0)
         rec.contact_force_n[:, side, 0] = np.where(swing, 0.0, rec.grf_n[:, side, 1])
         rec.gait_phase[:, side] = ph
         for a, b in zip(hs[:-1], hs[1:]):

@@ -28,7 +28,8 @@ def test_oring_coulomb_level_hand_calculation():
 
 
 def test_stribeck_curve_shape():
-    p = OringSealParams(breakaway_ratio=1.5, breakaway_velocity_m_s=0.005, viscous_coefficient_n_s_m=20.0)
+    p = OringSealParams(breakaway_ratio=1.5, breakaway_velocity_m_s=0.005,
+                        viscous_coefficient_n_s_m=20.0)
     seal = OringSeal(p, 10e-3)
     fc, fb = seal.coulomb_force_n, seal.breakaway_force_n
     # peak of the Stribeck form at v = v_brk: F_brk + f_v v_brk (tanh(10) ≈ 1)
@@ -48,7 +49,8 @@ def test_stribeck_curve_shape():
 
 
 def test_cylinder_geometry_force_and_leakage():
-    cyl = Cylinder(CylinderParams(kind="piston_cable", bore_m=12e-3, rod_diameter_m=2e-3, stroke_m=0.03))
+    cyl = Cylinder(CylinderParams(kind="piston_cable", bore_m=12e-3, rod_diameter_m=2e-3,
+                                  stroke_m=0.03))
     a = math.pi / 4 * (12e-3 ** 2 - 2e-3 ** 2)
     assert cyl.area_a_m2 == pytest.approx(a) and cyl.area_b_m2 == pytest.approx(a)
     va, vb = cyl.chamber_volumes_m3(0.01)
@@ -56,7 +58,8 @@ def test_cylinder_geometry_force_and_leakage():
     assert cyl.hydraulic_force_n(PA + 10e6, PA) == pytest.approx(10e6 * a)
     single_rod = Cylinder(CylinderParams(kind="double_acting", bore_m=12e-3, rod_diameter_m=4e-3))
     # equal absolute pressures on both sides push out with p_gauge * rod area
-    assert single_rod.hydraulic_force_n(PA + 1e6, PA + 1e6) == pytest.approx(1e6 * math.pi / 4 * 4e-3 ** 2)
+    assert single_rod.hydraulic_force_n(PA + 1e6, PA + 1e6) == pytest.approx(
+        1e6 * math.pi / 4 * 4e-3 ** 2)
     mu = 0.04
     q = cyl.internal_leakage_m3_s(PA + 1e7, PA, mu)
     assert q == pytest.approx(math.pi * 12e-3 * (10e-6) ** 3 * 1e7 / (12 * mu * 5e-3))
@@ -134,7 +137,8 @@ def test_pump_preset_rated_efficiencies():
 
 def test_variable_displacement():
     pump = Pump(PumpParams(variable_displacement_enabled=True, leakage_enabled=False))
-    assert pump.flow_m3_s(500.0, 0.0, 0.04, 0.5) == pytest.approx(0.5 * 0.2e-6 / (2 * math.pi) * 500)
+    assert pump.flow_m3_s(500.0, 0.0, 0.04, 0.5) == pytest.approx(
+        0.5 * 0.2e-6 / (2 * math.pi) * 500)
     fixed = Pump(PumpParams(leakage_enabled=False))
     assert fixed.flow_m3_s(500.0, 0.0, 0.04, 0.5) == pytest.approx(0.2e-6 / (2 * math.pi) * 500)
 

@@ -40,7 +40,8 @@ def foot_reference(mass=MASS, height=HEIGHT, added_mass=0.0, lever=0.0, added_in
     m = mf + added_mass
     cx = (mf * cxf + added_mass * lever) / m
     cz = mf * czf / m
-    i_a = b.foot.inertia_kg_m2 + mf * (cxf ** 2 + czf ** 2) + added_mass * lever ** 2 + added_inertia
+    i_a = (b.foot.inertia_kg_m2 + mf * (cxf ** 2 + czf ** 2) + added_mass * lever ** 2
+           + added_inertia)
     return m, cx, cz, i_a
 
 

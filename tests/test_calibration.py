@@ -20,11 +20,9 @@ import sys
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from afo_mj.analysis.calibration import CalibrationOptions, calibrate, load_calibration_setup
-from afo_mj.analysis.measured_data import load_measured
 from afo_mj.analysis.synthetic_records import generate_record
 from afo_mj.hydraulics.params import ParameterError
 

@@ -171,7 +171,7 @@ def test_lab_bench_stall_and_no_load_against_hand_figures():
     cc = build(Circuit.from_dict(_lab_spec(components={"relief_ab": relief,
                                                        "relief_ba": relief})))
     s, _ = run_circuit_bench(cc, ["torque_velocity"], CircuitBenchConfig(tv_points=2))
-    K, i_max, R = 0.055, 6.2, 0.6
+    K, i_max = 0.055, 6.2
     d = 0.2e-6 / (2 * math.pi)
     area = math.pi / 4 * (12e-3 ** 2 - 2e-3 ** 2)           # piston less the cable
     ktp = area * 0.04
@@ -236,7 +236,7 @@ def test_torque_protocols_on_spring_return_close_their_ledgers():
     assert set(series) == {"isometric_steps", "stiffness", "tracking", "position_step"}
 
 
-# ---- scenarios run end to end ---------------------------------------------------------------------
+# ---- scenarios run end to end ------------------------------------------------------------------
 
 def _summary(out):
     import json

@@ -71,7 +71,8 @@ def test_run_writes_all_outputs(tmp_path, fake_sim, capsys):
     assert len(rows) == 14
     assert {r["leg"] for r in rows} == {"right", "left"}
     assert sorted({int(r["stride"]) for r in rows}) == list(range(4, 11))
-    assert float(rows[0]["peak_ankle_plantarflexor_moment_nm_per_kg"]) == pytest.approx(1.69, abs=0.02)
+    assert float(rows[0]["peak_ankle_plantarflexor_moment_nm_per_kg"]) == pytest.approx(
+        1.69, abs=0.02)
     for col in ("cadence_steps_per_min", "stride_length_m", "ankle_positive_work_j_per_kg",
                 "min_toe_clearance_m", "residual_force_rms_n"):
         assert col in rows[0]
@@ -82,7 +83,8 @@ def test_run_writes_all_outputs(tmp_path, fake_sim, capsys):
 
     png = (out / "gait_curves.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
-    assert (out / "scenario.toml").read_text(encoding="utf-8") == HEALTHY.read_text(encoding="utf-8")
+    assert ((out / "scenario.toml").read_text(encoding="utf-8")
+            == HEALTHY.read_text(encoding="utf-8"))
     assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]   # no temp dirs left
     umask = os.umask(0o022)
     os.umask(umask)

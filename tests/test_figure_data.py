@@ -98,8 +98,8 @@ def test_impact_spike_does_not_set_the_displayed_knee_power(record):
             w = (t >= h + 0.08 * T) & (t < h + 0.08 * T + 0.012)
             vel = rec.joint_velocity_rad_s[w, side, 1]
             # a moment whose power is −5 W/kg over the impulse
-            rec.joint_moment_nm[w, side, 1] = -5.0 * m / np.where(np.abs(vel) > 0.3, vel,
-                                                                  np.sign(vel) * 0.3 + (vel == 0) * 0.3)
+            rec.joint_moment_nm[w, side, 1] = -5.0 * m / np.where(
+                np.abs(vel) > 0.3, vel, np.sign(vel) * 0.3 + (vel == 0) * 0.3)
     a = _analysis(rec, ref)
     raw = gait_curve_panels(a.cycles, ref, None)["panels"]["knee_power_w_per_kg"]
     shown = gait_curve_panels(a.cycles, ref, rec)["panels"]["knee_power_w_per_kg"]
@@ -123,4 +123,5 @@ def test_filtered_cycles_keep_angles_and_scalars(record):
     for c0, c1 in zip(a.cycles, f):
         assert c0.scalars == c1.scalars
         np.testing.assert_array_equal(c0.curves["knee_angle_rad"], c1.curves["knee_angle_rad"])
-        assert not np.array_equal(c0.curves["knee_power_w_per_kg"], c1.curves["knee_power_w_per_kg"])
+        assert not np.array_equal(c0.curves["knee_power_w_per_kg"],
+                                  c1.curves["knee_power_w_per_kg"])

@@ -11,7 +11,8 @@ from afo_mj.hydraulics.fluid import (Fluid, FluidParams, ISO_VG32, ISO_VG46,
 from afo_mj.hydraulics.params import ParameterError
 
 
-@pytest.mark.parametrize("p_abs, expected_gpa", [(0.2e6, 0.04), (1e6, 0.49), (3e6, 1.14), (7e6, 1.40)])
+@pytest.mark.parametrize("p_abs, expected_gpa",
+                         [(0.2e6, 0.04), (1e6, 0.49), (3e6, 1.14), (7e6, 1.40)])
 def test_bulk_modulus_eq_2_5(p_abs, expected_gpa):
     # facts.md: B_L = 1.5 GPa, alpha = 0.01, n = 1.4 (values given to two decimals)
     b = effective_bulk_modulus_pa(p_abs, 1.5e9, 0.01, 1.4) / 1e9
@@ -58,7 +59,8 @@ def test_density_and_pressure_floor():
 
 @pytest.mark.parametrize("field, value", [("air_fraction", 1.0), ("air_fraction", -0.1),
                                           ("liquid_bulk_modulus_pa", 0.0),
-                                          ("polytropic_index", 2.0), ("density_kg_m3", float("nan"))])
+                                          ("polytropic_index", 2.0),
+                                          ("density_kg_m3", float("nan"))])
 def test_fluid_bad_input(field, value):
     with pytest.raises(ParameterError, match=field):
         FluidParams(**{field: value})
@@ -80,12 +82,12 @@ def test_turbulent_blasius_and_haaland():
     q = re * nu * math.pi * d / 4
     v = q / (math.pi * d * d / 4)
     f_blasius = 0.3164 * re ** -0.25
-    assert hose.pressure_loss_pa(q, rho, nu) == pytest.approx(f_blasius * length / d * rho * v * v / 2,
-                                                               rel=1e-9)
+    assert hose.pressure_loss_pa(q, rho, nu) == pytest.approx(
+        f_blasius * length / d * rho * v * v / 2, rel=1e-9)
     rough = Hose(HoseParams(length_m=length, bore_m=d, roughness_m=4e-6))
     f_haaland = (-1.8 * math.log10((1e-3 / 3.7) ** 1.11 + 6.9 / re)) ** -2
-    assert rough.pressure_loss_pa(q, rho, nu) == pytest.approx(f_haaland * length / d * rho * v * v / 2,
-                                                                rel=1e-9)
+    assert rough.pressure_loss_pa(q, rho, nu) == pytest.approx(
+        f_haaland * length / d * rho * v * v / 2, rel=1e-9)
 
 
 def test_transition_is_continuous_and_monotonic():

@@ -85,7 +85,8 @@ def test_ankle_kinetics_match_winter(healthy, splines):
     assert s["peak_vertical_grf_n_per_kg"]["mean"] == pytest.approx(10.8, rel=0.02)
     # ankle range -19.8 deg (66 %) .. +9.6 deg; the push-off window ends at 62 %
     assert s["peak_plantarflexion_deg"]["mean"] == pytest.approx(19.8, abs=0.3)
-    assert 10.0 < s["push_off_peak_plantarflexion_deg"]["mean"] < s["peak_plantarflexion_deg"]["mean"]
+    assert (10.0 < s["push_off_peak_plantarflexion_deg"]["mean"]
+            < s["peak_plantarflexion_deg"]["mean"])
 
 
 def test_residuals_and_clearance(healthy):
@@ -96,8 +97,10 @@ def test_residuals_and_clearance(healthy):
     assert s["residual_force_rms_percent_body_weight"]["over_analysed_span"] == pytest.approx(
         100 * f / (75.0 * 9.81), rel=1e-12)
     assert s["residual_moment_rms_nm"]["mean"] == pytest.approx(RESIDUAL_MOMENT_NM, rel=1e-12)
-    assert s["min_toe_clearance_m"]["mean"] == pytest.approx(mid_swing_min(*TOE_CLEARANCE), abs=1e-4)
-    assert s["min_heel_clearance_m"]["mean"] == pytest.approx(mid_swing_min(*HEEL_CLEARANCE), abs=1e-4)
+    assert s["min_toe_clearance_m"]["mean"] == pytest.approx(mid_swing_min(*TOE_CLEARANCE),
+                                                             abs=1e-4)
+    assert s["min_heel_clearance_m"]["mean"] == pytest.approx(mid_swing_min(*HEEL_CLEARANCE),
+                                                              abs=1e-4)
 
 
 def test_summary_is_json_ready(healthy):
@@ -133,7 +136,8 @@ def test_jittered_cycles_still_give_reference_curves(splines, winter):
 
 def test_band_fraction_with_sd_reference(splines, winter, healthy):
     ph = np.linspace(0.0, 0.99, 100)
-    chans = {c: winter.channel(c, ph) for c in ("hip_angle_rad", "knee_angle_rad", "ankle_angle_rad")}
+    chans = {c: winter.channel(c, ph)
+             for c in ("hip_angle_rad", "knee_angle_rad", "ankle_angle_rad")}
     sd = {c: np.full_like(ph, math.radians(1.0)) for c in chans}
     ref_sd = ReferenceGait.from_samples(ph, chans, sd=sd, cycle_time_s=T)
     exact = band_fraction(healthy.cycles, ref_sd)

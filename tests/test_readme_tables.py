@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def rt():
-    spec = importlib.util.spec_from_file_location("readme_tables", ROOT / "tools" / "readme_tables.py")
+    spec = importlib.util.spec_from_file_location("readme_tables",
+                                                  ROOT / "tools" / "readme_tables.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules["readme_tables"] = mod
     spec.loader.exec_module(mod)

@@ -62,8 +62,10 @@ def test_walk_recording_paths_counts_units(walk_recording):
         assert e["rows"] == n_tf
         assert "Transform3D:translation" in e["components"]
         assert "Transform3D:quaternion" in e["components"]
-    assert any(c.startswith("Capsules3D") for c in idx["world/walk/body/shank_r/shank_r"]["components"])
-    assert any(c.startswith("Ellipsoids3D") for c in idx["world/walk/body/foot_r/heel_r"]["components"])
+    assert any(c.startswith("Capsules3D")
+               for c in idx["world/walk/body/shank_r/shank_r"]["components"])
+    assert any(c.startswith("Ellipsoids3D")
+               for c in idx["world/walk/body/foot_r/heel_r"]["components"])
     for side in ("right", "left"):
         assert idx[f"world/walk/grf/{side}"]["rows"] == n_tf
         assert "Arrows3D:vectors" in idx[f"world/walk/grf/{side}"]["components"]

@@ -86,7 +86,8 @@ def test_schwartz_table_equals_source_at_source_samples(cond):
     pelvis = np.array(src["PelvisAngles"]["X"], dtype=float)[:50]
     hip = np.array(src["HipAngles"]["X"], dtype=float)[:50]
     tilt_mean, _ = g.band("pelvis_tilt_rad", SOURCE_PC)
-    np.testing.assert_allclose(tilt_mean, np.radians(0.5 * (pelvis[:, 1] + pelvis[:, 2])), atol=1e-6)
+    np.testing.assert_allclose(tilt_mean, np.radians(0.5 * (pelvis[:, 1] + pelvis[:, 2])),
+                               atol=1e-6)
     thigh_mean, _ = g.band("thigh_angle_rad", SOURCE_PC)
     np.testing.assert_allclose(
         thigh_mean, np.radians(0.5 * (hip[:, 1] + hip[:, 2]) - 0.5 * (pelvis[:, 1] + pelvis[:, 2])),

@@ -97,7 +97,8 @@ def test_orifice_class_flow_and_power():
     pf = o.power(p_in, p_out, RHO)
     _assert_balanced(pf)
     np.testing.assert_allclose(pf.heat_w, (p_in - p_out) * q, rtol=1e-12)
-    assert pf.in_w[0] == pytest.approx(p_in[0] * q[0]) and pf.out_w[0] == pytest.approx(p_out[0] * q[0])
+    assert (pf.in_w[0] == pytest.approx(p_in[0] * q[0])
+            and pf.out_w[0] == pytest.approx(p_out[0] * q[0]))
     assert OrificeParams(area_m2=math.pi * 1e-6).diameter_m == pytest.approx(2e-3)
 
 
@@ -335,7 +336,8 @@ def test_servo_spool_bode_magnitude_at_natural_frequency(zeta):
     xs = _rk4_spool(v, lambda t: amp * np.sin(2 * math.pi * fn * t), periods / fn, dt)
     t = np.arange(xs.shape[0]) * dt
     last = t >= (periods - 5) / fn                       # transient gone (e^-ζω t tiny)
-    basis = np.column_stack([np.sin(2 * math.pi * fn * t[last]), np.cos(2 * math.pi * fn * t[last])])
+    basis = np.column_stack([np.sin(2 * math.pi * fn * t[last]),
+                             np.cos(2 * math.pi * fn * t[last])])
     coef, *_ = np.linalg.lstsq(basis, xs[last], rcond=None)
     gain = math.hypot(*coef) / (amp * 0.3e-3)
     assert gain == pytest.approx(1 / (2 * zeta), rel=2e-2)
@@ -348,7 +350,8 @@ def test_servo_spool_step_overshoot_and_saturation():
     v = _servo(natural_frequency_hz=150.0, damping_ratio=zeta)
     xs = _rk4_spool(v, lambda t: np.array([0.5, 3.0]), 0.05, 1 / 150 / 200)
     overshoot = xs[:, 0].max() / (0.5 * 0.3e-3) - 1
-    assert overshoot == pytest.approx(math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2)), rel=1e-2)
+    assert overshoot == pytest.approx(math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2)),
+                                      rel=1e-2)
     assert xs[-1, 1] == pytest.approx(0.3e-3, rel=1e-4)    # command 3 saturates at full stroke
 
 
@@ -420,7 +423,8 @@ def test_onoff_actuator_power():
                                [0.0, 2.0 * 0.4 + 0.05 * 100, 2.0])
     # transition heat: ½ Δp Q_open T_sw by hand
     q_open = float(turbulent(10e6, 2e-6, rho=879.0))
-    assert valve.transition_heat_j(10e6, 879.0) == pytest.approx(0.5 * 10e6 * q_open * 2e-3, rel=5e-3)
+    assert valve.transition_heat_j(10e6, 879.0) == pytest.approx(0.5 * 10e6 * q_open * 2e-3,
+                                                                 rel=5e-3)
 
 
 def test_onoff_flow_by_position():

@@ -104,11 +104,13 @@ def test_unknown_key(tmp_path, text, key, value):
 @pytest.mark.parametrize("text, key, value", [
     (BASE.replace("strides = 10", 'strides = "ten"'), "gait.strides", "'ten'"),
     (BASE.replace("strides = 10", "strides = 10.0"), "gait.strides", "10.0"),
-    (BASE.replace("body_mass_kg = 70.0", 'body_mass_kg = "heavy"'), "walker.body_mass_kg", "'heavy'"),
+    (BASE.replace("body_mass_kg = 70.0", 'body_mass_kg = "heavy"'), "walker.body_mass_kg",
+     "'heavy'"),
     (BASE.replace('reference = "winter"', "reference = 1"), "gait.reference", "1"),
     (BASE.replace("analyse_strides = [4, 10]", 'analyse_strides = "4-10"'),
      "gait.analyse_strides", "'4-10'"),
-    (BASE.replace("plantarflexor_strength_fraction = 0.8", "plantarflexor_strength_fraction = true"),
+    (BASE.replace("plantarflexor_strength_fraction = 0.8",
+                  "plantarflexor_strength_fraction = true"),
      "impairment.plantarflexor_strength_fraction", "True"),
     ('name = 3\n', "name", "3"),
 ])

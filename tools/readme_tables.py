@@ -221,8 +221,10 @@ def format_hafo_bench(results: Mapping[str, Mapping]) -> str:
         if preset == "hafo":
             stall += " (current limit)"
         return [stall, f"{num(x.get('no_load_speed_deg_s'), '.1f')} deg/s",
-                f"{num(m.get('mass_total_kg'), '.2f')} / {num(m.get('mass_at_ankle_kg'), '.2f')} kg",
-                f"{num(x.get('rise_time_s'), '.1f', 1e3)} ms, {num(x.get('overshoot_pct'), '.1f')} %"
+                f"{num(m.get('mass_total_kg'), '.2f')} / "
+                f"{num(m.get('mass_at_ankle_kg'), '.2f')} kg",
+                f"{num(x.get('rise_time_s'), '.1f', 1e3)} ms, "
+                f"{num(x.get('overshoot_pct'), '.1f')} %"
                 .replace(", 0.0 %", ", 0 %"),
                 f"{num(x.get('bandwidth_hz'), '.1f')} Hz",
                 f"{num(x.get('velocity_bandwidth_hz'), '.0f')} Hz",
@@ -237,7 +239,8 @@ def format_hafo_bench(results: Mapping[str, Mapping]) -> str:
               "40 N·m isometric step: rise time, overshoot", "open-loop isometric-torque bandwidth",
               "open-loop velocity bandwidth", "closed-loop position step (15°) rise",
               "worst energy-balance error of any bench run"]
-    rows = [[lbl, a, p, g] for lbl, a, p, g in zip(labels, col("hafo"), published, col("hafo_gait"))]
+    rows = [[lbl, a, p, g]
+            for lbl, a, p, g in zip(labels, col("hafo"), published, col("hafo_gait"))]
     return table(["figure", "`hafo` model", "published", "`hafo_gait`"], rows)
 
 

@@ -25,12 +25,12 @@ Method (``afo-mj calibrate``; issue 7):
    negative leakage) score zero.
 5. **Refit the top candidates** in the full model (declared + effect parameters), each from
    the better of its best probe and the optimum of the ranking's linearisation there
-   (:meth:`Calibration.refit_start`), and keep the best one if it pays on all of: the Bayesian information criterion falls by more than
-   ``bic_margin`` (Schwarz 1978; AIC is reported too), the held-out overall NRMSE falls by at
-   least ``min_error_drop`` (relative), and its parameters are identifiable (relative standard
-   error below ``max_relative_se`` and no correlation with another parameter above
-   ``max_correlation``, from the Gauss–Newton covariance ``s² (JᵀJ)⁻¹``). Repeat greedily
-   until no candidate pays or ``max_effects`` are in.
+   (:meth:`Calibration.refit_start`), and keep the best one if it pays on all of: the Bayesian
+   information criterion falls by more than ``bic_margin`` (Schwarz 1978; AIC is reported too), the
+   held-out overall NRMSE falls by at least ``min_error_drop`` (relative), and its parameters are
+   identifiable (relative standard error below ``max_relative_se`` and no correlation with another
+   parameter above ``max_correlation``, from the Gauss–Newton covariance ``s² (JᵀJ)⁻¹``). Repeat
+   greedily until no candidate pays or ``max_effects`` are in.
 6. **Verdict**: ``effect_found`` when at least one effect was added; otherwise
    ``no_missing_effect`` when every held-out residual is white and within ``1.2×`` its noise,
    else ``unexplained_residual`` with where the structure lives (channel, phase, input, lag,

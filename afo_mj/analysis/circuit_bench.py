@@ -37,14 +37,14 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   Refused for ``open_loop``.
 * ``flow_vs_duty`` — a circuit metered by on/off valves under PWM (controller
   ``digital_valve_torque``; seed ch. 5). The controller's ``valve_command_on`` switch is set
-  (the command is the metering fraction ``u``, open loop; the supply at its set speed). Per duty ``u`` in ``duties``: the pump spun up with the ankle
-  locked at 80 % of the dorsiflexion stroke and the valves at rest (``u = 0``), then the
-  inertia ``flow_inertia_kg_m2`` (an adult foot about the ankle, 0.01 kg m²) released (no
-  spring: a spring's torque would pull the line below the tank) against a damper
-  ``flow_damping_nm_s_rad`` and a constant dorsiflexion torque
+  (the command is the metering fraction ``u``, open loop; the supply at its set speed). Per duty
+  ``u`` in ``duties``: the pump spun up with the ankle locked at 80 % of the dorsiflexion stroke and
+  the valves at rest (``u = 0``), then the inertia ``flow_inertia_kg_m2`` (an adult foot about the
+  ankle, 0.01 kg m²) released (no spring: a spring's torque would pull the line below the tank)
+  against a damper ``flow_damping_nm_s_rad`` and a constant dorsiflexion torque
   ``k_τ p_bias`` (``flow_bias_pressure_pa``: the actuator's line held above the tank, so the
-  open switching valve, not the actuator, takes the pump's flow) at ``u``; the flow delivered into the
-  actuator ``Q = −k_τ θ̇`` (``k_τ`` its torque per pascal = displacement per radian) and the
+  open switching valve, not the actuator, takes the pump's flow) at ``u``; the flow delivered into
+  the actuator ``Q = −k_τ θ̇`` (``k_τ`` its torque per pascal = displacement per radian) and the
   pump's geometric flow ``d ω`` averaged over whole PWM periods from the second period until
   the ankle passes 80 % of the plantarflexion stroke. Figures: ``Q`` and ``Q/(d ω)`` per
   duty and the straight line ``Q/(d ω) = a u + b`` fitted by least squares. Seed ch. 5: on a

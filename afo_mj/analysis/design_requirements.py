@@ -73,8 +73,9 @@ import numpy as np
 from afo_mj.analysis.design_models import CHEMISTRIES
 from afo_mj.hydraulics.fluid import FLUID_PRESETS
 
-__all__ = ["toml_dumps", "DesignError", "Requirements", "SearchGrid", "DutyCycle", "load_requirements",
-           "parse_requirements", "duty_cycle", "ARCHITECTURES", "SKIN_SAFE_SURFACE_K"]
+__all__ = ["toml_dumps", "DesignError", "Requirements", "SearchGrid", "DutyCycle",
+           "load_requirements", "parse_requirements", "duty_cycle", "ARCHITECTURES",
+           "SKIN_SAFE_SURFACE_K"]
 
 ARCHITECTURES = ("pump", "valve", "digital")
 PROFILES = ("corner", "normative", "arrays")

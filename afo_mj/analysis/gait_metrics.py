@@ -202,7 +202,8 @@ def _trapezoid(y: np.ndarray, t: np.ndarray) -> float:
 
 
 def _work(t: np.ndarray, p: np.ndarray, ta: float, tb: float) -> tuple[float, float]:
-    """(positive, negative) work of power ``p`` over [ta, tb] (Winter 2009: ∫max(P,0), ∫min(P,0))."""
+    """(positive, negative) work of power ``p`` over [ta, tb] (Winter 2009: ∫max(P,0),
+    ∫min(P,0))."""
     tt, pp = _window(t, p, ta, tb)
     return _trapezoid(np.maximum(pp, 0.0), tt), _trapezoid(np.minimum(pp, 0.0), tt)
 
@@ -221,7 +222,8 @@ def reference_band(reference, channel: str) -> tuple[np.ndarray, np.ndarray | No
     if has is None or has(channel):
         try:
             mean, sd = reference.band(channel, _PHASE)
-            return np.asarray(mean, dtype=float), (None if sd is None else np.asarray(sd, dtype=float))
+            return np.asarray(mean, dtype=float), (None if sd is None
+                                                   else np.asarray(sd, dtype=float))
         except (KeyError, ValueError):
             pass
     if channel in POWER_CHANNELS and hasattr(reference, "powers_w_per_kg"):
@@ -299,8 +301,10 @@ def _cycle(record: GaitRecord, side: int, stride: int, t0: float, t1: float,
         s["swing_peak_dorsiflexion_deg"] = math.degrees(float(np.max(a_sw)))
         # the foot drop signature: the ankle hangs plantarflexed through swing
         s["swing_mean_ankle_angle_deg"] = math.degrees(float(np.mean(a_sw)))
-        s["min_toe_clearance_m"] = float(np.min(_window(t, record.contact_height_m[:, side, 1], wa, wb)[1]))
-        s["min_heel_clearance_m"] = float(np.min(_window(t, record.contact_height_m[:, side, 0], wa, wb)[1]))
+        s["min_toe_clearance_m"] = float(np.min(
+            _window(t, record.contact_height_m[:, side, 1], wa, wb)[1]))
+        s["min_heel_clearance_m"] = float(np.min(
+            _window(t, record.contact_height_m[:, side, 0], wa, wb)[1]))
     else:
         for k in ("swing_peak_dorsiflexion_deg", "swing_mean_ankle_angle_deg",
                   "min_toe_clearance_m", "min_heel_clearance_m"):
@@ -462,7 +466,8 @@ def analyse_gait(record: GaitRecord, reference,
     summary["analysed_span_s"] = list(span)
     summary["swing_toe_contacts_in_analysed_span"] = sum(
         1 for t, _ in ev.swing_toe_contacts if span[0] <= t <= span[1])
-    summary["duration_s"] = float(record.time_s[-1] - record.time_s[0]) if record.time_s.size else 0.0
+    summary["duration_s"] = (float(record.time_s[-1] - record.time_s[0]) if record.time_s.size
+                             else 0.0)
 
     for key in cycles[0].scalars:
         summary[key] = scalar_statistics(c.scalars[key] for c in cycles)

@@ -49,7 +49,7 @@ import json
 import math
 import tomllib
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 

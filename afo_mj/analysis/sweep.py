@@ -43,7 +43,7 @@ import tempfile
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 from afo_mj.analysis.study import Study, StudyError
 
@@ -303,7 +303,8 @@ class _Progress:
 
 def _hms(s: float) -> str:
     s = int(round(s))
-    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+    return (f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600
+            else f"{s // 60}:{s % 60:02d}")
 
 
 class Sweep:
@@ -392,7 +393,8 @@ class Sweep:
             prog.show(final=True)
             done = len(read_rows(self.out_dir))
             raise SweepInterrupted(
-                f"interrupted ({signal.Signals(stop['signal']).name if stop['signal'] else 'SIGINT'})"
+                "interrupted "
+                f"({signal.Signals(stop['signal']).name if stop['signal'] else 'SIGINT'})"
                 f": {done} runs saved in {self.out_dir}; run the same command again to resume")
         finally:
             if in_main:

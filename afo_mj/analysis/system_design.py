@@ -839,12 +839,12 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
     The line side (cylinders, hoses) depends on actuator × hose × oil, the pump side also on
     the displacement: groups ``g`` (actuator, hose, oil) × ``K`` displacements. Constraint
     points with cold oil (ambient), the duty's energy with the oil at the skin-safe limit
-    (where the lightest designs end up). The duty sums use at most :data:`SCREEN_SAMPLES` samples (every k-th, weighted
-    by its time). Designs are then evaluated in order of a lower bound on their mass (every
-    part but motor and battery is known; the smallest motor; a battery holding at least the
-    net ankle work plus the ankle-side losses for the runtime) and a design is skipped once its
-    bound exceeds ``1 + BOUND_SLACK`` times the lightest design found at its pressure and oil
-    (counted as ``bound``). The motor is chosen from the duty cycle's sufficient statistics:
+    (where the lightest designs end up). The duty sums use at most :data:`SCREEN_SAMPLES` samples
+    (every k-th, weighted by its time). Designs are then evaluated in order of a lower bound on
+    their mass (every part but motor and battery is known; the smallest motor; a battery holding at
+    least the net ankle work plus the ankle-side losses for the runtime) and a design is skipped
+    once its bound exceeds ``1 + BOUND_SLACK`` times the lightest design found at its pressure and
+    oil (counted as ``bound``). The motor is chosen from the duty cycle's sufficient statistics:
     copper loss is quadratic in the motor torque ``T_p + c g``, ``g`` the reference motor
     friction and ``c`` its scale with rated power. Returns ``(spec, best_motor_index,
     best_mass)`` for the designs left after stage 2, or None when stage 2 leaves nothing."""
@@ -1226,7 +1226,8 @@ def explain(req: Requirements, grids: dict, counts: dict, limits: dict, binding,
             out.append(
                 f"torque {t['torque_nm']:.0f} N·m needs A_e r ≥ "
                 f"{t['torque_nm'] / pl:.3g} m³ at {pl / 1e6:.1f} MPa{via} (the highest "
-                f"operating pressure allowed); the largest bore {grids['bore_m'].max() * 1e3:.1f} mm "
+                f"operating pressure allowed); the largest bore "
+                f"{grids['bore_m'].max() * 1e3:.1f} mm "
                 f"(with a {t['at_cable_m'] * 1e3:.1f} mm cable) and arm "
                 f"{grids['arm_m'].max() * 1e3:.0f} mm give A_e r = "
                 f"{t['max_torque_per_pressure_m3']:.3g} m³, {t['max_torque_nm']:.0f} N·m at most"

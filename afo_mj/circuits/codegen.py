@@ -51,8 +51,8 @@ TYP = {"pressure": 1e5, "speed": 10.0, "current": 1.0}
 @functools.lru_cache(maxsize=1)
 def _dependency_digest() -> str:
     """Hash of the compiled modules a generated circuit calls into (the laws, the phase
-    estimator and profile lookup, the impedance law, the buffer views). numba's on-disk cache of a module does
-    not notice a change in a function it calls from another file, so the generated text
+    estimator and profile lookup, the impedance law, the buffer views). numba's on-disk cache of a
+    module does not notice a change in a function it calls from another file, so the generated text
     carries this hash: a changed law gives a new module text, a new cache entry, a fresh
     compile."""
     from afo_mj.circuits import buffer_views

@@ -14,13 +14,13 @@ The state ``y`` (node pressures, shaft speeds, motor currents, valve positions) 
 backward Euler over each MuJoCo step ``h`` with the joint velocity at the *end* of the step as
 an input and the joint angle at the end of the step as MuJoCo's semi-implicit Euler makes it,
 ``θ_{n+1} = θ_n + h θ̇_{n+1}`` (so position-dependent forces, e.g. end stops and chamber
-volumes, are implicit too: their stiffness reaches MuJoCo as damping ``h ∂τ/∂θ``). First a linearly implicit (Rosenbrock) prediction
-``(I − h J_y) Δy = h f(y_n, θ̇_n) + h J_θ̇ (θ̇_{n+1} − θ̇_n)``, i.e. ``Δy = a + b Δθ̇``, makes
-the end-of-step joint torque affine in the unknown velocity, ``τ_{n+1} = τ_0 + G Δθ̇``
-(``G ≤ 0``). MuJoCo's Euler/implicitfast integrators treat joint damping implicitly, so the
-joint force ``τ_0 − G θ̇_n`` with extra damping ``−G`` integrates the end-of-step torque together
-with the body: the torque never lags a step and a kHz hydraulic spring is stable with the foot.
-After ``mj_step`` the new velocity closes the step: Newton iterations on
+volumes, are implicit too: their stiffness reaches MuJoCo as damping ``h ∂τ/∂θ``). First a linearly
+implicit (Rosenbrock) prediction ``(I − h J_y) Δy = h f(y_n, θ̇_n) + h J_θ̇ (θ̇_{n+1} − θ̇_n)``,
+i.e. ``Δy = a + b Δθ̇``, makes the end-of-step joint torque affine in the unknown velocity,
+``τ_{n+1} = τ_0 + G Δθ̇`` (``G ≤ 0``). MuJoCo's Euler/implicitfast integrators treat joint damping
+implicitly, so the joint force ``τ_0 − G θ̇_n`` with extra damping ``−G`` integrates the end-of-step
+torque together with the body: the torque never lags a step and a kHz hydraulic spring is stable
+with the foot. After ``mj_step`` the new velocity closes the step: Newton iterations on
 ``y − y_n − h f(y, θ̇_{n+1}) = 0`` from the prediction; where they do not converge the step is
 redone as adaptive sub-steps (halved on failure, doubled after success, down to
 ``MIN_SUBSTEP_FRACTION``) with the velocity ramped linearly, each a converged backward-Euler
@@ -394,13 +394,13 @@ def run_load(buf, meta, theta0, theta_dot0, inertia, stiffness, damping, rest_an
 
 
 def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, log):
-    """The replay loop of worn side 0 of the device buffer with the joint motion imposed (a recorded angle and its velocity per
-    sample, e.g. a bench record): the same coupled step with the measured velocity as the end
-    velocity. Sample ``i`` → ``i + 1`` is ``sub`` equal steps of ``h = S[0, 0, 0]`` over which
-    the angle, velocity and (when ``temp_k`` is not empty) the oil temperature are
-    interpolated linearly and ``cmd[i]`` is held. ``imposed[i, j]`` (samples × inputs, held
-    likewise) replaces the held input ``U[slots[j]]`` after the controller has run: a measured
-    actuated input (the motor voltage ``U_CMD``, a valve's command) drives the circuit
+    """The replay loop of worn side 0 of the device buffer with the joint motion imposed (a recorded
+    angle and its velocity per sample, e.g. a bench record): the same coupled step with the measured
+    velocity as the end velocity. Sample ``i`` → ``i + 1`` is ``sub`` equal steps of
+    ``h = S[0, 0, 0]`` over which the angle, velocity and (when ``temp_k`` is not empty) the oil
+    temperature are interpolated linearly and ``cmd[i]`` is held. ``imposed[i, j]`` (samples ×
+    inputs, held likewise) replaces the held input ``U[slots[j]]`` after the controller has run: a
+    measured actuated input (the motor voltage ``U_CMD``, a valve's command) drives the circuit
     whatever its controller computed. ``log`` (samples × columns) gets, at the end of each
     sample, ``t, θ, θ̇, τ, u`` (``τ`` the joint torque at the step's end), every state, every
     probe, then the battery current, the bus voltage and the oil temperature. Returns the
@@ -475,8 +475,9 @@ LOG_HEADER = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_
 N_LOG_HEAD = len(LOG_HEADER)
 #: constants the generated module carries with the template
 LAYOUT_CONSTANTS = ("M_Y", "M_P", "M_W", "M_S", "M_PH", "M_PROFILE", "M_V", "M_OUT", "M_O",
-                    "M_LIM", "M_END", "M_NS", "M_NPROF", "M_CMD", "N_META", "V_THETA", "V_THETA_DOT",
-                    "V_TAU_CMD", "V_THETA_DOT_NEW", "V_TAU", "N_V", "O_FORCE", "O_DAMPING",
+                    "M_LIM", "M_END", "M_NS", "M_NPROF", "M_CMD", "N_META", "V_THETA",
+                    "V_THETA_DOT", "V_TAU_CMD", "V_THETA_DOT_NEW", "V_TAU", "N_V", "O_FORCE",
+                    "O_DAMPING",
                     "O_DELIVERED", "O_COMMANDED", "O_PHASE", "N_O", "N_LOG_HEAD",
                     "CMD_PROFILE", "CMD_IMPEDANCE")
 

@@ -2,8 +2,8 @@
 and a speed (or rail-pressure) loop on the supply motor, in one controller per circuit.
 
 The torque loop and the supply loop are those of the hand-written valve kernel they replaced
-(``tests/kernel_reference/valve_kernel.py``, the equivalence tests' reference). Besides the motor voltage (the value
-the controller returns, ``U_CMD``) they set the valves' actuated inputs
+(``tests/kernel_reference/valve_kernel.py``, the equivalence tests' reference). Besides the motor
+voltage (the value the controller returns, ``U_CMD``) they set the valves' actuated inputs
 (:meth:`afo_mj.circuits.codegen.Emitter.input_slot`): the servo valve's spool command, or the
 on/off valves' PWM on-fractions and switching rates.
 

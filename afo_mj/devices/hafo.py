@@ -29,9 +29,9 @@ them); the reasoning, item by item:
 * **Oil** — ISO VG 32 (low enough viscosity for the cold start of a worn device, high enough for
   pump slip), 0.1 % entrained air after bleeding.
 * **Charge** — a 1.5 MPa (gauge) bootstrap reservoir (closed hydrostatic loops run 1–2 MPa
-  of charge so that the hose drop at full ankle speed never cavitates a chamber) feeds the low-pressure line through a
-  flushing (shuttle) valve, and make-up check valves refill either line when the ankle
-  outruns the pump.
+  of charge so that the hose drop at full ankle speed never cavitates a chamber) feeds the
+  low-pressure line through a flushing (shuttle) valve, and make-up check valves refill either line
+  when the ankle outruns the pump.
 * **Masses** — :data:`HAFO_MASSES`, item by item; hose mass is computed (wall 45 g/m + oil).
 
 The device is stepped as a generated circuit (:func:`hafo_circuit`, :mod:`afo_mj.circuits`);

@@ -72,8 +72,8 @@ from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
 __all__ = ["ValveControlParams", "ValveAnkleParams", "VALVE_PRESETS", "valve_params",
-           "valve_mass_budget", "ValveAfoDevice", "CIRCUITS", "SERVO_LOSS_TABLE", "DIGITAL_LOSS_TABLE",
-           "SUPPLY_MODES", "valve_circuit", "valve_initial_state"]
+           "valve_mass_budget", "ValveAfoDevice", "CIRCUITS", "SERVO_LOSS_TABLE",
+           "DIGITAL_LOSS_TABLE", "SUPPLY_MODES", "valve_circuit", "valve_initial_state"]
 
 CIRCUITS = ("servo", "digital")
 SUPPLY_MODES = ("constant_speed", "unloading", "pressure_control", "variable_displacement")

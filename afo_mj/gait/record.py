@@ -25,8 +25,10 @@ class GaitEvents:
     lists (time_s, side) of forefoot-floor contacts during swing (scuffs, stumbles).
     """
 
-    heel_strikes_s: tuple[list[float], list[float]] = dataclasses.field(default_factory=lambda: ([], []))
-    toe_offs_s: tuple[list[float], list[float]] = dataclasses.field(default_factory=lambda: ([], []))
+    heel_strikes_s: tuple[list[float], list[float]] = dataclasses.field(
+        default_factory=lambda: ([], []))
+    toe_offs_s: tuple[list[float], list[float]] = dataclasses.field(
+        default_factory=lambda: ([], []))
     fall_time_s: float | None = None
     swing_toe_contacts: list[tuple[float, int]] = dataclasses.field(default_factory=list)
 
@@ -75,7 +77,8 @@ class GaitRecord:
                    z((n, 2)), z(n), z((n, 2)), z(n), z((n, 2)))
 
     def array_fields(self) -> list[str]:
-        return [f.name for f in dataclasses.fields(self) if isinstance(getattr(self, f.name), np.ndarray)]
+        return [f.name for f in dataclasses.fields(self)
+                if isinstance(getattr(self, f.name), np.ndarray)]
 
     def trimmed(self, n: int) -> "GaitRecord":
         """The first ``n`` samples (views)."""

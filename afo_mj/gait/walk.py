@@ -258,7 +258,8 @@ class _Buffers:
 
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
-             device: "AnkleDevice | CoupledAnkleDevice | None" = None, max_time_s: float | None = None,
+             device: "AnkleDevice | CoupledAnkleDevice | None" = None,
+             max_time_s: float | None = None,
              label: str = "") -> GaitRecord:
     """Walk ``strides`` right-leg cycles (or until a fall) and return the record.
 
@@ -511,8 +512,9 @@ def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
         grf_n=-buf.sensors[:n][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
         contact_force_n=buf.sensors[:n][:, phys.touch_adr],
         contact_height_m=buf.contact_z[:n].reshape(n, 2, 2) - radius,
-        pelvis_position_m=np.column_stack([q[:, phys.pelvis_qpos[0]],
-                                           q[:, phys.pelvis_qpos[1]] + phys.pelvis_height_offset_m]),
+        pelvis_position_m=np.column_stack([
+            q[:, phys.pelvis_qpos[0]],
+            q[:, phys.pelvis_qpos[1]] + phys.pelvis_height_offset_m]),
         pelvis_velocity_m_s=v[:, phys.pelvis_dof[:2]],
         pelvis_tilt_rad=q[:, phys.pelvis_qpos[2]].copy(),
         residual_force_n=buf.actuator_force[:n][:, phys.residual_act[:2]],

@@ -93,7 +93,8 @@ class BodySegments:
 
     @property
     def total_mass_kg(self) -> float:
-        return self.hat.mass_kg + 2.0 * (self.thigh.mass_kg + self.shank.mass_kg + self.foot.mass_kg)
+        return self.hat.mass_kg + 2.0 * (self.thigh.mass_kg + self.shank.mass_kg
+                                         + self.foot.mass_kg)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -236,7 +236,8 @@ def build_test_stand(body_mass_kg: float = 75.0, height_m: float = 1.75,
                conaffinity=0, rgba=[0.2, 0.2, 0.2, 1])
 
     if load.kind in ("locked", "imposed"):
-        q0 = load.locked_angle_rad if load.kind == "locked" else float(load.trajectory.angle_rad(0.0))
+        q0 = (load.locked_angle_rad if load.kind == "locked"
+              else float(load.trajectory.angle_rad(0.0)))
         root.equality.add("joint", name="ankle_drive", joint1="ankle", polycoef=[q0, 0, 0, 0, 0],
                           solref=[2 * timestep_s, 1.0], solimp=_EQ_SOLIMP)
     root.actuator.add("motor", name="device_ankle", joint="ankle", gear=[1])

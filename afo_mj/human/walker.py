@@ -1,4 +1,5 @@
-"""The sagittal-plane walker: MJCF built with ``dm_control.mjcf`` and a Physics with named accessors.
+"""The sagittal-plane walker: MJCF built with ``dm_control.mjcf`` and a Physics with named
+accessors.
 
 Seven segments (HAT = head, arms, trunk and pelvis; thigh, shank, foot per leg) scaled from de
 Leva (1996) by body mass and stature (:mod:`afo_mj.human.anthropometry`). The pelvis is free in
@@ -65,7 +66,8 @@ class WalkerParams(Parameters):
     body_mass_kg: float = param(75.0, unit="kg", lo=10.0, hi=200.0, doc="body mass")
     height_m: float = param(1.75, unit="m", lo=0.8, hi=2.2, doc="stature")
     sole_pitch_rad: float = param(math.radians(6.0), unit="rad", lo=-0.3, hi=0.3,
-                                  doc="heel-to-ball line pitched toe-up in the foot frame at 0 ankle angle")
+                                  doc="heel-to-ball line pitched toe-up in the foot frame at 0 "
+                                      "ankle angle")
     contact_radius_fraction: float = param(0.012, unit="1", lo=0.002, hi=0.03,
                                            doc="contact sphere radius / stature")
     ball_fraction: float = param(0.73, unit="1", lo=0.5, hi=1.0,
@@ -78,16 +80,17 @@ class WalkerParams(Parameters):
     plantarflexor_strength_nm_per_kg: float = param(2.5, unit="N*m/kg", lo=0.1, hi=5.0)
     dorsiflexor_strength_nm_per_kg: float = param(0.6, unit="N*m/kg", lo=0.05, hi=3.0)
     hip_knee_strength_nm_per_kg: float = param(3.0, unit="N*m/kg", lo=0.5, hi=6.0)
-    plantarflexor_strength_fraction: float = param(1.0, unit="1", lo=0.0, hi=1.0,
-                                                   doc="plantarflexor weakness: 1 healthy, 0.5 = half")
+    plantarflexor_strength_fraction: float = param(
+        1.0, unit="1", lo=0.0, hi=1.0, doc="plantarflexor weakness: 1 healthy, 0.5 = half")
     dorsiflexor_strength_fraction: float = param(1.0, unit="1", lo=0.0, hi=1.0,
                                                  doc="dorsiflexor weakness (foot drop): 1 healthy")
-    ankle_passive_stiffness_nm_per_rad: float = param(0.0, unit="N*m/rad", lo=0.0, hi=2000.0,
-                                                      doc="added passive ankle stiffness (spasticity)")
-    ankle_passive_damping_nm_s_per_rad: float = param(0.0, unit="N*m*s/rad", lo=0.0, hi=100.0,
-                                                      doc="added passive ankle damping (spasticity)")
-    plantarflexor_max_velocity_rad_s: float = param(20.0, unit="rad/s", lo=1.0, hi=200.0,
-                                                    doc="joint-level unloaded plantarflexion speed of the Hill torque-velocity curve")
+    ankle_passive_stiffness_nm_per_rad: float = param(
+        0.0, unit="N*m/rad", lo=0.0, hi=2000.0, doc="added passive ankle stiffness (spasticity)")
+    ankle_passive_damping_nm_s_per_rad: float = param(
+        0.0, unit="N*m*s/rad", lo=0.0, hi=100.0, doc="added passive ankle damping (spasticity)")
+    plantarflexor_max_velocity_rad_s: float = param(
+        20.0, unit="rad/s", lo=1.0, hi=200.0,
+        doc="joint-level unloaded plantarflexion speed of the Hill torque-velocity curve")
     hill_curvature: float = param(0.25, unit="1", lo=0.05, hi=2.0,
                                   doc="Hill's a/F0 (curvature of the torque-velocity hyperbola)")
     timestep_s: float = param(1e-3, unit="s", lo=1e-4, hi=5e-3,
@@ -195,8 +198,8 @@ def add_foot_segment(foot, seg: BodySegments, p: WalkerParams, suffix: str = ""
     foot.add("geom", name=f"foot{suffix}", type="capsule", size=[0.5 * r],
              fromto=[heel_x, 0, sole_z, ft.length_m - seg.heel_to_ankle_m, 0, ball_z],
              mass=0, contype=0, conaffinity=0, rgba=[0.4, 0.4, 0.5, 1])
-    foot.add("site", name=f"foot_plate{suffix}", pos=[0.5 * (heel_x + ball_x), 0, sole_z - r + 0.005],
-             size=[0.01])
+    foot.add("site", name=f"foot_plate{suffix}",
+             pos=[0.5 * (heel_x + ball_x), 0, sole_z - r + 0.005], size=[0.01])
     return heel_x, ball_x, sole_z, ball_z
 
 

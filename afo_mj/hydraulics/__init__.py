@@ -18,7 +18,8 @@ Conventions every component module follows
   and an example.
 """
 
-from .params import ParameterError, Parameters, effect_switches, flatten, param, effect, replace_named
+from .params import (ParameterError, Parameters, effect_switches, flatten, param, effect,
+                     replace_named)
 from .power import PowerFlow
 from .fluid import ATMOSPHERIC_PRESSURE_PA, Fluid, FluidParams, FLUID_PRESETS, ISO_VG32, ISO_VG46
 

@@ -74,7 +74,8 @@ class CylinderParams(Parameters):
             self.fail("kind", f"allowed: {', '.join(CYLINDER_KINDS)}")
         if self.rod_diameter_m >= self.bore_m:
             self.fail("rod_diameter_m", f"must be smaller than bore_m = {self.bore_m}")
-        if self.kind != "single_acting" and self.kind != "piston_cable" and self.rod_diameter_m == 0:
+        if (self.kind != "single_acting" and self.kind != "piston_cable"
+                and self.rod_diameter_m == 0):
             self.fail("rod_diameter_m", "a double_acting (single-rod) cylinder needs a rod > 0")
 
 

@@ -106,7 +106,8 @@ class FluidParams(Parameters):
     cavitation_band_pa: float = param(2.0e4, unit="Pa", lo=1.0, hi=1e6,
                                       doc="width above the floor over which the cavitation "
                                           "rule softens the fluid")
-    entrained_air_enabled: bool = effect(True, doc="entrained air lowers the bulk modulus (eq. 2.5)")
+    entrained_air_enabled: bool = effect(True,
+                                         doc="entrained air lowers the bulk modulus (eq. 2.5)")
 
     def check(self) -> None:
         if self.viscosity_low_temperature_k >= self.viscosity_high_temperature_k:

@@ -15,9 +15,9 @@ The outside world sees a fixed step (e.g. one 1 ms MuJoCo step, inputs held). In
 :meth:`Ros2.advance` subdivides only where the embedded first-order solution ``y + h k1``
 disagrees with ``y⁺`` by more than the tolerance (``err = h (k1 + k2)/2``), which happens at
 events the Jacobian did not see coming: a piston reaching its end stop, a valve slamming shut.
-In smooth operation it takes one step per call. ``J`` is formed by one *batched* forward-difference evaluation: the right-hand side
-is called once on an (n, n+1) array holding the state and its n perturbations, so the Python
-overhead of a Jacobian is that of one call.
+In smooth operation it takes one step per call. ``J`` is formed by one *batched* forward-difference
+evaluation: the right-hand side is called once on an (n, n+1) array holding the state and its n
+perturbations, so the Python overhead of a Jacobian is that of one call.
 """
 
 from __future__ import annotations

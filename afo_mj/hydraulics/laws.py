@@ -138,7 +138,8 @@ def oil_mean_compliance_per_pa(p0_abs_pa, p1_abs_pa, liquid_bulk_modulus_pa, air
     interval above the floor (``p1/p0 ≤ 1.05``, most steps) the whole mean is the midpoint
     value ``1/B((p0 + p1)/2)``: within 5e-4 of the integral (the error is ``Δp²/24`` times
     the curvature of 1/B) and symmetric in ``(p0, p1)``, so a step and its exact reverse
-    still return a node to the same oil content; one power instead of five. ``p0 = p1`` gives ``1/B(p)``.
+    still return a node to the same oil content; one power instead of five. ``p0 = p1`` gives
+    ``1/B(p)``.
 
     Example: B_L = 1.5 GPa, α = 0.01, n = 1.4, floor 2 kPa, 0.4 → 4.6 MPa abs: 1.401e-9 /Pa,
     1.8 times the tangent value at 4.6 MPa (7.68e-10 /Pa).

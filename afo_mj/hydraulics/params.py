@@ -86,7 +86,8 @@ class Parameters:
                         f"allowed: {_range_text(f.name, f.metadata)}")
                 v = float(value)
                 md = f.metadata
-                bad = (not math.isfinite(v) and not (v == md["hi"] or v == md["lo"])) or math.isnan(v)
+                bad = ((not math.isfinite(v) and not (v == md["hi"] or v == md["lo"]))
+                       or math.isnan(v))
                 bad = bad or v < md["lo"] or (md["lo_open"] and v == md["lo"])
                 bad = bad or v > md["hi"] or (md["hi_open"] and v == md["hi"])
                 if bad:
@@ -124,7 +125,8 @@ def _walk(obj: Parameters, prefix: str) -> Iterator[tuple[str, dataclasses.Field
 
 
 def flatten(obj: Parameters) -> dict[str, float | bool]:
-    """All numeric parameters and effect switches of ``obj`` (nested sets included) by dotted name."""
+    """All numeric parameters and effect switches of ``obj`` (nested sets included) by dotted
+    name."""
     return {name: value for name, _, value in _walk(obj, "")}
 
 

@@ -5,8 +5,8 @@ pumps and motors*, Proc. IMechE B 198:165), for a pump between ports a and b wit
 ``Δp = p_a − p_b`` and displacement ``D`` per revolution (``d = ε D / 2π`` per radian, ``ε`` the
 displacement fraction, 1 for a fixed pump):
 
-* delivered flow into port a:  ``Q = d ω − C_s D Δp / (2π μ)``      (slip/leakage ∝ Δp/μ)
-* shaft torque:                ``T = d Δp + C_f D |Δp|/(2π) tanh(ω/ω_c) + C_v D μ ω/(2π) + T_0 tanh(ω/ω_c)``
+* delivered flow into port a: ``Q = d ω − C_s D Δp / (2π μ)`` (slip/leakage ∝ Δp/μ)
+* shaft torque: ``T = d Δp + C_f D |Δp|/(2π) tanh(ω/ω_c) + C_v D μ ω/(2π) + T_0 tanh(ω/ω_c)``
   (Coulomb part ∝ Δp·D, viscous part ∝ μ·ω, a constant drag ``T_0``; ``|Δp|`` rounded to
   ``√(Δp² + (10 kPa)²)``, which keeps the Coulomb kink at equal port pressures out of an
   implicit integrator's Jacobian).
@@ -120,7 +120,8 @@ class Pump:
                                             self._cf, self._cv, p.drag_torque_nm,
                                             p.smoothing_speed_rad_s, dynamic_viscosity_pa_s)
 
-    def shaft_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
+    def shaft_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s,
+                        displacement_fraction=1.0):
         """Torque the drive must supply: ``ε d Δp + T_friction``."""
         eps = self._fraction(displacement_fraction)
         return eps * self.d_m3_rad * np.asarray(dp_pa, dtype=float) + \

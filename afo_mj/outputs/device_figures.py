@@ -1,4 +1,5 @@
-"""Figures of a device run (the conditions of :func:`afo_mj.scenarios.device_scenario.run_device_scenario`).
+"""Figures of a device run (the conditions of
+:func:`afo_mj.scenarios.device_scenario.run_device_scenario`).
 
 :func:`plot_device_run` writes into ``out_dir``:
 
@@ -435,8 +436,9 @@ def _plot_torque(path: Path, devs: dict, side: int, title: str) -> None:
         ax.plot(tt, -L["delivered_torque_nm"][m, 0], color="C3", lw=1.6, label="delivered")
         ax.plot(tt, -L["measured_torque_nm"][m, 0], color="C0", lw=0.9, alpha=0.7,
                 label="measured (sensor)")
-        rmse = math.sqrt(float(np.mean((L["commanded_torque_nm"][m, 0]
-                                        - L["delivered_torque_nm"][m, 0]) ** 2))) if tt.size else math.nan
+        rmse = (math.sqrt(float(np.mean((L["commanded_torque_nm"][m, 0]
+                                         - L["delivered_torque_nm"][m, 0]) ** 2)))
+                if tt.size else math.nan)
         ax.set_title(f"{_label(cond)}: last {max(len(hs) - 1, 0)} strides "
                      f"(tracking RMSE {rmse:.1f} N·m)")
         ax = axes[1, j]

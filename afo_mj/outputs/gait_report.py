@@ -224,7 +224,8 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
     if cycles:
         _check_key_metrics(summary)
     if title is None:
-        name = summary.get("scenario", {}).get("name") if isinstance(summary.get("scenario"), dict) else None
+        name = (summary.get("scenario", {}).get("name")
+                if isinstance(summary.get("scenario"), dict) else None)
         title = f"{name or 'walk'}: {len(cycles)} cycles"
         if record is not None:
             title += f", {record.body_mass_kg:g} kg, {record.height_m:g} m"

@@ -174,7 +174,8 @@ def _smooth(x: np.ndarray, n: int) -> np.ndarray:
     return (c[n:] - c[:-n]) / n
 
 
-def _text_layer(width: int, height: int, items, fontsize_pt: float) -> tuple[np.ndarray, np.ndarray]:
+def _text_layer(width: int, height: int, items,
+                fontsize_pt: float) -> tuple[np.ndarray, np.ndarray]:
     """RGB and alpha (float, 0..1) of text drawn once with matplotlib's Agg backend.
 
     ``items``: (x_px, y_px from top, text, rgb 0..1, ha, va)."""

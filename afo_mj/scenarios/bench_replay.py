@@ -207,7 +207,6 @@ class BenchReplay:
         :class:`ReplayError` when a state becomes non-finite (never returns NaN)."""
         cmd_name = self.check_inputs(inputs)[0]
         t = np.asarray(time_s, dtype=float)
-        n = len(t)
         dt = float(np.median(np.diff(t)))
         sub = max(1, int(math.ceil(dt / self.max_step_s - 1e-9)))
         theta = np.ascontiguousarray(inputs["ankle_angle_rad"], dtype=float)

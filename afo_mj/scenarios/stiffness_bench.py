@@ -125,7 +125,7 @@ def sweep_config(stiffnesses_nm_per_rad: Sequence[float], amplitude_rad: float =
                                   " is not a list; allowed: a non-empty list of distinct "
                                   "positive stiffnesses") from None
     if not ks:
-        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = []; allowed: a non-empty "
+        raise StiffnessBenchError("stiffnesses_nm_per_rad = []; allowed: a non-empty "
                                   "list of distinct positive stiffnesses")
     ks = tuple(_num(f"stiffnesses_nm_per_rad[{i}]", k, 0.0, 20.0 / _DEG, lo_open=True)
                for i, k in enumerate(ks))

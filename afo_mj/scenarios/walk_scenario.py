@@ -259,7 +259,8 @@ class _Ctx:
             if k not in allowed:
                 dotted = f"{section}.{k}" if section else k
                 raise ScenarioError(f"{self.origin}: unknown key {dotted!r} (= {v!r})"
-                                    f"{did_you_mean(k, allowed, f'{section}.' if section else '')}; allowed "
+                                    f"{did_you_mean(k, allowed, f'{section}.' if section else '')}"
+                                    "; allowed "
                                     f"keys{' in [' + section + ']' if section else ''}: "
                                     f"{', '.join(allowed)}")
 
@@ -567,12 +568,15 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     tf_hz = ctx.number("output.transform_rate_hz", out_tbl.get("transform_rate_hz", 50.0),
                        1.0, 1e4, "Hz")
     return WalkScenario(record=record, record_signal_rate_hz=sig_hz,
-                        record_transform_rate_hz=tf_hz,band_references=tuple(bands), reference_id_path=reference_id_path, name=name, description=description, walker=walker,
+                        record_transform_rate_hz=tf_hz, band_references=tuple(bands),
+                        reference_id_path=reference_id_path, name=name, description=description,
+                        walker=walker,
                         reference=reference, condition=condition,
                         reference_path=reference_path, cadence_steps_per_min=cadence,
                         strides=strides, analyse_strides=(first, last),
                         controller=MappingProxyType(controller), source_path=source_path,
-                        text=text, notes=tuple(notes), device=MappingProxyType(ctx.table(doc, "device")),
+                        text=text, notes=tuple(notes),
+                        device=MappingProxyType(ctx.table(doc, "device")),
                         assistance=MappingProxyType(ctx.table(doc, "assistance")),
                         circuit=MappingProxyType(ctx.table(doc, "circuit")))
 

@@ -26,8 +26,8 @@ checks them against those modules):
 * charge valves (loss ``charge_valves``): a flushing valve of conductance ``G_f`` between the
   reservoir (gauge ``p_r``) and the lower line, switched by a ``tanh`` of the line pressure
   difference over ``band``, and a make-up check valve into each line,
-  ``Q = G_m · ramp(x)``, ``x = p_r − p``, ramp C¹ over ``b`` (:func:`_ramp_c1`) (opens as the line falls below the
-  reservoir: the ankle can outrun the pump without cavitating the suction line).
+  ``Q = G_m · ramp(x)``, ``x = p_r − p``, ramp C¹ over ``b`` (:func:`_ramp_c1`) (opens as the line
+  falls below the reservoir: the ankle can outrun the pump without cavitating the suction line).
 * cylinders (:mod:`afo_mj.hydraulics.cylinder`, :mod:`afo_mj.hydraulics.seal`): effective area
   ``A_e = n A`` (n cylinders, annular area ``A = π/4 (D² − d_c²)``); line a drives
   plantarflexion. Piston speed ``ẋ = r θ̇``; chamber a volume
