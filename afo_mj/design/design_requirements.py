@@ -70,7 +70,7 @@ from typing import Any
 
 import numpy as np
 
-from afo_mj.analysis.design_models import CHEMISTRIES
+from afo_mj.design.design_models import CHEMISTRIES
 from afo_mj.hydraulics.fluid import FLUID_PRESETS
 
 __all__ = ["toml_dumps", "DesignError", "Requirements", "SearchGrid", "DutyCycle",

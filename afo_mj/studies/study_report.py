@@ -1,6 +1,6 @@
 """The report of a parameter study: ranking, Pareto front, sensitivity indices, figures.
 
-Reads a sweep directory of ``afo-mj sweep`` (:mod:`afo_mj.analysis.sweep`): ``study.json`` and
+Reads a sweep directory of ``afo-mj sweep`` (:mod:`afo_mj.studies.sweep`): ``study.json`` and
 ``results.parquet`` / ``results.csv`` (one row per run: ``order``, ``run_id``, ``status``,
 ``exit_code``, ``error``, ``wall_time_s``, ``param:<key>`` inputs and the run's flattened
 ``summary.json``). :func:`write_study_report` writes ``DIR/study/`` (all files at once,
@@ -37,7 +37,7 @@ computed) for a ``saltelli`` design, Morris mu*, mu, sigma (:func:`SALib.analyze
 for a ``morris`` design; other designs (grid, random, LHS, Sobol' points) do not support them.
 The sweep's ``order`` is the order runs finished in, not the design's, so the design is
 regenerated from ``study.json`` (the same SALib sampling with the same seed as
-:meth:`afo_mj.analysis.study.Study.points`) and each design point is matched to its row by
+:meth:`afo_mj.studies.study.Study.points`) and each design point is matched to its row by
 parameter values. Sobol' indices need every run of the design: if any design point has no
 successful run with a finite metric, they are not computed and the report says how many
 are missing. Morris trajectories with a missing run are dropped (at least 2 complete
@@ -112,7 +112,7 @@ def load_results(out_dir) -> tuple[dict, pd.DataFrame]:
         except Exception as exc:                    # noqa: BLE001 - any reader error
             raise StudyReportError(f"{path}: unreadable results table ({exc})") from None
     else:
-        from afo_mj.analysis.sweep import read_rows
+        from afo_mj.studies.sweep import read_rows
         rows = read_rows(d)
         if not rows:
             raise StudyReportError(f"{d}: no results.parquet, results.csv or rows/ "
@@ -338,7 +338,7 @@ def ranked_table(df: pd.DataFrame, metric: str, ascending: bool = True,
 # --------------------------------------------------------------------------- sensitivity
 
 def _study_object(study: dict):
-    from afo_mj.analysis.study import Study, StudyParameter
+    from afo_mj.studies.study import Study, StudyParameter
     params = tuple(StudyParameter(p["key"], tuple(p.get("levels") or ()), p.get("lo"),
                                   p.get("hi"), int(p.get("points", 3)),
                                   p.get("scale", "linear"), bool(p.get("integer", False)))

@@ -1,7 +1,7 @@
 """Minimum-weight hydraulic ankle actuation designed from requirements (the seed's ch. 3 tool).
 
 :func:`run_design` (``afo-mj design REQUIREMENTS.toml --out DIR``) reads the requirements
-(:mod:`afo_mj.analysis.design_requirements`), searches a grid of designs for the lightest one
+(:mod:`afo_mj.design.design_requirements`), searches a grid of designs for the lightest one
 that meets them, explains which constraint binds when none does, writes the best design as
 scenarios that ``afo-mj run`` accepts, and runs the design-guideline studies.
 
@@ -51,14 +51,14 @@ from typing import Any
 
 import numpy as np
 
-from afo_mj.analysis.design_models import (CHEMISTRIES, DesignAssumptions, SupplyFigures,
+from afo_mj.design.design_models import (CHEMISTRIES, DesignAssumptions, SupplyFigures,
                                            cable_diameter_m, chain_steady, cylinder_masses,
                                            hose_wall_mass_kg_per_m, line_steady, motor_scaling,
                                            oil_viscosity_pa_s, oring_cross_section_m,
                                            pack_geometry, pack_thermal_resistance_k_w,
                                            pulley_mass_kg, pump_inertia_kg_m2, pump_mass_kg,
                                            servo_centre_leak_m3_s, supply_steady)
-from afo_mj.analysis.design_requirements import (DesignError, DutyCycle, Requirements,
+from afo_mj.design.design_requirements import (DesignError, DutyCycle, Requirements,
                                                  duty_cycle, load_requirements,
                                                  parse_requirements)
 from afo_mj.hydraulics import laws
@@ -187,11 +187,11 @@ def actuator_geometry(pressure_pa, bore_m, arm_m, rom_rad: float, a: DesignAssum
 
     * relief cracking ``p_cr = margin · p``; the largest pressure difference is the relief's
       full-open ``p_cr + override``; walls see that plus the charge pressure;
-    * cable: :func:`~afo_mj.analysis.design_models.cable_diameter_m` for the piston force at the
+    * cable: :func:`~afo_mj.design.design_models.cable_diameter_m` for the piston force at the
       largest pressure difference on the full bore area (conservative);
     * ``A_e = n π/4 (D² − d_c²)``, stroke ``r × range of motion``;
     * seals: the preset's nitrile O-rings, piston ring cross-section by bore
-      (:func:`~afo_mj.analysis.design_models.oring_cross_section_m`), Coulomb level seed eq. 2.7,
+      (:func:`~afo_mj.design.design_models.oring_cross_section_m`), Coulomb level seed eq. 2.7,
       per cylinder one piston seal and two cable seals as the kernel counts them;
     * internal leakage conductance of one cylinder (as the kernel packs it).
     """
@@ -269,8 +269,8 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     limit, battery, energies per stride by loss name (the simulator ledger's names),
     stage efficiencies over the stride, system efficiency (positive ankle work / chemical
     energy), heat, steady oil/surface temperature, runtime, the constraint margins and
-    ``feasible``. Equations: :func:`~afo_mj.analysis.design_models.line_steady` and
-    :func:`~afo_mj.analysis.design_models.supply_steady` (the architecture's supply) per sample,
+    ``feasible``. Equations: :func:`~afo_mj.design.design_models.line_steady` and
+    :func:`~afo_mj.design.design_models.supply_steady` (the architecture's supply) per sample,
     motor ``v = R i + K ω``, driver ``R_on i² + P_q``, battery Rint per sample, pack thermal
     resistance from natural convection and radiation, oil viscosity at the steady temperature
     (fixed point, ``temperature_iterations`` sweeps).
@@ -1378,7 +1378,7 @@ def mass_check(row: dict, params) -> dict:
 def predict_bench(params, *, soc: float | None = None, temperature_k: float | None = None,
                   full_voltage_v: float | None = None) -> dict:
     """Steady-state stall torque and no-load speed of ``params`` as the torque–velocity bench
-    (:func:`afo_mj.scenarios.hafo_bench.torque_velocity`) measures them, from the simulator's
+    (:func:`afo_mj.experiments.hafo_bench.torque_velocity`) measures them, from the simulator's
     own parameters and laws (:mod:`afo_mj.hydraulics.laws`).
 
     * full voltage command ``1.25 × 4.2 V × cells`` through the driver's clamps (current limit
@@ -1640,7 +1640,7 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
     if overrides:
         import tomllib
 
-        from afo_mj.analysis.design_requirements import toml_dumps
+        from afo_mj.design.design_requirements import toml_dumps
         from afo_mj.scenarios.walk_scenario import ScenarioError
         try:
             doc = apply_overrides(tomllib.loads(text), overrides, str(path))
@@ -1662,7 +1662,7 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
                    "mass_check": mass_check(row, params)}
         _validate_written(req, written)
         if verify:
-            from afo_mj.scenarios.hafo_bench import torque_velocity
+            from afo_mj.experiments.hafo_bench import torque_velocity
             s, _ = torque_velocity(params, velocities_deg_s=(0.0,))
             bench = {"stall_torque_nm": s["stall_torque_nm"],
                      "no_load_speed_deg_s": s["no_load_speed_deg_s"],
@@ -1679,7 +1679,7 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
 def _validate_written(req: Requirements, written: dict) -> None:
     """Parse the scenarios about to be written as ``afo-mj run`` will (a failure here is a bug
     of the tool, reported as such, not a bad requirement)."""
-    from afo_mj.analysis.design_requirements import toml_dumps
+    from afo_mj.design.design_requirements import toml_dumps
     from afo_mj.outputs.design_report import bench_scenario, walk_scenario
     from afo_mj.scenarios.bench_scenario import parse_bench_scenario
     from afo_mj.scenarios.device_scenario import device_config

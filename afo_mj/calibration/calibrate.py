@@ -3,18 +3,18 @@
 Method (``afo-mj calibrate``; issue 7):
 
 1. **Replay** the record's inputs through the device model on the bench
-   (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), starting from the **lean model**: the
-   preset with every effect of :mod:`afo_mj.analysis.effect_library` switched off, except the
+   (:class:`afo_mj.experiments.bench_replay.BenchReplay`), starting from the **lean model**: the
+   preset with every effect of :mod:`afo_mj.calibration.effect_library` switched off, except the
    effects the user declares.
-2. **Fit the declared parameters** (:func:`afo_mj.analysis.effect_library.declared_parameters`)
+2. **Fit the declared parameters** (:func:`afo_mj.calibration.effect_library.declared_parameters`)
    on the training part of the record by bounded robust nonlinear least squares
    (``scipy.optimize.least_squares``, trust-region reflective, ``soft_l1`` loss: residuals
    beyond ~3 noise σ count linearly, so a spike or a missing effect does not drag every
    parameter). Residuals are per channel, normalised by the channel's standard deviation, so
    each channel weighs as its NRMSE does. The held-out part is the record's last whole cycles or
-   segments (:meth:`afo_mj.analysis.measured_data.MeasuredData.split`); it is never fitted.
+   segments (:meth:`afo_mj.calibration.measured_data.MeasuredData.split`); it is never fitted.
    The first ``settle_s`` of the record (the unknown initial state) is left out of every error.
-3. **Analyse the residual** (:mod:`afo_mj.analysis.residual_analysis`): per channel NRMSE,
+3. **Analyse the residual** (:mod:`afo_mj.calibration.residual_analysis`): per channel NRMSE,
    whiteness (Ljung–Box), noise level, cross-correlation with inputs and states, signature
    correlations, phase average, dominant frequency.
 4. **Rank every candidate cheaply**: each effect is switched on at a few probe values and its
@@ -53,14 +53,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from afo_mj import progress
-from afo_mj.analysis import residual_analysis as ra
-from afo_mj.analysis.effect_library import (
+from afo_mj.calibration import residual_analysis as ra
+from afo_mj.calibration.effect_library import (
     DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
     lean_setting)
-from afo_mj.analysis.measured_data import MeasuredData, MeasuredDataError
+from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import sensor_reading
-from afo_mj.scenarios.bench_replay import BenchReplay, ReplayError
+from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
            "model_outputs", "sensor_outputs"]
@@ -785,7 +785,7 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
     import tomllib
     from pathlib import Path
 
-    from afo_mj.scenarios.bench_replay import kind_of_preset
+    from afo_mj.experiments.bench_replay import kind_of_preset
 
     path = Path(scenario)
     if not path.suffix == ".toml":

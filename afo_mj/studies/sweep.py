@@ -45,7 +45,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from afo_mj.analysis.study import Study, StudyError
+from afo_mj.studies.study import Study, StudyError
 
 __all__ = ["run_point", "flatten_summary", "check_study_keys", "Sweep", "SweepInterrupted",
            "read_rows", "write_table", "PARAM_PREFIX"]

@@ -5,7 +5,7 @@ This is human-in-the-loop optimisation (Zhang et al. 2017, *Science* 356:1280, w
 four parameters of an ankle exoskeleton's torque profile, peak torque, peak time, rise time
 and fall time, to each wearer's metabolic rate with an evolution strategy) done in silico: every
 evaluation is one ``afo-mj run`` of the study's base scenario with the suggested values, run
-through the sweep's parallel runner (:class:`afo_mj.analysis.sweep.Sweep`), so a whole
+through the sweep's parallel runner (:class:`afo_mj.studies.sweep.Sweep`), so a whole
 generation is one batch of parallel runs, every run is kept as a row in ``DIR/rows/`` and an
 interrupted optimisation resumes cheaply: with the same seed it suggests the same points again
 and reads their rows instead of simulating them.
@@ -62,7 +62,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from afo_mj.analysis.study import Study, StudyError, StudyParameter
+from afo_mj.studies.study import Study, StudyError, StudyParameter
 
 __all__ = ["OptimizeError", "OptimizeConfig", "Constraint", "parse_optimize",
            "optimize_study", "METHODS", "DEFAULT_METRIC", "Evaluator"]
@@ -615,7 +615,7 @@ def _sweep_evaluator(study: Study, out_dir: Path, workers: int | None,
                      scheduler: str | None, progress: bool) -> tuple[Evaluator, str]:
     """Batches through the sweep runner: a batch of one point runs in this process (no
     worker start-up for Nelder–Mead's sequential steps) unless a Dask scheduler is given."""
-    from afo_mj.analysis.sweep import Sweep
+    from afo_mj.studies.sweep import Sweep
 
     sw = Sweep(study, out_dir, workers=workers, scheduler=scheduler, progress=progress)
     one = sw if scheduler else Sweep(study, out_dir, workers=1, progress=False)
@@ -640,12 +640,12 @@ def optimize_study(study: Study, out_dir, workers: int | None = None,
     stopped by itself; ``budget``: the budget is spent), ``converged``, ``message``,
     ``config`` and ``table`` (the sweep's results table).
 
-    Runs go through :class:`~afo_mj.analysis.sweep.Sweep` into ``out_dir`` (``workers`` local
+    Runs go through :class:`~afo_mj.studies.sweep.Sweep` into ``out_dir`` (``workers`` local
     processes, or the Dask ``scheduler``), so a second call with the same study and
     ``out_dir`` replays the finished runs from their rows. ``evaluate`` replaces the sweep by
     any batch evaluator (points → rows with ``status`` and the metrics), e.g. in tests.
     Raises :class:`OptimizeError` for an invalid ``[optimize]`` table or a metric no run
-    reports, and :class:`~afo_mj.analysis.sweep.SweepInterrupted` on SIGINT/SIGTERM (the
+    reports, and :class:`~afo_mj.studies.sweep.SweepInterrupted` on SIGINT/SIGTERM (the
     result so far is saved with ``state = "interrupted"``)."""
     origin = str(study.source_path) if study.source_path else study.name
     cfg = parse_optimize(study.optimize, study.parameters, origin)

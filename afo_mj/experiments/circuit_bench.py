@@ -1,6 +1,6 @@
 """Bench protocols for any circuit description that drives a joint (issue 18 item 3).
 
-The HAFO bench (:mod:`afo_mj.scenarios.hafo_bench`) drives the preset devices on the MuJoCo
+The HAFO bench (:mod:`afo_mj.experiments.hafo_bench`) drives the preset devices on the MuJoCo
 ankle test stand; these protocols drive a compiled circuit
 (:class:`afo_mj.circuits.device.CircuitDevice`) against a simulated load: a foot inertia
 ``J`` on a torsional spring ``K`` and damper ``c`` (``run_load``), the joint motion imposed
@@ -19,12 +19,12 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   plantarflexion velocities (``mean(τ)`` after 50 ms at the velocity).
 * ``isometric_steps`` — a torque controller: locked ankle, plantarflexion torque steps;
   10–90 % rise time, overshoot and steady-state error
-  (:func:`~afo_mj.analysis.response_metrics.step_metrics`).
+  (:func:`~afo_mj.metrics.response_metrics.step_metrics`).
 * ``frequency_response`` — a motor-driven circuit (open loop, as ``torque_velocity``):
   motor-voltage sine about 0 V, plantarflexion velocity ``−θ̇`` of the inertia on its spring
   at ``freq_points`` log-spaced frequencies, then ``freq_refine_points`` more log-spaced
   inside the bracket of the largest gain (20 + 12 by default,
-  :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`); gain and phase by the
+  :func:`afo_mj.experiments.frequency_sweep.adaptive_log_sweep`); gain and phase by the
   three-parameter sine fit; the resonance (the inertia on the oil column) is the vertex of the
   parabola through the largest gain and its neighbours in (log f, dB) and its peak the largest
   measured gain in dB above the lowest frequency's gain.
@@ -72,8 +72,8 @@ import math
 
 import numpy as np
 
-from afo_mj.analysis.frequency_sweep import adaptive_log_sweep, resonance_peak
-from afo_mj.analysis.response_metrics import sine_response, step_metrics
+from afo_mj.experiments.frequency_sweep import adaptive_log_sweep, resonance_peak
+from afo_mj.metrics.response_metrics import sine_response, step_metrics
 
 PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
              "stiffness", "flow_vs_duty", "tracking")
@@ -103,7 +103,7 @@ class CircuitBenchConfig:
     freq_max_hz: float = 300.0
     freq_points: int = 20
     #: frequencies added about the gain's peak after the ``freq_points`` log-spaced ones
-    #: (:func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`): 32 in all by default
+    #: (:func:`afo_mj.experiments.frequency_sweep.adaptive_log_sweep`): 32 in all by default
     freq_refine_points: int = 12
     voltage_amplitude_v: float = 3.0
     tv_points: int = 6

@@ -1,7 +1,7 @@
 """Synthetic bench records with known, undeclared effects: the test data of the calibration.
 
 :func:`generate_record` runs a bench protocol (:func:`bench_protocol`) through the lean model
-(:func:`afo_mj.analysis.effect_library.lean_setting`) with
+(:func:`afo_mj.calibration.effect_library.lean_setting`) with
 
 * chosen effects of the library switched on at chosen values (what the calibration must find),
 * optional mismatch of the declared parameters (factors on the preset's values: what the fit
@@ -10,7 +10,7 @@
   through a lightly damped second-order mount, a resonance no library effect can produce),
 
 then adds white Gaussian sensor noise (σ per channel, :data:`DEFAULT_NOISE`) and writes the
-measured-data format (:func:`afo_mj.analysis.measured_data.write_measured`), with the truth in
+measured-data format (:func:`afo_mj.calibration.measured_data.write_measured`), with the truth in
 the sidecar's ``source.description``. ``afo-mj make-bench-record`` is the command.
 
 Protocols (``period_s`` = 1 s cycles, so the calibration holds out whole cycles):
@@ -34,12 +34,12 @@ from typing import Mapping
 import numpy as np
 from scipy.signal import bilinear, lfilter
 
-from afo_mj.analysis.effect_library import (
+from afo_mj.calibration.effect_library import (
     declared_parameters, effect_by_name, effects_for, lean_setting)
-from afo_mj.analysis.calibration import declared_labels, model_outputs
-from afo_mj.analysis.measured_data import write_measured
+from afo_mj.calibration.calibrate import declared_labels, model_outputs
+from afo_mj.calibration.measured_data import write_measured
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.scenarios.bench_replay import BenchReplay
+from afo_mj.experiments.bench_replay import BenchReplay
 
 __all__ = ["bench_protocol", "generate_record", "DEFAULT_NOISE", "RECORD_OUTPUTS",
            "DEFAULT_PRESET"]
@@ -132,10 +132,10 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
                     preset: str | None = None, torque_sensor_resonance_hz: float = 0.0,
                     resonance_damping: float = 0.05, outputs=None, fmt: str | None = None):
     """Write a synthetic bench record to ``path`` (CSV or Parquet, plus its TOML sidecar) and
-    return it as :class:`~afo_mj.analysis.measured_data.MeasuredData`.
+    return it as :class:`~afo_mj.calibration.measured_data.MeasuredData`.
 
     ``effects``: effect name → {parameter name → SI value} (names of
-    :mod:`afo_mj.analysis.effect_library`; parameters left out take their typical value);
+    :mod:`afo_mj.calibration.effect_library`; parameters left out take their typical value);
     ``mismatch``: declared parameter name → factor on the preset's value."""
     preset = preset or DEFAULT_PRESET.get(kind)
     replay = BenchReplay(preset)
@@ -190,7 +190,7 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
                         if c == "ankle_angle_rad" else 0.0)
     for c in outputs:
         table[c] = out[c] + rng.normal(0.0, noise[c], len(t)) if noise[c] > 0 else out[c]
-    desc = ("synthetic bench record (afo_mj.analysis.synthetic_records), truth: "
+    desc = ("synthetic bench record (afo_mj.calibration.synthetic_records), truth: "
             + ("; ".join(truth) if truth else "lean model, no effect") + f"; seed {seed}")
     return write_measured(
         Path(path), table, inputs=list(inputs), outputs=list(outputs),

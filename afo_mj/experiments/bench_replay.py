@@ -13,7 +13,7 @@ parameter row, so a calibration, which replays a record hundreds of times, never
 (``benchmarks/calibrate.py``). ``tests/test_bench_replay.py`` checks the replay against the
 device stepped on the MuJoCo test stand with the same imposed angle.
 
-Inputs (channel names of :data:`afo_mj.analysis.measured_data.CHANNELS`):
+Inputs (channel names of :data:`afo_mj.calibration.measured_data.CHANNELS`):
 
 * ``ankle_angle_rad`` (required): imposed angle. The velocity is its Savitzky–Golay derivative
   (cubic, 21-sample window: encoder noise is not differentiated into the flow ``A_e r θ̇``).

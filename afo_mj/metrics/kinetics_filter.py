@@ -80,7 +80,7 @@ def filtered_kinetic_cycles(record, cycles: Sequence, cutoff_hz: float = KINETIC
     The record's powers are filtered as the product moment × angular velocity (the quantity
     drawn), per kg body mass as the cycles hold them.
     """
-    from afo_mj.analysis.gait_metrics import PERCENT_CYCLE, JOINTS
+    from afo_mj.metrics.gait_metrics import PERCENT_CYCLE, JOINTS
     t = np.asarray(record.time_s, dtype=float)
     if t.size < 16 or not cycles:
         return list(cycles)

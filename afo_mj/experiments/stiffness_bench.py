@@ -12,7 +12,7 @@ ValveAfoDevice`) emulating a linear spring (and optional damper) about a rest an
 For each commanded stiffness ``K`` a fresh stand and device run the sweep
 ``θ(t) = A sin(2π f t)`` for ``cycles`` periods (the foot starts at neutral moving into
 dorsiflexion; the rail starts charged at its initial pressure). The record (angle, delivered
-torque) is reduced by :func:`afo_mj.analysis.stiffness_metrics.sweep_stiffness` (least-squares
+torque) is reduced by :func:`afo_mj.metrics.stiffness_metrics.sweep_stiffness` (least-squares
 slope over whole cycles, the first cycle dropped as start-up), and the device's ledger gives
 the pressures and energies.
 
@@ -56,8 +56,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from afo_mj.analysis.stiffness_metrics import sweep_stiffness
-from afo_mj.scenarios.hafo_bench import BenchError, energy_error
+from afo_mj.metrics.stiffness_metrics import sweep_stiffness
+from afo_mj.experiments.hafo_bench import BenchError, energy_error
 
 __all__ = ["StiffnessBenchError", "StiffnessSweepConfig", "ACCEPTANCE_TOLERANCE_REL",
            "sweep_config", "run_stiffness_sweep", "run_stiffness_bench",

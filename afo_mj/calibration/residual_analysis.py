@@ -53,7 +53,7 @@ Decisions
   constant series is undefined (ValueError), but :func:`whiteness` reports a constant residual
   (a model that reproduces the record up to an offset) as white, ``Q = 0``, ``p = 1``.
 * Sampling must be uniform to within ±50 % of the median interval (the tolerance of
-  :mod:`afo_mj.analysis.measured_data`); the sample rate is 1/median interval.
+  :mod:`afo_mj.calibration.measured_data`); the sample rate is 1/median interval.
 * "Structured" (:func:`analyse_channel`) means *not white* and ``rms/noise_sigma > 1.2``. A
   white residual much larger than the noise (an offset, or extra broadband noise) is not
   "structured" in that sense; :func:`locate_structure` says so separately.
@@ -78,7 +78,7 @@ WHITE_P_VALUE = 0.01
 #: ``rms/noise_sigma`` above which a non-white residual counts as structured.
 STRUCTURE_EXCESS_RATIO = 1.2
 #: Allowed deviation of a sampling interval from the median, as a fraction of the median
-#: (same as :data:`afo_mj.analysis.measured_data.SAMPLING_TOLERANCE`).
+#: (same as :data:`afo_mj.calibration.measured_data.SAMPLING_TOLERANCE`).
 SAMPLING_TOLERANCE = 0.5
 #: Maximum lag of the residual's cross-correlations in :func:`analyse_channel` [s].
 XCORR_MAX_LAG_S = 0.2

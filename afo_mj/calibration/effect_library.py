@@ -8,13 +8,13 @@ each written into the circuit's packed parameter row **by label** (``component.k
 the circuit whatever its preset value, so varying it never recompiles); the cable transmission
 (:mod:`afo_mj.hydraulics.transmission`), the oil's temperature (viscosity, Walther/ASTM D341)
 and the sensors (:mod:`afo_mj.hydraulics.sensor`). The calibration
-(:mod:`afo_mj.analysis.calibration`) starts from the **lean model**, the preset with every
+(:mod:`afo_mj.calibration.calibrate`) starts from the **lean model**, the preset with every
 effect of this library switched off (:func:`lean_setting`), adds effects one at a time and keeps
 those that pay.
 
 Each effect knows how to switch itself on in a :class:`ModelSetting` (:meth:`Effect.apply`):
 packed circuit parameters (label → value) for the hydraulic terms, the backlash width and
-temperature drift of the replay (:class:`afo_mj.scenarios.bench_replay.BenchReplay`), or a
+temperature drift of the replay (:class:`afo_mj.experiments.bench_replay.BenchReplay`), or a
 sensor transform applied to the replayed outputs.
 
 =========================  ==============================================================
@@ -270,7 +270,7 @@ def _gain_offset_effect(channel: str, spread: float) -> Effect:
 
 
 def _unit(channel: str) -> str:
-    from afo_mj.analysis.measured_data import CHANNELS
+    from afo_mj.calibration.measured_data import CHANNELS
     return CHANNELS[channel].unit if channel in CHANNELS else "-"
 
 

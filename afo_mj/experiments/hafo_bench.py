@@ -37,14 +37,14 @@ Formulas (each run, SI units; degrees only where a name ends in ``_deg`` / ``_de
   constant velocity ``v`` held until the ankle reaches −0.45 rad (the ±32° stroke is not left);
   the point is ``mean(τ)`` over the hold after a 0.1 s settling allowance (at most 0.35 s).
   The no-load speed from the curve is its zero crossing (linear interpolation).
-* Step metrics: :func:`afo_mj.analysis.response_metrics.step_metrics` (10–90 % rise, overshoot
+* Step metrics: :func:`afo_mj.metrics.response_metrics.step_metrics` (10–90 % rise, overshoot
   re final value, 2 % settling, steady-state error re target).
 * Frequency response: ``u = u_0 + A sin 2πft`` [V] after a preload at ``u_0``; the output ``y``
   is the plantarflexion velocity ``−θ̇`` [rad/s] or plantarflexion torque ``−τ`` [N·m] (so
   that the low-frequency phase is ≈ 0°); gain and phase by the IEEE 1057 three-parameter fit
-  (:func:`~afo_mj.analysis.response_metrics.sine_response`); gain in dB relative to the
+  (:func:`~afo_mj.metrics.response_metrics.sine_response`); gain in dB relative to the
   lowest frequency's gain; bandwidth = −3 dB frequency
-  (:func:`~afo_mj.analysis.response_metrics.bandwidth_hz`).
+  (:func:`~afo_mj.metrics.response_metrics.bandwidth_hz`).
 * Position control: ``τ_cmd = K_p e + K_i ∫e dt − K_d θ̇ − τ_g(θ)``, ``e = θ_ref − θ``,
   ``τ_g`` the foot's gravity moment from the stand model (PD with gravity compensation,
   e.g. Spong, Hutchinson & Vidyasagar, *Robot Modeling and Control*, §8.4), clipped to
@@ -77,8 +77,8 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from afo_mj.analysis.frequency_sweep import adaptive_log_sweep, resonance_peak
-from afo_mj.analysis.response_metrics import bandwidth_hz, sine_response, step_metrics
+from afo_mj.experiments.frequency_sweep import adaptive_log_sweep, resonance_peak
+from afo_mj.metrics.response_metrics import bandwidth_hz, sine_response, step_metrics
 from afo_mj.devices.hafo import HAFO, HafoDevice, PumpAnkleParams
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
 
@@ -96,7 +96,7 @@ DEFAULT_TV_VELOCITIES_DEG_S = tuple(-12.0 * k for k in range(11))      # 0 … �
 #: Frequency ranges of the default sweeps (Hz): :func:`frequency_response` measures 20
 #: log-spaced frequencies over the range, then 12 more inside the bracket of the gain's peak
 #: (or, without an interior peak, of the −3 dB crossing):
-#: :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`, 32 frequencies in all.
+#: :func:`afo_mj.experiments.frequency_sweep.adaptive_log_sweep`, 32 frequencies in all.
 DEFAULT_TORQUE_RANGE_HZ = (0.2, 30.0)
 DEFAULT_VELOCITY_RANGE_HZ = (1.0, 400.0)
 #: The velocity sweep reaches the foot-on-oil resonance (≈ 150 Hz); 0.1 ms resolves it.
@@ -353,7 +353,7 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
     ``freqs_hz``: the frequencies to measure; default (None) an adaptive sweep over
     :data:`DEFAULT_TORQUE_RANGE_HZ` / :data:`DEFAULT_VELOCITY_RANGE_HZ` (20 log-spaced, then 12
     more about the gain's peak or the −3 dB crossing; 32 in all,
-    :func:`afo_mj.analysis.frequency_sweep.adaptive_log_sweep`), enough to draw a resonance
+    :func:`afo_mj.experiments.frequency_sweep.adaptive_log_sweep`), enough to draw a resonance
     and place it (``resonance_hz``: parabola through the peak in log f).
 
     Each frequency: ``preload_s`` at the bias (50 ms ramp), then the sine for ``settle_s``
@@ -361,7 +361,7 @@ def frequency_response(params: PumpAnkleParams = HAFO, kind: str = "torque",
     the measured periods. Summary: ``bandwidth_hz`` (−3 dB re the lowest frequency, NaN plus
     ``bandwidth_note`` if not reached), ``dc_gain`` (gain at the lowest frequency, N·m/V or
     rad/s/V), ``resonance_hz`` / ``resonance_peak_db`` / ``resonance_inside_range``
-    (:func:`afo_mj.analysis.frequency_sweep.resonance_peak`), ``n_frequencies``,
+    (:func:`afo_mj.experiments.frequency_sweep.resonance_peak`), ``n_frequencies``,
     ``refined`` (what the adaptive sweep refined: ``peak``, ``bandwidth``, ``top``, or
     ``none`` for given frequencies), ``energy_error_max``; series
     ``frequency_response_<kind>``: ``freq_hz``, ``gain``
