@@ -8,15 +8,15 @@
   written (numerics failure, nothing written); 2 invalid scenario (nothing written).
 * ``afo-mj calibrate --scenario S --data D --out DIR``: replay a measured bench record, fit the
   declared parameters, search the effect library for what the model lacks and write
-  ``report.json``, ``report.md`` and figures (:mod:`afo_mj.analysis.calibration`).
+  ``report.json``, ``report.md`` and figures (:mod:`afo_mj.calibration.calibrate`).
 * ``afo-mj make-bench-record --kind hafo --effect NAME:PARAM=V --out FILE.csv``: a synthetic
-  bench record with undeclared effects (:mod:`afo_mj.analysis.synthetic_records`).
+  bench record with undeclared effects (:mod:`afo_mj.calibration.synthetic_records`).
 * ``afo-mj sweep STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS|local]``: run a
-  parameter study in parallel, resumably (:mod:`afo_mj.analysis.sweep`).
+  parameter study in parallel, resumably (:mod:`afo_mj.studies.sweep`).
 * ``afo-mj study DIR [--metric M]``: ranked table, plots, Pareto front and sensitivity indices
   of a sweep; ``afo-mj optimize STUDY.toml --out DIR``: optimise a study's parameters.
 * ``afo-mj design REQUIREMENTS.toml --out DIR [--verify]``: size a minimum-weight hydraulic
-  orthosis from requirements (:mod:`afo_mj.analysis.system_design`).
+  orthosis from requirements (:mod:`afo_mj.design.system_design`).
 * ``afo-mj build-models``: write the default MJCF models into ``models/mjcf/``.
 * ``afo-mj hydraulics-demo``: a loaded pump-controlled cylinder (motor → pump → hoses → piston-cable
   cylinder → load) stepped at 1 ms, with its energy chain and accuracy against a Radau
@@ -176,7 +176,7 @@ def _rrd_option(args, scenario, runs, reference) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait
+    from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
 
@@ -250,7 +250,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         summary = {"scenario": scenario.as_dict(), **analysis.summary}
         if scenario.band_references:
-            from afo_mj.analysis.gait_metrics import band_fraction
+            from afo_mj.metrics.gait_metrics import band_fraction
             from afo_mj.gait.reference import load_normative
             summary["band_fraction_vs"] = {
                 f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
@@ -299,7 +299,7 @@ def _run_device(args, scenario, reference, cfg) -> int:
 
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
-    from afo_mj.scenarios.device_scenario import run_device_scenario
+    from afo_mj.experiments.device_walk import run_device_scenario
     t0 = time.perf_counter()
     try:
         dsum, results = run_device_scenario(scenario, reference, cfg)
@@ -389,8 +389,9 @@ def _run_bench(args) -> int:
 
     from afo_mj.outputs.gait_report import json_ready
     from afo_mj.outputs.result_dir import ResultDirError, write_atomically
-    from afo_mj.scenarios.bench_scenario import load_bench_scenario, run_bench_scenario
-    from afo_mj.scenarios.hafo_bench import BenchError, plot_bench
+    from afo_mj.experiments.bench_run import run_bench_scenario
+    from afo_mj.scenarios.bench_scenario import load_bench_scenario
+    from afo_mj.experiments.hafo_bench import BenchError, plot_bench
     from afo_mj.scenarios.walk_scenario import ScenarioError
     try:
         bs = load_bench_scenario(args.scenario, overrides=args.set or ())
@@ -398,7 +399,7 @@ def _run_bench(args) -> int:
         print(f"afo-mj run: invalid scenario: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    from afo_mj.analysis.circuit_bench import CircuitBenchError
+    from afo_mj.experiments.circuit_bench import CircuitBenchError
     try:
         summary, series = run_bench_scenario(bs)
     except (BenchError, CircuitBenchError, FloatingPointError) as exc:
@@ -412,7 +413,7 @@ def _run_bench(args) -> int:
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
         if bs.bench_kind == "stiffness":
-            from afo_mj.scenarios.stiffness_bench import plot_stiffness_bench
+            from afo_mj.experiments.stiffness_bench import plot_stiffness_bench
             plot_stiffness_bench(series, tmp)
         elif bs.bench_kind == "circuit":
             from afo_mj.outputs.circuit_figures import plot_circuit_bench
@@ -430,7 +431,7 @@ def _run_bench(args) -> int:
     rc = _bench_rrd_option(args, bs, series)
     print(f"afo_mj bench: {bs.name}, preset {bs.preset} ({wall:.1f} s wall)")
     if bs.bench_kind == "stiffness":
-        from afo_mj.scenarios.stiffness_bench import format_stiffness_summary
+        from afo_mj.experiments.stiffness_bench import format_stiffness_summary
         for line in format_stiffness_summary(summary):
             print(line)
         print(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy balance "
@@ -505,10 +506,10 @@ def _bench_rrd_option(args, bs, series) -> int:
 
 def _compare(args) -> int:
     """``afo-mj compare``: orthosis architectures side by side on one gait (usage:
-    :mod:`afo_mj.analysis.device_comparison`)."""
+    :mod:`afo_mj.experiments.device_comparison`)."""
     import platform
 
-    from afo_mj.analysis.device_comparison import (CompareError, load_compare_items,
+    from afo_mj.experiments.device_comparison import (CompareError, load_compare_items,
                                                    run_comparison)
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.comparison_report import format_tables, write_comparison
@@ -639,13 +640,13 @@ def _calibrate(args) -> int:
     (nothing written), 2 bad input (nothing written)."""
     import warnings
 
-    from afo_mj.analysis.calibration import (
+    from afo_mj.calibration.calibrate import (
         CalibrationError, calibrate, load_calibration_setup)
-    from afo_mj.analysis.measured_data import MeasuredDataError, load_measured
+    from afo_mj.calibration.measured_data import MeasuredDataError, load_measured
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.outputs.calibration_report import write_calibration_report
     from afo_mj.outputs.result_dir import ResultDirError, check_result_dir, write_atomically
-    from afo_mj.scenarios.bench_replay import ReplayError
+    from afo_mj.experiments.bench_replay import ReplayError
 
     try:
         check_result_dir(args.out)
@@ -705,8 +706,8 @@ def _make_bench_record(args) -> int:
     """``afo-mj make-bench-record``: a synthetic bench record with undeclared effects."""
     import warnings
 
-    from afo_mj.analysis.measured_data import MeasuredDataError
-    from afo_mj.analysis.synthetic_records import generate_record
+    from afo_mj.calibration.measured_data import MeasuredDataError
+    from afo_mj.calibration.synthetic_records import generate_record
     from afo_mj.hydraulics.params import ParameterError
 
     def pairs(items, what):
@@ -723,7 +724,7 @@ def _make_bench_record(args) -> int:
 
     try:
         if args.preset is not None:
-            from afo_mj.scenarios.bench_replay import kind_of_preset
+            from afo_mj.experiments.bench_replay import kind_of_preset
             kind_of_preset(args.preset, key="--preset")
         effects = {}
         for spec in args.effect or []:
@@ -748,8 +749,8 @@ def _sweep(args) -> int:
     """``afo-mj sweep``: exit 0 all runs done (failed runs recorded and reported), 1 every run
     failed, 2 invalid study (a key the scenario does not accept: checked before any run),
     130 interrupted (finished runs kept: run again to resume)."""
-    from afo_mj.analysis.study import StudyError, load_study
-    from afo_mj.analysis.sweep import Sweep, SweepInterrupted, check_study_keys
+    from afo_mj.studies.study import StudyError, load_study
+    from afo_mj.studies.sweep import Sweep, SweepInterrupted, check_study_keys
 
     try:
         study = load_study(args.study)
@@ -795,7 +796,7 @@ def _sweep(args) -> int:
 
 def _study(args) -> int:
     """``afo-mj study DIR``: ranked table, plots and sensitivity indices of a sweep."""
-    from afo_mj.analysis.study_report import write_study_report
+    from afo_mj.studies.study_report import write_study_report
 
     try:
         rep = write_study_report(args.dir, metric=args.metric)
@@ -809,9 +810,9 @@ def _study(args) -> int:
 def _optimize(args) -> int:
     """``afo-mj optimize STUDY.toml``: exit 0 done, 2 invalid study, 130 interrupted (the
     runs and ``optimization.json`` are kept: run again to resume)."""
-    from afo_mj.analysis.optimize import optimize_study
-    from afo_mj.analysis.study import StudyError, load_study
-    from afo_mj.analysis.sweep import SweepInterrupted
+    from afo_mj.studies.optimize import optimize_study
+    from afo_mj.studies.study import StudyError, load_study
+    from afo_mj.studies.sweep import SweepInterrupted
 
     if args.workers is not None and args.workers < 1:
         print(f"afo-mj optimize: --workers = {args.workers}; allowed: >= 1", file=sys.stderr)
@@ -846,7 +847,7 @@ def _optimize(args) -> int:
 def _design(args) -> int:
     """``afo-mj design``: exit 0 a feasible design written, 1 infeasible (the binding
     constraint printed and written), 2 invalid requirements (nothing written)."""
-    from afo_mj.analysis.system_design import DesignError, run_design
+    from afo_mj.design.system_design import DesignError, run_design
 
     if args.top < 1:
         print(f"afo-mj design: --top = {args.top}; allowed: >= 1", file=sys.stderr)

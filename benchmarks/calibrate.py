@@ -1,7 +1,7 @@
 """Cost of a whole calibration: a 20 s bench record at 1 kHz, the full effect library, one core.
 
 Run: ``MUJOCO_GL=egl .venv/bin/python benchmarks/calibrate.py [duration_s] [kind]``. Writes a
-synthetic HAFO bench record (``afo_mj.analysis.synthetic_records``, default 20 s at 1 kHz) with
+synthetic HAFO bench record (``afo_mj.calibration.synthetic_records``, default 20 s at 1 kHz) with
 one undeclared effect (piston leakage) and a declared-parameter mismatch, then runs
 ``calibrate`` on it with every candidate of the library (target: ≤ 120 s on one core, issue 7).
 Threads are pinned to one (``NUMBA_NUM_THREADS``, BLAS) before anything is imported, and a
@@ -28,9 +28,9 @@ from pathlib import Path  # noqa: E402
 def main() -> None:
     duration = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
     kind = sys.argv[2] if len(sys.argv) > 2 else "hafo"
-    from afo_mj.analysis.calibration import CalibrationOptions, calibrate
-    from afo_mj.analysis.synthetic_records import generate_record
-    from afo_mj.scenarios.bench_replay import BenchReplay
+    from afo_mj.calibration.calibrate import CalibrationOptions, calibrate
+    from afo_mj.calibration.synthetic_records import generate_record
+    from afo_mj.experiments.bench_replay import BenchReplay
 
     warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as tmp:

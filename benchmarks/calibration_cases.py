@@ -39,8 +39,8 @@ def cases() -> dict[str, tuple]:
 
 def main() -> None:
     names = sys.argv[1:] or ["hafo-piston_leakage", "valve-spool_lag"]
-    from afo_mj.analysis.calibration import calibrate
-    from afo_mj.analysis.synthetic_records import generate_record
+    from afo_mj.calibration.calibrate import calibrate
+    from afo_mj.calibration.synthetic_records import generate_record
     import test_calibration as tc
 
     table = cases()

@@ -6,7 +6,7 @@ process, alternated so that both see the same machine load:
 * bare: :func:`afo_mj.gait.walk.run_walk` with no device (the walker with its controllers and
   the recording of the GaitRecord; model build included);
 * coupled: the scenario's ``assist`` condition as
-  :func:`afo_mj.scenarios.device_scenario.run_device_scenario` runs it: the
+  :func:`afo_mj.experiments.device_walk.run_device_scenario` runs it: the
   :class:`~afo_mj.devices.hafo.HafoDevice` built, the walker (with the device's worn masses)
   stepped with the HAFO hydraulics coupled implicitly each step (phase estimate, assistance
   profile, torque controller, pump/hose/cylinder model, device log), then the gait analysis
@@ -29,10 +29,10 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait  # noqa: E402
+from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait  # noqa: E402
 from afo_mj.devices.hafo import HafoDevice  # noqa: E402
 from afo_mj.gait.walk import run_walk  # noqa: E402
-from afo_mj.scenarios.device_scenario import condition_summary, device_config  # noqa: E402
+from afo_mj.experiments.device_walk import condition_summary, device_config  # noqa: E402
 from afo_mj.scenarios.walk_scenario import load_scenario  # noqa: E402
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "gait_assist_hafo.toml"

@@ -43,7 +43,7 @@ def best_of(fn, n: int) -> float:
 
 def main() -> None:
     repeats = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    from afo_mj.analysis.system_design import (guideline_studies, load_requirements,
+    from afo_mj.design.system_design import (guideline_studies, load_requirements,
                                                run_design, size_system)
     hafo = load_requirements(ROOT / "scenarios" / "design" / "hafo_requirements.toml")
     gait = load_requirements(ROOT / "scenarios" / "design" / "gait_assist_requirements.toml")

@@ -22,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> None:
     runs = int(sys.argv[1]) if len(sys.argv) > 1 else 8
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from afo_mj.analysis.study import load_study
-    from afo_mj.analysis.sweep import Sweep
+    from afo_mj.studies.study import load_study
+    from afo_mj.studies.sweep import Sweep
 
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "bench_study.toml"

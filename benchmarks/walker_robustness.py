@@ -39,7 +39,7 @@ class _PushOffAssist:
 
 
 def run_case(case: str) -> dict:
-    from afo_mj.analysis.gait_metrics import analyse_gait
+    from afo_mj.metrics.gait_metrics import analyse_gait
     from afo_mj.gait.reference import load_normative
     from afo_mj.gait.walk import ControllerParams, run_walk
     from afo_mj.human.walker import WalkerParams, WornMass

@@ -16,7 +16,7 @@ from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.seal import OringSeal
 from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.hydraulics.transmission import play_operator
-from afo_mj.scenarios.bench_replay import BenchReplay, ReplayError
+from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
 
 
 def _volt(t):
@@ -105,7 +105,7 @@ def test_circuit_pressure_friction_matches_the_seal_module():
 def _replay_log(rep, t, ins, changes):
     """The replay's outputs and the full circuit log of the same run."""
     from afo_mj.circuits.device import CircuitDevice
-    from afo_mj.scenarios.bench_replay import ankle_velocity
+    from afo_mj.experiments.bench_replay import ankle_velocity
 
     out = rep.simulate(t, ins, changes)
     dev = CircuitDevice(rep.cc, timestep_s=1e-3)
@@ -253,8 +253,8 @@ def test_every_effect_writes_packed_parameters_of_the_circuit(preset):
     """Each hydraulic effect of the library is a set of packed parameters (by label) of the
     replayed circuit, built in whatever the preset's value: switching it on to its typical
     value changes the replay, with the same compiled module (no recompilation)."""
-    from afo_mj.analysis.calibration import model_outputs
-    from afo_mj.analysis.effect_library import effects_for, lean_setting
+    from afo_mj.calibration.calibrate import model_outputs
+    from afo_mj.calibration.effect_library import effects_for, lean_setting
 
     rep = BenchReplay(preset)
     labels = set(rep.param_labels)

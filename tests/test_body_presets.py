@@ -140,7 +140,7 @@ def test_child_foot_drop_scenario_file():
 def test_child_with_foot_drop_walks_with_a_hanging_foot():
     """Dorsiflexors at 2 %: the 8-year-old still walks ten strides, but the swinging foot hangs
     (more plantarflexed through swing) and clears the floor less than the same child healthy."""
-    from afo_mj.analysis.gait_metrics import analyse_gait
+    from afo_mj.metrics.gait_metrics import analyse_gait
     from afo_mj.gait.walk import simulate_walk
 
     sc = load_scenario(SCENARIOS / "walk_child_foot_drop.toml")

@@ -1,6 +1,6 @@
 """Acceptance of the calibration (issue 7): blind runs on synthetic bench records.
 
-Each record is written by :func:`afo_mj.analysis.synthetic_records.generate_record` with effects
+Each record is written by :func:`afo_mj.calibration.synthetic_records.generate_record` with effects
 the lean model does not declare, a mismatch of the declared parameters and white sensor noise;
 ``calibrate`` is told nothing but the record (its sidecar names the preset). The truth is known
 here, so the tests check that the right effect is selected first, that the held-out NRMSE falls
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from afo_mj.analysis.calibration import CalibrationOptions, calibrate, load_calibration_setup
-from afo_mj.analysis.synthetic_records import generate_record
+from afo_mj.calibration.calibrate import CalibrationOptions, calibrate, load_calibration_setup
+from afo_mj.calibration.synthetic_records import generate_record
 from afo_mj.hydraulics.params import ParameterError
 
 ROOT = Path(__file__).resolve().parents[1]

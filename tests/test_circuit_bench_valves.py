@@ -9,7 +9,8 @@ import functools
 import numpy as np
 import pytest
 
-from afo_mj.analysis import circuit_bench as cb
+from afo_mj.experiments import circuit_bench as cb
+from afo_mj.scenarios import bench_protocols as bp
 from afo_mj.circuits.codegen import build
 from afo_mj.devices.valve_afo import VALVE_PRESETS, valve_circuit
 
@@ -23,13 +24,13 @@ def test_what_a_valve_circuit_can_run():
     servo, digital = valve_circuit(VALVE_PRESETS["valve"]), valve_circuit(VALVE_PRESETS["digital"])
     for circuit in (servo, digital):
         for test in ("isometric_steps", "position_step", "stiffness", "tracking"):
-            assert cb.protocol_problem(circuit, test) is None, test
+            assert bp.protocol_problem(circuit, test) is None, test
         # the motor feeds the valves: driving its voltage open loop moves no joint
         for test in ("torque_velocity", "frequency_response"):
-            why = cb.protocol_problem(circuit, test)
+            why = bp.protocol_problem(circuit, test)
             assert why and "valve" in why and circuit.name in why, why
-    assert cb.protocol_problem(digital, "flow_vs_duty") is None
-    why = cb.protocol_problem(servo, "flow_vs_duty")
+    assert bp.protocol_problem(digital, "flow_vs_duty") is None
+    why = bp.protocol_problem(servo, "flow_vs_duty")
     assert "digital_valve_torque" in why and "servo_valve_torque" in why
 
 

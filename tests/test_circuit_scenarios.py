@@ -164,7 +164,7 @@ def test_lab_bench_stall_and_no_load_against_hand_figures():
     the motor's no-load speed at duty_max V_bus through d / (A r), less its friction."""
     import math
 
-    from afo_mj.analysis.circuit_bench import CircuitBenchConfig, run_circuit_bench
+    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
     from afo_mj.circuits.circuit import Circuit
     from afo_mj.circuits.codegen import build
     relief = {"kind": "relief_valve", "params": {"cracking_dp_pa": 20e6}}
@@ -193,7 +193,7 @@ def test_lab_bench_resonance_against_inertia_on_oil_stiffness():
     (C = V / B + V_hose / K_wall; Merritt §5.3), the pump side held by the motor's EMF."""
     import math
 
-    from afo_mj.analysis.circuit_bench import CircuitBenchConfig, run_circuit_bench
+    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
     from afo_mj.circuits.circuit import Circuit
     from afo_mj.circuits.codegen import build
     from afo_mj.hydraulics.fluid import Fluid
@@ -218,7 +218,7 @@ def test_lab_bench_resonance_against_inertia_on_oil_stiffness():
 
 
 def test_torque_protocols_on_spring_return_close_their_ledgers():
-    from afo_mj.analysis.circuit_bench import CircuitBenchConfig, run_circuit_bench
+    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
     from afo_mj.circuits.codegen import build
     from afo_mj.circuits.library import spring_return_gait
     cfg = CircuitBenchConfig(step_torques_nm=(20.0,), step_duration_s=0.3,

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from afo_mj import cli
-from afo_mj.analysis.gait_metrics import analyse_gait
+from afo_mj.metrics.gait_metrics import analyse_gait
 from afo_mj.gait.reference import load_normative
 from afo_mj.outputs import gait_report
 from afo_mj.outputs.gait_report import ReportError, write_run_outputs

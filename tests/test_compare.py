@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from afo_mj import cli
-from afo_mj.analysis import device_comparison as dc
+from afo_mj.experiments import device_comparison as dc
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios"
 HAFO = SCEN / "gait_assist_hafo.toml"
@@ -172,12 +172,12 @@ def test_invalid_options_are_rejected(tmp_path):
 
 def test_failing_run_writes_nothing(tmp_path, monkeypatch):
     from afo_mj.gait.walk import WalkNumericsError
-    from afo_mj.scenarios import device_scenario
+    from afo_mj.experiments import device_walk
 
     def boom(*a, **k):
         raise WalkNumericsError("synthetic numerics failure")
 
-    monkeypatch.setattr(device_scenario, "run_device_scenario", boom)
+    monkeypatch.setattr(device_walk, "run_device_scenario", boom)
     out = tmp_path / "cmp"
     rc, _, err = _main(["compare", str(HAFO), "--out", str(out), "--strides", "3"])
     assert rc == 1 and "synthetic numerics failure" in err

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from afo_mj.outputs.device_figures import DEVICE_FIGURES, plot_device_run
-from afo_mj.scenarios.device_scenario import device_config, run_device_scenario
+from afo_mj.experiments.device_walk import run_device_scenario
+from afo_mj.scenarios.device_scenario import device_config
 from afo_mj.scenarios.walk_scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "gait_assist_hafo.toml"

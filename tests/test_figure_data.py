@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.analysis.gait_metrics import PERCENT_CYCLE, analyse_gait
-from afo_mj.analysis.kinetics_filter import (
+from afo_mj.metrics.gait_metrics import PERCENT_CYCLE, analyse_gait
+from afo_mj.metrics.kinetics_filter import (
     KINETICS_CUTOFF_HZ, KINETICS_FILTER_ORDER, filtered_kinetic_cycles, lowpass_zero_lag)
 from afo_mj.gait.reference import load_normative
 from afo_mj.outputs.device_figures import gait_conditions_title

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.analysis.frequency_sweep import (
+from afo_mj.experiments.frequency_sweep import (
     MIN_SWEEP_POINTS, adaptive_log_sweep, refinement_bracket, resonance_peak)
 
 
@@ -62,7 +62,7 @@ def test_low_pass_sweep_is_refined_at_the_bandwidth():
 def test_hafo_bench_default_sweep_resolves_the_foot_on_oil_resonance():
     """The HAFO bench's velocity sweep (the Bode figure's data): ≥ 30 frequencies, the
     resonance inside the range with points on both flanks within ±10 % of it."""
-    from afo_mj.scenarios.hafo_bench import frequency_response
+    from afo_mj.experiments.hafo_bench import frequency_response
     s, series = frequency_response(kind="velocity")
     f = series["frequency_response_velocity"]["freq_hz"]
     assert s["n_frequencies"] == f.size >= 30

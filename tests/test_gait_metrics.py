@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.analysis.gait_metrics import (
+from afo_mj.metrics.gait_metrics import (
     GaitAnalysisError, analyse_gait, band_fraction, extract_cycles, find_cycles, summarize)
 from afo_mj.gait.reference import ReferenceGait, load_normative
 

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.analysis.response_metrics import bandwidth_hz, sine_response, step_metrics
+from afo_mj.metrics.response_metrics import bandwidth_hz, sine_response, step_metrics
 from afo_mj.devices.hafo import hafo_params
-from afo_mj.scenarios import hafo_bench as hb
+from afo_mj.experiments import hafo_bench as hb
 
 
 # -- response metrics against analytic responses --------------------------------------------------

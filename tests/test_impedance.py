@@ -75,7 +75,8 @@ def test_scenarios_give_impedance_to_any_torque_controlled_device(tmp_path):
     """``profile = "impedance"`` on the pump-controlled HAFO builds a HAFO device emulating the
     rows; on a [circuit] with the open-loop controller it is refused, naming the key."""
     from afo_mj.devices.hafo import HafoDevice
-    from afo_mj.scenarios.device_scenario import device_config, make_device
+    from afo_mj.experiments.device_walk import make_device
+    from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
     path = tmp_path / "imp.toml"
     path.write_text('[device]\npreset = "hafo_gait"\n[assistance]\nprofile = "impedance"\n'

@@ -1,4 +1,4 @@
-"""Measured-data format v1 (afo_mj.analysis.measured_data): round trips, whole-cycle splits, and
+"""Measured-data format v1 (afo_mj.calibration.measured_data): round trips, whole-cycle splits, and
 each bad input refused with a message naming the file, the channel/key and what is allowed.
 Synthetic numpy signals only (fast, no simulation)."""
 
@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from afo_mj.analysis.measured_data import (CHANNELS, FORMAT, ChannelSpec, MeasuredDataError,
+from afo_mj.calibration.measured_data import (CHANNELS, FORMAT, ChannelSpec, MeasuredDataError,
                                            MeasuredDataWarning, UnitWarning, describe,
                                            load_measured, write_measured)
 
@@ -409,7 +409,7 @@ def test_write_refuses_before_writing_anything(tmp_path, name):
 def test_failed_write_keeps_previous_files_intact(tmp_path, monkeypatch):
     write(tmp_path, "rec.csv")
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-    import afo_mj.analysis.measured_data as md
+    import afo_mj.calibration.measured_data as md
 
     def boom(*a, **k):
         raise OSError("disk full")
@@ -441,7 +441,7 @@ def test_write_fmt_must_match_suffix_and_lengths(tmp_path):
 @pytest.fixture(scope="module")
 def bench_record(tmp_path_factory):
     """A 2 s synthetic HAFO bench record (columns as arrays, and its sidecar text)."""
-    from afo_mj.analysis.synthetic_records import generate_record
+    from afo_mj.calibration.synthetic_records import generate_record
     path = tmp_path_factory.mktemp("bench") / "rec.csv"
     d = generate_record(path, duration_s=2.0)
     table = {"time_s": np.array(d.time_s), **{k: np.array(v) for k, v in d.channels.items()}}

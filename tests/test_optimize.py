@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from afo_mj.analysis.optimize import (DEFAULT_METRIC, OptimizeError, optimize_study,
+from afo_mj.studies.optimize import (DEFAULT_METRIC, OptimizeError, optimize_study,
                                       parse_optimize)
-from afo_mj.analysis.study import load_study, parse_study
-from afo_mj.analysis.sweep import read_rows
+from afo_mj.studies.study import load_study, parse_study
+from afo_mj.studies.sweep import read_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "scenarios" / "walk_healthy.toml"
@@ -201,7 +201,7 @@ def test_resume_replays_cached_points_and_continues(tmp_path):
 
 
 def test_interruption_and_evaluator_errors_propagate(tmp_path):
-    from afo_mj.analysis.sweep import SweepInterrupted
+    from afo_mj.studies.sweep import SweepInterrupted
     q = Quadratic()
 
     def stop_second(points):

@@ -1,4 +1,4 @@
-"""Residual analysis (afo_mj.analysis.residual_analysis) against independent references:
+"""Residual analysis (afo_mj.calibration.residual_analysis) against independent references:
 analytic values, hand computations, direct O(n²) sums and synthetic signals with known noise,
 delay, phase shape and frequency; every bad input refused with a ValueError naming the
 argument. Synthetic numpy signals only (fast)."""
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from afo_mj.analysis import residual_analysis as ra
+from afo_mj.calibration import residual_analysis as ra
 
 FS = 1000.0
 N = 10_000                                   # 10 s at 1 kHz, 10 cycles of 1 s

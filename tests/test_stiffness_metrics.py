@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.analysis.stiffness_metrics import (StiffnessSweepError, sweep_stiffness,
+from afo_mj.metrics.stiffness_metrics import (StiffnessSweepError, sweep_stiffness,
                                                turning_points)
 
 N_PER_CYCLE = 1000

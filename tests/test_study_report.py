@@ -1,4 +1,4 @@
-"""The study report (``afo_mj.analysis.study_report``) on hand-made sweep tables (no simulation):
+"""The study report (``afo_mj.studies.study_report``) on hand-made sweep tables (no simulation):
 Pareto front, ranking, default metric, Sobol' indices of the Ishigami function (analytic
 values), Morris screening of a linear function, figures, failed runs, unknown metrics."""
 
@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from afo_mj.analysis.study_report import (default_metric, load_results, pareto_front,
+from afo_mj.studies.study_report import (default_metric, load_results, pareto_front,
                                           pareto_metrics, ranked_table, sensitivity,
                                           write_study_report)
 from afo_mj.outputs.study_figures import safe_name, unit_of

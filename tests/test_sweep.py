@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 
 from afo_mj import cli
-from afo_mj.analysis.study import StudyError, load_study, parse_study
-from afo_mj.analysis.sweep import PARAM_PREFIX, Sweep, flatten_summary, read_rows
+from afo_mj.studies.study import StudyError, load_study, parse_study
+from afo_mj.studies.sweep import PARAM_PREFIX, Sweep, flatten_summary, read_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "scenarios" / "walk_healthy.toml"

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from afo_mj.analysis import design_models as dm
-from afo_mj.analysis.design_requirements import (DesignError, duty_cycle, parse_requirements,
+from afo_mj.design import design_models as dm
+from afo_mj.design.design_requirements import (DesignError, duty_cycle, parse_requirements,
                                                  toml_dumps)
-from afo_mj.analysis.system_design import (design_params, guideline_studies, hose_bore_study,
+from afo_mj.design.system_design import (design_params, guideline_studies, hose_bore_study,
                                            mass_check, predict_bench, run_design, size_system)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,7 +128,7 @@ def test_laws_reproduce_the_preset_anchors():
     # seed eq. 2.7, F_C = μ_f E π D d λ^1.5 by hand, for the design's seals: one piston ring
     # (1.78 mm for a 10.4 mm bore) and two cable seals per cylinder, as the library's seal
     # class gives them
-    from afo_mj.analysis.system_design import actuator_geometry
+    from afo_mj.design.system_design import actuator_geometry
     ps, rs = HAFO.cylinder.piston_seal, HAFO.cylinder.rod_seal
     geo = actuator_geometry(13.8e6, 10.4e-3, 0.04, 1.0, A, HAFO)
     cable = float(geo["cable_m"])
@@ -501,7 +501,7 @@ def test_design_warns_when_its_written_walk_brakes(tmp_path):
 
 
 def test_quasi_static_envelope_assists_below_and_brakes_above_no_load_speed():
-    from afo_mj.analysis.system_design import quasi_static_device_torque_nm as qs
+    from afo_mj.design.system_design import quasi_static_device_torque_nm as qs
     w0 = math.radians(100.0)
     # still ankle: any command up to the stall torque; plantarflexing at half the no-load
     # speed: half the stall torque in plantarflexion at most (+dorsiflexion convention)
@@ -516,7 +516,7 @@ def test_quasi_static_envelope_assists_below_and_brakes_above_no_load_speed():
 
 
 def test_walk_check_of_a_fast_enough_design_does_not_warn(hafo_design):
-    from afo_mj.analysis.system_design import walk_work_check
+    from afo_mj.design.system_design import walk_work_check
     from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import load_scenario
     _, out = hafo_design

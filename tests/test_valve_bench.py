@@ -1,4 +1,4 @@
-"""Valve bench (:mod:`afo_mj.scenarios.valve_bench`): digital flow vs PWM duty and the
+"""Valve bench (:mod:`afo_mj.experiments.valve_bench`): digital flow vs PWM duty and the
 tracking/efficiency comparison of the proportional and digital valves.
 
 References: the ideal PWM flow ``D Q_p`` and the switching-travel estimate of the module
@@ -17,7 +17,7 @@ from afo_mj.devices.valve_afo import VALVE_PRESETS
 from afo_mj.hydraulics.onoff_valve import OnOffValve
 from afo_mj.hydraulics.orifice import orifice_dp_for_flow
 from afo_mj.hydraulics.pump import Pump
-from afo_mj.scenarios import valve_bench as vb
+from afo_mj.experiments import valve_bench as vb
 
 DIGITAL = VALVE_PRESETS["digital"]
 DUTIES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)

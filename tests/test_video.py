@@ -46,7 +46,8 @@ def healthy_record():
 @pytest.fixture(scope="module")
 def assist_record():
     from afo_mj.gait.walk import run_walk
-    from afo_mj.scenarios.device_scenario import device_config, make_device
+    from afo_mj.experiments.device_walk import make_device
+    from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import load_scenario
     s = load_scenario(ASSIST, overrides=SHORT)
     cfg = device_config(s)

@@ -16,7 +16,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from afo_mj.analysis.gait_metrics import analyse_gait, band_fraction  # noqa: E402
+from afo_mj.metrics.gait_metrics import analyse_gait, band_fraction  # noqa: E402
 from afo_mj.gait.reference import load_normative  # noqa: E402
 from afo_mj.gait.walk import simulate_walk  # noqa: E402
 from afo_mj.scenarios.walk_scenario import load_scenario  # noqa: E402

@@ -441,7 +441,7 @@ def walk_result(scenario_path: str, overrides: tuple[str, ...] = ()) -> dict:
     ``analyse_gait``, band fractions as the CLI adds them): the means of the table's
     metrics, the fall, body size and strength fractions."""
     def run():
-        from afo_mj.analysis.gait_metrics import GaitAnalysisError, analyse_gait, band_fraction
+        from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait, band_fraction
         from afo_mj.gait.reference import load_normative
         from afo_mj.gait.walk import simulate_walk
         from afo_mj.scenarios.walk_scenario import load_scenario
@@ -473,7 +473,8 @@ def bench_result(scenario_path: str) -> dict:
     ``run_bench_scenario``): its JSON-ready summary."""
     def run():
         from afo_mj.outputs.gait_report import json_ready
-        from afo_mj.scenarios.bench_scenario import load_bench_scenario, run_bench_scenario
+        from afo_mj.experiments.bench_run import run_bench_scenario
+        from afo_mj.scenarios.bench_scenario import load_bench_scenario
         summary, _series = run_bench_scenario(load_bench_scenario(ROOT / scenario_path))
         return json_ready(summary)
     return _memo("bench:" + scenario_path, run)
@@ -484,7 +485,8 @@ def device_walk_result(scenario_path: str) -> dict:
     the gait means, the whole-ankle push-off power and the electrical energy per stride of
     the first worn side."""
     def run():
-        from afo_mj.scenarios.device_scenario import device_config, run_device_scenario
+        from afo_mj.experiments.device_walk import run_device_scenario
+        from afo_mj.scenarios.device_scenario import device_config
         from afo_mj.scenarios.walk_scenario import load_scenario
         sc = load_scenario(ROOT / scenario_path)
         reference = sc.load_reference()

@@ -67,63 +67,17 @@ plantarflexion torque negative; positive motor voltage drives plantarflexion.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 
 from afo_mj.experiments.frequency_sweep import adaptive_log_sweep, resonance_peak
 from afo_mj.metrics.response_metrics import sine_response, step_metrics
+from afo_mj.scenarios.bench_protocols import (CircuitBenchConfig, CircuitBenchError,
+                                              check_protocols)
 
-PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
-             "stiffness", "flow_vs_duty", "tracking")
-#: controller kinds that take a joint-torque command
-TORQUE_CONTROLLERS = ("pump_torque", "servo_valve_torque", "digital_valve_torque")
-#: controllers of a circuit metered by PWM on/off valves (``flow_vs_duty``)
-DIGITAL_CONTROLLERS = ("digital_valve_torque",)
 LEDGER_TOLERANCE = 1e-9
 _RAMP_S = 0.05
-
-
-class CircuitBenchError(ValueError):
-    """A protocol the circuit cannot run, or a bench setting out of range."""
-
-
-@dataclasses.dataclass(frozen=True)
-class CircuitBenchConfig:
-    """Bench settings (SI). Defaults are a foot-sized load and the protocols' lengths."""
-
-    timestep_s: float = 1e-4
-    load_inertia_kg_m2: float = 0.05
-    load_stiffness_nm_rad: float = 20.0
-    load_damping_nm_s_rad: float = 0.2
-    step_torques_nm: tuple = (10.0, 20.0, 30.0, 40.0)
-    step_duration_s: float = 0.4
-    freq_min_hz: float = 2.0
-    freq_max_hz: float = 300.0
-    freq_points: int = 20
-    #: frequencies added about the gain's peak after the ``freq_points`` log-spaced ones
-    #: (:func:`afo_mj.experiments.frequency_sweep.adaptive_log_sweep`): 32 in all by default
-    freq_refine_points: int = 12
-    voltage_amplitude_v: float = 3.0
-    tv_points: int = 6
-    position_step_rad: float = -0.2
-    position_kp_nm_rad: float = 60.0
-    position_kd_nm_s_rad: float = 2.0
-    torque_limit_nm: float = 60.0
-    position_duration_s: float = 1.0
-    stiffnesses_nm_rad: tuple = (20.0, 50.0, 100.0)
-    stiffness_amplitude_rad: float = 0.15
-    stiffness_frequency_hz: float = 0.5
-    tracking_peak_torque_nm: float = 30.0
-    tracking_amplitude_rad: float = 0.2
-    tracking_frequency_hz: float = 1.0
-    tracking_cycles: int = 4
-    duties: tuple = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
-    flow_bias_pressure_pa: float = 0.5e6
-    flow_damping_nm_s_rad: float = 2.0
-    flow_inertia_kg_m2: float = 0.01
-    flow_max_duration_s: float = 2.0
 
 
 # -- what the circuit is ------------------------------------------------------------------------
@@ -133,13 +87,6 @@ def actuator(circuit):
         if "joint" in c.ports:
             return c
     raise CircuitBenchError(f"circuit {circuit.name!r} drives no joint")
-
-
-def _motor(circuit):
-    for c in circuit.components:
-        if getattr(c, "actuated", False):
-            return c
-    return None
 
 
 def stroke_limits_rad(circuit) -> tuple[float, float]:
@@ -161,50 +108,6 @@ def bus_voltage_v(circuit) -> float:
         if c.kind == "battery":
             return 4.2 * c.params.battery.cells_series
     return circuit.options.supply_voltage_v
-
-
-def protocol_problem(circuit, test: str) -> str | None:
-    """Why ``circuit`` cannot run protocol ``test`` (None: it can)."""
-    if test not in PROTOCOLS:
-        return f"unknown protocol {test!r}; allowed: {', '.join(PROTOCOLS)}"
-    ctrl = circuit.controller.kind
-    motor = _motor(circuit)
-    valves = [c.name for c in circuit.components
-              if c.kind in ("servo_valve", "onoff_valve")]
-    if test in ("torque_velocity", "frequency_response"):
-        if motor is None or motor.kind != "motor":
-            return (f"{test} drives the motor voltage open loop; circuit {circuit.name!r} has "
-                    "no motor as its actuated component")
-        if valves:
-            return (f"{test} drives the motor voltage open loop, which moves the joint only "
-                    f"in a pump-controlled circuit; in circuit {circuit.name!r} the motor "
-                    f"feeds the valve(s) {', '.join(valves)} (controller {ctrl!r}): run "
-                    "isometric_steps, position_step, stiffness, tracking or flow_vs_duty")
-        return None
-    if test == "flow_vs_duty":
-        if ctrl in DIGITAL_CONTROLLERS:
-            return None
-        act = motor.name if motor is not None else "nothing"
-        kind = motor.kind if motor is not None else "-"
-        return (f"flow_vs_duty needs a valve (PWM duty) as the actuated input: on/off valves "
-                f"under controller {' | '.join(repr(c) for c in DIGITAL_CONTROLLERS)}; "
-                f"circuit {circuit.name!r} is actuated by {act!r} ({kind}) through "
-                f"controller {ctrl!r}")
-    if ctrl not in TORQUE_CONTROLLERS:
-        what = {"stiffness": "an impedance-capable (torque-commanded) controller"}.get(
-            test, "a torque controller")
-        return (f"{test} needs {what} (circuit.controller.kind = "
-                f"{' | '.join(repr(c) for c in TORQUE_CONTROLLERS)}); circuit "
-                f"{circuit.name!r} has controller {ctrl!r}, which passes the command through "
-                "as the motor voltage")
-    return None
-
-
-def check_protocols(circuit, tests) -> None:
-    for t in tests:
-        why = protocol_problem(circuit, t)
-        if why:
-            raise CircuitBenchError(why)
 
 
 # -- runs ---------------------------------------------------------------------------------------

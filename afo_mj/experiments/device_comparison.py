@@ -283,7 +283,7 @@ def mechanical_role(net_j: float, positive_j: float) -> tuple[str, str]:
 def comparison_row(item: CompareItem, block: dict, record=None,
                    human_no_device: float | None = None) -> dict:
     """One table row from a condition block of
-    :func:`afo_mj.scenarios.device_scenario.condition_summary` (``device``, ``energy``,
+    :func:`afo_mj.experiments.device_walk.condition_summary` (``device``, ``energy``,
     ``energy_per_stride``, ``human``, ``ankle``, ``gait``); nothing device-specific assumed:
     the losses are whatever ``energy_per_stride.losses_j`` names."""
     dev = block.get("device") or {}
@@ -411,7 +411,7 @@ def run_comparison(items, progress=None, human_reference: bool = True,
     ``(label, record, device)`` of every item's assist run (for a recording)."""
     import time
 
-    from afo_mj.scenarios.device_scenario import run_device_scenario
+    from afo_mj.experiments.device_walk import run_device_scenario
 
     t0 = time.perf_counter()
     human_refs: dict[str, float] = {}

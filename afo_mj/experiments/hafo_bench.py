@@ -68,6 +68,7 @@ the isometric steps close to 2e-11 with the same 34 ms rise time.
 """
 
 from __future__ import annotations
+from afo_mj.scenarios.bench_protocols import BENCH_TESTS, BenchError
 
 import math
 import time as _time
@@ -86,7 +87,6 @@ __all__ = ["BENCH_TESTS", "PUBLISHED", "BenchError", "torque_velocity", "isometr
            "frequency_response", "position_step", "run_bench", "plot_bench"]
 
 #: Test names accepted by :func:`run_bench`.
-BENCH_TESTS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step")
 
 #: Published prototype figures (Neubauer & Durfee 2016; seed ch. 6).
 PUBLISHED = {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}
@@ -106,8 +106,7 @@ _RAMP_S = 0.05          # full-voltage ramp
 _STROKE_LIMIT_RAD = 0.45
 
 
-class BenchError(ValueError):
-    """A bench argument outside what the test allows."""
+
 
 
 # -- argument checks ------------------------------------------------------------------------------

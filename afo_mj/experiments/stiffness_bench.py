@@ -49,15 +49,16 @@ PHAFO's 62 N·m (4.6 × 12 = 55.2 N·m).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
 from afo_mj.metrics.stiffness_metrics import sweep_stiffness
-from afo_mj.experiments.hafo_bench import BenchError, energy_error
+from afo_mj.experiments.hafo_bench import energy_error
+from afo_mj.scenarios.bench_protocols import (StiffnessBenchError, StiffnessSweepConfig,
+                                              stiffness_label, sweep_config)
 
 __all__ = ["StiffnessBenchError", "StiffnessSweepConfig", "ACCEPTANCE_TOLERANCE_REL",
            "sweep_config", "run_stiffness_sweep", "run_stiffness_bench",
@@ -66,96 +67,6 @@ __all__ = ["StiffnessBenchError", "StiffnessSweepConfig", "ACCEPTANCE_TOLERANCE_
 #: The issue's acceptance figure: emulated stiffness within 10 % of the command.
 ACCEPTANCE_TOLERANCE_REL = 0.10
 _DEG = math.pi / 180.0
-
-
-class StiffnessBenchError(BenchError):
-    """A stiffness-bench argument outside what the bench allows."""
-
-
-@dataclasses.dataclass(frozen=True)
-class StiffnessSweepConfig:
-    """The sweep (SI). Build it with :func:`sweep_config`, which checks every value."""
-
-    stiffnesses_nm_per_rad: tuple[float, ...]
-    amplitude_rad: float = 12.0 * _DEG
-    frequency_hz: float = 0.25
-    cycles: int = 3
-    damping_nm_s_per_rad: float = 0.0
-    rest_angle_rad: float = 0.0
-    timestep_s: float = 5e-4
-    body_mass_kg: float = 25.8
-    height_m: float = 1.28
-
-    @property
-    def duration_s(self) -> float:
-        return self.cycles / self.frequency_hz
-
-
-def stiffness_label(stiffness_nm_per_rad: float) -> str:
-    """``k<K>`` with K in N·m/deg as ``:g`` prints it (``k1``, ``k2.5``, ``k4.6``): the key of
-    one stiffness in the summary (the same names as the walking sweep's ``assist_k<K>``)."""
-    return f"k{round(stiffness_nm_per_rad * _DEG, 9):g}"
-
-
-def _num(name: str, value, lo: float, hi: float, lo_open: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise StiffnessBenchError(f"{name} = {value!r} is not a number; allowed: a number in "
-                                  f"{'(' if lo_open else '['}{lo:g}, {hi:g}]")
-    v = float(value)
-    if not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
-        raise StiffnessBenchError(f"{name} = {value!r} is out of range; allowed: "
-                                  f"{'(' if lo_open else '['}{lo:g}, {hi:g}]")
-    return v
-
-
-def sweep_config(stiffnesses_nm_per_rad: Sequence[float], amplitude_rad: float = 12.0 * _DEG,
-                 frequency_hz: float = 0.25, cycles: int = 3,
-                 damping_nm_s_per_rad: float = 0.0, rest_angle_rad: float = 0.0,
-                 timestep_s: float = 5e-4, body_mass_kg: float = 25.8, height_m: float = 1.28,
-                 max_torque_nm: float | None = None) -> StiffnessSweepConfig:
-    """A checked :class:`StiffnessSweepConfig` (SI; each bad value raises
-    :class:`StiffnessBenchError` naming the argument, the value and the allowed range). With
-    ``max_torque_nm`` (the device's torque limit) the stiffest spring's torque at the sweep's
-    end, ``K (A + |θ0|) + B ω A``, must stay within it: beyond it the device saturates and
-    the sweep measures the saturation, not the spring."""
-    try:
-        ks = tuple(stiffnesses_nm_per_rad)
-    except TypeError:
-        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = {stiffnesses_nm_per_rad!r}"
-                                  " is not a list; allowed: a non-empty list of distinct "
-                                  "positive stiffnesses") from None
-    if not ks:
-        raise StiffnessBenchError("stiffnesses_nm_per_rad = []; allowed: a non-empty "
-                                  "list of distinct positive stiffnesses")
-    ks = tuple(_num(f"stiffnesses_nm_per_rad[{i}]", k, 0.0, 20.0 / _DEG, lo_open=True)
-               for i, k in enumerate(ks))
-    labels = [stiffness_label(k) for k in ks]
-    if len(set(labels)) != len(labels):
-        raise StiffnessBenchError(f"stiffnesses_nm_per_rad = {list(stiffnesses_nm_per_rad)!r}"
-                                  " repeats a stiffness; allowed: distinct values")
-    amp = _num("amplitude_rad", amplitude_rad, 0.0, 30.0 * _DEG, lo_open=True)
-    f = _num("frequency_hz", frequency_hz, 0.01, 5.0)
-    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 2 <= cycles <= 20:
-        raise StiffnessBenchError(f"cycles = {cycles!r}; allowed: an integer in 2 … 20 "
-                                  "(the first cycle is dropped as start-up)")
-    b = _num("damping_nm_s_per_rad", damping_nm_s_per_rad, 0.0, 5.0 / _DEG)
-    rest = _num("rest_angle_rad", rest_angle_rad, -20.0 * _DEG, 20.0 * _DEG)
-    dt = _num("timestep_s", timestep_s, 1e-5, 2e-3)
-    if f * dt > 1.0 / 200.0:
-        raise StiffnessBenchError(f"timestep_s = {timestep_s!r} with "
-                                  f"frequency_hz = {frequency_hz!r} gives fewer than 200 "
-                                  "steps per cycle; allowed: timestep_s <= 1 / (200 f)")
-    mass = _num("body_mass_kg", body_mass_kg, 10.0, 200.0)
-    height = _num("height_m", height_m, 0.8, 2.2)
-    if max_torque_nm is not None:
-        peak = max(ks) * (amp + abs(rest)) + b * 2 * math.pi * f * amp
-        if peak > max_torque_nm:
-            raise StiffnessBenchError(
-                f"amplitude_rad = {amplitude_rad!r} asks the stiffest spring for "
-                f"{peak:.1f} N*m at the sweep's end, above the device's max_torque_nm = "
-                f"{max_torque_nm:g}; allowed: max stiffness x (amplitude + |rest angle|) + "
-                f"damping x 2 pi f amplitude <= {max_torque_nm:g} N*m")
-    return StiffnessSweepConfig(ks, amp, f, int(cycles), b, rest, dt, mass, height)
 
 
 def run_stiffness_sweep(params, stiffness_nm_per_rad: float,

@@ -4,7 +4,7 @@ A transducer chain (sensor, amplifier, anti-alias filter, acquisition) reports
 ``y_meas(t) = g · y(t − d) + b``: a gain error ``g`` (calibration of the span), an offset ``b``
 (zero drift, a mounting preload on a load cell) and a delay ``d`` (filter group delay,
 acquisition latency between the input and output channels). These are the sensor effects of
-the calibration library (:mod:`afo_mj.analysis.effect_library`). The delay is applied by
+the calibration library (:mod:`afo_mj.calibration.effect_library`). The delay is applied by
 linear interpolation in time, holding the first sample before the record starts.
 """
 

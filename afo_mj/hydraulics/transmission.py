@@ -3,7 +3,7 @@
 The piston-cable cylinders of the HAFO (seed ch. 6) pull a cable loop wrapped on the ankle
 pulley of radius ``r``. The ideal transmission is rigid (``x = r θ``). Two departures from it are
 common on a real orthosis and are available as switchable effects for calibration
-(:mod:`afo_mj.analysis.effect_library`):
+(:mod:`afo_mj.calibration.effect_library`):
 
 * **series (cable) compliance**: the cable, its terminations and the brace's shell stretch
   under load. With a rotational stiffness ``k`` (N·m/rad) at the ankle, the cylinders' side of

@@ -1,4 +1,4 @@
-"""Files of ``afo-mj calibrate``: the report of :func:`afo_mj.analysis.calibration.calibrate`.
+"""Files of ``afo-mj calibrate``: the report of :func:`afo_mj.calibration.calibrate.calibrate`.
 
 :func:`write_calibration_report` writes into a result directory, all at once
 (:func:`afo_mj.outputs.result_dir.write_atomically`: a failure leaves no half-written file and
@@ -19,14 +19,14 @@ nothing replaced):
 * ``residual_before_after.png`` -- per channel, ``measured − model`` on the held-out part,
   before and after, with ±2σ of the sensor noise;
 * ``residual_spectrum.png`` -- per channel, the Welch PSD of the held-out residual before and
-  after (:func:`afo_mj.analysis.residual_analysis.residual_spectrum`), log–log axes, with the
+  after (:func:`afo_mj.calibration.residual_analysis.residual_spectrum`), log–log axes, with the
   one-sided PSD ``2σ²/fs`` of white sensor noise for reference.
 
 The figures need the report's ``"_series"`` (what :func:`calibrate` returns); a report read back
 from ``report.json`` has none, and is written without figures (``report.md`` says so).
 Figures draw at most :data:`MAX_PLOT_POINTS` points per line (stride decimation), so each draws
 in well under a second whatever the record's length. Pressures are drawn in MPa, every other
-channel in its SI unit (:data:`afo_mj.analysis.measured_data.CHANNELS`).
+channel in its SI unit (:data:`afo_mj.calibration.measured_data.CHANNELS`).
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ CONTEXT_S = 4.0
 #: Most points drawn per line (longer series are decimated by a stride).
 MAX_PLOT_POINTS = 4000
 _DPI = 110
-#: "structured" threshold of :mod:`afo_mj.analysis.residual_analysis` (for the verdict text).
+#: "structured" threshold of :mod:`afo_mj.calibration.residual_analysis` (for the verdict text).
 _EXCESS = 1.2
 
 _UNIT_PRETTY = {"m^3": "m³", "m^2": "m²", "rad/(N m)": "rad/(N·m)", "N m/A": "N·m/A",
@@ -149,7 +149,7 @@ def _md_table(header: list[str], rows: list[list[str]], align_left: int = 1) -> 
 
 def _channel_unit(ch: str) -> str:
     try:
-        from afo_mj.analysis.measured_data import CHANNELS
+        from afo_mj.calibration.measured_data import CHANNELS
         u = CHANNELS[ch].unit if ch in CHANNELS else ""
     except Exception:          # the report must render even if the channel table moved
         u = ""
@@ -168,7 +168,7 @@ def _parameter_units(report: Mapping) -> dict[str, str]:
     library where it knows the kind; other names by their suffix (:func:`_suffix_unit`)."""
     units: dict[str, str] = {}
     try:
-        from afo_mj.analysis.effect_library import declared_parameters, effects_for
+        from afo_mj.calibration.effect_library import declared_parameters, effects_for
         kind = report.get("kind")
         outputs = list(report.get("outputs") or [])
         for d in declared_parameters(kind):
@@ -512,7 +512,7 @@ def _plot_residuals(path: Path, s: dict, report: Mapping) -> None:
 
 
 def _plot_spectrum(path: Path, s: dict, report: Mapping) -> None:
-    from afo_mj.analysis.residual_analysis import residual_spectrum
+    from afo_mj.calibration.residual_analysis import residual_spectrum
     t, k = s["time_s"], s["i_cut"]
     fs = 1.0 / float(np.median(np.diff(t)))
     chans = s["outputs"]
@@ -555,7 +555,7 @@ _PLOTTERS = {"fit_before_after.png": _plot_fit,
 def write_calibration_report(report: dict, out_dir, data_path=None,
                              command: str | None = None) -> dict[str, Path]:
     """Write ``report.json``, ``report.md`` and the figures (:data:`FIGURES`, when the report
-    carries ``"_series"``) of a :func:`afo_mj.analysis.calibration.calibrate` report into
+    carries ``"_series"``) of a :func:`afo_mj.calibration.calibrate.calibrate` report into
     ``out_dir``, all at once (module docstring). Returns file name → path.
 
     Raises ValueError (naming the key path) for a NaN/infinite number in the report or a

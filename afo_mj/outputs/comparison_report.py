@@ -1,4 +1,4 @@
-"""Files and printed tables of ``afo-mj compare`` (see :mod:`afo_mj.analysis.device_comparison`).
+"""Files and printed tables of ``afo-mj compare`` (see :mod:`afo_mj.experiments.device_comparison`).
 
 :func:`write_comparison` writes ``comparison.csv``, ``comparison.json``, ``comparison.png`` and
 ``comparison.md`` into a result directory at once (:func:`afo_mj.outputs.result_dir.
@@ -111,7 +111,7 @@ DEFINITIONS = (
 
 
 def _definitions() -> str:
-    from afo_mj.analysis.device_comparison import (NET_WORK_MIN_FRACTION,
+    from afo_mj.experiments.device_comparison import (NET_WORK_MIN_FRACTION,
                                                    NET_WORK_MIN_J_PER_STRIDE)
     return DEFINITIONS.format(min_j=NET_WORK_MIN_J_PER_STRIDE, frac=NET_WORK_MIN_FRACTION)
 

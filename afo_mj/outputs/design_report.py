@@ -12,7 +12,7 @@ Files (``DIR``):
   runtime, the predicted bench figures and the mass check against the simulator's mass budget,
   the ranked designs, the studies, the assumptions; ``walk_check``: the device's quasi-static
   work on the ankle over the written walk's gait
-  (:func:`afo_mj.analysis.system_design.walk_work_check`) and ``warnings`` (a device that
+  (:func:`afo_mj.design.system_design.walk_work_check`) and ``warnings`` (a device that
   brakes that walk; also at the top of ``design.md``, in the description of
   ``design_walk.toml`` and on stderr); no NaN (``null`` instead);
 * ``design.md`` — the same for reading;
@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from afo_mj.analysis.design_requirements import toml_dumps
+from afo_mj.design.design_requirements import toml_dumps
 from afo_mj.outputs.result_dir import write_atomically
 
 __all__ = ["build_summary", "summary_text", "write_design_report", "bench_scenario",
@@ -93,7 +93,7 @@ def walk_scenario(req, overrides: dict, stall_torque_nm: float,
     """Walking with the design: ``scenarios/gait_assist_hafo.toml`` with the design's device
     parameters, the wearer's mass, and the Zhang assistance capped at 80 % of the design's
     stall torque (the torque loop needs headroom above its command). ``warning`` (the
-    :func:`~afo_mj.analysis.system_design.walk_work_check` warning) is appended to the
+    :func:`~afo_mj.design.system_design.walk_work_check` warning) is appended to the
     description, so whoever runs the file reads it."""
     try:
         doc = tomllib.loads(_WALK_TEMPLATE.read_text(encoding="utf-8"))
@@ -129,7 +129,7 @@ def _compact(row: dict) -> dict:
 def build_summary(result, written: dict | None, study: dict | None, hose: dict | None,
                   bench: dict | None, wall_s: float) -> dict:
     """The ``design.json`` record (module docstring)."""
-    from afo_mj.analysis.system_design import CONSTRAINTS
+    from afo_mj.design.system_design import CONSTRAINTS
     req = result.requirements
     duty = result.duty
     s: dict[str, Any] = {

@@ -1,5 +1,5 @@
 """Figures of a device run (the conditions of
-:func:`afo_mj.scenarios.device_scenario.run_device_scenario`).
+:func:`afo_mj.experiments.device_walk.run_device_scenario`).
 
 :func:`plot_device_run` writes into ``out_dir``:
 
@@ -27,7 +27,7 @@
   mean (± 1 SD band where the reference has one, named with its source; the title says when
   there is none), so walking with and without the device is on one figure. Moments and
   powers are low-pass filtered for the figure only (zero-lag 4th-order Butterworth, 6 Hz,
-  :mod:`afo_mj.analysis.kinetics_filter`, stated in the title). Moments and
+  :mod:`afo_mj.metrics.kinetics_filter`, stated in the title). Moments and
   powers are the human's (muscles); in the ankle column the whole joint (muscles + device)
   is dashed for the device conditions. A condition that fell is named in the legend;
 * ``device_stride_hydraulics.png`` -- per device condition, one mean stride of the worn
@@ -35,7 +35,7 @@
   device log: commanded vs delivered torque (N·m, + plantarflexion); pressures (bar,
   gauge as logged: the pump ports and cylinder chambers of the HAFO; the pump outlet,
   supply rail and cylinder chambers of the valve circuits); pump (geometric) and cylinder
-  (piston) flows (L/min, :func:`afo_mj.analysis.device_signals.device_signals`); motor current
+  (piston) flows (L/min, :func:`afo_mj.metrics.device_signals.device_signals`); motor current
   (A) and speed (rpm) for the HAFO, servo-valve spool position and command (normalised,
   ± 1 = full stroke) for the valve circuits.
 
@@ -54,8 +54,8 @@ from pathlib import Path
 
 import numpy as np
 
-from afo_mj.analysis.gait_metrics import PERCENT_CYCLE, curve_statistics, reference_band
-from afo_mj.analysis.kinetics_filter import filter_note, filtered_kinetic_cycles
+from afo_mj.metrics.gait_metrics import PERCENT_CYCLE, curve_statistics, reference_band
+from afo_mj.metrics.kinetics_filter import filter_note, filtered_kinetic_cycles
 from afo_mj.outputs.reference_display import (
     reference_band_note, reference_has_band, reference_label)
 
@@ -68,8 +68,8 @@ DEVICE_FIGURES = ("ankle_angle_conditions.png", "gait_conditions.png", "device_t
 #: The PNGs each kind of run writes next to its ``summary.json`` (``afo-mj run``; ``compare``
 #: for ``afo-mj compare``). Walking runs write ``gait_curves.png``
 #: (:mod:`afo_mj.outputs.gait_report`); device walks add :data:`DEVICE_FIGURES`; the benches
-#: write :func:`afo_mj.scenarios.hafo_bench.plot_bench`'s and
-#: :func:`afo_mj.scenarios.stiffness_bench.plot_stiffness_bench`'s figures. A sample of each
+#: write :func:`afo_mj.experiments.hafo_bench.plot_bench`'s and
+#: :func:`afo_mj.experiments.stiffness_bench.plot_stiffness_bench`'s figures. A sample of each
 #: is in ``docs/figures/`` (README there).
 FIGURES_BY_KIND = {
     "walk": ("gait_curves.png",),
@@ -216,7 +216,7 @@ def _plot_gait_conditions(path: Path, results: dict, reference, side: int, title
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from afo_mj.analysis.gait_metrics import JOINTS
+    from afo_mj.metrics.gait_metrics import JOINTS
     leg = ("right", "left")[side]
     fig = _figure((13.0, 10.0))
     axes = fig.subplots(3, 3, sharex=True)
@@ -313,7 +313,7 @@ def _stride_stack(t: np.ndarray, y: np.ndarray, windows) -> np.ndarray:
 
 def _plot_stride_hydraulics(path: Path, devs: dict, summary: dict, side: int, title: str,
                             colours: dict, left_out=()) -> None:
-    from afo_mj.analysis.device_signals import device_signals
+    from afo_mj.metrics.device_signals import device_signals
     leg = ("right", "left")[side]
     k = _device_column(summary, side)
     n = len(devs)
@@ -596,7 +596,7 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
 
     ``results``: ``{condition: (record, analysis or None, device or None)}`` and ``summary``
     (with ``"device_conditions"`` and ``"device_sides"``) as returned by
-    :func:`afo_mj.scenarios.device_scenario.run_device_scenario`; ``reference``: the reference
+    :func:`afo_mj.experiments.device_walk.run_device_scenario`; ``reference``: the reference
     gait the run was compared with; ``title``: the first line of every figure's title.
     """
     out = Path(out_dir)

@@ -2,7 +2,7 @@
 
 :func:`write_run_outputs` writes into ``out_dir``:
 
-* ``summary.json`` -- the summary of :func:`afo_mj.analysis.gait_metrics.summarize` (strict
+* ``summary.json`` -- the summary of :func:`afo_mj.metrics.gait_metrics.summarize` (strict
   JSON: NaN/inf become ``null``; a non-finite joint-angle RMS error is a numerics failure and
   raises :class:`ReportError` instead);
 * ``cycles.csv`` -- one row per analysed cycle per leg: leg, stride, start/end/toe-off times
@@ -16,7 +16,7 @@
   :mod:`afo_mj.outputs.reference_display`). Moments are drawn in the biomechanics convention,
   extensor/plantarflexor positive (the negative of the record's sign). With the run's record
   the moments and powers are low-pass filtered for the figure only (zero-lag 4th-order
-  Butterworth, 6 Hz, :mod:`afo_mj.analysis.kinetics_filter`; stated in the title);
+  Butterworth, 6 Hz, :mod:`afo_mj.metrics.kinetics_filter`; stated in the title);
   ``summary.json`` and ``gait_curves.csv`` stay unfiltered;
 * ``scenario.toml`` -- the scenario text, when given.
 
@@ -37,9 +37,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from afo_mj.outputs.result_dir import ResultDirError, write_atomically
-from afo_mj.analysis.gait_metrics import (
+from afo_mj.metrics.gait_metrics import (
     CURVE_CHANNELS, JOINTS, PERCENT_CYCLE, GaitCycle, reference_band, curve_statistics)
-from afo_mj.analysis.kinetics_filter import (
+from afo_mj.metrics.kinetics_filter import (
     KINETIC_CHANNELS, KINETICS_CUTOFF_HZ, filter_note, filtered_kinetic_cycles)
 from afo_mj.outputs.reference_display import (
     reference_band_note, reference_curve, reference_label)
@@ -133,7 +133,7 @@ def gait_curve_panels(cycles: Sequence[GaitCycle], reference, record=None,
     Returns ``{"panels": {channel: {"simulation_mean", "simulation_lower",
     "simulation_upper", "reference": ReferenceCurve | None, "filtered": bool}}, "band":
     whether any reference band is drawn, "filtered": whether moments/powers were low-pass
-    filtered (with ``record``; see :mod:`afo_mj.analysis.kinetics_filter`), "notes": the
+    filtered (with ``record``; see :mod:`afo_mj.metrics.kinetics_filter`), "notes": the
     caption lines (what the reference and its band are, the filter)}``.
     """
     shown = filtered_kinetic_cycles(record, cycles, cutoff_hz) if record is not None else cycles
@@ -206,7 +206,7 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
                       extra_files=None) -> Path:
     """Write the run's result files into ``out_dir`` atomically (see the module docstring).
 
-    ``cycles``: the analysed cycles (:func:`afo_mj.analysis.gait_metrics.extract_cycles` or
+    ``cycles``: the analysed cycles (:func:`afo_mj.metrics.gait_metrics.extract_cycles` or
     ``analyse_gait(...).cycles``); ``reference``: the reference gait the run was compared
     with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
     is used, for the figure title); ``extra_tables``: ``{file name: (CSV header, 2-D array)}``;

@@ -203,7 +203,7 @@ def _log_gait_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
 
 def _log_normative(w: _Writer, run: RecordedRun, reference, step: int) -> None:
     """The reference mean ± 1 SD of each joint angle, mapped onto ``run``'s right strides."""
-    from afo_mj.analysis.gait_metrics import reference_band
+    from afo_mj.metrics.gait_metrics import reference_band
     if reference is None:
         return
     rec = run.record
@@ -230,7 +230,7 @@ def _log_normative(w: _Writer, run: RecordedRun, reference, step: int) -> None:
 
 
 def _log_device_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
-    from afo_mj.analysis.device_signals import device_signals
+    from afo_mj.metrics.device_signals import device_signals
     dev = run.device
     if dev is None or getattr(dev, "log", None) is None or dev.log.n == 0:
         return

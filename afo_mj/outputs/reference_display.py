@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from afo_mj.analysis.gait_metrics import reference_band
+from afo_mj.metrics.gait_metrics import reference_band
 
 __all__ = ["ReferenceCurve", "reference_curve", "reference_has_band", "reference_label",
            "reference_band_note", "SOURCE_NAMES"]

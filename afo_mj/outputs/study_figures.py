@@ -1,4 +1,4 @@
-"""Figures of a parameter study (``afo-mj study DIR``; :mod:`afo_mj.analysis.study_report`).
+"""Figures of a parameter study (``afo-mj study DIR``; :mod:`afo_mj.studies.study_report`).
 
 :func:`plot_study` writes into a directory (matplotlib, Agg backend, no pyplot state):
 
@@ -14,7 +14,7 @@
   of a cell named in it. Pairs without a grid (continuous parameters of random / LHS /
   Sobol' / Saltelli / Morris designs) are skipped;
 * ``pareto.png`` -- device studies only, when both Pareto metrics are in the table
-  (:func:`afo_mj.analysis.study_report.pareto_metrics`): the change in human ankle positive
+  (:func:`afo_mj.studies.study_report.pareto_metrics`): the change in human ankle positive
   work vs no device (J/stride, negative = the device took work off the muscles) against the
   electrical energy drawn per stride (J/stride), every successful run in grey and the
   non-dominated runs (both minimised) in red, joined as a staircase;

@@ -571,7 +571,8 @@ def render_scenario(scenario_path, mp4_path, overrides=(), condition: str | None
     _mujoco()                           # choose the GL backend before MuJoCo is imported
     s = load_scenario(p, overrides=tuple(overrides))
     from afo_mj.gait.walk import run_walk
-    from afo_mj.scenarios.device_scenario import device_config, make_device
+    from afo_mj.experiments.device_walk import make_device
+    from afo_mj.scenarios.device_scenario import device_config
     cfg = device_config(s)
     ref = s.load_reference()
     T = s.cycle_time_s(ref)

@@ -15,7 +15,7 @@ A bench scenario is a TOML file with a ``[bench]`` table (and no ``[walker]``/``
     body_mass_kg = 75.0             # the stand's foot is sized for this wearer
     height_m = 1.75
 
-``afo-mj run`` runs it through :func:`afo_mj.scenarios.hafo_bench.run_bench` and writes
+``afo-mj run`` runs it through :func:`afo_mj.experiments.hafo_bench.run_bench` and writes
 ``summary.json`` with the ``bench.*`` figures (``bench.stall_torque_nm``,
 ``bench.no_load_speed_deg_s``, ``bench.bandwidth_hz``, ``bench.rise_time_s``, …), the energy
 balance of the worst run (``energy.balance_error_rel``), the device masses, the published
@@ -25,7 +25,7 @@ figures for comparison, and the bench PNGs. ``--set bench.tests='["torque_veloci
 Bench kinds (``bench.kind``):
 
 * ``"hafo"`` (the default): the HAFO tests above (``tests``).
-* ``"stiffness"``: a clinical stiffness rig (:mod:`afo_mj.scenarios.stiffness_bench`) for a
+* ``"stiffness"``: a clinical stiffness rig (:mod:`afo_mj.experiments.stiffness_bench`) for a
   valve-circuit orthosis that emulates springs (``device.preset = "phafo"``)::
 
     [bench]
@@ -92,7 +92,7 @@ class BenchScenario:
     #: the stiffness rig's sweep (``bench_kind == "stiffness"``), else None
     stiffness: Any = None             # stiffness_bench.StiffnessSweepConfig
     #: ``bench_kind == "circuit"``: the compiled ``[circuit]``, its description and the
-    #: protocols' settings (:class:`afo_mj.analysis.circuit_bench.CircuitBenchConfig`)
+    #: protocols' settings (:class:`afo_mj.experiments.circuit_bench.CircuitBenchConfig`)
     circuit: Any = None
     circuit_spec: Any = None
     circuit_bench: Any = None
@@ -137,7 +137,7 @@ def is_bench_document(text: str) -> bool:
 def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str = "bench",
                          source_path: Path | None = None, overrides=()) -> BenchScenario:
     """Validate a bench scenario; raises :class:`ScenarioError` naming key, value, allowed."""
-    from afo_mj.scenarios.hafo_bench import BENCH_TESTS
+    from afo_mj.scenarios.bench_protocols import BENCH_TESTS
 
     def fail(key, value, allowed):
         return ScenarioError(f"{origin}: {key} = {value!r} is not allowed; allowed: {allowed}")
@@ -214,7 +214,7 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
     """The ``bench.kind = "stiffness"`` table (module docstring), checked key by key in the
     units the user writes (deg, N·m/deg), then converted to SI."""
     from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAnkleParams
-    from afo_mj.scenarios.stiffness_bench import StiffnessBenchError, sweep_config
+    from afo_mj.scenarios.bench_protocols import StiffnessBenchError, sweep_config
     for tbl, keys, label in ((dev, DEVICE_KEYS, "device"),
                              (bench, STIFFNESS_BENCH_KEYS, "bench")):
         if not isinstance(tbl, dict):
@@ -282,7 +282,7 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
 
 
 #: ``[bench]`` keys of a circuit bench (``[circuit]`` given): the protocols and the settings
-#: of :class:`afo_mj.analysis.circuit_bench.CircuitBenchConfig`, with their ranges
+#: of :class:`afo_mj.experiments.circuit_bench.CircuitBenchConfig`, with their ranges
 CIRCUIT_BENCH_RANGES = {
     "timestep_s": (1e-5, 1e-3), "load_inertia_kg_m2": (1e-4, 1.0),
     "load_stiffness_nm_rad": (0.0, 1e4), "load_damping_nm_s_rad": (0.0, 100.0),
@@ -304,10 +304,10 @@ CIRCUIT_BENCH_LISTS = {"step_torques_nm": (0.5, 200.0), "stiffnesses_nm_rad": (0
 
 def _parse_circuit_bench(doc, bench, name, description, origin, fail, source_path,
                          text) -> BenchScenario:
-    """A ``[circuit]`` on the bench: the protocols of :mod:`afo_mj.analysis.circuit_bench`
+    """A ``[circuit]`` on the bench: the protocols of :mod:`afo_mj.experiments.circuit_bench`
     (``bench.tests``), each checked against what the circuit's controller can run."""
-    from afo_mj.analysis.circuit_bench import (PROTOCOLS, CircuitBenchConfig,
-                                               protocol_problem)
+    from afo_mj.scenarios.bench_protocols import (PROTOCOLS, CircuitBenchConfig,
+                                                  protocol_problem)
     from afo_mj.scenarios.circuit_scenario import load_circuit
     if doc.get("device"):
         raise fail("device", doc["device"], "nothing: the bench runs the [circuit] "
@@ -377,73 +377,3 @@ def load_bench_scenario(path, overrides=()) -> BenchScenario:
         raise ScenarioError(f"{p}: cannot read the scenario file ({exc.strerror or exc})") from None
     return parse_bench_scenario(text, origin=str(p), default_name=p.stem, source_path=p,
                                 overrides=overrides)
-
-
-def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
-    """Run the bench; returns ``(summary, series)`` with the ``bench.*`` names of issue 4
-    (``bench.kind = "stiffness"``: the ``stiffness.*`` names, module docstring)."""
-    if bs.bench_kind == "stiffness":
-        return _run_stiffness_bench(bs)
-    if bs.bench_kind == "circuit":
-        return _run_circuit_bench(bs)
-    from afo_mj.devices.hafo import HafoDevice
-    from afo_mj.scenarios.hafo_bench import run_bench
-    res, series = run_bench(bs.params, bs.tests, bs.body_mass_kg, bs.height_m,
-                            timestep_s=bs.timestep_s)
-    # wall time is not a result (it goes to run_info.json): a rerun gives the same summary
-    res.pop("wall_time_s", None)
-    scalars = {k: v for k, v in res.items()
-               if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    detail = {k: v for k, v in res.items() if k not in scalars and k != "published"}
-    dev = HafoDevice(bs.params)
-    summary = {
-        "format": "afo_mj bench summary v1",
-        "scenario": bs.as_dict(),
-        "bench": scalars,
-        "bench_detail": detail,
-        "published": res["published"],
-        "device": {"preset": bs.preset, "mass_total_kg": dev.mass_total_kg,
-                   "mass_at_ankle_kg": dev.mass_at_ankle_kg},
-        "energy": {"balance_error_rel": res["energy_error_max"],
-                   "note": "largest |residual| / max(|electrical in|, |mechanical out|) "
-                           "over every bench run"},
-    }
-    return summary, series
-
-
-def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
-    from afo_mj.devices.valve_afo import ValveAfoDevice
-    from afo_mj.scenarios.stiffness_bench import run_stiffness_bench
-    res, series = run_stiffness_bench(bs.params, bs.stiffness)
-    dev = ValveAfoDevice(bs.params)
-    worst = max(res["stiffness"].values(), key=lambda v: abs(v["energy_balance_error_rel"]))
-    summary = {
-        "format": "afo_mj stiffness bench summary v1",
-        "scenario": bs.as_dict(),
-        "stiffness": res["stiffness"],
-        "sweep": res["sweep"],
-        "acceptance": res["acceptance"],
-        "device": {"preset": bs.preset, "mass_total_kg": dev.mass_total_kg,
-                   "mass_at_ankle_kg": dev.mass_at_ankle_kg,
-                   "max_torque_nm": bs.params.max_torque_nm,
-                   "supply_pressure_set_pa": bs.params.supply_pressure_set_pa},
-        "energy": {"balance_error_rel": worst["energy_balance_error_rel"],
-                   "energy_error_max": res["energy_error_max"],
-                   "note": "balance_error_rel: the largest |ledger residual| / battery energy "
-                           "drawn over the sweeps; energy_error_max: the largest |residual| / "
-                           "max(|electrical in|, |mechanical out|)"},
-    }
-    return summary, series
-
-
-def _run_circuit_bench(bs: BenchScenario) -> tuple[dict, dict]:
-    from afo_mj.analysis.circuit_bench import run_circuit_bench
-    res, series = run_circuit_bench(bs.circuit, bs.tests, bs.circuit_bench)
-    energy = res.pop("energy")
-    ledger = res.pop("ledger")
-    summary = {"format": "afo_mj circuit bench summary v1",
-               "scenario": bs.as_dict(),
-               "circuit": {"name": bs.circuit.circuit.name,
-                           "controller": bs.circuit.circuit.controller.kind},
-               "bench": res, "ledger": ledger, "energy": energy}
-    return summary, series

@@ -93,7 +93,7 @@ _P_NAMES = (
     "C_TH", "R_TH", "T_AMB", "WALTHER_B", "WALTHER_C", "RHO_T_COEF", "T_REF",
     # controller
     "K_PRESSURE", "K_SPEED", "K_INT", "INT_LIM", "MODE",
-    # calibration effects (afo_mj.analysis.effect_library), zero = off:
+    # calibration effects (afo_mj.calibration.effect_library), zero = off:
     "SEAL_CP",       # pressure-dependent seal friction, N per Pa of |Δp| per cylinder (m²)
     "SERIES_COMP",   # cable/series compliance as a differential capacitance r²A_e²/k (m³/Pa)
     "PUMP_G_EXTRA",  # extra laminar leakage across the pump ports, Q = G Δp/μ (m³)

@@ -1,0 +1,218 @@
+"""Walking with an orthosis: every condition of a device scenario simulated, analysed and
+summarised (the device's work, energy ledger and the wearer's ankle work per stride).
+
+The scenario's ``[device]`` and ``[assistance]`` tables are parsed by
+:mod:`afo_mj.scenarios.device_scenario` into a :class:`DeviceConfig`; this module builds the
+device for each condition, walks it and writes the per-condition summary block.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from afo_mj.metrics.gait_metrics import PUSH_OFF_WINDOW
+from afo_mj.scenarios.device_scenario import DeviceConfig
+
+
+def _per_stride(rec, side: int, first: int, last: int):
+    """Mask of samples in right-leg strides ``first..last`` (1-based) and their count."""
+    hs = rec.events.heel_strikes_s[side]
+    last = min(last, len(hs) - 1)
+    if last < first:
+        return None, 0
+    t0, t1 = hs[first - 1], hs[last]
+    return (rec.time_s >= t0) & (rec.time_s < t1), last - first + 1
+
+
+def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict:
+    """The issue-4 summary block of one condition (gait, human, device, energy)."""
+    side = 0 if cfg.sides[0] == "right" else 1
+    first, last = strides
+    mask, n = _per_stride(rec, side, first, last)
+    out = {"gait": analysis.summary if analysis is not None else None}
+    if mask is None:
+        out["human"] = {"ankle_positive_work_j_per_stride": None}
+        return out
+    dt = rec.sample_period_s
+    w = rec.joint_velocity_rad_s[mask, side, 2]
+    p_h = rec.joint_moment_nm[mask, side, 2] * w
+    out["human"] = {"ankle_positive_work_j_per_stride": float(np.sum(np.clip(p_h, 0, None))
+                                                               * dt / n),
+                    "ankle_negative_work_j_per_stride": float(np.sum(np.clip(p_h, None, 0))
+                                                              * dt / n)}
+    # the whole joint (muscles + device): push-off restoration is judged on it
+    p_tot = (rec.joint_moment_nm[mask, side, 2] + rec.device_moment_nm[mask, side]) * w
+    t_m = rec.time_s[mask]
+    hs = [h for h in rec.events.heel_strikes_s[side] if t_m[0] - 1e-9 <= h <= t_m[-1] + dt]
+    peaks, po_work = [], []
+    for a, b in zip(hs[:-1], hs[1:]):
+        sel = (t_m >= a) & (t_m < b)
+        if not np.any(sel):
+            continue
+        ph = (t_m[sel] - a) / (b - a)
+        win = (ph >= PUSH_OFF_WINDOW[0]) & (ph <= PUSH_OFF_WINDOW[1])
+        pw = p_tot[sel][win]
+        if pw.size:
+            peaks.append(float(np.max(pw)))
+            po_work.append(float(np.sum(np.clip(pw, 0, None)) * dt))
+    out["ankle"] = {
+        "push_off_peak_power_w": float(np.mean(peaks)) if peaks else None,
+        "push_off_positive_work_j_per_stride": float(np.mean(po_work)) if po_work else None,
+        "positive_work_j_per_stride": float(np.sum(np.clip(p_tot, 0, None)) * dt / n),
+        "note": "whole ankle joint (muscles + device); push-off is "
+                f"{PUSH_OFF_WINDOW[0]:.0%}-{PUSH_OFF_WINDOW[1]:.0%} of the stride",
+    }
+    if device is None:
+        return out
+    L = device.log.arrays()
+    k = 0
+    n_log = min(len(L["time_s"]), len(rec.time_s))
+    m = mask[:n_log]
+    cmd = L["commanded_torque_nm"][:n_log, k][m]
+    dlv = L["delivered_torque_nm"][:n_log, k][m]
+    p_d = rec.device_moment_nm[mask, side] * w
+    led = device_ledger(device, cfg, L, k)
+    drawn = led["electrical_drawn_j"]
+    mech_pos = float(np.sum(np.clip(L["mechanical_power_w"][:, k], 0, None)) * dt)
+    duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec.time_s) > 1 else 0.0
+    mean_power = drawn / duration if duration > 0 else math.nan
+    energy_wh = led["battery_energy_wh"]
+    runtime_h = (energy_wh / mean_power) if mean_power > 0 and energy_wh else None
+    out["device"] = {
+        "peak_torque_nm": float(np.max(np.abs(dlv))),
+        "torque_tracking_rmse_nm": float(np.sqrt(np.mean((cmd - dlv) ** 2))),
+        "positive_work_j_per_stride": float(np.sum(np.clip(p_d, 0, None)) * dt / n),
+        "negative_work_j_per_stride": float(np.sum(np.clip(p_d, None, 0)) * dt / n),
+        "mass_total_kg": getattr(device, "mass_total_kg", None),
+        "mass_at_ankle_kg": getattr(device, "mass_at_ankle_kg", None),
+        "peak_pressure_mpa": led["peak_pressure_pa"] / 1e6,
+        "fluid_temperature_rise_k": led["temperature_rise_k"],
+        "battery_runtime_h": runtime_h,
+        "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
+        "newton_unconverged_steps": led["newton_unconverged_steps"],
+    }
+    # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
+    stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
+    scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan
+    out["energy_per_stride"] = {
+        "stride_time_s": stride_s,
+        "electrical_in_j": drawn * scale,
+        "hydraulic_j": None if led["hydraulic_j"] is None else led["hydraulic_j"] * scale,
+        "mechanical_positive_out_j": mech_pos * scale,
+        "losses_j": {k: v * scale for k, v in led["losses_j"].items()},
+        "note": "whole-run ledger (start-up strides included) times mean analysed stride "
+                "time / run duration",
+    }
+    out["energy"] = {
+        "run_duration_s": duration,
+        "electrical_in_j": drawn,
+        "electrical_regenerated_j": led["electrical_regenerated_j"],
+        "hydraulic_j": led["hydraulic_j"],
+        "mechanical_out_j": led["mechanical_out_j"],
+        "mechanical_positive_out_j": mech_pos,
+        "losses_j": led["losses_j"],
+        "stored_change_j": led["stored_change_j"],
+        "efficiency_total": mech_pos / drawn if drawn > 0 else None,
+        "balance_error_rel": led["balance_error_rel"],
+        "note": "whole run; electrical_in_j is the battery's chemical energy drawn, "
+                "regeneration (ankle back-driving the pump) counted apart",
+    }
+    if cfg.circuit is not None:
+        out["energy"]["input_j"] = led["input_j"]
+        out["energy"]["note"] = ("whole run; electrical_in_j is the energy drawn from the "
+                                 "circuit's source (battery chemical energy, or the ideal "
+                                 "bench supply), electrical_regenerated_j what went back; "
+                                 "losses and stores per component instance")
+        out["device"]["note"] = ("circuit description: worn masses are not modelled "
+                                 "(mass_total_kg null); hydraulic_j is not a ledger term")
+    return out
+
+
+def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
+    """The ledger terms the summary reads, for a preset device (its own ledger) or a circuit
+    (:meth:`afo_mj.circuits.device.CircuitDevice.ledger`, generic keys mapped: drawn =
+    ``input_drawn_j``, regenerated = ``input_drawn_j − input_j``, the oil temperature rise
+    from the device log, the battery energy from the circuit's battery component)."""
+    led = dict(device.ledger(k))
+    if cfg.circuit is None:
+        from afo_mj.hydraulics.battery import Battery
+        led["battery_energy_wh"] = Battery(cfg.params.battery).energy_wh
+        return led
+    temp = L["oil_temperature_k"][:, k]
+    led["electrical_drawn_j"] = led["input_drawn_j"]
+    led["electrical_regenerated_j"] = led["input_drawn_j"] - led["input_j"]
+    led["hydraulic_j"] = None
+    led["temperature_rise_k"] = (float(temp[-1] - cfg.circuit.circuit.thermal
+                                       .ambient_temperature_k) if temp.size else 0.0)
+    bats = [c for c in cfg.circuit.circuit.components if c.kind == "battery"]
+    wh = None
+    if bats:
+        from afo_mj.hydraulics.battery import Battery
+        wh = Battery(bats[0].params.battery).energy_wh
+    led["battery_energy_wh"] = wh
+    return led
+
+
+def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int):
+    """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled), a valve /
+    digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`) or a described
+    circuit, with the assistance profile or the impedance rows (any torque-controlled
+    device emulates them) when the condition is ``assist`` or a stiffness condition."""
+    from afo_mj.devices.hafo import HafoDevice
+    from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
+    active = condition == "assist" or condition in cfg.impedance_conditions
+    imp = cfg.impedance_conditions.get(condition, cfg.impedance) if active else None
+    prof = cfg.profile if active and cfg.impedance is None else None
+    kw = dict(sides=cfg.sides, profile=prof, impedance=imp, timestep_s=timestep_s,
+              max_steps=max_steps)
+    if cfg.circuit is not None:
+        from afo_mj.circuits.device import CircuitDevice
+        return CircuitDevice(cfg.circuit, **kw)
+    if isinstance(cfg.params, ValveAnkleParams):
+        return ValveAfoDevice(cfg.params, **kw)
+    return HafoDevice(cfg.params, **kw)
+
+
+def run_device_scenario(scenario, reference, cfg: DeviceConfig):
+    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``."""
+    from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
+    from afo_mj.gait.walk import run_walk
+    T = scenario.cycle_time_s(reference)
+    dt = scenario.walker.timestep_s
+    results = {}
+    n = len(cfg.conditions)
+    for i, cond in enumerate(cfg.conditions, 1):
+        dev = None
+        worn = ()
+        if cond != "no_device":
+            steps = int(((scenario.strides + 1.5) * T + 1.0) / dt) + 4
+            dev = make_device(cfg, cond, dt, steps)
+            # a circuit description has no worn-mass layout (its parts' masses are metadata)
+            worn = dev.worn_masses() if hasattr(dev, "worn_masses") else ()
+        rec = run_walk(scenario.walker, reference, T, scenario.strides,
+                       scenario.controller_params(), worn_masses=worn, device=dev,
+                       label=f"condition {i}/{n}: {cond}" if n > 1 else cond)
+        try:
+            analysis = analyse_gait(rec, reference, scenario.analyse_strides)
+        except GaitAnalysisError:
+            analysis = None
+        results[cond] = (rec, analysis, dev)
+    conds = {c: condition_summary(r, a, d, cfg, scenario.analyse_strides)
+             for c, (r, a, d) in results.items()}
+    summary = {"device_conditions": conds, "device_preset": cfg.preset,
+               "device_sides": list(cfg.sides)}
+    if cfg.circuit is not None:
+        summary["circuit"] = {"name": cfg.circuit.circuit.name,
+                              "controller": cfg.circuit.circuit.controller.kind,
+                              "description": cfg.circuit_spec}
+    if "no_device" in conds:
+        base = conds["no_device"]["human"]["ankle_positive_work_j_per_stride"]
+        summary["comparison_vs_no_device"] = {
+            c: {"human_ankle_positive_work_change_j_per_stride":
+                (v["human"]["ankle_positive_work_j_per_stride"] - base)
+                if base is not None and v["human"]["ankle_positive_work_j_per_stride"]
+                is not None else None}
+            for c, v in conds.items() if c != "no_device"}
+    return summary, results
