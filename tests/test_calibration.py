@@ -91,6 +91,7 @@ KNOWN_FAILURES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind,effect,values", [
     pytest.param(k, e, v, marks=[pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[k, e])]
                  if (k, e) in KNOWN_FAILURES else []) for k, e, v in SINGLE],
@@ -112,6 +113,7 @@ def test_undeclared_effect_is_found_first(results, kind, effect, values):
         assert abs(got - truth) <= max(4 * sd, 0.3 * abs(truth)), (key, got, sd, truth)
 
 
+@pytest.mark.slow
 def test_collinear_hose_wall_is_still_found_with_its_value(results):
     """The hose wall is collinear with the fitted bulk modulus on this protocol (the xfail
     above): it cannot come first, but it must not be lost: it is selected in a later round with
@@ -126,6 +128,7 @@ def test_collinear_hose_wall_is_still_found_with_its_value(results):
     assert drop >= 0.70, drop
 
 
+@pytest.mark.slow
 def test_at_least_eight_effects_on_both_circuits(results):
     found = {(k, e) for k, e, _ in SINGLE
              if [s["effect"] for s in results[f"{k}-{e}"]["effects_selected"]][:1] == [e]}
@@ -133,6 +136,7 @@ def test_at_least_eight_effects_on_both_circuits(results):
     assert {k for k, _ in found} == {"hafo", "valve"}
 
 
+@pytest.mark.slow
 def test_two_effects_at_once_are_both_found(results):
     rep = results["pair"]
     chosen = {s["effect"] for s in rep["effects_selected"]}
@@ -140,6 +144,7 @@ def test_two_effects_at_once_are_both_found(results):
     assert rep["error_after"]["overall"] <= 0.3 * rep["error_before"]["overall"]
 
 
+@pytest.mark.slow
 def test_mismatch_and_noise_alone_add_no_effect(results):
     rep = results["mismatch_only"]
     assert rep["verdict"] == "no_missing_effect", rep["unexplained_where"]
@@ -152,6 +157,7 @@ def test_mismatch_and_noise_alone_add_no_effect(results):
         assert w["excess_ratio"] < 1.2, (ch, w)
 
 
+@pytest.mark.slow
 def test_resonance_outside_the_library_is_unexplained_and_located(results):
     rep = results["resonance"]
     assert rep["verdict"] == "unexplained_residual", [s["effect"] for s in
@@ -162,6 +168,7 @@ def test_resonance_outside_the_library_is_unexplained_and_located(results):
     assert f == pytest.approx(25.0, rel=0.1)
 
 
+@pytest.mark.slow
 def test_report_has_the_issue_keys(results):
     rep = results["hafo-piston_leakage"]
     for key in ("error_before", "error_after", "effects_selected", "candidates",
@@ -186,6 +193,7 @@ def test_bad_setup_is_refused(tmp_path):
         assert preset == f.stem and opts.max_effects == 3
 
 
+@pytest.mark.slow
 def test_cli_end_to_end(tmp_path):
     """make-bench-record then calibrate through the command line: report files, verdict."""
     env = dict(os.environ, MUJOCO_GL="egl")

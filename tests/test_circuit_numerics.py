@@ -10,6 +10,7 @@ from afo_mj.hydraulics.pump_cylinder import (CircuitSimulator, PumpCylinderCircu
 from afo_mj.hydraulics.verification import CASES, compare, make_case, run_fixed_step
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", CASES)
 def test_fixed_step_matches_radau_within_one_percent(case):
     """1 ms steps vs solve_ivp(Radau, rtol 1e-8), same held inputs: NRMSE <= 1 % on the four

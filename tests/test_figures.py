@@ -44,7 +44,13 @@ def test_every_kind_is_run_here():
         assert set(DEVICE_FIGURES) <= set(FIGURES_BY_KIND[kind])
 
 
-@pytest.fixture(scope="module", params=list(RUNS))
+#: the longest runs (the HAFO bench in full, ~11 s; the stiffness emulator's walks, ~8 s) are
+#: checked in the full suite only; -m "not slow" checks the other kinds
+SLOW_KINDS = ("bench_hafo", "device_stiffness_emulation")
+
+
+@pytest.fixture(scope="module", params=[pytest.param(k, marks=pytest.mark.slow)
+                                        if k in SLOW_KINDS else k for k in RUNS])
 def run_dir(request, tmp_path_factory):
     kind = request.param
     command, args = RUNS[kind]

@@ -59,6 +59,7 @@ def test_low_pass_sweep_is_refined_at_the_bandwidth():
     assert not inside
 
 
+@pytest.mark.slow
 def test_hafo_bench_default_sweep_resolves_the_foot_on_oil_resonance():
     """The HAFO bench's velocity sweep (the Bode figure's data): ≥ 30 frequencies, the
     resonance inside the range with points on both flanks within ±10 % of it."""

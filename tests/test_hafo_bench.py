@@ -97,6 +97,7 @@ def bench():
     return hb.run_bench()
 
 
+@pytest.mark.slow
 def test_torque_velocity_reproduces_published_figures(bench):
     s, series = bench
     assert s["stall_torque_nm"] == pytest.approx(65.0, rel=0.10)
@@ -108,6 +109,7 @@ def test_torque_velocity_reproduces_published_figures(bench):
     assert tv["assist_torque_nm"][0] == pytest.approx(s["stall_torque_nm"], rel=0.05)
 
 
+@pytest.mark.slow
 def test_isometric_40nm_step(bench):
     s, series = bench
     m = s["isometric_steps"]["40"]
@@ -121,6 +123,7 @@ def test_isometric_40nm_step(bench):
         assert abs(mm["steady_state_error_rel"]) < 0.05, level
 
 
+@pytest.mark.slow
 def test_bench_summary_and_energy_balance(bench):
     s, series = bench
     for key in ("stall_torque_nm", "no_load_speed_deg_s", "bandwidth_hz", "velocity_bandwidth_hz",
@@ -169,6 +172,7 @@ def test_bench_argument_checks():
         hb.run_bench(params={"hose.length_m": 2.2})
 
 
+@pytest.mark.slow
 def test_plot_bench_writes_pngs(bench, tmp_path):
     _, series = bench
     paths = hb.plot_bench(series, tmp_path)

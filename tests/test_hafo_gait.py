@@ -127,6 +127,7 @@ def test_weak_plantarflexors_push_off_restored(weak, healthy):
     assert helped < 1.25 * normal
 
 
+@pytest.mark.slow
 def test_same_scenario_twice_identical_summary(tmp_path):
     args = ["run", str(SCEN / "gait_assist_hafo.toml"), "--set", "gait.strides=3",
             "--set", "gait.analyse_strides=[2, 3]", "--set", 'device.conditions=["assist"]']

@@ -123,6 +123,7 @@ def _normal_mid_swing_ankle_deg() -> float:
     return float(np.degrees(np.mean(ref.angles_rad(ph)[:, 2])))
 
 
+@pytest.mark.slow
 def test_gait_conditions_ran(gait):
     assert list(gait) == ["no_device", "assist_k4.6", "assist_k2.5", "assist_k1"]
     assert gait["no_device"]["gait"] is not None and not gait["no_device"]["gait"]["fell"]
@@ -131,6 +132,7 @@ def test_gait_conditions_ran(gait):
         assert g is not None and not g["fell"] and g["n_cycles_used"] >= 10
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k_nm_per_deg", WALKED_NM_PER_DEG)
 def test_emulator_lifts_the_dropped_foot_in_swing(gait, k_nm_per_deg):
     base = gait["no_device"]["gait"]
@@ -158,6 +160,7 @@ def test_emulator_lifts_the_dropped_foot_in_swing(gait, k_nm_per_deg):
     assert c1 - c0 >= 0.3e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k_nm_per_deg", WALKED_NM_PER_DEG)
 def test_gait_energy_balance_and_per_stride_figures(gait, k_nm_per_deg):
     v = gait[f"assist_k{k_nm_per_deg:g}"]

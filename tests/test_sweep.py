@@ -81,6 +81,7 @@ def grid_sweep(tmp_path_factory):
     return study, rows, tmp
 
 
+@pytest.mark.slow
 def test_grid_rows_equal_single_runs(grid_sweep, tmp_path):
     study, rows, tmp = grid_sweep
     assert len(rows) == 6 and all(r["status"] == "ok" for r in rows)
@@ -97,6 +98,7 @@ def test_grid_rows_equal_single_runs(grid_sweep, tmp_path):
     assert len({r["speed_m_s.mean"] for r in rows}) > 1
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_table(grid_sweep, tmp_path):
     pytest.importorskip("distributed")
     study, rows, _ = grid_sweep
@@ -123,6 +125,7 @@ levels = [70.0, -5.0, 80.0]
     assert sorted(t["status"]) == ["failed", "ok", "ok"]
 
 
+@pytest.mark.slow
 def test_interrupted_sweep_resumes_with_every_run_once(tmp_path):
     study = _study(tmp_path, '''
 [design]
@@ -242,6 +245,7 @@ def test_shipped_studies_parse():
             device_config(sc)
 
 
+@pytest.mark.slow
 def test_study_and_optimize_commands(grid_sweep, tmp_path):
     """``afo-mj study DIR`` on the grid sweep; ``afo-mj optimize`` refuses a bad study."""
     _, rows, tmp = grid_sweep
