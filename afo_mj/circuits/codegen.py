@@ -25,6 +25,7 @@ import importlib.util
 import inspect
 import os
 import sys
+import threading
 from collections import defaultdict
 from pathlib import Path
 
@@ -646,9 +647,22 @@ def build(circuit: Circuit) -> CompiledCircuit:
     d.mkdir(parents=True, exist_ok=True)
     path = d / f"circuit_{digest}.py"
     if not path.exists():
-        tmp = d / f".circuit_{digest}.{os.getpid()}.tmp"
+        # several processes may build the same circuit at once (test workers, sweep workers):
+        # each writes its own temporary file, and the first one to link it in place wins.
+        # A hard link never replaces, so the module keeps the first writer's mtime, which
+        # numba's on-disk cache records as the source's stamp (a replaced file would make a
+        # kernel just cached by another process stale, to be compiled again)
+        tmp = d / f".circuit_{digest}.{os.getpid()}.{threading.get_ident()}.tmp"
         tmp.write_text(text)
-        os.replace(tmp, path)
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            pass
+        except OSError:                    # a file system without hard links
+            if not path.exists():
+                os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
     modname = f"afo_mj_circuit_{digest}"
     module = sys.modules.get(modname)
     if module is None:
