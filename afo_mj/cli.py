@@ -847,7 +847,8 @@ def _optimize(args) -> int:
 def _design(args) -> int:
     """``afo-mj design``: exit 0 a feasible design written, 1 infeasible (the binding
     constraint printed and written), 2 invalid requirements (nothing written)."""
-    from afo_mj.design.system_design import DesignError, run_design
+    from afo_mj.app.design import design as run_design
+    from afo_mj.design.design_requirements import DesignError
 
     if args.top < 1:
         print(f"afo-mj design: --top = {args.top}; allowed: >= 1", file=sys.stderr)
