@@ -796,7 +796,7 @@ def _sweep(args) -> int:
 
 def _study(args) -> int:
     """``afo-mj study DIR``: ranked table, plots and sensitivity indices of a sweep."""
-    from afo_mj.studies.study_report import write_study_report
+    from afo_mj.outputs.study_report import write_study_report
 
     try:
         rep = write_study_report(args.dir, metric=args.metric)

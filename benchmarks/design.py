@@ -9,8 +9,7 @@ pinned before anything is imported), after one warm-up call (imports, numba cach
 * the design-guideline studies of the HAFO requirements (pressure sweep of 8 points, every oil,
   five output powers);
 * the whole ``afo-mj design`` (``afo_mj.app.design.design``: search, studies, hose-bore
-  trade-off, bench
-  prediction, every file written) for the HAFO requirements.
+  trade-off, bench prediction, every file written) for the HAFO requirements.
 
 Prints one line per measurement and, last, a JSON object.
 """
