@@ -612,7 +612,8 @@ def _view(args) -> int:
 
 def _render(args) -> int:
     """``afo-mj render SCENARIO --mp4 FILE``."""
-    from afo_mj.outputs.video import RenderError, render_scenario
+    from afo_mj.app.render import render as render_scenario
+    from afo_mj.outputs.video import RenderError
     from afo_mj.scenarios.walk_scenario import ScenarioError
     try:
         info = render_scenario(args.scenario, args.mp4, overrides=args.set or (),
