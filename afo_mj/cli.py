@@ -114,13 +114,13 @@ def _view(args) -> int:
 
 def _render(args) -> int:
     """``afo-mj render SCENARIO --mp4 FILE``."""
-    from afo_mj.outputs.video import RenderError, render_scenario
-    from afo_mj.scenarios.walk_scenario import ScenarioError
+    from afo_mj.app.render import render
+    from afo_mj.outputs.video import RenderError
     try:
-        info = render_scenario(args.scenario, args.mp4, overrides=args.set or (),
-                               condition=args.condition, fps=args.fps, width=args.width,
-                               height=args.height, max_seconds=args.max_seconds)
-    except (RenderError, ScenarioError) as exc:
+        info = render(args.scenario, args.mp4, overrides=args.set or (),
+                      condition=args.condition, fps=args.fps, width=args.width,
+                      height=args.height, max_seconds=args.max_seconds)
+    except RenderError as exc:                  # bad input included (InvalidRender)
         _err("render", f"{exc}; nothing written")
         return 2
     print(f"afo_mj render: {info['path']}: {info['frames']} frames at {info['fps']} fps, "
@@ -211,7 +211,7 @@ def _sweep(args) -> int:
 
 
 def _study(args) -> int:
-    from afo_mj.studies.study_report import write_study_report
+    from afo_mj.outputs.study_report import write_study_report
     try:
         rep = write_study_report(args.dir, metric=args.metric)
     except (ValueError, OSError) as exc:
@@ -244,13 +244,14 @@ def _optimize(args) -> int:
 def _design(args) -> int:
     """Exit 0 a feasible design written, 1 infeasible (the binding constraint printed and
     written), 2 invalid requirements (nothing written)."""
-    from afo_mj.design.system_design import DesignError, run_design
+    from afo_mj.app.design import design
+    from afo_mj.design.design_requirements import DesignError
     if args.top < 1:
         _err("design", f"--top = {args.top}; allowed: >= 1")
         return 2
     try:
-        out = run_design(args.requirements, args.out, overrides=args.set or (),
-                         studies=not args.no_studies, verify=args.verify, top=args.top)
+        out = design(args.requirements, args.out, overrides=args.set or (),
+                     studies=not args.no_studies, verify=args.verify, top=args.top)
     except DesignError as exc:
         _err("design", str(exc))
         return 2
