@@ -47,3 +47,22 @@ def test_import_layers_kept():
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, (f"lint-imports found broken contracts (exit "
                                   f"{proc.returncode}):\n{proc.stdout}{proc.stderr}")
+
+
+def test_readme_layout_table_matches_the_tree():
+    """README's layout table has a row for every package and top-level module of afo_mj, and
+    every afo_mj path it names exists."""
+    import re
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Layout"):]
+    section = section[:section.index("\n### ")]
+    rows = re.findall(r"^\| `(afo_mj/[^`]*)` \|", section, flags=re.M)
+    assert rows, "no afo_mj rows in README's layout table"
+    pkg = ROOT / "afo_mj"
+    tree = {f"afo_mj/{p.name}/" for p in pkg.iterdir()
+            if p.is_dir() and (p / "__init__.py").exists()}
+    tree |= {f"afo_mj/{p.name}" for p in pkg.glob("*.py") if p.name != "__init__.py"}
+    missing = sorted(tree - set(rows))
+    stale = sorted(r for r in rows if not (ROOT / r).exists())
+    assert not missing, f"afo_mj entries without a README layout row: {missing}"
+    assert not stale, f"README layout rows naming paths that do not exist: {stale}"
