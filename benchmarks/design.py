@@ -8,8 +8,8 @@ pinned before anything is imported), after one warm-up call (imports, numba cach
   pressure range), best of ``repeats``;
 * the design-guideline studies of the HAFO requirements (pressure sweep of 8 points, every oil,
   five output powers);
-* the whole ``afo-mj design`` (``run_design``: search, studies, hose-bore trade-off, bench
-  prediction, every file written) for the HAFO requirements.
+* the whole ``afo-mj design`` (``afo_mj.app.design.design``: search, studies, hose-bore
+  trade-off, bench prediction, every file written) for the HAFO requirements.
 
 Prints one line per measurement and, last, a JSON object.
 """
@@ -43,8 +43,8 @@ def best_of(fn, n: int) -> float:
 
 def main() -> None:
     repeats = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    from afo_mj.design.system_design import (guideline_studies, load_requirements,
-                                               run_design, size_system)
+    from afo_mj.app.design import design as run_design
+    from afo_mj.design.system_design import guideline_studies, load_requirements, size_system
     hafo = load_requirements(ROOT / "scenarios" / "design" / "hafo_requirements.toml")
     gait = load_requirements(ROOT / "scenarios" / "design" / "gait_assist_requirements.toml")
     size_system(hafo)                                   # warm-up
@@ -64,7 +64,7 @@ def main() -> None:
     print(f"size_system, normative gait profile over 5-21 MPa: {t_gait:.2f} s, "
           f"{res_g.screened} designs screened, best {res_g.row(0)['total_kg']:.3f} kg")
     print(f"guideline studies (8 pressures, 3 oils, 5 output powers): {t_study:.2f} s")
-    print(f"afo-mj design (run_design, every file): {t_run:.2f} s; target <= {TARGET_S:g} s "
+    print(f"afo-mj design (app.design.design, every file): {t_run:.2f} s; target <= {TARGET_S:g} s "
           f"-> {'met' if t_run <= TARGET_S else 'MISSED'}")
     print(json.dumps({"benchmark": "design", "size_system_hafo_s": round(t_hafo, 3),
                       "designs_screened_hafo": res.screened,

@@ -23,6 +23,7 @@ def main() -> None:
     runs = int(sys.argv[1]) if len(sys.argv) > 1 else 8
     os.environ.setdefault("MUJOCO_GL", "egl")
     from afo_mj.studies.study import load_study
+    from afo_mj.app.sweep_point import run_point
     from afo_mj.studies.sweep import Sweep
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -38,7 +39,7 @@ def main() -> None:
         for workers in (1, 2):
             t0 = time.perf_counter()
             rows = Sweep(study, Path(tmp) / f"w{workers}", workers=workers,
-                         progress=False).run()
+                         progress=False, runner=run_point).run()
             wall = time.perf_counter() - t0
             ok = sum(r["status"] == "ok" for r in rows)
             out[workers] = {"wall_s": wall, "runs": len(rows), "ok": ok,

@@ -36,7 +36,7 @@ def fake_sim(monkeypatch, record):
         seen.append(scenario)
         return record
 
-    monkeypatch.setattr(cli, "_simulate_walk", simulate)
+    monkeypatch.setattr("afo_mj.gait.walk.simulate_walk", simulate)
     return seen
 
 
@@ -106,7 +106,7 @@ def test_bad_scenario_exit_2_and_nothing_written(tmp_path, fake_sim, capsys):
 
 
 def test_fall_before_a_stride_is_a_reported_outcome(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(cli, "_simulate_walk",
+    monkeypatch.setattr("afo_mj.gait.walk.simulate_walk",
                         lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9))
     out = tmp_path / "out"
     assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 0
@@ -122,7 +122,7 @@ def test_numerics_failure_exit_1_and_nothing_written(tmp_path, monkeypatch, caps
 
     def boom(sc):
         raise WalkNumericsError("non-finite walker state at t = 0.1230 s")
-    monkeypatch.setattr(cli, "_simulate_walk", boom)
+    monkeypatch.setattr("afo_mj.gait.walk.simulate_walk", boom)
     out = tmp_path / "out"
     assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 1
     assert "non-finite walker state" in capsys.readouterr().err
@@ -226,7 +226,7 @@ def test_reused_out_holds_only_this_runs_files(tmp_path, fake_sim, no_png, monke
     assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
                      "--set", "gait.analyse_strides=[2, 3]"]) == 0
     assert (out / "gait_curves.png").exists()
-    monkeypatch.setattr(cli, "_simulate_walk",
+    monkeypatch.setattr("afo_mj.gait.walk.simulate_walk",
                         lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9))
     assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
                      "--set", "gait.analyse_strides=[2, 3]"]) == 0

@@ -175,7 +175,8 @@ def test_bench_argument_checks():
 @pytest.mark.slow
 def test_plot_bench_writes_pngs(bench, tmp_path):
     _, series = bench
-    paths = hb.plot_bench(series, tmp_path)
+    from afo_mj.outputs.bench_figures import plot_bench
+    paths = plot_bench(series, tmp_path)
     names = sorted(p.name for p in paths)
     assert names == ["hafo_bode.png", "hafo_isometric_steps.png", "hafo_position_step.png",
                      "hafo_torque_velocity.png"]

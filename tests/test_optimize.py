@@ -18,6 +18,7 @@ import pytest
 from afo_mj.studies.optimize import (DEFAULT_METRIC, OptimizeError, optimize_study,
                                       parse_optimize)
 from afo_mj.studies.study import load_study, parse_study
+from afo_mj.app.sweep_point import run_point
 from afo_mj.studies.sweep import read_rows
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -315,7 +316,7 @@ def test_end_to_end_real_runs_resume_from_rows(tmp_path):
                  '[[optimize.constraints]]\nmetric = "speed_m_s.mean"\nmin = 0.5\n')
     study = load_study(p)
     out = tmp_path / "out"
-    res = optimize_study(study, out, workers=1, progress=False)
+    res = optimize_study(study, out, workers=1, progress=False, runner=run_point)
     assert res["n_runs"] == 4 and res["n_failed"] == 0
     rows = read_rows(out)
     assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
@@ -326,7 +327,7 @@ def test_end_to_end_real_runs_resume_from_rows(tmp_path):
     assert 150.0 <= res["best_point"]["controller.ankle_kp_nm_per_rad"] <= 450.0
     assert (out / "optimization.json").is_file() and (out / "results.parquet").is_file()
     t0 = time.perf_counter()
-    again = optimize_study(study, out, workers=1, progress=False)
+    again = optimize_study(study, out, workers=1, progress=False, runner=run_point)
     assert time.perf_counter() - t0 < 3.0
     assert len(read_rows(out)) == 4
     assert again["best_point"] == res["best_point"] and again["history"] == res["history"]

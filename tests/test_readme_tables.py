@@ -160,7 +160,8 @@ def _fake_results(rt, speed=1.0612):
            "phafo_power": {"stiffness": {"1": _stiff(1.0)}},
            "foot_drop": {"no_device": _walk()},
            "hafo_gait": {"healthy": {"no_device": _walk()}},
-           "hafo_bench": {"hafo": {"bench": {"stall_torque_nm": 65.44}}}}
+           "hafo_bench": {"hafo": {"bench": {"stall_torque_nm": 65.44}}},
+           "comparison": {"rows": [_cmp_row("gait_assist_hafo", 0.4712, 1)]}}
     assert set(res) == set(rt.BLOCKS)
     return res
 
@@ -243,3 +244,58 @@ def test_hafo_bench_table_units(rt):
     assert rows[0] == ["stall torque", "65.4 N·m (current limit)", "65 N·m", "– N·m"]
     assert rows[3][1] == "34.9 ms, 13.3 %" and rows[3][3] == "52.1 ms, 0 %"   # s → ms
     assert rows[2][1] == "3.30 / 0.97 kg" and rows[7][1] == "2.3e-10"
+
+
+def _cmp_row(label, eff, rank, **kw):
+    r = {"label": label, "fell": False, "fall_time_s": None, "mechanical_role": "actuator",
+         "efficiency_total": eff, "electrical_j_per_stride": 25.04,
+         "device_positive_work_j_per_stride": 16.42, "torque_tracking_rmse_nm": 3.71,
+         "fluid_temperature_rise_k": 0.31, "battery_runtime_h": 3.21,
+         "not_comparable_reason": "", "efficiency_rank": rank,
+         "loss_names": ["loss_motor_copper_j_per_stride", "loss_pump_mechanical_j_per_stride",
+                        "loss_line_j_per_stride", "loss_unloading_j_per_stride"],
+         "loss_motor_copper_j_per_stride": 3.61, "loss_pump_mechanical_j_per_stride": 2.72,
+         "loss_line_j_per_stride": 2.31, "loss_unloading_j_per_stride": None}
+    r.update(kw)
+    return r
+
+
+def test_comparison_table_against_hand_written_markdown(rt):
+    """Net efficiency in %, top three losses by name (ties in ledger order, missing losses
+    skipped), rank across all rows; a brake gets "–", a numbered note with its reason, no
+    battery runtime and no rank; a fall gets its fall text; an unknown label is shown as
+    code."""
+    rows = [_cmp_row("gait_assist_valve:pressure_control", 0.1804, 1,
+                     electrical_j_per_stride=71.3, torque_tracking_rmse_nm=5.64,
+                     loss_names=["loss_servo_valve_throttling_j_per_stride",
+                                 "loss_motor_copper_j_per_stride", "loss_relief_j_per_stride",
+                                 "loss_pump_volumetric_j_per_stride"],
+                     loss_servo_valve_throttling_j_per_stride=33.2,
+                     loss_motor_copper_j_per_stride=10.04, loss_relief_j_per_stride=4.96,
+                     loss_pump_volumetric_j_per_stride=4.96, battery_runtime_h=1.14,
+                     fluid_temperature_rise_k=2.04),
+            _cmp_row("gait_assist_valve:no_accumulator", 0.0254, 2,
+                     electrical_j_per_stride=601.2, battery_runtime_h=0.137),
+            _cmp_row("hafo_proto", None, None, mechanical_role="brake",
+                     not_comparable_reason="brake: absorbs net work from the ankle "
+                     "(net -64.00 J/stride, positive 1.20 J/stride)", battery_runtime_h=None,
+                     electrical_j_per_stride=3.84, device_positive_work_j_per_stride=1.2),
+            _cmp_row("gait_assist_digital", None, None, fell=True, fall_time_s=4.023,
+                     completed_strides=3)]
+    expected = """\
+| device | net efficiency (net ankle work / electrical) | electrical J/stride | \
+delivered +work J/stride | tracking RMSE N·m | largest losses J/stride | oil ΔT K | battery h | \
+rank |
+|---|---|---|---|---|---|---|---|---|
+| valve, pressure control | 18 % | 71 | 16.4 | 5.6 | servo throttling 33, motor copper 10, \
+relief 5.0 | 2.0 | 1.1 | 1 |
+| valve, no accumulator | 2.5 % | 601 | 16.4 | 3.7 | motor copper 3.6, pump mech. 2.7, \
+line 2.3 | 0.3 | 0.14 | 2 |
+| `hafo_proto` | – [1] | 4 | 1.2 | 3.7 | motor copper 3.6, pump mech. 2.7, line 2.3 | 0.3 | \
+– | – |
+| digital (PWM unloading + release) | falls in stride 4 (t = 4.02 s) |  |  |  |  |  |  |  |
+
+[1] `hafo_proto` (brake): brake: absorbs net work from the ankle (net -64.00 J/stride, \
+positive 1.20 J/stride)."""
+    assert rt.format_comparison({"rows": rows}) == expected
+    assert rt.format_comparison({"rows": []}).count("\n") == 1           # header only

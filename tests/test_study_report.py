@@ -1,4 +1,5 @@
-"""The study report (``afo_mj.studies.study_report``) on hand-made sweep tables (no simulation):
+"""The study report (``afo_mj.studies.study_analysis``, written by
+``afo_mj.outputs.study_report``) on hand-made sweep tables (no simulation):
 Pareto front, ranking, default metric, Sobol' indices of the Ishigami function (analytic
 values), Morris screening of a linear function, figures, failed runs, unknown metrics."""
 
@@ -11,10 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from afo_mj.studies.study_report import (default_metric, load_results, pareto_front,
-                                          pareto_metrics, ranked_table, sensitivity,
-                                          write_study_report)
 from afo_mj.outputs.study_figures import safe_name, unit_of
+from afo_mj.outputs.study_report import write_study_report
+from afo_mj.studies.study_analysis import (default_metric, load_results, pareto_front,
+                                           pareto_metrics, ranked_table, sensitivity)
 
 CHANGE = "comparison_vs_no_device.assist.human_ankle_positive_work_change_j_per_stride"
 EPS = "device_conditions.assist.energy_per_stride.electrical_in_j"

@@ -21,6 +21,7 @@ import pytest
 
 from afo_mj import cli
 from afo_mj.studies.study import StudyError, load_study, parse_study
+from afo_mj.app.sweep_point import run_point
 from afo_mj.studies.sweep import PARAM_PREFIX, Sweep, flatten_summary, read_rows
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,7 +78,7 @@ def _same(a, b):
 def grid_sweep(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("grid")
     study = _study(tmp, GRID)
-    rows = Sweep(study, tmp / "out", workers=2, progress=False).run()
+    rows = Sweep(study, tmp / "out", workers=2, progress=False, runner=run_point).run()
     return study, rows, tmp
 
 
@@ -104,7 +105,7 @@ def test_dask_local_cluster_gives_the_same_table(grid_sweep, tmp_path):
     study, rows, _ = grid_sweep
     pts = study.points()[:4]
     drows = Sweep(study, tmp_path / "dask", workers=2, scheduler="local",
-                  progress=False).run(pts)
+                  progress=False, runner=run_point).run(pts)
     assert [r["run_id"] for r in drows] == [r["run_id"] for r in rows[:4]]
     for a, b in zip(drows, rows[:4]):
         _same(_metrics(a), _metrics(b))
@@ -116,7 +117,7 @@ def test_a_failing_run_is_recorded_and_the_rest_complete(tmp_path):
 key = "walker.body_mass_kg"
 levels = [70.0, -5.0, 80.0]
 ''')
-    rows = Sweep(study, tmp_path / "out", workers=1, progress=False).run()
+    rows = Sweep(study, tmp_path / "out", workers=1, progress=False, runner=run_point).run()
     assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
     bad = rows[1]
     assert "body_mass_kg" in bad["error"] and bad["exit_code"] == 2
@@ -296,7 +297,7 @@ def test_misspelt_key_is_refused_before_any_run(tmp_path, body, fixed, key, sugg
         assert f"did you mean {suggestion!r}" in msg
     assert not out.exists()
     with pytest.raises(StudyError, match=key.replace(".", r"\.")):   # the API checks too
-        Sweep(load_study(path), out, workers=1, progress=False).run()
+        Sweep(load_study(path), out, workers=1, progress=False, runner=run_point).run()
     assert not out.exists()
 
 

@@ -19,8 +19,10 @@ import pytest
 from afo_mj.design import design_models as dm
 from afo_mj.design.design_requirements import (DesignError, duty_cycle, parse_requirements,
                                                  toml_dumps)
+from afo_mj.app.design import design as run_design
+from afo_mj.app.errors import InvalidInput
 from afo_mj.design.system_design import (design_params, guideline_studies, hose_bore_study,
-                                           mass_check, predict_bench, run_design, size_system)
+                                           mass_check, predict_bench, size_system)
 
 ROOT = Path(__file__).resolve().parents[1]
 HAFO_REQ = ROOT / "scenarios" / "design" / "hafo_requirements.toml"
@@ -70,8 +72,9 @@ def test_run_design_rejects_bad_file_and_writes_nothing(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(BASE.replace("runtime_h = 2.0", "runtime_h = 0.0"), encoding="utf-8")
     out = tmp_path / "out"
-    with pytest.raises(DesignError, match="requirement.runtime_h = 0.0"):
+    with pytest.raises(DesignError, match="requirement.runtime_h = 0.0") as info:
         run_design(bad, out)
+    assert isinstance(info.value, InvalidInput) and info.value.exit_code == 2
     assert not out.exists()
     with pytest.raises(DesignError, match="cannot read"):
         run_design(tmp_path / "missing.toml", out)

@@ -1,5 +1,6 @@
-"""Offscreen video of a walk (afo_mj.outputs.video): frames not blank, MP4 decodes to the
-expected frames and size with the torque overlay, argument errors named and no file left."""
+"""Offscreen video of a walk (afo_mj.outputs.video; loading and simulating: afo_mj.app.render):
+frames not blank, MP4 decodes to the expected frames and size with the torque overlay, argument
+errors named and no file left."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from afo_mj.app.errors import InvalidInput  # noqa: E402
+from afo_mj.app.render import render  # noqa: E402
 from afo_mj.outputs import video  # noqa: E402
 from afo_mj.outputs.video import RenderError, render_frames, render_record  # noqa: E402
 
@@ -88,9 +91,9 @@ def test_mp4_decodes_with_torque_overlay(gl, tmp_path, assist_record, healthy_re
     import av
     out = tmp_path / "walk.mp4"
     calls = []
-    facts = video.render_scenario(ASSIST, out, overrides=SHORT, condition="assist", fps=10,
-                                  width=160, height=120, max_seconds=1.0,
-                                  progress=lambda k, n: calls.append((k, n)))
+    facts = render(ASSIST, out, overrides=SHORT, condition="assist", fps=10,
+                   width=160, height=120, max_seconds=1.0,
+                   progress=lambda k, n: calls.append((k, n)))
     assert facts["frames"] == 11 and facts["fps"] == 10 and facts["condition"] == "assist"
     assert (facts["width"], facts["height"]) == (160, 120)
     assert facts["duration_s"] == pytest.approx(1.1)
@@ -124,7 +127,8 @@ def test_mp4_decodes_with_torque_overlay(gl, tmp_path, assist_record, healthy_re
 def test_errors_named_and_nothing_written(tmp_path, kwargs, key):
     out = tmp_path / "x.mp4"
     with pytest.raises(RenderError) as err:
-        video.render_scenario(mp4_path=out, overrides=SHORT, **kwargs)
+        render(mp4_path=out, overrides=SHORT, **kwargs)
+    assert isinstance(err.value, InvalidInput) and err.value.exit_code == 2
     msg = str(err.value)
     assert key in msg and "allowed" in msg
     if key == "condition" and kwargs["scenario_path"] == ASSIST:

@@ -8,7 +8,8 @@ Each measured table (or measured sentence turned table) in README.md sits betwee
 
 and is rewritten from a fresh in-process run of its scenarios, through the functions the
 ``afo-mj`` CLI itself calls (``load_scenario`` → ``simulate_walk`` → ``analyse_gait``,
-``run_device_scenario``, ``run_bench_scenario``); nothing parses CLI output. Under each table a
+``run_device_scenario``, ``run_bench_scenario``, and ``load_compare_items`` →
+``run_comparison`` as ``afo-mj compare`` does); nothing parses CLI output. Under each table a
 line states the command that produced it and the date.
 
     python tools/readme_tables.py                 # run everything, rewrite every block
@@ -381,6 +382,75 @@ def format_hafo_gait(results: Mapping[str, Mapping]) -> str:
     return out
 
 
+# comparison row labels (scenario name, or "name:variant") → the words the README uses
+COMPARISON_LABELS = {
+    "gait_assist_hafo": "HAFO (`hafo_gait`, pump-controlled)",
+    "gait_assist_valve:pressure_control": "valve, pressure control",
+    "gait_assist_valve:variable_displacement": "valve, variable displacement",
+    "gait_assist_valve:unloading": "valve, accumulator + unloading (`valve`)",
+    "gait_assist_valve:accumulator": "valve, accumulator, no unloading",
+    "gait_assist_valve:no_accumulator": "valve, no accumulator",
+    "gait_assist_digital": "digital (PWM unloading + release)"}
+# ledger loss names → short words; any other name is shown with spaces for underscores
+COMPARISON_LOSS_WORDS = {"motor_copper": "motor copper", "pump_mechanical": "pump mech.",
+                         "pump_volumetric": "pump vol.", "servo_valve_throttling":
+                         "servo throttling", "battery_internal": "battery"}
+
+
+def sig(x: Any, scale: float = 1.0) -> str:
+    """About two significant figures: "171", "16", "8.8", "0.52" (or "–")."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return MISSING
+    v = abs(float(x) * scale)
+    return num(x, ".0f" if v >= 9.95 else ".1f" if v >= 0.995 else ".2f", scale)
+
+
+def _loss_name(column: str) -> str:
+    name = re.sub(r"^loss_|_j_per_stride$", "", column)
+    return COMPARISON_LOSS_WORDS.get(name, name.replace("_", " "))
+
+
+def format_comparison(results: Mapping) -> str:
+    """``afo-mj compare`` of the three gait-assist scenarios: ``results["rows"]`` = the
+    comparison's rows in their ranked order (columns of
+    :mod:`afo_mj.experiments.device_comparison`, ``loss_names`` = a row's loss columns),
+    one table row each. A row without an efficiency (not an actuator) shows "–" with a
+    numbered note under the table giving its ``not_comparable_reason``."""
+    header = ["device", "net efficiency (net ankle work / electrical)", "electrical J/stride",
+              "delivered +work J/stride", "tracking RMSE N·m", "largest losses J/stride",
+              "oil ΔT K", "battery h", "rank"]
+    rows, notes = [], []
+    for r in results.get("rows") or []:
+        label = r.get("label") or ""
+        name = COMPARISON_LABELS.get(label, f"`{label}`")
+        if r.get("fell"):
+            rows.append([name, fall_text(r)] + [""] * 7)
+            continue
+        eff = r.get("efficiency_total")
+        if eff is None:
+            notes.append(f"[{len(notes) + 1}] {name}"
+                         + (f" ({r['mechanical_role']})" if r.get("mechanical_role") else "")
+                         + f": {r.get('not_comparable_reason') or 'no efficiency'}.")
+            eff_text = f"{MISSING} [{len(notes)}]"
+        else:
+            eff_text = f"{sig(eff, 100.0)} %"
+        cols = r.get("loss_names") or [k for k in r if k.startswith("loss_")]
+        losses = sorted(((r.get(c), i, c) for i, c in enumerate(cols)
+                         if r.get(c) is not None), key=lambda t: (-t[0], t[1]))[:3]
+        rank = r.get("efficiency_rank")
+        rows.append([name, eff_text, num(r.get("electrical_j_per_stride"), ".0f"),
+                     num(r.get("device_positive_work_j_per_stride"), ".1f"),
+                     num(r.get("torque_tracking_rmse_nm"), ".1f"),
+                     ", ".join(f"{_loss_name(c)} {sig(v)}" for v, _, c in losses) or MISSING,
+                     num(r.get("fluid_temperature_rise_k"), ".1f"),
+                     sig(r.get("battery_runtime_h")),
+                     MISSING if rank is None else str(int(rank))])
+    out = table(header, rows)
+    if notes:
+        out += "\n\n" + "<br>\n".join(notes)
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # runs (through the functions the CLI calls)
 # --------------------------------------------------------------------------------------------
@@ -519,6 +589,36 @@ def device_walk_result(scenario_path: str) -> dict:
     return _memo("device:" + scenario_path, run)
 
 
+COMPARISON_SCENARIOS = ("scenarios/gait_assist_hafo.toml", "scenarios/gait_assist_valve.toml",
+                        "scenarios/gait_assist_digital.toml")
+
+
+def comparison_result(scenario_paths: tuple[str, ...]) -> dict:
+    """A comparison as ``afo-mj compare`` runs it (``load_compare_items`` →
+    ``run_comparison``, as :func:`afo_mj.app.compare.compare` calls them, without writing a
+    directory): ``{"rows": [...]}``, the rows in their ranked order with every column of the
+    comparison (``None`` for NaN), ``scenario_file`` as given."""
+    def run():
+        from afo_mj.experiments.device_comparison import load_compare_items, run_comparison
+        items = load_compare_items([str(ROOT / p) for p in scenario_paths])
+        comp = run_comparison(items)
+        given = {str(ROOT / p): p for p in scenario_paths}
+        rows = []
+        for r in comp.rows:
+            row = {}
+            for k, v in r.items():
+                if k.startswith("_"):
+                    continue
+                if isinstance(v, float) and not math.isfinite(v):
+                    v = None
+                row[k] = v
+            row["scenario_file"] = given.get(row.get("scenario_file"), row.get("scenario_file"))
+            row["loss_names"] = [c for c in r.get("_loss_names") or []]
+            rows.append(row)
+        return {"rows": rows, "columns": list(comp.columns)}
+    return _memo("compare:" + " ".join(scenario_paths), run)
+
+
 def collect_scenarios() -> dict:
     return {name: walk_result(f"scenarios/{name}.toml") for name in SCENARIO_ROWS}
 
@@ -555,6 +655,10 @@ def collect_stiffness_bench() -> dict:
 
 def collect_foot_drop() -> dict:
     return device_walk_result("scenarios/gait_stiffness_emulation.toml")
+
+
+def collect_comparison() -> dict:
+    return comparison_result(COMPARISON_SCENARIOS)
 
 
 def collect_hafo_gait() -> dict:
@@ -594,6 +698,10 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
     Block("hafo_gait", collect_hafo_gait, format_hafo_gait,
           "scenarios/gait_assist_hafo.toml, gait_assist_hafo_prototype.toml, "
           "gait_weak_plantarflexors_hafo.toml, right ankle, strides 4–10"),
+    Block("comparison", collect_comparison, format_comparison,
+          "scenarios/gait_assist_{hafo,valve,digital}.toml through run_comparison as afo-mj "
+          "compare does (assist condition, every variant, one no-device reference), right "
+          "ankle, strides 4–10"),
     Block("stiffness_bench", collect_stiffness_bench, format_stiffness_bench,
           "scenarios/stiffness_bench.toml"),
     Block("phafo_power", collect_stiffness_bench, format_phafo_power,

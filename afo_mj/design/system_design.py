@@ -1,9 +1,11 @@
 """Minimum-weight hydraulic ankle actuation designed from requirements (the seed's ch. 3 tool).
 
-:func:`run_design` (``afo-mj design REQUIREMENTS.toml --out DIR``) reads the requirements
-(:mod:`afo_mj.design.design_requirements`), searches a grid of designs for the lightest one
-that meets them, explains which constraint binds when none does, writes the best design as
-scenarios that ``afo-mj run`` accepts, and runs the design-guideline studies.
+:func:`compute_design` searches a grid of designs for the lightest one that meets the
+requirements (:mod:`afo_mj.design.design_requirements`, :func:`read_requirements`), explains
+which constraint binds when none does, derives the best design as scenarios that ``afo-mj run``
+accepts (:mod:`afo_mj.design.design_scenarios`) and runs the design-guideline studies; it
+writes nothing. ``afo-mj design REQUIREMENTS.toml --out DIR`` is :func:`afo_mj.app.design.design`,
+which writes the results (:mod:`afo_mj.outputs.design_report`).
 
 The search (:func:`size_system`), pump-controlled architecture
 ---------------------------------------------------------------
@@ -68,7 +70,8 @@ from afo_mj.hydraulics.fluid import FLUID_PRESETS, Fluid
 __all__ = ["DesignError", "DesignResult", "load_requirements", "parse_requirements",
            "size_system", "evaluate_designs", "design_overrides", "design_params",
            "predict_bench", "mass_check", "guideline_studies", "hose_bore_study",
-           "run_design", "CONSTRAINTS", "BORE_WINDOW", "quasi_static_device_torque_nm",
+           "read_requirements", "compute_design", "CONSTRAINTS", "BORE_WINDOW",
+           "quasi_static_device_torque_nm",
            "walk_work_check", "WALK_CHECK_SAMPLES"]
 
 #: Bores kept per (pressure, arm): those whose ``A_e r`` is within this fraction of the smallest
@@ -542,7 +545,8 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
 # ----------------------------------------------------------------------------------------------
 @dataclasses.dataclass
 class DesignResult:
-    """What :func:`size_system` found (see :func:`run_design` for its JSON form)."""
+    """What :func:`size_system` found (its JSON form:
+    :func:`afo_mj.outputs.design_report.build_summary`)."""
 
     requirements: Requirements
     assumptions: DesignAssumptions
@@ -1601,36 +1605,17 @@ def guideline_studies(req: Requirements, assumptions: DesignAssumptions | None =
 
 
 # ----------------------------------------------------------------------------------------------
-# the command
+# the whole design (the files: afo_mj.app.design)
 # ----------------------------------------------------------------------------------------------
-def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True,
-               verify: bool = False, top: int = 10) -> dict:
-    """``afo-mj design REQUIREMENTS.toml --out DIR``: size, explain or write.
+def read_requirements(requirements_path, overrides=()) -> tuple[Requirements, str]:
+    """Read and validate a requirements file; returns ``(requirements, text as read)``.
 
-    Reads and validates the requirements (``overrides``: ``key=value`` strings as for
-    ``afo-mj run --set``, e.g. ``requirement.runtime_h=3``), searches the designs
-    (:func:`size_system`), and writes into ``out_dir`` atomically
-    (:func:`afo_mj.outputs.design_report.write_design_report`): ``design.json``,
-    ``design.md``, ``designs.csv`` (the ranked designs), the best design as
-    ``design_bench.toml`` (torque–velocity bench of ``afo-mj run``) and ``design_walk.toml``
-    (walking with it), the study tables ``study_*.csv`` and figures ``study_*.png``,
-    ``hose_bore_tradeoff.csv/png``. ``verify=True`` also runs the torque–velocity bench on the
-    written parameters and reports simulated against predicted figures.
-
-    The written walk is checked (:func:`walk_work_check`, quasi-static, no simulation): a
-    device that does net negative work on the ankle over that walk's gait brakes the walker,
-    which is reported as a warning (``design.json`` ``warnings`` and ``walk_check``,
-    ``design.md``, the description of ``design_walk.toml``, and stderr of ``afo-mj design``).
-
-    Returns ``{"feasible": bool, "summary": dict (what design.json holds), "text": str (what
-    to print), "out_dir": str, "warnings": list[str]}``. Raises :class:`DesignError` for
-    invalid requirements (nothing written). An infeasible requirement is not an error: the
-    explanation is written and returned (``feasible`` False).
-    """
+    ``overrides``: ``key=value`` strings as for ``afo-mj run --set`` (e.g.
+    ``requirement.runtime_h=3``), applied before validation (``text`` then holds the document
+    with them applied). Raises :class:`DesignError` for an unreadable file, a bad override or
+    invalid requirements."""
     from pathlib import Path
 
-    from afo_mj.outputs.design_report import build_summary, summary_text, write_design_report
-    from afo_mj.scenarios.walk_scenario import apply_overrides
     path = Path(requirements_path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -1641,13 +1626,34 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
         import tomllib
 
         from afo_mj.design.design_requirements import toml_dumps
-        from afo_mj.scenarios.walk_scenario import ScenarioError
+        from afo_mj.scenarios.walk_scenario import ScenarioError, apply_overrides
         try:
             doc = apply_overrides(tomllib.loads(text), overrides, str(path))
         except (ScenarioError, tomllib.TOMLDecodeError) as exc:
             raise DesignError(str(exc)) from None
         text = toml_dumps(doc)
     req = parse_requirements(text, origin=str(path), default_name=path.stem, source_path=path)
+    return req, text
+
+
+def compute_design(req: Requirements, *, studies: bool = True, verify: bool = False) -> dict:
+    """Everything ``afo-mj design`` computes, nothing written (the files are written by
+    :func:`afo_mj.app.design.design` through :mod:`afo_mj.outputs.design_report`).
+
+    Searches the designs (:func:`size_system`); when feasible, runs the design-guideline
+    studies (``studies``, :func:`guideline_studies`) and the hose-bore trade-off
+    (:func:`hose_bore_study`); for a pump-controlled design, derives the written device
+    (:func:`design_params`, :func:`predict_bench`, :func:`mass_check`), parses the scenarios
+    about to be written as ``afo-mj run`` will and checks the walk (:func:`walk_work_check`,
+    quasi-static, no simulation: a device that does net negative work on the ankle brakes the
+    walker, reported as ``written["walk_check"]["warning"]``). ``verify=True`` also runs the
+    torque–velocity bench on the written parameters.
+
+    Returns ``{"result": DesignResult, "written": dict | None (row, overrides, params,
+    predicted_bench, mass_check, walk_check), "study": dict | None, "hose": dict | None,
+    "bench": dict | None (simulated stall torque, no-load speed, energy error), "wall_s":
+    float}``. An infeasible requirement is not an error (``result.feasible`` False, with its
+    explanation)."""
     t0 = time.perf_counter()
     result = size_system(req)
     study = guideline_studies(req) if studies and result.feasible else None
@@ -1667,20 +1673,15 @@ def run_design(requirements_path, out_dir, *, overrides=(), studies: bool = True
             bench = {"stall_torque_nm": s["stall_torque_nm"],
                      "no_load_speed_deg_s": s["no_load_speed_deg_s"],
                      "energy_error_max": s["energy_error_max"]}
-    wall = time.perf_counter() - t0
-    summary = build_summary(result, written, study, hose, bench, wall)
-    write_design_report(out_dir, result, summary, written, study, hose, top=top,
-                        requirements_text=text)
-    return {"feasible": result.feasible, "summary": summary,
-            "text": summary_text(summary, out_dir), "out_dir": str(out_dir),
-            "warnings": list(summary.get("warnings") or [])}
+    return {"result": result, "written": written, "study": study, "hose": hose,
+            "bench": bench, "wall_s": time.perf_counter() - t0}
 
 
 def _validate_written(req: Requirements, written: dict) -> None:
     """Parse the scenarios about to be written as ``afo-mj run`` will (a failure here is a bug
     of the tool, reported as such, not a bad requirement)."""
     from afo_mj.design.design_requirements import toml_dumps
-    from afo_mj.outputs.design_report import bench_scenario, walk_scenario
+    from afo_mj.design.design_scenarios import bench_scenario, walk_scenario
     from afo_mj.scenarios.bench_scenario import parse_bench_scenario
     from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario

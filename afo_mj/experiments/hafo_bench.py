@@ -72,8 +72,6 @@ from afo_mj.scenarios.bench_protocols import BENCH_TESTS, BenchError
 
 import math
 import time as _time
-import warnings
-from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -84,7 +82,7 @@ from afo_mj.devices.hafo import HAFO, HafoDevice, PumpAnkleParams
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
 
 __all__ = ["BENCH_TESTS", "PUBLISHED", "BenchError", "torque_velocity", "isometric_steps",
-           "frequency_response", "position_step", "run_bench", "plot_bench"]
+           "frequency_response", "position_step", "run_bench"]
 
 #: Test names accepted by :func:`run_bench`.
 
@@ -103,7 +101,8 @@ DEFAULT_VELOCITY_RANGE_HZ = (1.0, 400.0)
 VELOCITY_SWEEP_TIMESTEP_S = 1e-4
 
 _RAMP_S = 0.05          # full-voltage ramp
-_STROKE_LIMIT_RAD = 0.45
+#: the bench's ankle excursion limit (rad), drawn on the position-step figure
+STROKE_LIMIT_RAD = 0.45
 
 
 
@@ -239,9 +238,9 @@ def torque_velocity(params: PumpAnkleParams = HAFO,
 
     # no load: free foot started dorsiflexed, runs through neutral at full speed
     free = _Run(params, StandLoad(kind="free"), "voltage", fn, 0.4,
-                initial_angle_rad=_STROKE_LIMIT_RAD, label="no_load", **kw)
+                initial_angle_rad=STROKE_LIMIT_RAD, label="no_load", **kw)
     t, q, w = free.rec.time_s, free.rec.angle_rad, free.rec.velocity_rad_s
-    sel = (t >= 0.15) & (q >= -_STROKE_LIMIT_RAD)
+    sel = (t >= 0.15) & (q >= -STROKE_LIMIT_RAD)
     if np.count_nonzero(sel) < 10:
         raise RuntimeError("no-load run: the foot left the stroke before reaching speed")
     no_load = -math.degrees(float(np.mean(w[sel])))
@@ -252,10 +251,10 @@ def torque_velocity(params: PumpAnkleParams = HAFO,
     tau_pts = []
     for v_deg in vels:
         v = math.radians(v_deg)
-        travel = 2 * _STROKE_LIMIT_RAD - 0.5 * abs(v) * t_acc
+        travel = 2 * STROKE_LIMIT_RAD - 0.5 * abs(v) * t_acc
         hold = hold_max if v == 0 else min(hold_max, travel / abs(v))
         hold = max(hold, settle + 0.05)
-        traj = _ramp_hold(_STROKE_LIMIT_RAD, v, t_pre, t_acc)
+        traj = _ramp_hold(STROKE_LIMIT_RAD, v, t_pre, t_acc)
         run = _Run(params, StandLoad(kind="imposed", trajectory=traj), "voltage", fn,
                    t_pre + t_acc + hold, **kw)
         tt = run.rec.time_s
@@ -604,115 +603,3 @@ def run_bench(params: PumpAnkleParams = HAFO, tests: Iterable[str] = BENCH_TESTS
     summary["energy_error_max"] = max(errors.values())
     summary["wall_time_s"] = _time.perf_counter() - t0
     return summary, series
-
-
-# -- figures -------------------------------------------------------------------------------------
-def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[Path]:
-    """Write the bench figures present in ``series`` as PNGs into ``out_dir``; returns paths.
-
-    ``hafo_torque_velocity.png`` (curve with the published 65 N·m stall / 105 deg/s no-load
-    points), ``hafo_isometric_steps.png``, ``hafo_bode.png`` (magnitude re low frequency and
-    phase, torque and velocity), ``hafo_position_step.png``.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if not isinstance(series, Mapping):
-        raise BenchError(f"series = {type(series).__name__}; allowed: the series dict of "
-                         "run_bench")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-
-    def save(fig, name):
-        p = out / name
-        fig.tight_layout()
-        fig.savefig(p, dpi=120)
-        plt.close(fig)
-        paths.append(p)
-
-    if "torque_velocity" in series:
-        tv = series["torque_velocity"]
-        fig, ax = plt.subplots(figsize=(6, 4.2))
-        ax.plot(tv["plantarflexion_speed_deg_s"], tv["assist_torque_nm"], "o-", label="model")
-        ax.plot([0.0], [PUBLISHED["stall_torque_nm"]], "r*", ms=13,
-                label="published 65 N·m stall")
-        ax.plot([PUBLISHED["no_load_speed_deg_s"]], [0.0], "rs", ms=9,
-                label="published 105 deg/s no load")
-        if "no_load" in series:
-            nl = series["no_load"]
-            t = nl["time_s"]
-            sel = (t >= 0.15) & (nl["angle_deg"] >= -math.degrees(_STROKE_LIMIT_RAD))
-            if np.any(sel):
-                ax.plot([-float(np.mean(nl["velocity_deg_s"][sel]))], [0.0], "kx", ms=10,
-                        mew=2, label="model no load (free foot)")
-        ax.axhline(0, color="0.6", lw=0.8)
-        ax.set_xlabel("plantarflexion speed [deg/s]")
-        ax.set_ylabel("plantarflexion torque [N·m]")
-        ax.set_title("HAFO torque–velocity at full motor voltage")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        save(fig, "hafo_torque_velocity.png")
-
-    steps = sorted((k for k in series if k.startswith("isometric_step_")),
-                   key=lambda k: float(k.removeprefix("isometric_step_").removesuffix("nm")))
-    if steps:
-        fig, ax = plt.subplots(figsize=(6, 4.2))
-        for k in steps:
-            s = series[k]
-            lab = k.removeprefix("isometric_step_").replace("nm", " N·m")
-            line, = ax.plot(s["time_s"], -s["torque_nm"], label=lab)
-            ax.plot(s["time_s"], -s["command_nm"], "--", color=line.get_color(), lw=0.8)
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("plantarflexion torque [N·m]")
-        ax.set_title("Isometric torque steps (dashed: command)")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        save(fig, "hafo_isometric_steps.png")
-
-    fr = [k for k in ("frequency_response_torque", "frequency_response_velocity") if k in series]
-    if fr:
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
-        for k in fr:
-            s = series[k]
-            lab = {"torque": "isometric torque (foot locked)",
-                   "velocity": "ankle velocity (free foot)"}.get(
-                       k.removeprefix("frequency_response_"), k)
-            lab += f", {len(s['freq_hz'])} frequencies"
-            line, = a1.semilogx(s["freq_hz"], s["gain_db"], "o-", ms=3, label=lab)
-            a2.semilogx(s["freq_hz"], s["phase_deg"], "o-", ms=3, label=lab)
-            f_pk, db_pk, inside = resonance_peak(s["freq_hz"], s["gain"])
-            if inside:
-                a1.plot([f_pk], [db_pk], "v", color=line.get_color(), ms=7,
-                        label=f"peak {f_pk:.0f} Hz, {db_pk:+.1f} dB")
-        a1.axhline(-3.0, color="0.5", ls=":", lw=1, label="−3 dB (bandwidth)")
-        a1.set_ylabel("gain re low frequency [dB]")
-        a1.set_title("Open-loop response to motor voltage")
-        a1.legend(fontsize=8)
-        a2.set_ylabel("phase [deg]")
-        a2.set_xlabel("frequency [Hz]")
-        for a in (a1, a2):
-            a.grid(alpha=0.3, which="both")
-        save(fig, "hafo_bode.png")
-
-    if "position_step" in series:
-        s = series["position_step"]
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 5.5), sharex=True)
-        a1.plot(s["time_s"], s["angle_deg"], label="ankle angle")
-        a1.plot(s["time_s"], s["reference_deg"], "--", label="reference")
-        a1.set_ylabel("ankle angle [deg]\n(+ dorsiflexion)")
-        a1.legend(fontsize=8)
-        a2.plot(s["time_s"], s["torque_nm"], label="delivered")
-        a2.plot(s["time_s"], s["command_nm"], "--", lw=0.8, label="commanded")
-        a2.set_ylabel("device torque [N·m]\n(+ dorsiflexing)")
-        a2.set_xlabel("time [s]")
-        a2.legend(fontsize=8)
-        a1.set_title("Closed-loop position step (PD + gravity compensation, torque mode)")
-        for a in (a1, a2):
-            a.grid(alpha=0.3)
-        save(fig, "hafo_position_step.png")
-    if not paths:
-        warnings.warn("plot_bench: series holds none of the bench tests; nothing drawn",
-                      RuntimeWarning, stacklevel=2)
-    return paths

@@ -50,8 +50,6 @@ PHAFO's 62 N·m (4.6 × 12 = 55.2 N·m).
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -61,8 +59,7 @@ from afo_mj.scenarios.bench_protocols import (StiffnessBenchError, StiffnessSwee
                                               stiffness_label, sweep_config)
 
 __all__ = ["StiffnessBenchError", "StiffnessSweepConfig", "ACCEPTANCE_TOLERANCE_REL",
-           "sweep_config", "run_stiffness_sweep", "run_stiffness_bench",
-           "plot_stiffness_bench", "format_stiffness_summary", "stiffness_label"]
+           "sweep_config", "run_stiffness_sweep", "run_stiffness_bench", "stiffness_label"]
 
 #: The issue's acceptance figure: emulated stiffness within 10 % of the command.
 ACCEPTANCE_TOLERANCE_REL = 0.10
@@ -165,155 +162,3 @@ def run_stiffness_bench(params, cfg: StiffnessSweepConfig,
         "energy_error_max": max(v["energy_error"] for v in per.values()),
     }
     return summary, {"stiffness_sweeps": series}
-
-
-def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
-    """Write the stiffness-rig figures into ``out_dir``; returns the paths written:
-
-    * ``stiffness_loops.png``: torque vs angle loops per commanded stiffness (solid) with the
-      commanded spring lines τ = −K (θ − θ0) (dashed);
-    * ``stiffness_timeseries.png`` (when the series carries the device log, as
-      :func:`run_stiffness_bench`'s does): one column per commanded stiffness against time:
-      commanded vs delivered torque (N·m, + dorsiflexing) with the imposed ankle angle (deg,
-      right axis); pressures (bar, gauge: supply rail, pump outlet, cylinder chambers A
-      and B); servo-valve spool position and command (normalised, ± 1 = full stroke). Shaded:
-      the first cycle, dropped from the stiffness fit as start-up.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    sweeps = series.get("stiffness_sweeps") if isinstance(series, Mapping) else None
-    if not sweeps:
-        raise StiffnessBenchError("series has no 'stiffness_sweeps'; allowed: the series of "
-                                  "run_stiffness_bench")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    for lab, s in sweeps.items():
-        th = np.degrees(s["angle_rad"])
-        line, = ax.plot(th, s["torque_nm"], lw=1.0,
-                        label=f"{lab.removeprefix('k')} N·m/deg emulated")
-        k_deg = s["stiffness_nm_per_rad"] * _DEG
-        x = np.array([th.min(), th.max()])
-        ax.plot(x, -k_deg * (x - math.degrees(s["rest_angle_rad"])), "--", color="k",
-                lw=0.8, zorder=3, label=f"{k_deg:g} N·m/deg commanded")
-    ax.axhline(0, color="0.6", lw=0.6)
-    ax.axvline(0, color="0.6", lw=0.6)
-    ax.set_xlabel("ankle angle [deg] (+ dorsiflexion)")
-    ax.set_ylabel("orthosis torque on the ankle [N·m] (+ dorsiflexing)")
-    ax.set_title("Stiffness emulation on the stiffness rig: torque vs angle")
-    ax.legend(fontsize=7, ncol=2)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    p = out / "stiffness_loops.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    paths = [p]
-    if all("log_time_s" in s for s in sweeps.values()):
-        p = out / "stiffness_timeseries.png"
-        _plot_stiffness_timeseries(sweeps, p)
-        paths.append(p)
-    return paths
-
-
-def _plot_stiffness_timeseries(sweeps: Mapping, path: Path) -> None:
-    """``stiffness_timeseries.png`` (see :func:`plot_stiffness_bench`)."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
-
-    n = len(sweeps)
-    fig = Figure(figsize=(max(7.0, 5.2 * n), 9.0), layout="constrained")
-    axes = np.asarray(fig.subplots(3, n, sharex="col", sharey="row", squeeze=False))
-    for j, (lab, s) in enumerate(sweeps.items()):
-        t = np.asarray(s["log_time_s"])
-        k_deg = s["stiffness_nm_per_rad"] * _DEG
-        ax = axes[0, j]
-        ax.plot(t, s["commanded_torque_nm"], "--", color="k", lw=1.1, label="commanded")
-        ax.plot(t, s["log_delivered_torque_nm"], color="C3", lw=1.4, label="delivered")
-        ax.set_title(f"commanded spring {k_deg:g} N·m/deg")
-        axr = ax.twinx()
-        axr.plot(s["time_s"], np.degrees(s["angle_rad"]), color="C0", lw=0.9, alpha=0.6,
-                 label="ankle angle (imposed; right axis)")
-        axr.set_ylim(-1.6 * np.degrees(np.max(np.abs(s["angle_rad"]))),
-                     1.6 * np.degrees(np.max(np.abs(s["angle_rad"]))))
-        if j == n - 1:
-            axr.set_ylabel("ankle angle [deg] (+ dorsiflexion)", color="C0")
-        else:
-            axr.tick_params(labelright=False)
-        if j == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = axr.get_legend_handles_labels()
-            handles, labels = h1 + h2, ["torque commanded", "torque delivered"] + l2
-        ax = axes[1, j]
-        for name, lbl, col, ls in (("supply_pa", "supply rail", "C0", "--"),
-                                   ("pump_pa", "pump outlet", "C1", ":"),
-                                   ("chamber_a_pa", "chamber A", "C4", "-"),
-                                   ("chamber_b_pa", "chamber B", "C5", "-")):
-            x = np.asarray(s[name])
-            ax.plot(t if x.size == t.size else s["time_s"], x / 1e5, ls, color=col, lw=1.2,
-                    label=lbl)
-        if j == 0:
-            h, lb = ax.get_legend_handles_labels()
-            handles, labels = handles + h, labels + [f"{x} pressure" for x in lb]
-        ax = axes[2, j]
-        ax.plot(t, s["valve_command"], "--", color="0.3", lw=1.0, label="valve command")
-        ax.plot(t, s["valve_position"], color="C2", lw=1.2, label="valve spool position")
-        if j == 0:
-            h, lb = ax.get_legend_handles_labels()
-            handles, labels = handles + h, labels + lb
-        ax.set_xlabel("time [s]")
-        # the first cycle: start-up, dropped from the fit (zero crossings of the imposed
-        # sinusoid: the cycle is the time to the second upward crossing)
-        th = np.asarray(s["angle_rad"])
-        ts = np.asarray(s["time_s"])
-        up = np.nonzero((th[:-1] <= 0.0) & (th[1:] > 0.0))[0]
-        if up.size >= 2:
-            for a in axes[:, j]:
-                a.axvspan(ts[0], ts[up[1]], color="0.9", lw=0, zorder=0)
-        for a in axes[:, j]:
-            a.axhline(0.0, color="0.7", lw=0.6)
-            a.grid(True, color="0.92", lw=0.5)
-            a.set_axisbelow(True)
-            a.set_xlim(float(t[0]), float(t[-1]))
-    fig.legend(handles, labels, loc="outside lower center", ncol=5, fontsize="small",
-               frameon=False)
-    axes[0, 0].set_ylabel("orthosis torque [N·m]\n(+ dorsiflexing)")
-    axes[1, 0].set_ylabel("pressure [bar] (gauge)")
-    axes[2, 0].set_ylabel("servo valve\n[normalised, ± 1 = full stroke]")
-    fig.suptitle("Stiffness emulation on the stiffness rig against time: torque tracking, "
-                 "circuit pressures, servo valve\n(shaded: the first cycle, dropped from the "
-                 "fit as start-up)")
-    fig.savefig(path, dpi=110)
-
-
-def format_stiffness_summary(summary: Mapping) -> list[str]:
-    """Printed lines of a stiffness-bench summary (units stated; N·m/deg and deg for the
-    clinical reader)."""
-    sw = summary["sweep"]
-    lines = [f"  sweep ±{math.degrees(sw['amplitude_rad']):.3g} deg at {sw['frequency_hz']:g} Hz, "
-             f"{sw['cycles']} cycles (first dropped), stand foot {sw['body_mass_kg']:g} kg / "
-             f"{sw['height_m']:g} m, step {sw['timestep_s'] * 1e3:g} ms",
-             f"  {'commanded':>10s} {'emulated':>9s} {'error':>6s} {'r^2':>6s} "
-             f"{'loop area':>9s} {'hyst.':>6s} {'peak torque':>11s} {'(K A)':>7s} "
-             f"{'load/chamber/rail':>17s} {'electrical':>10s} {'mean':>5s} {'balance':>8s}",
-             f"  {'[N*m/deg]':>10s} {'[N*m/deg]':>9s} {'[%]':>6s} {'[-]':>6s} "
-             f"{'[J/cycle]':>9s} {'[-]':>6s} {'[N*m]':>11s} {'[N*m]':>7s} "
-             f"{'[MPa]':>17s} {'[J]':>10s} {'[W]':>5s} {'err [%]':>8s}"]
-    for v in summary["stiffness"].values():
-        pr = (f"{v['peak_load_pressure_pa'] / 1e6:.2f}/{v['peak_chamber_pressure_pa'] / 1e6:.2f}/"
-              f"{v['peak_supply_pressure_pa'] / 1e6:.2f}")
-        lines.append(
-            f"  {v['commanded_nm_per_deg']:10.3g} {v['emulated_nm_per_deg']:9.4g} "
-            f"{100 * v['error_rel']:+6.2f} {v['r_squared']:6.4f} "
-            f"{v['hysteresis_energy_j']:9.3f} {v['hysteresis_fraction']:6.3f} "
-            f"{v['peak_torque_nm']:11.2f} {v['commanded_peak_torque_nm']:7.2f} {pr:>17s} "
-            f"{v['electrical_in_j']:10.0f} {v['mean_electrical_power_w']:5.0f} "
-            f"{100 * v['energy_balance_error_rel']:8.1e}")
-    acc = summary["acceptance"]
-    lines.append(f"  acceptance (every emulated stiffness within "
-                 f"{100 * acc['tolerance_rel']:g} % of its command): "
-                 f"{'PASSED' if acc['passed'] else 'FAILED'}, worst "
-                 f"{100 * acc['worst_error_rel']:.2f} %")
-    return lines

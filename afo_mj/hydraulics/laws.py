@@ -20,32 +20,26 @@ from __future__ import annotations
 
 import math
 
-import time
 
 import numba
 import numpy as np
 
-from afo_mj import progress
 
 #: Registry of the laws by name (the circuit code generator and the tests enumerate it).
 LAWS: dict = {}
-#: when the laws' import began, and whether their first compilation was announced (a law
-#: taking this long is compiled, not loaded from numba's cache)
-_COMPILE = {"t0": time.perf_counter(), "announced": False}
-_COMPILE_SLOW_S = 0.3
 
 
 def law(fn):
-    """Compile ``fn`` (all arguments and the result float64) as a cached numba ufunc and
-    register it in :data:`LAWS`. The Python function stays reachable as ``.py_func``-like
-    attribute ``LAWS[name].python`` for documentation."""
-    n = fn.__code__.co_argcount
-    sig = "float64(" + ", ".join(["float64"] * n) + ")"
-    t0 = time.perf_counter()
-    uf = numba.vectorize([sig], cache=True)(fn)
-    if not _COMPILE["announced"] and time.perf_counter() - t0 > _COMPILE_SLOW_S:
-        _COMPILE["announced"] = True
-        progress.reporter().stage("compiling the hydraulic laws (first run only, ~10 s)…")
+    """Register ``fn`` (arguments and result float64) as a cached numba ufunc in
+    :data:`LAWS`.
+
+    The ufunc is dynamic: its float64 loop is compiled (or loaded from numba's on-disk cache)
+    the first time it is called, from Python or from compiled code, not when this module is
+    imported. Building all of them up front cost ~5 s at every import (numba rebuilds a
+    ufunc's wrapper in each process even when the kernel is cached; measured on 56 laws), which
+    every ``afo-mj`` call, test subprocess and sweep worker paid. Call them with floats: an
+    integer argument compiles an integer loop of its own."""
+    uf = numba.vectorize(cache=True)(fn)
     LAWS[fn.__name__] = uf
     return uf
 
@@ -988,8 +982,3 @@ __all__ = ["LAWS", "law", "table_interp", "table_interp_array", "law_names", "RE
 __all__ += list(LAWS)
 
 _ = np  # numpy is the laws' array interface (ufuncs broadcast over numpy arrays)
-
-if _COMPILE["announced"]:
-    progress.reporter().stage("compiled the hydraulic laws in "
-                              + progress.fmt_duration(time.perf_counter() - _COMPILE["t0"])
-                              + " (cached for later runs)")

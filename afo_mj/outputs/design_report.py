@@ -19,7 +19,8 @@ Files (``DIR``):
 * ``designs.csv`` — the ranked feasible designs, one row each;
 * ``design_bench.toml`` — the best design on the torque–velocity bench
   (``afo-mj run DIR/design_bench.toml --out X``); ``design_walk.toml`` — walking with it
-  (based on ``scenarios/gait_assist_hafo.toml``); pump-controlled designs only;
+  (based on ``scenarios/gait_assist_hafo.toml``); pump-controlled designs only; the documents
+  are built by :mod:`afo_mj.design.design_scenarios` (re-exported here);
 * ``study_pressure.csv/.png``, ``study_oil.csv/.png``, ``study_power.csv/.png`` — the
   design-guideline studies; ``hose_bore_tradeoff.csv/.png`` — the hose bore trade-off of the
   best design;
@@ -32,30 +33,19 @@ import csv
 import dataclasses
 import json
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from afo_mj.design.design_requirements import toml_dumps
+from afo_mj.design.design_scenarios import bench_scenario, walk_scenario
 from afo_mj.outputs.result_dir import write_atomically
 
 __all__ = ["build_summary", "summary_text", "write_design_report", "bench_scenario",
            "walk_scenario", "jsonable"]
 
 FORMAT = "afo_mj design v1"
-_WALK_TEMPLATE = Path(__file__).resolve().parents[2] / "scenarios" / "gait_assist_hafo.toml"
-#: used when the repository's walking scenario is not at hand (an installed package)
-_WALK_FALLBACK = {
-    "walker": {"body_mass_kg": 75.0, "height_m": 1.75},
-    "gait": {"reference": "winter", "condition": "normal", "strides": 10,
-             "analyse_strides": [4, 10]},
-    "device": {"preset": "hafo", "sides": ["right"],
-               "conditions": ["no_device", "transparent", "assist"]},
-    "assistance": {"profile": "zhang", "peak_torque_nm": 40.0, "peak_time_pct": 52.9,
-                   "rise_time_pct": 26.2, "fall_time_pct": 9.8},
-}
 
 
 def jsonable(x: Any) -> Any:
@@ -74,47 +64,6 @@ def jsonable(x: Any) -> Any:
         v = float(x)
         return v if math.isfinite(v) else None
     return x
-
-
-# -- scenarios --------------------------------------------------------------------------------
-def bench_scenario(req, overrides: dict) -> dict:
-    """The torque–velocity bench scenario of the design (``afo_mj.scenarios.bench_scenario``)."""
-    mass = req.body_mass_kg if 20.0 <= req.body_mass_kg <= 200.0 else 75.0
-    return {"name": f"{req.name}_bench",
-            "description": f"Designed by afo-mj design from {req.name}: the lightest "
-                           f"pump-controlled design on the ankle test stand, torque-velocity "
-                           f"test (stall torque, no-load speed).",
-            "device": {"preset": "hafo", "params": dict(overrides)},
-            "bench": {"tests": ["torque_velocity"], "body_mass_kg": mass, "height_m": 1.75}}
-
-
-def walk_scenario(req, overrides: dict, stall_torque_nm: float,
-                  warning: str | None = None) -> dict:
-    """Walking with the design: ``scenarios/gait_assist_hafo.toml`` with the design's device
-    parameters, the wearer's mass, and the Zhang assistance capped at 80 % of the design's
-    stall torque (the torque loop needs headroom above its command). ``warning`` (the
-    :func:`~afo_mj.design.system_design.walk_work_check` warning) is appended to the
-    description, so whoever runs the file reads it."""
-    try:
-        doc = tomllib.loads(_WALK_TEMPLATE.read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError):
-        doc = json.loads(json.dumps(_WALK_FALLBACK))
-    doc["name"] = f"{req.name}_walk"
-    doc["description"] = (f"Designed by afo-mj design from {req.name}: a "
-                          f"{req.body_mass_kg:g} kg walker wearing the lightest "
-                          f"pump-controlled design on the right ankle (no device, "
-                          f"transparent, Zhang assistance)."
-                          + (f" WARNING: {warning}" if warning else ""))
-    doc.setdefault("walker", {})["body_mass_kg"] = req.body_mass_kg
-    dev = doc.setdefault("device", {})
-    dev["preset"] = "hafo"
-    dev["params"] = dict(overrides)
-    dev.pop("variants", None)
-    ass = doc.setdefault("assistance", dict(_WALK_FALLBACK["assistance"]))
-    if "peak_torque_nm" in ass:
-        ass["peak_torque_nm"] = round(min(float(ass["peak_torque_nm"]),
-                                          0.8 * stall_torque_nm), 3)
-    return doc
 
 
 # -- summary ----------------------------------------------------------------------------------

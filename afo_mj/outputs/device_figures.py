@@ -68,8 +68,8 @@ DEVICE_FIGURES = ("ankle_angle_conditions.png", "gait_conditions.png", "device_t
 #: The PNGs each kind of run writes next to its ``summary.json`` (``afo-mj run``; ``compare``
 #: for ``afo-mj compare``). Walking runs write ``gait_curves.png``
 #: (:mod:`afo_mj.outputs.gait_report`); device walks add :data:`DEVICE_FIGURES`; the benches
-#: write :func:`afo_mj.experiments.hafo_bench.plot_bench`'s and
-#: :func:`afo_mj.experiments.stiffness_bench.plot_stiffness_bench`'s figures. A sample of each
+#: write :func:`afo_mj.outputs.bench_figures.plot_bench`'s and
+#: :func:`afo_mj.outputs.bench_figures.plot_stiffness_bench`'s figures. A sample of each
 #: is in ``docs/figures/`` (README there).
 FIGURES_BY_KIND = {
     "walk": ("gait_curves.png",),

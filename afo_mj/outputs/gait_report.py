@@ -203,7 +203,7 @@ def _plot(path: Path, cycles: Sequence[GaitCycle], reference, title: str,
 def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], reference,
                       record=None, scenario_text: str | None = None,
                       title: str | None = None, extra_tables: dict | None = None,
-                      extra_files=None) -> Path:
+                      extra_files=None, figures: bool = True) -> Path:
     """Write the run's result files into ``out_dir`` atomically (see the module docstring).
 
     ``cycles``: the analysed cycles (:func:`afo_mj.metrics.gait_metrics.extract_cycles` or
@@ -211,7 +211,8 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
     with; ``record``: the run's :class:`~afo_mj.gait.record.GaitRecord` (only its body size
     is used, for the figure title); ``extra_tables``: ``{file name: (CSV header, 2-D array)}``;
     ``extra_files``: a callable that writes more files (figures, run information) into the
-    directory it is given.
+    directory it is given; ``figures``: False leaves out ``gait_curves.png`` (sweeps and
+    tests that read only the numbers).
     Returns the output directory path.
     A run that fell before any analysable cycle (``summary["fell"]`` true, no cycles) writes
     its outcome: ``summary.json`` (and ``scenario.toml``) only.
@@ -235,7 +236,8 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
         if cycles:
             _write_cycles(tmp / "cycles.csv", cycles)
             _write_curves(tmp / "gait_curves.csv", cycles, reference)
-            _plot(tmp / "gait_curves.png", cycles, reference, title, record)
+            if figures:
+                _plot(tmp / "gait_curves.png", cycles, reference, title, record)
         if scenario_text is not None:
             (tmp / "scenario.toml").write_text(scenario_text, encoding="utf-8")
         for fname, (header, data) in (extra_tables or {}).items():
@@ -250,7 +252,7 @@ def write_run_outputs(out_dir, summary: dict, cycles: Sequence[GaitCycle], refer
     from afo_mj import progress
     rep = progress.reporter()
     t0 = rep.clock()
-    rep.stage(f"writing the results and figures to {out}…")
+    rep.stage(f"writing the results{' and figures' if figures else ''} to {out}…")
     try:
         written = write_atomically(out, writer)
     except ResultDirError as exc:

@@ -1,4 +1,4 @@
-"""Figures of a parameter study (``afo-mj study DIR``; :mod:`afo_mj.studies.study_report`).
+"""Figures of a parameter study (``afo-mj study DIR``; :mod:`afo_mj.outputs.study_report`).
 
 :func:`plot_study` writes into a directory (matplotlib, Agg backend, no pyplot state):
 
@@ -14,7 +14,7 @@
   of a cell named in it. Pairs without a grid (continuous parameters of random / LHS /
   Sobol' / Saltelli / Morris designs) are skipped;
 * ``pareto.png`` -- device studies only, when both Pareto metrics are in the table
-  (:func:`afo_mj.studies.study_report.pareto_metrics`): the change in human ankle positive
+  (:func:`afo_mj.studies.study_analysis.pareto_metrics`): the change in human ankle positive
   work vs no device (J/stride, negative = the device took work off the muscles) against the
   electrical energy drawn per stride (J/stride), every successful run in grey and the
   non-dominated runs (both minimised) in red, joined as a staircase;
@@ -24,7 +24,8 @@
 
 File names are sanitised (:func:`safe_name`: dots, colons and anything but letters, digits,
 ``-`` and ``_`` become ``_``). Axis labels carry units, read from the name's suffix
-(:func:`unit_of`: ``_nm`` → N·m, ``_j_per_stride`` → J/stride, ``_deg`` → deg, ...).
+(:func:`afo_mj.studies.metric_labels.unit_of`, re-exported here: ``_nm`` → N·m,
+``_j_per_stride`` → J/stride, ``_deg`` → deg, ...).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from afo_mj.studies.metric_labels import _strip_param, label_of, unit_of
+
 __all__ = ["plot_study", "plot_metric_vs_parameters", "plot_heatmaps", "plot_pareto",
            "plot_sensitivity", "safe_name", "unit_of", "label_of", "plot_label", "grid_parameters",
            "MAX_LEVELS", "heatmap_name"]
@@ -45,21 +48,6 @@ MAX_LEVELS = 12
 #: Cells of a heatmap are annotated with their value up to this many levels per axis.
 _ANNOTATE_MAX = 12
 _DPI = 110
-_STAT_SUFFIXES = ("mean", "sd", "over_analysed_span")
-
-# name suffix → unit (checked longest first)
-_SUFFIX_UNITS = {
-    "_j_per_stride": "J/stride", "_j_per_kg": "J/kg", "_w_per_kg": "W/kg",
-    "_nm_per_kg": "N·m/kg", "_n_per_kg": "N/kg", "_nm_per_rad": "N·m/rad",
-    "_nm_per_deg": "N·m/deg", "_steps_per_min": "steps/min", "_cc_per_rev": "cc/rev",
-    "_percent_body_weight": "% body weight", "_fraction": "1", "_rel": "1", "_pct": "%",
-    "_mpa": "MPa", "_pa": "Pa", "_bar": "bar", "_nm": "N·m", "_deg": "deg", "_rad": "rad",
-    "_rad_s": "rad/s", "_deg_s": "deg/s", "_m_s": "m/s", "_rpm": "rpm", "_kg": "kg",
-    "_j": "J", "_wh": "Wh", "_w": "W", "_h": "h", "_s": "s", "_k": "K", "_m": "m",
-    "_mm": "mm", "_n": "N", "_a": "A", "_v": "V", "_ohm": "Ω", "_m3": "m³", "_m2": "m²",
-    "_l_min": "L/min", "_hz": "Hz",
-}
-_SUFFIXES_BY_LENGTH = sorted(_SUFFIX_UNITS, key=len, reverse=True)
 
 
 def safe_name(name: str) -> str:
@@ -73,37 +61,6 @@ def heatmap_name(p1: str, p2: str) -> str:
     """The heatmap file of parameters ``p1`` (rows) and ``p2`` (columns), keys without the
     ``param:`` prefix."""
     return f"heatmap_{safe_name(_strip_param(p1))}__{safe_name(_strip_param(p2))}.png"
-
-
-def _strip_param(k: str) -> str:
-    return k[len("param:"):] if str(k).startswith("param:") else str(k)
-
-
-def unit_of(name: str) -> str:
-    """The unit of a metric or parameter from its dotted name ('' when not known):
-    statistics suffixes (``.mean``, ``.sd``) are looked through, ``.n`` is a count, anything
-    under ``energy_per_stride`` is J/stride, otherwise the innermost name component with a
-    known suffix decides (``energy.losses_j.line`` → J)."""
-    parts = _strip_param(name).split(".")
-    if parts and parts[-1] == "n" and len(parts) > 1:
-        return "count"
-    while len(parts) > 1 and parts[-1] in _STAT_SUFFIXES:
-        parts = parts[:-1]
-    if "energy_per_stride" in parts[:-1]:
-        return "J/stride"
-    for comp in reversed(parts):
-        c = comp.lower()
-        for suf in _SUFFIXES_BY_LENGTH:
-            if c.endswith(suf) and len(c) > len(suf):
-                return _SUFFIX_UNITS[suf]
-    return ""
-
-
-def label_of(name: str) -> str:
-    """An axis label: the name (without ``param:``) and its unit in parentheses."""
-    u = unit_of(name)
-    n = _strip_param(name)
-    return f"{n} ({u})" if u else n
 
 
 _FRIENDLY = (("comparison_vs_no_device.", ".human_ankle_positive_work_change_j_per_stride",

@@ -35,12 +35,12 @@ Overlay:
   is fixed for the whole video (both signals over the whole run, 10 % margin). The legend and
   the scenario / condition label are drawn once with matplotlib (frames at least 240 px wide).
 
-Functions: :func:`render_scenario` (load, simulate, render; what ``afo-mj render`` calls),
-:func:`render_record` (a record to an MP4), :func:`render_frames` (a few frames in memory).
+Functions: :func:`render_record` (a record to an MP4), :func:`render_frames` (a few frames in
+memory), :func:`check_render_options`. This module only renders and writes: loading and
+simulating a scenario is :func:`afo_mj.app.render.render` (what ``afo-mj render`` calls).
 The MP4 is written atomically (a temporary file in the target directory, then
 :func:`os.replace`): a failed render leaves no partial file. Bad arguments raise
-:class:`RenderError` (a :class:`ValueError`) naming the key, the value and what is allowed;
-an invalid scenario file raises :class:`~afo_mj.scenarios.walk_scenario.ScenarioError`.
+:class:`RenderError` (a :class:`ValueError`) naming the key, the value and what is allowed.
 """
 
 from __future__ import annotations
@@ -53,8 +53,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["RenderError", "render_scenario", "render_record", "render_frames",
-           "FPS_RANGE", "SIZE_RANGE"]
+__all__ = ["RenderError", "render_record", "render_frames", "check_render_options",
+           "choose_gl", "FPS_RANGE", "SIZE_RANGE"]
 
 FPS_RANGE = (1, 240)
 SIZE_RANGE = (16, 3840)
@@ -138,6 +138,21 @@ def _check_max_seconds(max_seconds) -> float | None:
         raise RenderError(f"max_seconds = {max_seconds!r} is not allowed; allowed: a number "
                           "of seconds > 0, or None for the whole walk")
     return v
+
+
+def check_render_options(fps, width, height, max_seconds) -> None:
+    """Raise :class:`RenderError` unless :func:`render_record` accepts these options (what
+    :func:`afo_mj.app.render.render` checks before simulating)."""
+    _check_int("fps", fps, *FPS_RANGE)
+    _check_int("width", width, *SIZE_RANGE, even=True)
+    _check_int("height", height, *SIZE_RANGE, even=True)
+    _check_max_seconds(max_seconds)
+
+
+def choose_gl() -> None:
+    """Choose the offscreen GL backend (EGL unless the user chose one) and import MuJoCo; call
+    before anything else imports MuJoCo."""
+    _mujoco()
 
 
 def _check_record(record) -> None:
@@ -535,67 +550,3 @@ def render_record(record, mp4_path, fps: int = 30, width: int = 640, height: int
                 pass
     return {"frames": len(times), "fps": fps, "width": width, "height": height,
             "duration_s": len(times) / fps, "codec": codec, "path": str(path)}
-
-
-def render_scenario(scenario_path, mp4_path, overrides=(), condition: str | None = None,
-                    fps: int = 30, width: int = 640, height: int = 480,
-                    max_seconds: float | None = None,
-                    progress: Callable[[int, int], None] | None = None) -> dict:
-    """Load a walking scenario, simulate it and render the walk to ``mp4_path``.
-
-    A scenario with a ``[device]`` table runs one of its conditions (``condition``, default
-    the last listed, the headline: usually ``assist``); a plain walk takes no condition. A
-    bench scenario (``[bench]`` table) has no walk to render. Returns
-    :func:`render_record`'s dict plus ``condition``, ``scenario`` (its name) and
-    ``fall_time_s`` (None unless the walker fell, which ends the video early).
-    """
-    from afo_mj.scenarios.bench_scenario import is_bench_document
-    from afo_mj.scenarios.walk_scenario import load_scenario
-
-    # argument checks before the (slow) simulation
-    _check_int("fps", fps, *FPS_RANGE)
-    _check_int("width", width, *SIZE_RANGE, even=True)
-    _check_int("height", height, *SIZE_RANGE, even=True)
-    _check_max_seconds(max_seconds)
-    p = Path(scenario_path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
-        text = None                     # load_scenario reports it as a ScenarioError
-    if text is not None and is_bench_document(text):
-        raise RenderError(f"{p}: scenario = {p.name!r} is a bench scenario ([bench] table: a "
-                          "device on a test stand, no walk); allowed: a walking scenario "
-                          "(with or without a [device] table)")
-    if condition is not None and not isinstance(condition, str):
-        raise RenderError(f"condition = {condition!r} is not allowed; allowed: a string")
-    _mujoco()                           # choose the GL backend before MuJoCo is imported
-    s = load_scenario(p, overrides=tuple(overrides))
-    from afo_mj.gait.walk import run_walk
-    from afo_mj.experiments.device_walk import make_device
-    from afo_mj.scenarios.device_scenario import device_config
-    cfg = device_config(s)
-    ref = s.load_reference()
-    T = s.cycle_time_s(ref)
-    if cfg is None:
-        if condition is not None:
-            raise RenderError(f"{p}: condition = {condition!r} is not allowed; allowed: none "
-                              "(the scenario has no [device] table, so it has no conditions)")
-        dev, sides, label = None, (), s.name
-    else:
-        cond = cfg.conditions[-1] if condition is None else condition
-        if cond not in cfg.conditions:
-            raise RenderError(f"{p}: condition = {cond!r} is not allowed; allowed: "
-                              + " | ".join(cfg.conditions))
-        condition = cond
-        dt = s.walker.timestep_s
-        dev = (None if cond == "no_device" else
-               make_device(cfg, cond, dt, int(((s.strides + 1.5) * T + 1.0) / dt) + 4))
-        sides = () if dev is None else tuple(cfg.sides)
-        label = f"{s.name} \u00b7 {cond}"
-    rec = run_walk(s.walker, ref, T, s.strides, s.controller_params(),
-                   worn_masses=dev.worn_masses() if dev is not None else (), device=dev)
-    facts = render_record(rec, mp4_path, fps=fps, width=width, height=height,
-                          max_seconds=max_seconds, progress=progress, device_sides=sides,
-                          label=label)
-    facts.update(condition=condition, scenario=s.name, fall_time_s=rec.events.fall_time_s)
-    return facts

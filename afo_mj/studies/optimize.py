@@ -612,13 +612,15 @@ class _Optimizer:
 
 
 def _sweep_evaluator(study: Study, out_dir: Path, workers: int | None,
-                     scheduler: str | None, progress: bool) -> tuple[Evaluator, str]:
+                     scheduler: str | None, progress: bool,
+                     runner: Callable[..., dict] | None) -> tuple[Evaluator, str]:
     """Batches through the sweep runner: a batch of one point runs in this process (no
     worker start-up for Nelder–Mead's sequential steps) unless a Dask scheduler is given."""
     from afo_mj.studies.sweep import Sweep
 
-    sw = Sweep(study, out_dir, workers=workers, scheduler=scheduler, progress=progress)
-    one = sw if scheduler else Sweep(study, out_dir, workers=1, progress=False)
+    sw = Sweep(study, out_dir, workers=workers, scheduler=scheduler, progress=progress,
+               runner=runner)
+    one = sw if scheduler else Sweep(study, out_dir, workers=1, progress=False, runner=runner)
 
     def evaluate(points: list[dict]) -> list[dict]:
         return (one if len(points) == 1 else sw).run(points)
@@ -627,7 +629,8 @@ def _sweep_evaluator(study: Study, out_dir: Path, workers: int | None,
 
 def optimize_study(study: Study, out_dir, workers: int | None = None,
                    scheduler: str | None = None, progress: bool = True,
-                   evaluate: Evaluator | None = None) -> dict:
+                   evaluate: Evaluator | None = None,
+                   runner: Callable[..., dict] | None = None) -> dict:
     """Optimise the study's parameters as its ``[optimize]`` table says; returns the result
     (also written atomically to ``out_dir/optimization.json`` after every batch):
 
@@ -643,7 +646,8 @@ def optimize_study(study: Study, out_dir, workers: int | None = None,
     Runs go through :class:`~afo_mj.studies.sweep.Sweep` into ``out_dir`` (``workers`` local
     processes, or the Dask ``scheduler``), so a second call with the same study and
     ``out_dir`` replays the finished runs from their rows. ``evaluate`` replaces the sweep by
-    any batch evaluator (points → rows with ``status`` and the metrics), e.g. in tests.
+    any batch evaluator (points → rows with ``status`` and the metrics), e.g. in tests;
+    otherwise ``runner`` runs each point (:func:`afo_mj.app.sweep_point.run_point`).
     Raises :class:`OptimizeError` for an invalid ``[optimize]`` table or a metric no run
     reports, and :class:`~afo_mj.studies.sweep.SweepInterrupted` on SIGINT/SIGTERM (the
     result so far is saved with ``state = "interrupted"``)."""
@@ -653,5 +657,5 @@ def optimize_study(study: Study, out_dir, workers: int | None = None,
     out.mkdir(parents=True, exist_ok=True)
     table = None
     if evaluate is None:
-        evaluate, table = _sweep_evaluator(study, out, workers, scheduler, progress)
+        evaluate, table = _sweep_evaluator(study, out, workers, scheduler, progress, runner)
     return _Optimizer(study, cfg, evaluate, out, progress, table).run()

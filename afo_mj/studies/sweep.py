@@ -1,9 +1,10 @@
 """Run a study's points in parallel, locally or on a Dask cluster, with results kept run by run.
 
-Each point is one ``afo-mj run`` of the base scenario with the point's ``--set`` overrides,
-executed in a worker process through the same code path as the command line
-(:func:`afo_mj.cli.main`), so a sweep's row holds exactly the metrics a single run would print
-to ``summary.json``. A row is: ``run_id``, ``status`` (``ok``/``failed``), ``exit_code``,
+Each point is one run of the base scenario with the point's ``--set`` overrides, executed in a
+worker process by the ``runner`` the caller gives (the application layer's
+:func:`afo_mj.app.sweep_point.run_point`: the same code as ``afo-mj run``, in-process and
+without figures), so a sweep's row holds exactly the metrics a single run writes to
+``summary.json``. A row is: ``run_id``, ``status`` (``ok``/``failed``), ``exit_code``,
 ``error`` (the run's last error line, empty when it succeeded), ``wall_time_s``, the inputs as
 ``param:<dotted key>`` columns and every scalar of ``summary.json`` flattened to dotted names
 (``{"mean", "sd", "n"}`` statistics as ``key.mean``, ``key.sd``, ``key.n``; the scenario echo
@@ -30,24 +31,20 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import io
 import json
 import math
 import multiprocessing
 import os
 import re
-import shutil
 import signal
 import sys
-import tempfile
 import time
-import traceback
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from afo_mj.studies.study import Study, StudyError
 
-__all__ = ["run_point", "flatten_summary", "check_study_keys", "Sweep", "SweepInterrupted",
+__all__ = ["flatten_summary", "check_study_keys", "Sweep", "SweepInterrupted",
            "read_rows", "write_table", "PARAM_PREFIX"]
 
 PARAM_PREFIX = "param:"
@@ -78,61 +75,6 @@ def flatten_summary(summary: dict) -> dict[str, Any]:
                 out[key] = math.nan
     walk(summary, "")
     return out
-
-
-def run_point(scenario_path: str, overrides: Sequence[str], run_id: str,
-              point: dict[str, Any], keep_dir: str | None = None) -> dict[str, Any]:
-    """One run in this process: ``afo-mj run SCENARIO --out TMP --set ...``; returns its row.
-    Never raises for a failing run (the error is in the row)."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    from afo_mj import cli
-
-    t0 = time.perf_counter()
-    tmp = Path(tempfile.mkdtemp(prefix=f"afo-sweep-{run_id}-"))
-    out_dir = tmp / "run"
-    # --quiet: the run's own progress would fill the captured stderr the error is read from
-    argv = ["run", str(scenario_path), "--out", str(out_dir), "--quiet"]
-    for o in overrides:
-        argv += ["--set", o]
-    err = io.StringIO()
-    code = None
-    error = ""
-    try:
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-            code = cli.main(argv)
-    except SystemExit as exc:                       # argparse errors
-        code = exc.code if isinstance(exc.code, int) else 2
-    except BaseException as exc:                    # noqa: BLE001 - recorded, not raised
-        if isinstance(exc, KeyboardInterrupt):
-            raise
-        code = -1
-        error = f"{type(exc).__name__}: {exc}"
-        tb = traceback.format_exc(limit=3)
-        error += " | " + tb.strip().splitlines()[-2].strip() if tb else ""
-    row: dict[str, Any] = {"run_id": run_id, "exit_code": int(code if code is not None else -1)}
-    for k, v in point.items():
-        row[PARAM_PREFIX + k] = v
-    summary_path = out_dir / "summary.json"
-    if row["exit_code"] == 0 and summary_path.is_file():
-        try:
-            row.update(flatten_summary(json.loads(summary_path.read_text(encoding="utf-8"))))
-            row["status"] = "ok"
-        except (OSError, ValueError) as exc:
-            row["status"] = "failed"
-            error = f"summary.json unreadable: {exc}"
-    else:
-        row["status"] = "failed"
-        if not error:
-            lines = [ln for ln in err.getvalue().strip().splitlines() if ln.strip()]
-            error = lines[-1] if lines else f"exit code {row['exit_code']}"
-    row["error"] = error
-    row["wall_time_s"] = time.perf_counter() - t0
-    if keep_dir and out_dir.exists():
-        dest = Path(keep_dir) / run_id
-        shutil.rmtree(dest, ignore_errors=True)
-        shutil.move(str(out_dir), str(dest))
-    shutil.rmtree(tmp, ignore_errors=True)
-    return row
 
 
 def _load_with(scenario_path: Path, overrides: Sequence[str]):
@@ -313,7 +255,13 @@ class Sweep:
 
     def __init__(self, study: Study, out_dir, workers: int | None = None,
                  scheduler: str | None = None, fmt: str | None = None,
-                 keep_runs: bool = False, progress: bool = True):
+                 keep_runs: bool = False, progress: bool = True,
+                 runner: Callable[..., dict] | None = None):
+        if runner is None:
+            raise ValueError("Sweep: runner is None; allowed: a picklable callable "
+                             "(scenario_path, overrides, run_id, point, keep_dir) -> row, "
+                             "e.g. afo_mj.app.sweep_point.run_point")
+        self.runner = runner
         self.study = study
         self.out_dir = Path(out_dir)
         self.workers = max(1, int(workers or os.cpu_count() or 1))
@@ -418,7 +366,7 @@ class Sweep:
             yield from self._execute_dask(todo)
         elif self.workers == 1:
             for k, (i, rid, p) in enumerate(todo):
-                yield k, run_point(*self._args(rid, p))
+                yield k, self.runner(*self._args(rid, p))
         else:
             yield from self._execute_local(todo)
 
@@ -427,7 +375,7 @@ class Sweep:
         pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
                                       initializer=_worker_init)
         try:
-            futs = {pool.submit(run_point, *self._args(rid, p)): (i, rid, p)
+            futs = {pool.submit(self.runner, *self._args(rid, p)): (i, rid, p)
                     for i, rid, p in todo}
             for k, fut in enumerate(cf.as_completed(futs)):
                 i, rid, p = futs[fut]
@@ -453,7 +401,7 @@ class Sweep:
         try:
             futs = {}
             for i, rid, p in todo:
-                f = client.submit(run_point, *self._args(rid, p), key=f"afo-run-{rid}",
+                f = client.submit(self.runner, *self._args(rid, p), key=f"afo-run-{rid}",
                                   pure=False)
                 futs[f] = (i, rid, p)
             for k, fut in enumerate(as_completed(list(futs))):

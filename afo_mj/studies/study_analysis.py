@@ -1,10 +1,12 @@
-"""The report of a parameter study: ranking, Pareto front, sensitivity indices, figures.
+"""The analysis of a parameter study: ranking, Pareto front, sensitivity indices (nothing
+written; the report's files are :mod:`afo_mj.outputs.study_report`).
 
 Reads a sweep directory of ``afo-mj sweep`` (:mod:`afo_mj.studies.sweep`): ``study.json`` and
 ``results.parquet`` / ``results.csv`` (one row per run: ``order``, ``run_id``, ``status``,
 ``exit_code``, ``error``, ``wall_time_s``, ``param:<key>`` inputs and the run's flattened
-``summary.json``). :func:`write_study_report` writes ``DIR/study/`` (all files at once,
-:func:`afo_mj.outputs.result_dir.write_atomically`):
+``summary.json``). :func:`analyse_study` computes what
+:func:`afo_mj.outputs.study_report.write_study_report` writes into ``DIR/study/`` (all files
+at once, :func:`afo_mj.outputs.result_dir.write_atomically`):
 
 * ``ranking.txt`` -- every run ranked by the metric, with its parameter values; runs without
   a value (failed runs, with their error, and successful runs whose metric is missing) after;
@@ -56,14 +58,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from afo_mj.studies.metric_labels import label_of
+
 __all__ = ["load_results", "ranked_table", "default_metric", "pareto_front", "pareto_metrics",
-           "sensitivity", "sensitivity_note", "write_study_report", "metric_columns",
+           "sensitivity", "sensitivity_note", "analyse_study", "metric_columns",
            "check_metric", "headline_condition", "StudyReportError", "FORMAT",
-           "MAXIMISE_HINTS", "REPORT_DIR"]
+           "MAXIMISE_HINTS", "REPORT_DIR", "jsonable"]
 
 #: ``summary.json``'s ``"format"``.
 FORMAT = "afo_mj study report v1"
-#: Where :func:`write_study_report` writes, inside the sweep directory.
+#: Where :func:`afo_mj.outputs.study_report.write_study_report` writes, inside the sweep directory.
 REPORT_DIR = "study"
 #: Metrics whose name contains one of these are ranked largest first by default.
 MAXIMISE_HINTS = ("efficiency", "battery_runtime", "within_1sd_fraction", "completed_strides")
@@ -296,7 +300,6 @@ def ranked_table(df: pd.DataFrame, metric: str, ascending: bool = True,
     """A plain-text table of the best runs by ``metric`` (smallest first when
     ``ascending``; ``top`` rows, None for all) with their parameter values, then the
     successful runs without a value and the failed runs (with their error)."""
-    from afo_mj.outputs.study_figures import label_of
     check_metric(df, metric)
     pcols = [c for c in df.columns if str(c).startswith("param:")]
     v = _values(df, metric)
@@ -416,6 +419,10 @@ def _jsonable(x):
     return str(x)
 
 
+#: public name of :func:`_jsonable` (finite plain-Python numbers; NaN as None)
+jsonable = _jsonable
+
+
 def sensitivity(study_dict: dict, df: pd.DataFrame, metric: str) -> dict | None:
     """Sensitivity indices of ``metric``: Sobol' S1/ST (``saltelli`` design) or Morris
     mu*/sigma (``morris`` design); None for any other design (they do not support them).
@@ -500,7 +507,6 @@ def sensitivity_note(study_dict: dict, result: dict | None) -> str:
     if "indices" not in result:
         name = "Sobol' indices" if result["method"] == "sobol" else "Morris elementary effects"
         return f"Sensitivity ({name}): not computed: {result['skipped']}."
-    from afo_mj.outputs.study_figures import label_of
     lines = []
     if result["method"] == "sobol":
         lines.append(f"Sobol' indices of {result['metric']} ({result['n_runs']} runs; "
@@ -538,19 +544,21 @@ def _plain(v):
     return v.item() if isinstance(v, np.generic) else v
 
 
-def write_study_report(out_dir, metric: str | None = None,
-                       ascending: bool | None = None) -> dict:
-    """Write ``DIR/study/`` (``ranking.txt``, ``summary.json`` and the figures) for the sweep
-    in ``out_dir``, ranked by ``metric`` (:func:`default_metric` when None; smallest first
-    unless ``ascending`` is False, or None and the name contains one of
-    :data:`MAXIMISE_HINTS`).
+def analyse_study(out_dir, metric: str | None = None,
+                  ascending: bool | None = None) -> dict:
+    """Everything the report of the sweep in ``out_dir`` holds, nothing written (the files:
+    :func:`afo_mj.outputs.study_report.write_study_report`): the runs ranked by ``metric``
+    (:func:`default_metric` when None; smallest first unless ``ascending`` is False, or None
+    and the name contains one of :data:`MAXIMISE_HINTS`), the best and top runs, the Pareto
+    front (device studies), the sensitivity indices, the failed runs.
 
-    Returns ``{"dir": Path, "files": [names written], "text": the report to print,
-    "summary": the summary.json dict}``. Raises :class:`StudyReportError` (a ValueError)
-    for a directory without a sweep, ValueError for an unknown metric (naming close ones)."""
-    from afo_mj.outputs.result_dir import write_atomically
-    from afo_mj.outputs.study_figures import label_of, plot_study
-
+    Returns ``{"study": study.json dict, "table": the results DataFrame, "metric": str |
+    None (None: no successful run), "ascending": bool, "ranking": the full ranking text
+    (``ranking.txt``), "sections": [paragraphs of the report to print], "summary": the
+    summary.json dict (without ``figures``, not yet JSON-cleaned), "pareto_axes": (x, y) |
+    None, "front": DataFrame | None, "sensitivity": dict | None}``. Raises
+    :class:`StudyReportError` (a ValueError) for a directory without a sweep, ValueError for
+    an unknown metric (naming close ones)."""
     out_dir = Path(out_dir)
     study, df = load_results(out_dir)
     ok = _ok(df)
@@ -630,23 +638,9 @@ def write_study_report(out_dir, metric: str | None = None,
                                           {"error": str(df["error"].iloc[i])
                                            if "error" in df.columns else ""})
                               for i in np.flatnonzero(~ok)]
-    rdir = out_dir / REPORT_DIR
-    written: dict[str, list] = {"figures": []}
-
-    def writer(tmp: Path) -> None:
-        (tmp / "ranking.txt").write_text(ranking, encoding="utf-8")
-        written["figures"] = plot_study(tmp, study, df, metric, pareto_axes=axes, front=front,
-                                        sensitivity=sens if sens and "indices" in sens
-                                        else None)
-        summary["figures"] = list(written["figures"])
-        (tmp / "summary.json").write_text(
-            json.dumps(_jsonable(summary), indent=2, allow_nan=False) + "\n", encoding="utf-8")
-
-    write_atomically(rdir, writer)
-    files = ["ranking.txt", "summary.json"] + list(written["figures"])
-    sections += ["", f"Written to {rdir}: {', '.join(files)}"]
-    return {"dir": rdir, "files": files, "text": "\n".join(sections) + "\n",
-            "summary": _jsonable(summary)}
+    return {"study": study, "table": df, "metric": metric, "ascending": ascending,
+            "ranking": ranking, "sections": sections, "summary": summary,
+            "pareto_axes": axes, "front": front, "sensitivity": sens}
 
 
 def _failed_list(df: pd.DataFrame, pcols: list[str]) -> str:

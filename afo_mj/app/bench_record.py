@@ -1,0 +1,37 @@
+"""A synthetic bench record with effects the lean model does not declare:
+``afo-mj make-bench-record`` (test data for ``calibrate``; the generator is
+:func:`afo_mj.calibration.synthetic_records.generate_record`)."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Mapping
+
+from afo_mj.app.errors import InvalidInput
+
+__all__ = ["make_bench_record"]
+
+
+def make_bench_record(out_path, kind: str = "hafo", effects: Mapping[str, Mapping] = (),
+                      mismatch: Mapping[str, float] = (), preset: str | None = None,
+                      noise_scale: float = 1.0, duration_s: float = 20.0,
+                      fs_hz: float = 1000.0, seed: int = 0, resonance_hz: float = 0.0):
+    """Write the record and its sidecar; returns the loaded record
+    (:class:`afo_mj.calibration.measured_data.MeasuredRecord`). ``effects``: effect name →
+    {parameter: value}; ``mismatch``: declared parameter → scale factor. Raises
+    :class:`~afo_mj.app.errors.InvalidInput` naming what is not allowed."""
+    from afo_mj.calibration.measured_data import MeasuredDataError
+    from afo_mj.calibration.synthetic_records import generate_record
+    from afo_mj.experiments.bench_replay import kind_of_preset
+    from afo_mj.hydraulics.params import ParameterError
+    try:
+        if preset is not None:
+            kind_of_preset(preset, key="--preset")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return generate_record(out_path, kind, dict(effects or {}), dict(mismatch or {}),
+                                   noise_scale=noise_scale, duration_s=duration_s,
+                                   fs_hz=fs_hz, seed=seed, preset=preset,
+                                   torque_sensor_resonance_hz=resonance_hz)
+    except (ParameterError, MeasuredDataError, OSError) as exc:
+        raise InvalidInput(str(exc)) from None

@@ -1,0 +1,372 @@
+"""Run one scenario file: a walk, a walk with an orthosis (every condition) or a bench.
+
+:func:`run_scenario` is what ``afo-mj run`` does and what a sweep runs for each point: it
+loads and checks the scenario (and the results directory, before anything is simulated),
+simulates, analyses, composes the ``summary.json`` document and, when ``out_dir`` is given,
+writes the results directory atomically. It returns a :class:`WalkRun`, a
+:class:`DeviceWalkRun` or a :class:`BenchRun`; bad input raises
+:class:`~afo_mj.app.errors.InvalidInput`, a run that cannot be simulated, analysed or written
+raises :class:`~afo_mj.app.errors.RunFailed` (nothing written in either case).
+
+A walker that falls before a complete stride is an outcome, not a failure: the summary says
+so (``fell``, ``fall_time_s``, ``completed_strides``).
+
+Example::
+
+    from afo_mj.app.run import run_scenario
+    res = run_scenario("scenarios/walk_healthy.toml", overrides=["gait.strides=4"])
+    print(res.summary["speed_m_s"]["mean"])     # nothing written: out_dir not given
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import platform
+import time
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from afo_mj.app.errors import InvalidInput, RunFailed
+
+__all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "record_run", "run_info",
+           "write_rrd"]
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkRun:
+    """A walk without an orthosis: the scenario, its reference gait, the simulated record,
+    the analysis (None when the walker fell before an analysable stride) and the summary
+    (what ``summary.json`` holds)."""
+
+    scenario: Any
+    reference: Any
+    record: Any
+    analysis: Any
+    summary: dict
+    wall_time_s: float
+    out_dir: Path | None = None
+
+    @property
+    def fell(self) -> bool:
+        return bool(self.summary.get("fell"))
+
+    def recorded_runs(self) -> list:
+        from afo_mj.outputs.recording import RecordedRun
+        return [RecordedRun("walk", self.record)]
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceWalkRun:
+    """A walk with an orthosis: every condition ``{name: (record, analysis, device)}``, the
+    device summary (per condition) and the headline summary (the last condition's)."""
+
+    scenario: Any
+    reference: Any
+    config: Any
+    results: dict
+    device_summary: dict
+    summary: dict
+    wall_time_s: float
+    out_dir: Path | None = None
+
+    @property
+    def headline(self) -> str:
+        return self.config.conditions[-1]
+
+    def recorded_runs(self) -> list:
+        from afo_mj.outputs.recording import RecordedRun
+        return [RecordedRun(c, r, d) for c, (r, _a, d) in self.results.items()]
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchRun:
+    """A bench scenario: the protocols' summary and their time series."""
+
+    bench: Any
+    summary: dict
+    series: dict
+    wall_time_s: float
+    out_dir: Path | None = None
+
+
+def run_info(wall_s: float) -> dict:
+    """What is not a result of the scenario (wall time, versions): ``run_info.json``, kept
+    out of ``summary.json`` so that a rerun gives an identical summary."""
+    import mujoco
+    return {"wall_time_s": wall_s, "python": platform.python_version(),
+            "numpy": np.__version__, "mujoco": mujoco.__version__,
+            "platform": platform.platform()}
+
+
+def _run_info_writer(wall_s: float) -> Callable[[Path], None]:
+    def write(tmp: Path) -> None:
+        text = json.dumps(run_info(wall_s), indent=2) + "\n"
+        (tmp / "run_info.json").write_text(text, encoding="utf-8")
+    return write
+
+
+def _chain(*writers) -> Callable[[Path], None]:
+    """One results-directory writer that calls ``writers`` (None entries skipped) in turn."""
+    def write(tmp: Path) -> None:
+        for w in writers:
+            if w is not None:
+                w(tmp)
+    return write
+
+
+def _recording_writer(scenario, runs, reference):
+    """Writer of ``recording.rrd`` when the scenario's ``[output] record`` is true."""
+    if not getattr(scenario, "record", False):
+        return None
+
+    def write(tmp: Path) -> None:
+        from afo_mj.outputs.gait_report import ReportError
+        from afo_mj.outputs.recording import RecordingError
+        try:
+            write_rrd(tmp / "recording.rrd", scenario, runs, reference)
+        except RecordingError as exc:
+            raise ReportError(f"recording.rrd: {exc}") from None
+    return write
+
+
+def write_rrd(path, scenario, runs, reference) -> dict:
+    """The rerun recording of ``runs`` (:class:`~afo_mj.outputs.recording.RecordedRun`) at
+    the scenario's recording rates; returns the writer's info (``path``, ``entities``)."""
+    from afo_mj.outputs.recording import write_recording
+    return write_recording(path, runs, reference, title=scenario.name,
+                           signal_rate_hz=getattr(scenario, "record_signal_rate_hz", 500.0),
+                           transform_rate_hz=getattr(scenario, "record_transform_rate_hz", 50.0))
+
+
+def _read_text(path) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return ""          # the loader reports it
+
+
+def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None,
+                 out_dir=None, figures: bool = True,
+                 on_note: Callable[[str], None] | None = None
+                 ) -> WalkRun | DeviceWalkRun | BenchRun:
+    """Load, check, run and (with ``out_dir``) write the scenario file ``path``.
+
+    ``overrides``: ``--set`` style ``"dotted.key=value"`` strings; ``strides``: the number
+    of strides to simulate (the analysed window follows, ``run --strides``); ``figures``:
+    False writes the numbers only; ``on_note``: called with each note the scenario carries
+    (e.g. a substituted reference) before the simulation starts.
+    """
+    from afo_mj.outputs.result_dir import ResultDirError, check_result_dir
+    from afo_mj.scenarios.bench_scenario import is_bench_document
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario, strides_overrides
+
+    if out_dir is not None:
+        try:
+            check_result_dir(out_dir)
+        except ResultDirError as exc:
+            raise InvalidInput(f"{exc}; nothing written") from None
+    if strides is not None and (isinstance(strides, bool) or not isinstance(strides, int)
+                                or strides < 1):
+        raise InvalidInput(f"--strides = {strides!r} is not allowed; allowed: an integer >= 1")
+    if is_bench_document(_read_text(path)):
+        if strides is not None:
+            raise InvalidInput(f"--strides: {path} is a bench scenario (no strides); allowed: "
+                               f"--strides on walking scenarios only")
+        return _run_bench(path, overrides, out_dir, figures)
+    ov = (strides_overrides(strides) if strides is not None else []) + list(overrides)
+    try:
+        scenario = load_scenario(path, overrides=ov)
+        reference = scenario.load_reference()
+        cfg = device_config(scenario)
+    except ScenarioError as exc:
+        raise InvalidInput(f"invalid scenario: {exc}") from None
+    for note in scenario.notes:
+        if on_note is not None:
+            on_note(note)
+    if cfg is not None:
+        return _run_device(scenario, reference, cfg, out_dir, figures)
+    return _run_walk(scenario, reference, out_dir, figures)
+
+
+def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
+    from afo_mj.gait.walk import WalkNumericsError, simulate_walk
+    from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
+    from afo_mj.outputs.gait_report import ReportError, write_run_outputs
+    from afo_mj.outputs.recording import RecordedRun
+
+    t0 = time.perf_counter()
+    try:
+        record = simulate_walk(scenario)
+    except WalkNumericsError as exc:
+        raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
+    wall = time.perf_counter() - t0
+    runs = [RecordedRun("walk", record)]
+    try:
+        analysis = analyse_gait(record, reference, scenario.analyse_strides)
+    except GaitAnalysisError as exc:
+        if record.events.fall_time_s is None:
+            raise RunFailed(f"{scenario.name}: {exc}") from None
+        # a fall before any analysable stride is the run's outcome: report it
+        ev = record.events
+        summary = {"scenario": scenario.as_dict(), "fell": True,
+                   "fall_time_s": ev.fall_time_s,
+                   "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
+                   "swing_toe_contacts": len(ev.swing_toe_contacts),
+                   "duration_s": float(record.time_s[-1]) if len(record.time_s) else 0.0,
+                   "analysis": str(exc)}
+        out = None
+        if out_dir is not None:
+            try:
+                out = write_run_outputs(out_dir, summary, [], reference, record, scenario.text,
+                                        extra_files=_chain(_run_info_writer(wall),
+                                                           _recording_writer(scenario, runs,
+                                                                             reference)),
+                                        figures=figures)
+            except ReportError as exc2:
+                raise RunFailed(f"{scenario.name}: {exc2}") from None
+        return WalkRun(scenario, reference, record, None, summary, wall, out)
+    summary = {"scenario": scenario.as_dict(), **analysis.summary}
+    try:
+        if scenario.band_references:
+            from afo_mj.gait.reference import load_normative
+            from afo_mj.metrics.gait_metrics import band_fraction
+            summary["band_fraction_vs"] = {
+                f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
+                for src, cond in scenario.band_references}
+        out = None
+        if out_dir is not None:
+            out = write_run_outputs(out_dir, summary, analysis.cycles, reference, record,
+                                    scenario.text, extra_files=_chain(
+                                        _run_info_writer(wall),
+                                        _recording_writer(scenario, runs, reference)),
+                                    figures=figures)
+    except (GaitAnalysisError, ReportError) as exc:
+        raise RunFailed(f"{scenario.name}: {exc}") from None
+    return WalkRun(scenario, reference, record, analysis, summary, wall, out)
+
+
+def _device_files_writer(results, reference, dsum, name, wall_s, figures: bool):
+    """Writer of a device run's figures (when ``figures``) and ``run_info.json``."""
+    def write(tmp: Path) -> None:
+        _run_info_writer(wall_s)(tmp)
+        if not figures:
+            return
+        from afo_mj.outputs.device_figures import plot_device_run
+        if "circuit" in dsum:
+            # a circuit's log has its own signal names: the gait figures without the preset
+            # devices' hydraulics panels, and the circuit's own torque/pressure figure
+            from afo_mj.outputs.circuit_figures import plot_circuit_gait
+            plot_device_run(tmp, {c: (r, a, None) for c, (r, a, _d) in results.items()},
+                            reference, dsum, name)
+            plot_circuit_gait(tmp, results, dsum, name)
+        else:
+            plot_device_run(tmp, results, reference, dsum, name)
+    return write
+
+
+def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkRun:
+    """A walking scenario with an orthosis: every condition, the headline one written out."""
+    from afo_mj.experiments.device_walk import run_device_scenario
+    from afo_mj.gait.walk import WalkNumericsError
+    from afo_mj.outputs.gait_report import ReportError, write_run_outputs
+    from afo_mj.outputs.recording import RecordedRun
+
+    t0 = time.perf_counter()
+    try:
+        dsum, results = run_device_scenario(scenario, reference, cfg)
+    except (WalkNumericsError, FloatingPointError) as exc:
+        raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
+    wall = time.perf_counter() - t0
+    head = cfg.conditions[-1]
+    rec, analysis, dev = results[head]
+    block = dsum["device_conditions"][head]
+    if analysis is None:
+        raise RunFailed(f"{scenario.name}: condition {head!r} has no analysable stride (fell "
+                        f"at {rec.events.fall_time_s}); nothing written")
+    summary = {"scenario": {**scenario.as_dict(), "device": dict(scenario.device),
+                            "assistance": dict(scenario.assistance)},
+               **analysis.summary, "condition": head,
+               "gait": analysis.summary, "human": block["human"], **dsum}
+    if "device" in block:
+        summary["device"] = block["device"]
+        summary["energy"] = block["energy"]
+    out = None
+    if out_dir is not None:
+        extra = {}
+        if dev is not None and dev.log is not None:
+            L = dev.log.arrays()
+            cols = list(L)
+            extra["device_timeseries.csv"] = (",".join(cols),
+                                              np.column_stack([L[k][:, 0] for k in cols]))
+        runs = [RecordedRun(c, r, d) for c, (r, _a, d) in results.items()]
+        try:
+            out = write_run_outputs(out_dir, summary, analysis.cycles, reference, rec,
+                                    scenario.text, extra_tables=extra,
+                                    extra_files=_chain(
+                                        _device_files_writer(results, reference, dsum,
+                                                             scenario.name, wall, figures),
+                                        _recording_writer(scenario, runs, reference)),
+                                    figures=figures)
+        except ReportError as exc:
+            raise RunFailed(f"{scenario.name}: {exc}") from None
+    return DeviceWalkRun(scenario, reference, cfg, results, dsum, summary, wall, out)
+
+
+def _run_bench(path, overrides, out_dir, figures: bool) -> BenchRun:
+    """A bench scenario: the device on the ankle test stand (or a circuit's bench)."""
+    from afo_mj.experiments.bench_run import run_bench_scenario
+    from afo_mj.outputs.gait_report import json_ready
+    from afo_mj.outputs.result_dir import ResultDirError, write_atomically
+    from afo_mj.scenarios.bench_protocols import BenchError, CircuitBenchError
+    from afo_mj.scenarios.bench_scenario import load_bench_scenario
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+
+    try:
+        bs = load_bench_scenario(path, overrides=overrides)
+    except ScenarioError as exc:
+        raise InvalidInput(f"invalid scenario: {exc}") from None
+    t0 = time.perf_counter()
+    try:
+        summary, series = run_bench_scenario(bs)
+    except (BenchError, CircuitBenchError, FloatingPointError) as exc:
+        raise RunFailed(f"{bs.name}: {exc}; nothing written") from None
+    wall = time.perf_counter() - t0
+    if out_dir is None:
+        return BenchRun(bs, summary, series, wall)
+
+    def writer(tmp: Path) -> None:
+        _run_info_writer(wall)(tmp)
+        text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
+        (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
+        (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
+        if not figures:
+            return
+        from afo_mj.outputs.bench_figures import plot_bench_series
+        plot_bench_series(bs.bench_kind, series, tmp, bs.name)
+
+    try:
+        out = write_atomically(out_dir, writer)
+    except (ResultDirError, ValueError) as exc:
+        raise RunFailed(f"{bs.name}: {exc}") from None
+    return BenchRun(bs, summary, series, wall, out)
+
+
+def record_run(res: WalkRun | DeviceWalkRun | BenchRun, path) -> dict | None:
+    """Write the rerun recording of a finished run to ``path`` (``--rrd``): a walk's body
+    and signals (every condition of a device walk), or a bench's time-domain experiments one
+    after another. Returns the writer's info (``path``, ``entities``), or None for a circuit
+    bench (no time-domain recording of its protocols yet). Raises
+    :class:`~afo_mj.app.errors.RunFailed` when the file cannot be written."""
+    from afo_mj.outputs.recording import RecordingError, write_bench_recording
+    try:
+        if isinstance(res, BenchRun):
+            if res.bench.bench_kind == "circuit":
+                return None
+            return write_bench_recording(path, res.series, title=res.bench.name)
+        return write_rrd(path, res.scenario, res.recorded_runs(), res.reference)
+    except (RecordingError, OSError) as exc:
+        raise RunFailed(f"recording not written: {exc}") from None

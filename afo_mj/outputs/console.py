@@ -1,0 +1,249 @@
+"""What ``afo-mj`` prints on stdout: the text summaries of runs, benches and calibrations.
+
+Each function takes a finished result (the application layer's run objects or the
+summary/report dicts) and returns the lines to print, units stated (deg, N·m, bar, J, W and
+so on for the reader; every number comes from the SI result).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+__all__ = ["fmt_stat", "walk_lines", "device_walk_lines", "bench_lines", "circuit_bench_lines",
+           "format_stiffness_summary", "calibration_lines"]
+
+
+def fmt_stat(entry, fmt: str = ".2f") -> str:
+    """``mean ± sd`` of a summary entry (``{"mean", "sd", "n"}``), '-' when missing."""
+    if not isinstance(entry, dict) or entry.get("mean") is None:
+        return "-"
+    sd = entry.get("sd")
+    return f"{entry['mean']:{fmt}}" + ("" if sd is None else f" ± {sd:{fmt}}")
+
+
+_f = fmt_stat
+
+
+def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -> list[str]:
+    """A walk's summary: strides, fall, angle errors against the reference, ankle kinetics,
+    speed, cadence, toe clearance, residual forces."""
+    s = summary
+    if s.get("fell") and "n_cycles_used" not in s:
+        return [f"afo_mj walk: {scenario.name}: FELL at t = {s['fall_time_s']:.2f} s after "
+                f"{s['completed_strides']} complete strides; {s.get('analysis', '')}",
+                f"  results: {out}"]
+    lines = [f"afo_mj walk: {scenario.name} ({scenario.description})" if scenario.description
+             else f"afo_mj walk: {scenario.name}",
+             f"  simulated {s['duration_s']:.2f} s in {wall_time_s:.1f} s wall; "
+             f"{s['completed_strides']} complete right strides; analysed "
+             f"{s['n_cycles_used']} cycles (strides {scenario.analyse_strides[0]}-"
+             f"{scenario.analyse_strides[1]}, both legs)",
+             "  " + ("FELL at t = %.2f s" % s["fall_time_s"] if s["fell"] else "no fall")
+             + f"; swing toe contacts {s['swing_toe_contacts']}"]
+    ref_name = f"{reference.source} {reference.condition}"
+    lines.append(f"  angle RMS error vs {ref_name} [deg]: hip "
+                 f"{_f(s['hip_angle_rms_error_deg'])}, knee {_f(s['knee_angle_rms_error_deg'])}"
+                 f", ankle {_f(s['ankle_angle_rms_error_deg'])}")
+    lines.append(f"  peak ankle plantarflexor moment "
+                 f"{_f(s['peak_ankle_plantarflexor_moment_nm_per_kg'])} N*m/kg; peak ankle "
+                 f"power {_f(s['peak_ankle_power_w_per_kg'])} W/kg; push-off work "
+                 f"{_f(s['ankle_push_off_positive_work_j_per_kg'], '.3f')} J/kg")
+    lines.append(f"  speed {_f(s['speed_m_s'])} m/s; cadence "
+                 f"{_f(s['cadence_steps_per_min'], '.1f')} steps/min; stride "
+                 f"{_f(s['stride_length_m'])} m; min toe clearance "
+                 f"{_f(s['min_toe_clearance_m'], '.3f')} m")
+    span = s["residual_force_rms_percent_body_weight"].get("over_analysed_span")
+    lines.append(f"  residual force RMS {'-' if span is None else f'{span:.2f}'} % body "
+                 f"weight; residual moment RMS {_f(s['residual_moment_rms_nm'])} N*m")
+    for name, fractions in s.get("band_fraction_vs", {}).items():
+        lines.append(f"  fraction of the cycle inside the ±1 SD band of {name}: " + ", ".join(
+            f"{ch.split('_')[0]} {_f(v, '.2f')}" for ch, v in fractions.items()))
+    lines.append(f"  results: {out}")
+    return lines
+
+
+def device_walk_lines(scenario, config, results: Mapping, device_summary: Mapping,
+                      wall_time_s: float, out) -> list[str]:
+    """A walk with an orthosis: one line per condition (gait, human ankle work, the device's
+    torque, work, tracking and energy), then the foot-drop and push-off figures."""
+    lines = [f"afo_mj walk with {config.preset} on {', '.join(config.sides)}: {scenario.name} "
+             f"({wall_time_s:.1f} s wall)"]
+    for c, v in device_summary["device_conditions"].items():
+        g = v["gait"]
+        line = f"  {c:12s}: "
+        if g is None:
+            fall = results[c][0].events.fall_time_s
+            line += "no analysable stride" + ("" if fall is None
+                                              else f" (fell at t = {fall:.2f} s)")
+        else:
+            line += (f"ankle RMS {_f(g['ankle_angle_rms_error_deg'])} deg, speed "
+                     f"{_f(g['speed_m_s'])} m/s, human ankle +work "
+                     f"{v['human']['ankle_positive_work_j_per_stride']:.1f} J/stride")
+        if "device" in v:
+            d, e = v["device"], v["energy"]
+            line += (f"; device peak {d['peak_torque_nm']:.1f} N*m, +work "
+                     f"{d['positive_work_j_per_stride']:.1f} / -work "
+                     f"{d['negative_work_j_per_stride']:.1f} J/stride, tracking RMSE "
+                     f"{d['torque_tracking_rmse_nm']:.1f} N*m, battery drawn "
+                     f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
+                     f"balance error {100 * e['balance_error_rel']:.2f} %")
+        lines.append(line)
+        if g is None:
+            continue
+        # the foot-drop and push-off figures (gait: both legs pooled; push-off power: the
+        # whole ankle joint, muscles + device, of the first worn side's leg)
+        po = v.get("ankle", {}).get("push_off_peak_power_w")
+        toe = g.get("min_toe_clearance_m")
+        if isinstance(toe, dict) and toe.get("mean") is not None:     # printed in mm
+            toe = {**toe, "mean": 1e3 * toe["mean"],
+                   "sd": None if toe.get("sd") is None else 1e3 * toe["sd"]}
+        line = (f"  {'':12s}  swing ankle {_f(g.get('swing_mean_ankle_angle_deg'), '.1f')}"
+                f" deg (mean over mid-swing), swing peak dorsiflexion "
+                f"{_f(g.get('swing_peak_dorsiflexion_deg'), '.1f')} deg, min toe "
+                f"clearance {_f(toe, '.1f')} mm, "
+                f"push-off peak power {'-' if po is None else f'{po:.1f}'} W")
+        eps = v.get("energy_per_stride")
+        if eps is not None:
+            line += (f", device electrical {eps['electrical_in_j']:.1f} J/stride "
+                     f"({config.sides[0]} side)")
+        lines.append(line)
+    lines.append(f"  results: {out}")
+    return lines
+
+
+def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
+    """A bench run: the HAFO bench's figures against the published ones, the stiffness rig's
+    table, or a circuit bench's protocols."""
+    if bench.bench_kind == "circuit":
+        return circuit_bench_lines(bench, summary, wall_time_s, out)
+    lines = [f"afo_mj bench: {bench.name}, preset {bench.preset} ({wall_time_s:.1f} s wall)"]
+    if bench.bench_kind == "stiffness":
+        lines += format_stiffness_summary(summary)
+        lines.append(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy "
+                     f"balance error {100 * summary['energy']['balance_error_rel']:.2e} %")
+        lines.append(f"  results: {out}")
+        return lines
+    b, pub = summary["bench"], summary["published"]
+    rows = (("stall_torque_nm", "N*m", ".1f", pub.get("stall_torque_nm")),
+            ("no_load_speed_deg_s", "deg/s", ".1f", pub.get("no_load_speed_deg_s")),
+            ("rise_time_s", "s (40 N*m isometric step, 10-90 %)", ".4f", None),
+            ("overshoot_pct", "%", ".1f", None),
+            ("bandwidth_hz", "Hz (isometric torque, open loop, -3 dB)", ".2f", None),
+            ("velocity_bandwidth_hz", "Hz (ankle velocity, open loop, -3 dB)", ".1f", None),
+            ("position_rise_time_s", "s (closed-loop position step)", ".3f", None))
+    for key, unit, fmt, ref in rows:
+        if key in b:
+            extra = f" (published {ref:g})" if ref is not None else ""
+            lines.append(f"  {key:32s} {b[key]:{fmt}} {unit}{extra}")
+    lines.append(f"  mass {summary['device']['mass_total_kg']:.2f} kg in all, "
+                 f"{summary['device']['mass_at_ankle_kg']:.2f} kg at the ankle; worst energy "
+                 f"balance error {100 * summary['energy']['balance_error_rel']:.3f} %")
+    lines.append(f"  results: {out}")
+    return lines
+
+
+def circuit_bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
+    """A circuit bench: each protocol's headline figure and the energy ledgers."""
+    b = summary["bench"]
+    lines = [f"afo_mj bench: {bench.name}, circuit {summary['circuit']['name']} (controller "
+             f"{summary['circuit']['controller']}; {wall_time_s:.1f} s wall)"]
+    rows = (("torque_velocity", "stall_torque_nm", "N*m", ".1f"),
+            ("torque_velocity", "no_load_speed_deg_s", "deg/s", ".1f"),
+            ("isometric_steps", "rise_time_s", "s (largest step, 10-90 %)", ".4f"),
+            ("isometric_steps", "overshoot_pct", "%", ".1f"),
+            ("frequency_response", "resonance_hz", "Hz (open-loop velocity/voltage peak)",
+             ".1f"),
+            ("frequency_response", "resonance_peak_db", "dB above the lowest frequency", ".1f"),
+            ("position_step", "rise_time_s", "s (closed-loop position step)", ".3f"),
+            ("position_step", "overshoot_pct", "% (position step)", ".1f"),
+            ("stiffness", "worst_error_rel", "(worst emulated stiffness error)", ".3f"),
+            ("tracking", "rmse_nm", "N*m (torque profile on a moving load)", ".2f"))
+    for proto, key, unit, fmt in rows:
+        v = b.get(proto, {}).get(key)
+        if isinstance(v, (int, float)):
+            lines.append(f"  {proto + '.' + key:40s} {v:{fmt}} {unit}")
+    e = summary["energy"]
+    lines.append(f"  worst energy balance error {e['balance_error_rel']:.2e} over "
+                 f"{len(summary['ledger'])} runs ("
+                 f"{'closed' if e['ledger_closed'] else 'NOT closed'} within "
+                 f"{e['tolerance']:g})")
+    lines.append(f"  results: {out}")
+    return lines
+
+
+def format_stiffness_summary(summary: Mapping) -> list[str]:
+    """Printed lines of a stiffness-bench summary (units stated; N·m/deg and deg for the
+    clinical reader)."""
+    sw = summary["sweep"]
+    lines = [f"  sweep ±{math.degrees(sw['amplitude_rad']):.3g} deg at {sw['frequency_hz']:g} Hz, "
+             f"{sw['cycles']} cycles (first dropped), stand foot {sw['body_mass_kg']:g} kg / "
+             f"{sw['height_m']:g} m, step {sw['timestep_s'] * 1e3:g} ms",
+             f"  {'commanded':>10s} {'emulated':>9s} {'error':>6s} {'r^2':>6s} "
+             f"{'loop area':>9s} {'hyst.':>6s} {'peak torque':>11s} {'(K A)':>7s} "
+             f"{'load/chamber/rail':>17s} {'electrical':>10s} {'mean':>5s} {'balance':>8s}",
+             f"  {'[N*m/deg]':>10s} {'[N*m/deg]':>9s} {'[%]':>6s} {'[-]':>6s} "
+             f"{'[J/cycle]':>9s} {'[-]':>6s} {'[N*m]':>11s} {'[N*m]':>7s} "
+             f"{'[MPa]':>17s} {'[J]':>10s} {'[W]':>5s} {'err [%]':>8s}"]
+    for v in summary["stiffness"].values():
+        pr = (f"{v['peak_load_pressure_pa'] / 1e6:.2f}/{v['peak_chamber_pressure_pa'] / 1e6:.2f}/"
+              f"{v['peak_supply_pressure_pa'] / 1e6:.2f}")
+        lines.append(
+            f"  {v['commanded_nm_per_deg']:10.3g} {v['emulated_nm_per_deg']:9.4g} "
+            f"{100 * v['error_rel']:+6.2f} {v['r_squared']:6.4f} "
+            f"{v['hysteresis_energy_j']:9.3f} {v['hysteresis_fraction']:6.3f} "
+            f"{v['peak_torque_nm']:11.2f} {v['commanded_peak_torque_nm']:7.2f} {pr:>17s} "
+            f"{v['electrical_in_j']:10.0f} {v['mean_electrical_power_w']:5.0f} "
+            f"{100 * v['energy_balance_error_rel']:8.1e}")
+    acc = summary["acceptance"]
+    lines.append(f"  acceptance (every emulated stiffness within "
+                 f"{100 * acc['tolerance_rel']:g} % of its command): "
+                 f"{'PASSED' if acc['passed'] else 'FAILED'}, worst "
+                 f"{100 * acc['worst_error_rel']:.2f} %")
+    return lines
+
+
+def calibration_lines(report: Mapping, out) -> list[str]:
+    """A calibration's verdict, the effects it added (with their held-out error drop) and
+    the overall held-out NRMSE before and after."""
+    eb, ea = report["error_before"]["overall"], report["error_after"]["overall"]
+    lines = [f"verdict: {report['verdict']}"]
+    for s in report["effects_selected"]:
+        pars = ", ".join(f"{k.split('.', 1)[1]} = {v:.4g}" for k, v in s["parameters"].items())
+        lines.append(f"  + {s['effect']} ({s['component']}): {pars}; held-out NRMSE "
+                     f"{s['held_out_before']:.4f} -> {s['held_out_after']:.4f} "
+                     f"({-100 * s['held_out_drop']:+.0f} %)")
+    if report.get("unexplained_where"):
+        lines.append(f"  unexplained: {report['unexplained_where']}")
+    lines.append(f"held-out NRMSE (overall): before {eb:.4f}, after {ea:.4f} "
+                 f"({-100 * report['error_drop']:+.0f} %); {report['evaluations']} replays in "
+                 f"{report['wall_time_s']:.1f} s")
+    lines.append(f"wrote {out}/report.json, report.md and figures")
+    return lines
+
+
+def hydraulics_demo_lines(d: Mapping) -> list[str]:
+    """The hydraulics demo's ranges (bar gauge, N, mm, rpm, mK) and energy chain (J)."""
+    r, e = d["ranges"], d["energy"]
+    lines = ["afo_mj hydraulic demo: pump-controlled piston-cable cylinder, 2 kg + 20 kN/m load",
+             f"  simulated {d['duration_s']:.2f} s at 1 ms steps ({d['substeps']} ROS2 "
+             f"substeps) in {d['wall_time_s']:.2f} s wall ({d['us_per_step']:.0f} us/step)"]
+    for key, label in (("chamber_a_gauge_pa", "chamber a pressure"),
+                       ("chamber_b_gauge_pa", "chamber b pressure")):
+        lo, hi = r[key]
+        lines.append(f"  {label:22s} {lo / 1e5:7.1f} .. {hi / 1e5:7.1f} bar (gauge)")
+    lines.append(f"  {'actuator force':22s} {r['force_n'][0]:7.1f} .. {r['force_n'][1]:7.1f} N")
+    lines.append(f"  {'piston position':22s} {r['position_m'][0] * 1e3:7.2f} .. "
+                 f"{r['position_m'][1] * 1e3:7.2f} mm")
+    lines.append(f"  {'motor speed peak':22s} "
+                 f"{d['motor_speed_peak_rad_s'] * 60 / 2 / math.pi:7.0f} rpm")
+    lines.append(f"  {'oil temperature rise':22s} {d['oil_temperature_rise_k'] * 1e3:7.2f} mK")
+    lines.append("  energy chain (J):")
+    lines.append(f"    electrical input     {e['input_j']:9.4f}")
+    for k, v in e["heat_j"].items():
+        lines.append(f"    loss {k:<22s}{v:9.4f}  ({100 * v / e['input_j']:5.1f} %)")
+    lines.append(f"    stored change        {e['stored_change_j']:9.4f}")
+    lines.append(f"    delivered to load    {e['load_out_j']:9.4f}")
+    lines.append(f"    balance residual     {e['residual_j']:9.2e}  "
+                 f"({100 * e['relative_residual']:.3f} % of input)")
+    return lines
