@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -35,8 +36,10 @@ def table(tmp_path_factory):
            str(ROOT / "scenarios/gait_assist_valve.toml"),
            str(ROOT / "scenarios/gait_assist_digital.toml"),
            "--out", str(out), "--strides", str(STRIDES)]
-    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT,
-                         env={"MUJOCO_GL": "egl", "PATH": "/usr/bin:/bin"}, timeout=600)
+    env = {"MUJOCO_GL": "egl", "PATH": "/usr/bin:/bin"}
+    if os.environ.get("AFO_MJ_CACHE_DIR"):     # the suite's compiled circuits, not ~/.cache's
+        env["AFO_MJ_CACHE_DIR"] = os.environ["AFO_MJ_CACHE_DIR"]
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env, timeout=600)
     assert res.returncode == 0, res.stderr
     rows = list(csv.DictReader(open(out / "comparison.csv")))
     return {r["label"]: r for r in rows}, out
