@@ -23,9 +23,12 @@ STRIDES = ["--set", "gait.strides=8", "--set", "gait.analyse_strides=[3, 8]"]
 
 
 def _run(tmp_path_factory, scenario: str, *extra: str) -> dict:
+    """The scenario as ``afo-mj run`` runs it (the application layer), numbers only: the
+    figures are the figure tests' business (tests/test_figures.py)."""
+    from afo_mj.app.run import run_scenario
     out = tmp_path_factory.mktemp(scenario) / "run"
-    rc = main(["run", str(SCEN / f"{scenario}.toml"), "--out", str(out), *STRIDES, *extra])
-    assert rc == 0
+    sets = [s for s in (*STRIDES, *extra) if s != "--set"]
+    run_scenario(SCEN / f"{scenario}.toml", overrides=sets, out_dir=out, figures=False)
     return json.loads((out / "summary.json").read_text())
 
 

@@ -102,11 +102,11 @@ def test_walk_recording_values_equal_the_record(walk_recording):
 def device_recording(tmp_path_factory):
     out = tmp_path_factory.mktemp("dev")
     rrd = out / "hafo.rrd"
-    args = ["run", str(ROOT / "scenarios" / "gait_assist_hafo.toml"), "--out",
-            str(out / "res"), "--rrd", str(rrd)]
-    for s in SHORT:
-        args += ["--set", s]
-    assert main(args) == 0
+    # what ``afo-mj run ... --rrd FILE`` does (the application layer), without the figures
+    from afo_mj.app.run import record_run, run_scenario
+    res = run_scenario(ROOT / "scenarios" / "gait_assist_hafo.toml", overrides=SHORT,
+                       out_dir=out / "res", figures=False)
+    assert record_run(res, rrd)["path"] == str(rrd)
     return out, rrd, read_recording_index(rrd)
 
 
