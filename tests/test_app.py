@@ -116,6 +116,10 @@ def test_a_bench_scenario_gives_a_bench_run(tmp_path):
     written = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert written["bench"]["rise_time_s"] == pytest.approx(res.summary["bench"]["rise_time_s"])
     assert not any(p.suffix == ".png" for p in (tmp_path / "b").iterdir())
+    from afo_mj.app.run import run_bench
+    with pytest.raises(InvalidInput, match="not a bench scenario"):
+        run_bench(HEALTHY, out_dir=tmp_path / "c")
+    assert not (tmp_path / "c").exists()
 
 
 def test_cli_only_parses_and_prints():

@@ -31,8 +31,8 @@ import numpy as np
 
 from afo_mj.app.errors import InvalidInput, RunFailed
 
-__all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "record_run", "run_info",
-           "write_rrd"]
+__all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "run_bench", "record_run",
+           "run_info", "write_rrd"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -176,7 +176,7 @@ def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None
         if strides is not None:
             raise InvalidInput(f"--strides: {path} is a bench scenario (no strides); allowed: "
                                f"--strides on walking scenarios only")
-        return _run_bench(path, overrides, out_dir, figures)
+        return run_bench(path, overrides, out_dir, figures)
     ov = (strides_overrides(strides) if strides is not None else []) + list(overrides)
     try:
         scenario = load_scenario(path, overrides=ov)
@@ -316,8 +316,13 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
     return DeviceWalkRun(scenario, reference, cfg, results, dsum, summary, wall, out)
 
 
-def _run_bench(path, overrides, out_dir, figures: bool) -> BenchRun:
-    """A bench scenario: the device on the ankle test stand (or a circuit's bench)."""
+def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
+              figures: bool = True) -> BenchRun:
+    """Run the bench scenario ``path``: the device on the ankle test stand (HAFO bench,
+    stiffness rig) or a circuit's bench protocols; with ``out_dir``, write ``summary.json``,
+    ``scenario.toml``, ``run_info.json`` and (``figures``) the bench figures. A walking
+    scenario raises :class:`~afo_mj.app.errors.InvalidInput` (run it with
+    :func:`run_scenario`)."""
     from afo_mj.experiments.bench_run import run_bench_scenario
     from afo_mj.outputs.gait_report import json_ready
     from afo_mj.outputs.result_dir import ResultDirError, write_atomically
@@ -325,6 +330,16 @@ def _run_bench(path, overrides, out_dir, figures: bool) -> BenchRun:
     from afo_mj.scenarios.bench_scenario import load_bench_scenario
     from afo_mj.scenarios.walk_scenario import ScenarioError
 
+    from afo_mj.scenarios.bench_scenario import is_bench_document
+    if not is_bench_document(_read_text(path)):
+        raise InvalidInput(f"{path} is not a bench scenario (no [bench] table); allowed: a "
+                           f"bench scenario such as scenarios/bench_hafo.toml")
+    if out_dir is not None:
+        from afo_mj.outputs.result_dir import check_result_dir
+        try:
+            check_result_dir(out_dir)
+        except ResultDirError as exc:
+            raise InvalidInput(f"{exc}; nothing written") from None
     try:
         bs = load_bench_scenario(path, overrides=overrides)
     except ScenarioError as exc:
