@@ -66,6 +66,9 @@ def calibrate_record(scenario_path, data_path, out_dir=None, command: str | None
         raise InvalidInput(str(exc)) from None
     except (ReplayError, FloatingPointError) as exc:
         raise RunFailed(f"{exc}; nothing written") from None
+    if on_warning is not None:
+        for flag in report.get("record_flags") or ():
+            on_warning(flag)
     if out_dir is None:
         return CalibrationRun(report, None)
     if on_stage is not None:

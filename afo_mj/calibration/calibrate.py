@@ -58,6 +58,7 @@ from afo_mj.calibration.effect_library import (
     DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
     lean_setting)
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
+from afo_mj.calibration.record_checks import check_record
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
@@ -194,6 +195,12 @@ class Calibration:
                                    f"produced by the {self.kind} bench replay (allowed: "
                                    f"{', '.join(self.replay.outputs)})")
         self.skipped_outputs = skipped
+        findings = check_record(data.channels, self.replay.params)
+        refused = [f.message for f in findings if f.severity == "refuse"]
+        if refused:
+            raise CalibrationError("; ".join(refused))
+        #: what the record checks flagged (the report's ``record_flags``)
+        self.record_flags = [f.message for f in findings if f.severity == "flag"]
         self.t = np.asarray(data.time_s, dtype=float)
         self.inputs = {c: np.asarray(data.channels[c], dtype=float) for c in input_names}
         if "fluid_temperature_k" in data.inputs:
@@ -688,6 +695,7 @@ class Calibration:
             "train_window_s": list(self.train_window), "held_out_window_s":
             list(self.test_window), "settle_s": self.options.settle_s,
             "noise_sigma": dict(self.noise),
+            "record_flags": list(self.record_flags),
             "declared_effects": [e.name for e in self.declared_effects],
             "error_preset": preset_err,
             "error_before": before_err, "error_after": after_err,

@@ -254,6 +254,14 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
     if meta:
         L.append("  \n".join(meta) + "\n")
 
+    # ---- what the record checks flagged (afo_mj.calibration.record_checks)
+    if report.get("record_flags"):
+        L.append("## Record checks\n")
+        L.append("The record does not fit the declared rig everywhere; read the verdict with "
+                 "this in mind:\n")
+        L += [f"- {m}" for m in report["record_flags"]]
+        L.append("")
+
     # ---- held-out error
     L.append("## Held-out error\n")
     L.append("NRMSE = RMS(measured − model) on the held-out part / SD of the channel over the "

@@ -1,0 +1,87 @@
+"""Checks of a measured record against the rig it is said to come from, before anything is fitted.
+
+A record can be well formed (units, channels, sidecar: :mod:`afo_mj.calibration.measured_data`)
+and still not fit the declared rig: an angle that would drive the piston past its end stops, or
+pressures above the relief valve's cracking setting. Fitted as they are, such records give a
+confident verdict on a mistake. :func:`check_record` returns what it finds:
+
+* ``refuse``: the record cannot come from the declared rig. The piston travel implied by the
+  measured ankle angle exceeds the cylinder's stroke: a piston-cable cylinder on a pulley of
+  radius ``r`` moves ``x = r θ`` from mid-stroke (the HAFO's actuator, Neubauer 2017 ch. 5),
+  so ``|θ| ≤ stroke / (2 r)``. An angle logged in degrees, a flipped zero or a wrong
+  declared pulley or stroke all show up here.
+* ``flag``: the record may be right but the declared rig cannot reproduce it. A gauge pressure
+  at or above the relief valve's cracking pressure means the relief valve opened in the record
+  (or its declared setting is too low), and the lean model relieves there too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["RecordFinding", "check_record", "PRESSURE_CHANNELS"]
+
+#: gauge-pressure channels compared with the relief setting
+PRESSURE_CHANNELS = ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
+                     "pump_pressure_pa", "supply_pressure_pa")
+
+
+@dataclasses.dataclass(frozen=True)
+class RecordFinding:
+    """One finding: ``severity`` ``"refuse"`` or ``"flag"``, the check, the channel and the
+    message (the channel, the value and what the declared rig allows)."""
+
+    severity: str
+    check: str
+    channel: str
+    message: str
+
+
+def _stroke_limit_rad(params) -> float | None:
+    """Largest |ankle angle| of a centred piston-cable cylinder: ``stroke / (2 r)``."""
+    cyl = getattr(params, "cylinder", None)
+    r = getattr(params, "pulley_radius_m", None)
+    if cyl is None or r is None or getattr(cyl, "kind", "") != "piston_cable":
+        return None
+    return 0.5 * float(cyl.stroke_m) / float(r)
+
+
+def check_record(channels: Mapping[str, np.ndarray], params) -> list[RecordFinding]:
+    """Compare the record's ``channels`` (SI, gauge pressures) with the declared rig
+    ``params`` (a HAFO or valve-circuit parameter set); returns the findings, refusals
+    first. Example: an angle logged in degrees (±10 "rad") on the HAFO (±0.56 rad) is
+    refused."""
+    out: list[RecordFinding] = []
+    lim = _stroke_limit_rad(params)
+    ang = channels.get("ankle_angle_rad")
+    if lim is not None and ang is not None and len(ang):
+        peak = float(np.max(np.abs(ang)))
+        if peak > lim:
+            out.append(RecordFinding(
+                "refuse", "stroke", "ankle_angle_rad",
+                f"ankle_angle_rad reaches {peak:.3g} rad ({np.degrees(peak):.3g} deg), past the "
+                f"declared cylinder's end stops at ±{lim:.3g} rad (stroke "
+                f"{params.cylinder.stroke_m:g} m on a {params.pulley_radius_m:g} m pulley, "
+                f"centred); allowed: |angle| <= {lim:.3g} rad. Check the angle's unit (rad, "
+                f"not deg), its zero (mid-stroke) and the declared stroke and pulley radius"))
+    relief = getattr(getattr(params, "relief", None), "cracking_dp_pa", None)
+    if relief is not None:
+        for name in PRESSURE_CHANNELS:
+            p = channels.get(name)
+            if p is None or not len(p):
+                continue
+            peak = float(np.max(p))
+            if peak >= relief:
+                frac = float(np.mean(p >= relief))
+                out.append(RecordFinding(
+                    "flag", "relief", name,
+                    f"{name} reaches {peak / 1e6:.3g} MPa (gauge), at or above the declared "
+                    f"relief cracking pressure {relief / 1e6:.3g} MPa for {100 * frac:.2g} % "
+                    f"of the record: the relief valve opened (or its declared setting is "
+                    f"below the rig's); the fit there measures the relief, not the effect "
+                    f"sought. Check relief.cracking_dp_pa and that the pressures are gauge"))
+    out.sort(key=lambda f: f.severity != "refuse")
+    return out
