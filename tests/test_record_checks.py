@@ -47,6 +47,32 @@ def test_pressure_at_the_relief_setting_is_flagged_not_refused():
     assert check_record({"pressure_a_pa": 0.9 * RELIEF_PA * np.sin(T) ** 2}, HAFO) == []
 
 
+def test_angle_noise_swamping_the_torque_is_flagged():
+    """A 0.002 rad encoder imposed on the HAFO: with the pump held the oil's ankle stiffness
+    is (A r)^2 (1/C_a + 1/C_b) (Merritt §5.3), computed here from the geometry; the flag's
+    torque equals K σθ and appears only when it exceeds 3 torque-sensor σ."""
+    import math
+
+    from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
+    p = HAFO
+    # piston-cable: the cable runs through both chambers, so both sides are annuli
+    area = p.cylinders * math.pi / 4 * (p.cylinder.bore_m ** 2 - p.cylinder.rod_diameter_m ** 2)
+    b = float(Fluid(p.fluid).bulk_modulus_pa(1e6 + ATMOSPHERIC_PRESSURE_PA))
+    v_hose = math.pi / 4 * p.hose.bore_m ** 2 * p.hose.length_m
+    v_side = p.cylinder.dead_volume_a_m3 + area * p.cylinder.stroke_m / 2
+    c_side = (v_side + v_hose + p.pump_port_volume_m3) / b + v_hose / p.hose.wall_bulk_modulus_pa
+    k_ref = (area * p.pulley_radius_m) ** 2 * 2 / c_side
+    ch = {"ankle_angle_rad": 0.2 * np.sin(T), "ankle_torque_nm": 10 * np.sin(T)}
+    f = check_record(ch, p, {"ankle_angle_rad": 0.002, "ankle_torque_nm": 0.5},
+                     ("ankle_angle_rad",))
+    assert [x.check for x in f] == ["input_noise"]
+    assert f"~{k_ref * 0.002:.3g} N*m" in f[0].message
+    assert check_record(ch, p, {"ankle_angle_rad": 1e-5, "ankle_torque_nm": 0.5},
+                        ("ankle_angle_rad",)) == []
+    # an angle that is an output (the load simulated) is not imposed: nothing to flag
+    assert check_record(ch, p, {"ankle_angle_rad": 0.002, "ankle_torque_nm": 0.5}, ()) == []
+
+
 def test_calibrate_refuses_an_angle_with_a_shifted_zero_and_writes_nothing(tmp_path):
     """An angle whose zero is not mid-stroke (here +0.5 rad) passes the loader's unit check
     (|θ| < 1.2 rad) but would drive the piston into its end stop: refused, exit 2."""

@@ -195,7 +195,8 @@ class Calibration:
                                    f"produced by the {self.kind} bench replay (allowed: "
                                    f"{', '.join(self.replay.outputs)})")
         self.skipped_outputs = skipped
-        findings = check_record(data.channels, self.replay.params)
+        findings = check_record(data.channels, self.replay.params, data.noise,
+                                tuple(data.inputs))
         refused = [f.message for f in findings if f.severity == "refuse"]
         if refused:
             raise CalibrationError("; ".join(refused))

@@ -12,7 +12,11 @@ confident verdict on a mistake. :func:`check_record` returns what it finds:
   declared pulley or stroke all show up here.
 * ``flag``: the record may be right but the declared rig cannot reproduce it. A gauge pressure
   at or above the relief valve's cracking pressure means the relief valve opened in the record
-  (or its declared setting is too low), and the lean model relieves there too.
+  (or its declared setting is too low), and the lean model relieves there too. An imposed
+  ankle angle whose declared sensor noise σθ, through the oil's stiffness K with the pump held
+  (Merritt, *Hydraulic Control Systems*, §5.3; :meth:`hydraulic_stiffness_nm_per_rad`),
+  becomes a torque noise K σθ well above the torque sensor's own: replaying the noisy angle
+  swamps the outputs.
 """
 
 from __future__ import annotations
@@ -49,11 +53,17 @@ def _stroke_limit_rad(params) -> float | None:
     return 0.5 * float(cyl.stroke_m) / float(r)
 
 
-def check_record(channels: Mapping[str, np.ndarray], params) -> list[RecordFinding]:
-    """Compare the record's ``channels`` (SI, gauge pressures) with the declared rig
-    ``params`` (a HAFO or valve-circuit parameter set); returns the findings, refusals
-    first. Example: an angle logged in degrees (±10 "rad") on the HAFO (±0.56 rad) is
-    refused."""
+#: an imposed angle's noise is flagged when K σθ exceeds this many torque-sensor σ
+NOISE_SWAMP_RATIO = 3.0
+
+
+def check_record(channels: Mapping[str, np.ndarray], params,
+                 noise: Mapping[str, float] | None = None,
+                 inputs: tuple = ()) -> list[RecordFinding]:
+    """Compare the record's ``channels`` (SI, gauge pressures; ``noise``: declared sensor σ;
+    ``inputs``: the channels imposed on the model) with the declared rig ``params`` (a HAFO or
+    valve-circuit parameter set); returns the findings, refusals first. Example: an angle
+    logged in degrees (±10 "rad") on the HAFO (±0.56 rad) is refused."""
     out: list[RecordFinding] = []
     lim = _stroke_limit_rad(params)
     ang = channels.get("ankle_angle_rad")
@@ -83,5 +93,23 @@ def check_record(channels: Mapping[str, np.ndarray], params) -> list[RecordFindi
                     f"of the record: the relief valve opened (or its declared setting is "
                     f"below the rig's); the fit there measures the relief, not the effect "
                     f"sought. Check relief.cracking_dp_pa and that the pressures are gauge"))
+    noise = noise or {}
+    sig_th = noise.get("ankle_angle_rad")
+    stiff = getattr(params, "hydraulic_stiffness_nm_per_rad", None)
+    if "ankle_angle_rad" in inputs and sig_th and stiff is not None:
+        k = float(stiff())
+        tau = k * float(sig_th)
+        sig_tau = noise.get("ankle_torque_nm")
+        ref = float(sig_tau) if sig_tau else None
+        if ref is not None and tau > NOISE_SWAMP_RATIO * ref:
+            dp = tau / float(params.torque_per_pressure_m3)
+            out.append(RecordFinding(
+                "flag", "input_noise", "ankle_angle_rad",
+                f"the imposed ankle_angle_rad has a declared noise σ = {float(sig_th):.3g} rad; "
+                f"through the oil's stiffness with the pump held ({k:.3g} N*m/rad) that is "
+                f"~{tau:.3g} N*m of ankle torque (~{dp / 1e6:.2g} MPa of line pressure "
+                f"difference), {tau / ref:.2g}x the torque sensor's σ = {ref:.3g} N*m: the "
+                f"replayed outputs will be dominated by the angle's noise. Filter the angle "
+                f"(or use a finer encoder) before calibrating"))
     out.sort(key=lambda f: f.severity != "refuse")
     return out
