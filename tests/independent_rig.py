@@ -154,7 +154,7 @@ EFFECTS: Mapping[str, Effect] = {e.name: e for e in (
            "oil inertance of each hose, I = scale · ρ l / A_hose"),
     Effect("check_cracking", "cracking_pa", "Pa", 0.5e5,
            "check valves crack only at p_c − p > this"),
-    Effect("current_limit", "limit_a", "A", 6.0,
+    Effect("current_limit", "limit_a", "A", 3.0,
            "driver current limit (proportional current-limit loop, 20 V/A)"),
     Effect("cable_compliance", "stiffness_n_m", "N/m", 2.0e6,
            "series cable stiffness between piston (mass 50 g) and pulley, damping ratio 0.1"),
@@ -468,8 +468,9 @@ class Rig:
         y0 = self.initial_state() if y0 is None else np.asarray(y0, dtype=float)
         n = int(round(duration_s * sample_rate_hz)) + 1
         t = np.arange(n) / sample_rate_hz
-        sol = solve_ivp(self.rhs, (0.0, t[-1]), y0, method=method, t_eval=t, rtol=rtol,
-                        atol=self.atol(), max_step=5e-3)
+        with np.errstate(over="ignore"):    # scipy's numerical-Jacobian step factors
+            sol = solve_ivp(self.rhs, (0.0, t[-1]), y0, method=method, t_eval=t, rtol=rtol,
+                            atol=self.atol(), max_step=5e-3)
         if not sol.success:
             raise RuntimeError(f"independent rig: solver failed: {sol.message}")
         return sol.t, sol.y
