@@ -95,3 +95,37 @@ def test_calibrate_refuses_an_angle_with_a_shifted_zero_and_writes_nothing(tmp_p
     with pytest.raises(InvalidInput, match="ankle_angle_rad reaches .* past the declared"):
         calibrate_record("hafo", src, out)
     assert not out.exists()
+
+
+def test_check_signs_refuses_anti_correlated_outputs_only():
+    from afo_mj.calibration.record_checks import check_signs
+    rng = np.random.default_rng(0)
+    s = np.sin(2 * np.pi * T)
+    noisy = s + 0.3 * rng.standard_normal(T.size)
+    assert check_signs({"ankle_torque_nm": noisy}, {"ankle_torque_nm": s}) == []
+    f = check_signs({"ankle_torque_nm": -noisy, "pressure_a_pa": noisy},
+                    {"ankle_torque_nm": s, "pressure_a_pa": s}, ("motor_voltage_v",
+                                                                 "ankle_angle_rad"))
+    assert [(x.severity, x.channel) for x in f] == [("refuse", "ankle_torque_nm")]
+    assert "ankle_angle_rad" in f[0].message and "dorsiflexion positive" in f[0].message
+
+
+def test_calibrate_refuses_a_flipped_torque_before_fitting(tmp_path):
+    """A torque logged plantarflexion-positive: refused after the first replay (exit 2, nothing
+    written), not fitted into a confident verdict."""
+    from afo_mj.app.calibrate import calibrate_record
+    from afo_mj.app.errors import InvalidInput
+    from afo_mj.calibration.measured_data import write_measured
+    from afo_mj.calibration.synthetic_records import generate_record
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = generate_record(tmp_path / "ok.csv", "hafo", duration_s=3.0, seed=2)
+        chans = {k: np.asarray(v) for k, v in data.channels.items()}
+        chans["ankle_torque_nm"] = -chans["ankle_torque_nm"]
+        src = tmp_path / "flipped.csv"
+        write_measured(src, {"time_s": data.time_s, **chans}, inputs=data.inputs,
+                       outputs=data.outputs, source=data.source, noise=data.noise)
+    out = tmp_path / "report"
+    with pytest.raises(InvalidInput, match="ankle_torque_nm is anti-correlated"):
+        calibrate_record("hafo", src, out)
+    assert not out.exists()

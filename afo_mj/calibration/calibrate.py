@@ -58,7 +58,7 @@ from afo_mj.calibration.effect_library import (
     DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
     lean_setting)
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
-from afo_mj.calibration.record_checks import check_record
+from afo_mj.calibration.record_checks import check_record, check_signs
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
@@ -573,7 +573,13 @@ class Calibration:
         x0 = np.concatenate([np.ones(len(self.declared))] + [
             [self._typical(e, p) / p.scale for p in e.parameters] for e in structure])
         rep = progress.reporter()
-        preset_err, _ = self.held_out_errors([], np.ones(len(self.declared)))
+        preset_err, preset_out = self.held_out_errors([], np.ones(len(self.declared)))
+        settled = np.nonzero(self.t >= self.t[0] + opts.settle_s)[0]
+        flipped = check_signs({c: self.meas[c][settled] for c in self.outputs},
+                              {c: preset_out[c][settled] for c in self.outputs},
+                              tuple(self.inputs))
+        if flipped:
+            raise CalibrationError("; ".join(f.message for f in flipped))
         t_fit = time.perf_counter()
         rep.stage(f"calibration: fitting the {len(self.declared)} declared parameters"
                   + (f" and {len(structure)} declared effects" if structure else "") + "…")

@@ -10,6 +10,12 @@ confident verdict on a mistake. :func:`check_record` returns what it finds:
   radius ``r`` moves ``x = r θ`` from mid-stroke (the HAFO's actuator, Neubauer 2017 ch. 5),
   so ``|θ| ≤ stroke / (2 r)``. An angle logged in degrees, a flipped zero or a wrong
   declared pulley or stroke all show up here.
+* ``refuse`` after the first replay (:func:`check_signs`): an output that the declared rig,
+  replayed with the record's inputs, reproduces with the opposite sign (correlation below
+  :data:`SIGN_FLIP_CORRELATION`) is a flipped sign convention on that channel or on an
+  imposed input (dorsiflexion positive, torque and angle alike), not a missing effect: no fit
+  can turn an anti-correlated channel into a good one, and an effect search on it would name
+  whatever reduces the misfit most.
 * ``flag``: the record may be right but the declared rig cannot reproduce it. A gauge pressure
   at or above the relief valve's cracking pressure means the relief valve opened in the record
   (or its declared setting is too low), and the lean model relieves there too. An imposed
@@ -26,7 +32,8 @@ from typing import Mapping
 
 import numpy as np
 
-__all__ = ["RecordFinding", "check_record", "PRESSURE_CHANNELS"]
+__all__ = ["RecordFinding", "check_record", "check_signs", "PRESSURE_CHANNELS",
+           "SIGN_FLIP_CORRELATION"]
 
 #: gauge-pressure channels compared with the relief setting
 PRESSURE_CHANNELS = ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
@@ -112,4 +119,33 @@ def check_record(channels: Mapping[str, np.ndarray], params,
                 f"replayed outputs will be dominated by the angle's noise. Filter the angle "
                 f"(or use a finer encoder) before calibrating"))
     out.sort(key=lambda f: f.severity != "refuse")
+    return out
+
+
+#: an output whose correlation with the declared rig's replay is below this is refused
+SIGN_FLIP_CORRELATION = -0.5
+
+
+def check_signs(measured: Mapping[str, np.ndarray], replayed: Mapping[str, np.ndarray],
+                inputs: tuple = ()) -> list[RecordFinding]:
+    """Refusals for outputs anti-correlated with the replay of the declared rig (Pearson
+    correlation below :data:`SIGN_FLIP_CORRELATION` over the samples given). Example: a
+    torque channel logged plantarflexion-positive gives ρ ≈ −1 against the replay."""
+    out = []
+    for name, m in measured.items():
+        r = replayed.get(name)
+        if r is None or len(m) < 3 or np.std(m) == 0 or np.std(r) == 0:
+            continue
+        rho = float(np.corrcoef(m, r)[0, 1])
+        if rho < SIGN_FLIP_CORRELATION:
+            imposed = ", ".join(i for i in inputs if i.endswith(("_rad", "_nm")))
+            out.append(RecordFinding(
+                "refuse", "sign", name,
+                f"{name} is anti-correlated with the declared rig's replay of this record "
+                f"(correlation {rho:.2f}; allowed: >= {SIGN_FLIP_CORRELATION:g}): a flipped "
+                f"sign convention on {name}"
+                + (f" or on the imposed {imposed}" if imposed else "")
+                + " (afo_mj: dorsiflexion positive for angles and torques, positive motor "
+                  "voltage drives plantarflexion, pressures gauge). Fix the record's sign; "
+                  "no effect is searched on a flipped channel"))
     return out
