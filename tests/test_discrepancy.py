@@ -154,6 +154,8 @@ def test_report_per_channel():
 
 
 def test_sixty_features_twenty_thousand_samples_under_a_second():
+    """Library and regression of 20 000 samples × 60 features: under 1 s (best of 2 runs, so a
+    busy machine's hiccup does not fail it)."""
     rng = np.random.default_rng(8)
     sig = {f"s{k}": np.sin(2 * np.pi * (0.1 + 0.13 * k) * T + k) + 0.1 * rng.normal(size=N)
            for k in range(10)}
@@ -161,10 +163,14 @@ def test_sixty_features_twenty_thousand_samples_under_a_second():
     assert len(feats) == 60
     product = next(k for k in feats if "·" in k)       # a late family, kept under the cap
     r = 0.3 * feats[product] + _noise(9)
-    t0 = time.perf_counter()
-    res = dd.sparse_discrepancy("c", r, feats, TRAIN, TEST, SIGMA)
-    assert time.perf_counter() - t0 < 1.0
+    elapsed = []
+    for _ in range(2):
+        t0 = time.perf_counter()
+        res = dd.sparse_discrepancy("c", r, dd.candidate_features(sig, T), TRAIN, TEST, SIGMA)
+        elapsed.append(time.perf_counter() - t0)
+    assert min(elapsed) < 1.0, elapsed
     assert res["terms"][0].feature == product
+    assert res["terms"][0].coefficient == pytest.approx(0.3, rel=0.05)
 
 
 # ---------------------------------------------------------------------------- bad input
@@ -204,3 +210,21 @@ def test_library_bad_input_names_the_argument(signals, time_s, name):
 def test_report_bad_noise_names_the_argument():
     with pytest.raises(ValueError, match="noise"):
         dd.discrepancy_report({"a": np.ones(N)}, SIGNALS, T, TRAIN, TEST, {})
+
+
+def test_stlsq_finds_a_planted_sparse_support():
+    """STLSQ alone (Brunton et al. 2016) on noiseless data: the thresholded support is exactly
+    the planted one, whose least-squares coefficients are the planted ones."""
+    rng = np.random.default_rng(10)
+    Z = rng.normal(size=(500, 12))
+    xi = np.zeros(12)
+    xi[[0, 4, 9]] = [1.0, -0.5, 0.25]
+    y = Z @ xi + 0.01 * rng.normal(size=500)
+    G, b = Z.T @ Z, Z.T @ y
+    support = dd._stlsq(G, b, 0.1, np.zeros(12, dtype=bool))
+    assert support.tolist() == [0, 4, 9]
+    assert np.allclose(dd._lstsq_support(G, b, support)[support], [1.0, -0.5, 0.25], atol=0.01)
+    # a threshold above every coefficient leaves nothing, except what must stay
+    always = np.zeros(12, dtype=bool)
+    always[3] = True
+    assert dd._stlsq(G, b, 2.0, always).tolist() == [3]
