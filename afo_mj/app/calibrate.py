@@ -34,8 +34,8 @@ def calibrate_record(scenario_path, data_path, out_dir=None, command: str | None
     """Calibrate the preset of ``scenario_path`` against the record ``data_path``; with
     ``out_dir``, write ``report.json``, ``report.md`` and the figures (``command``: the
     command line echoed in the report)."""
-    from afo_mj.calibration.calibrate import (CalibrationError, calibrate,
-                                              load_calibration_setup)
+    from afo_mj.calibration.calibrate import (CalibrationError, calibrate_setup,
+                                              load_calibration_scenario)
     from afo_mj.calibration.measured_data import MeasuredDataError, load_measured
     from afo_mj.experiments.bench_replay import ReplayError
     from afo_mj.hydraulics.params import ParameterError
@@ -48,20 +48,22 @@ def calibrate_record(scenario_path, data_path, out_dir=None, command: str | None
         except ResultDirError as exc:
             raise InvalidInput(f"{exc}; nothing written") from None
     try:
-        preset, overrides, options = load_calibration_setup(scenario_path)
+        setup = load_calibration_scenario(scenario_path)
+        preset = setup.preset or (setup.circuit.name if setup.circuit is not None else None)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             data = load_measured(data_path)
         if on_warning is not None:
             for w in caught:
                 on_warning(str(w.message))
-            if data.source.get("preset") and data.source["preset"] != preset:
+            if (setup.circuit is None and data.source.get("preset")
+                    and data.source["preset"] != preset):
                 on_warning(f"the record says source.preset = {data.source['preset']!r}; "
                            f"calibrating {preset!r} (from --scenario)")
     except (ParameterError, MeasuredDataError, OSError) as exc:
         raise InvalidInput(str(exc)) from None
     try:
-        report = calibrate(data, preset, options, overrides)
+        report = calibrate_setup(data, setup)
     except (CalibrationError, ParameterError) as exc:
         raise InvalidInput(str(exc)) from None
     except (ReplayError, FloatingPointError) as exc:

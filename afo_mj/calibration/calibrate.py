@@ -55,8 +55,9 @@ from scipy.optimize import least_squares
 from afo_mj import progress
 from afo_mj.calibration import residual_analysis as ra
 from afo_mj.calibration.effect_library import (
-    DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters, effects_for,
-    lean_setting)
+    DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters,
+    described_off, effects_for, lean_setting)
+from afo_mj.calibration.identifiability import select_parameters
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
 from afo_mj.calibration.record_checks import check_record, check_signs
 from afo_mj.hydraulics.params import ParameterError
@@ -64,7 +65,8 @@ from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
-           "model_outputs", "sensor_outputs"]
+           "model_outputs", "sensor_outputs", "CalibrationSetup", "load_calibration_scenario",
+           "calibrate_setup"]
 
 
 class CalibrationError(RuntimeError):
@@ -87,6 +89,12 @@ class CalibrationOptions:
     max_nfev: int = 40
     declared_effects: tuple[str, ...] = ()
     candidates: tuple[str, ...] = ()
+    #: a described rig: the baseline must reach this multiple of each channel's noise floor
+    #: (held-out NRMSE over σ/SD), else the declared structure is reported as wrong
+    baseline_noise_multiple: float = 2.0
+    #: channels whose sensors the user marks as uncalibrated (only they get a gain/offset
+    #: candidate; ``None``: every channel, the presets' behaviour)
+    uncalibrated_channels: tuple[str, ...] | None = None
 
     def __post_init__(self):
         def bad(key, allowed):
@@ -106,6 +114,11 @@ class CalibrationOptions:
             bad("min_error_drop", "0 < drop < 1")
         if not self.max_nfev >= 5:
             bad("max_nfev", ">= 5")
+        if not 1.0 <= self.baseline_noise_multiple <= 100.0:
+            bad("baseline_noise_multiple", "1 … 100")
+        if self.uncalibrated_channels is not None and not all(
+                isinstance(c, str) for c in self.uncalibrated_channels):
+            bad("uncalibrated_channels", "a list of channel names")
 
 
 def declared_labels(replay: BenchReplay, d: DeclaredParameter) -> tuple[str, ...]:
@@ -241,12 +254,23 @@ class Calibration:
             self.noise[c] = float(sig) if sig else ra.noise_sigma_estimate(self.meas[c])
         self.context = {}
         self.declared = declared_parameters(self.kind)
-        self.available = set(self.replay.param_labels)
+        self.available = (set(self.replay.param_labels) if self.kind != "circuit"
+                          else _Resolving(self.replay))
+        if self.kind == "circuit":
+            self.declared = tuple(d for d in self.declared
+                                  if any(self.replay.has(lab) for lab in d.labels))
+        #: the identifiability analysis of a described rig (None for the presets)
+        self.identifiability_table = None
         #: per declared parameter, the packed labels this circuit has (all scaled together)
         self.declared_labels = [declared_labels(self.replay, d) for d in self.declared]
         spread = {c: 0.5 * self.scale[c] + abs(float(np.mean(self.meas[c])))
                   for c in self.outputs}
-        self.library = effects_for(self.kind, self.outputs, spread, self.available)
+        uncal = options.uncalibrated_channels
+        if self.kind == "circuit" and uncal is None:
+            uncal = ()
+        self.library = effects_for(
+            self.kind, self.outputs, spread, self.available,
+            is_off=lambda e: described_off(e, self.replay.value), uncalibrated=uncal)
         names = [e.name for e in self.library]
         for n in options.declared_effects + options.candidates:
             if n not in names:
@@ -565,10 +589,46 @@ class Calibration:
             return x_probe
         return x_lin
 
+    # ---------------------------------------------------------------- identifiability
+    def noise_floor(self) -> dict[str, float]:
+        """Per channel, the NRMSE a perfect model would show: the sensor noise σ over the
+        channel's SD (the NRMSE scale)."""
+        return {c: self.noise[c] / self.scale[c] for c in self.outputs}
+
+    def select_declared(self) -> None:
+        """A described rig: replay once per declared parameter (1 % steps of its factor),
+        select what the record can estimate (:func:`select_parameters`), hold the rest at
+        the description's values. Sets :attr:`identifiability_table`."""
+        if self.kind != "circuit" or not self.declared:
+            return
+        k = len(self.declared)
+        lo, hi = self._bounds([])
+        progress.reporter().stage(f"calibration: identifiability of {k} declared parameters "
+                                  f"({k + 1} replays)…")
+        J, _ = self.jacobian([], np.ones(k), lo, hi)
+        floor = self.noise_floor()
+        n1 = len(self.train_idx)
+        w = np.concatenate([np.full(n1, 1.0 / max(floor[c], 1e-12)) for c in self.outputs])
+        movable = [self.replay.value(labels[0]) != 0.0 for labels in self.declared_labels]
+        ident = select_parameters(J, [d.name for d in self.declared], w, movable=movable)
+        self.identifiability_table = ident
+        self.held_declared = {d.name: self.replay.value(labels[0])
+                              for i, (d, labels) in enumerate(zip(self.declared,
+                                                                  self.declared_labels))
+                              if i not in ident.selected}
+        self.declared = tuple(self.declared[i] for i in ident.selected)
+        self.declared_labels = [self.declared_labels[i] for i in ident.selected]
+        progress.reporter().stage(
+            "calibration: fitting " + (", ".join(d.name for d in self.declared) or "nothing")
+            + "; held at the description's values: " + (", ".join(self.held_declared)
+                                                         or "none"))
+
     # ---------------------------------------------------------------- the whole method
     def run(self) -> dict:
         t_start = time.perf_counter()
         opts = self.options
+        self.held_declared: dict[str, float] = {}
+        self.select_declared()
         structure = list(self.declared_effects)
         x0 = np.concatenate([np.ones(len(self.declared))] + [
             [self._typical(e, p) / p.scale for p in e.parameters] for e in structure])
@@ -591,6 +651,12 @@ class Calibration:
                   f"{len(self.candidates)} candidate effects follow")
         declared_fit = current
         before_err, before_out = self.held_out_errors(current.effects, current.x)
+        floor = self.noise_floor()
+        mult = opts.baseline_noise_multiple
+        baseline = {"noise_multiple": mult, "noise_floor": floor,
+                    "held_out": {c: before_err[c] for c in self.outputs},
+                    "ratio": {c: before_err[c] / max(floor[c], 1e-12) for c in self.outputs}}
+        baseline["reaches_noise"] = bool(all(v <= mult for v in baseline["ratio"].values()))
         whiteness_before = self._whiteness(before_out)
         steps = []
         candidates_report: dict[str, dict] = {}
@@ -671,10 +737,15 @@ class Calibration:
         structured_before = [c for c, s in channels_before.items() if s["structured"]]
         if steps:
             verdict = "effect_found"
-        elif structured_before:
+        elif self.kind == "circuit" and not baseline["reaches_noise"]:
+            verdict = "structure_wrong"
+        elif structured_before and not (self.kind == "circuit" and baseline["reaches_noise"]):
             verdict = "unexplained_residual"
         else:
             verdict = "no_missing_effect"
+        if self.kind == "circuit" and not baseline["reaches_noise"]:
+            where_base = ra.locate_structure(channels_before) if structured_before else None
+            baseline["structure_wrong_where"] = where_base
         where = ra.locate_structure(channels_after) if structured_after else None
         ident = self.identifiability(current)
         params = self.physical(current.effects, current.x)
@@ -708,6 +779,10 @@ class Calibration:
             "error_before": before_err, "error_after": after_err,
             "error_drop": 1.0 - after_err["overall"] / before_err["overall"],
             "declared_fit": self.physical(declared_fit.effects, declared_fit.x),
+            "declared_held": dict(self.held_declared),
+            "identifiability": (None if self.identifiability_table is None
+                                else self.identifiability_table.as_dict()),
+            "baseline": baseline,
             "effects_selected": steps,
             "parameters": params, "parameter_sd": sd_phys,
             "candidates": candidates_report,
@@ -715,7 +790,8 @@ class Calibration:
             "residual_whiteness_after": whiteness_after,
             "channels_before": channels_before, "channels_after": channels_after,
             "verdict": verdict,
-            "unexplained_where": where if verdict == "unexplained_residual" or (
+            "unexplained_where": where if verdict in ("unexplained_residual",
+                                                      "structure_wrong") or (
                 verdict == "effect_found" and structured_after) else None,
             "evaluations": self.evaluations,
             "wall_time_s": time.perf_counter() - t_start,
@@ -733,7 +809,10 @@ class Calibration:
         idx = self.test_idx
         t = self.t[idx]
         ins = {c: v[idx] for c, v in self.inputs.items()}
-        ins["ankle_velocity_rad_s"] = np.gradient(self.inputs["ankle_angle_rad"], self.t)[idx]
+        angle = self.inputs.get("ankle_angle_rad", self.meas.get("ankle_angle_rad"))
+        if angle is None:
+            angle = out.get("ankle_angle_rad", np.zeros_like(self.t))
+        ins["ankle_velocity_rad_s"] = np.gradient(angle, self.t)[idx]
         states = {c: out[c][idx] for c in self.outputs}
         cycles = []
         try:
@@ -745,6 +824,16 @@ class Calibration:
         return {c: ra.analyse_channel(c, t, self.meas[c][idx], out[c][idx], ins, states, sig,
                                       self.noise[c], cycles or None)
                 for c in self.outputs}
+
+
+class _Resolving:
+    """The labels a described circuit's replay answers to (by role, :meth:`BenchReplay.has`)."""
+
+    def __init__(self, replay: BenchReplay):
+        self.replay = replay
+
+    def __contains__(self, label) -> bool:
+        return self.replay.has(label)
 
 
 def _projected(A: np.ndarray, r: np.ndarray) -> float:
@@ -787,6 +876,140 @@ def calibrate(data: MeasuredData, preset: str | None = None,
     preset = preset or data.source.get("preset")
     replay = BenchReplay(preset, overrides) if preset else None
     return Calibration(data, preset, options, replay=replay).run()
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationSetup:
+    """What a calibration scenario declares: a preset (with dotted ``overrides``) or a
+    described ``circuit`` (with its simulated ``load`` or none: the angle imposed), the
+    sensors (``signals``: channel → the circuit's state or probe it reads), the options."""
+
+    preset: str | None
+    overrides: dict
+    options: CalibrationOptions
+    circuit: object | None = None
+    load: object | None = None
+    signals: dict = dataclasses.field(default_factory=dict)
+
+    def replay(self) -> BenchReplay:
+        """The replay this setup calibrates."""
+        if self.circuit is not None:
+            return BenchReplay(circuit=self.circuit, load=self.load, signals=self.signals)
+        return BenchReplay(self.preset, self.overrides)
+
+
+#: keys of a scenario's ``[load]`` table (a described rig's simulated joint load)
+LOAD_KEYS = ("mode", "inertia_kg_m2", "stiffness_nm_rad", "damping_nm_s_rad",
+             "rest_angle_rad", "initial_angle_rad")
+#: keys of one ``[sensors.<channel>]`` table
+SENSOR_KEYS = ("signal", "calibrated", "noise_sigma")
+
+
+def load_calibration_scenario(scenario: str) -> CalibrationSetup:
+    """The :class:`CalibrationSetup` of ``scenario``: a device preset name, a TOML file with
+    ``[device] preset`` (as :func:`load_calibration_setup`), or a TOML file describing the rig
+    as a circuit: ``[circuit]`` (a description or a library circuit with overrides,
+    :mod:`afo_mj.scenarios.circuit_scenario`), ``[load]`` (``mode = "simulated"`` with
+    ``inertia_kg_m2``, ``stiffness_nm_rad``, ``damping_nm_s_rad``: the foot is free and the
+    measured angle is an output; ``mode = "imposed"``: the record's angle drives the joint),
+    ``[sensors.<channel>]`` (``signal``: the state or probe it reads; ``calibrated = false``
+    makes its gain/offset a candidate) and ``[calibration]``."""
+    import tomllib
+    from pathlib import Path
+
+    from afo_mj.circuits.circuit import Circuit
+    from afo_mj.circuits.components import CircuitError
+    from afo_mj.circuits.device import JointLoad
+    from afo_mj.scenarios.circuit_scenario import circuit_spec
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+
+    path = Path(scenario)
+    if path.suffix != ".toml":
+        preset, overrides, options = load_calibration_setup(scenario)
+        return CalibrationSetup(preset, overrides, options)
+    if not path.is_file():
+        raise ParameterError(f"--scenario {scenario!r}: no such file (allowed: a .toml scenario "
+                             "or a device preset name)")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{path}: not valid TOML ({exc})") from None
+    if "circuit" not in doc:
+        preset, overrides, options = load_calibration_setup(scenario)
+        return CalibrationSetup(preset, overrides, options)
+    allowed = ("name", "description", "circuit", "load", "sensors", "calibration")
+    bad = [k for k in doc if k not in allowed]
+    if bad:
+        raise ParameterError(f"{path}: unknown key {bad[0]!r}; allowed with [circuit]: "
+                             f"{', '.join(allowed)}")
+    try:
+        circuit = Circuit.from_dict(circuit_spec(doc["circuit"], str(path)))
+    except (ScenarioError, CircuitError) as exc:
+        raise ParameterError(str(exc)) from None
+    load_t = doc.get("load", {"mode": "imposed"})
+    if not isinstance(load_t, dict):
+        raise ParameterError(f"{path}: load must be a table; allowed keys: {', '.join(LOAD_KEYS)}")
+    bad = [k for k in load_t if k not in LOAD_KEYS]
+    if bad:
+        raise ParameterError(f"{path}: load.{bad[0]} is not a setting; allowed: "
+                             f"{', '.join(LOAD_KEYS)}")
+    mode = load_t.get("mode", "simulated" if "inertia_kg_m2" in load_t else "imposed")
+    if mode not in ("simulated", "imposed"):
+        raise ParameterError(f"{path}: load.mode = {mode!r}; allowed: simulated, imposed")
+    load = None
+    if mode == "simulated":
+        if "inertia_kg_m2" not in load_t:
+            raise ParameterError(f"{path}: load.inertia_kg_m2 is missing; allowed: > 0 (a "
+                                 "simulated load needs its inertia)")
+        try:
+            load = JointLoad(float(load_t["inertia_kg_m2"]),
+                             float(load_t.get("stiffness_nm_rad", 0.0)),
+                             float(load_t.get("damping_nm_s_rad", 0.0)),
+                             float(load_t.get("rest_angle_rad", 0.0)),
+                             float(load_t.get("initial_angle_rad", 0.0)))
+        except (CircuitError, TypeError, ValueError) as exc:
+            raise ParameterError(f"{path}: {exc}") from None
+    sensors = doc.get("sensors", {})
+    if not isinstance(sensors, dict):
+        raise ParameterError(f"{path}: sensors must be a table of [sensors.<channel>] tables")
+    signals, uncal = {}, []
+    for ch, t in sensors.items():
+        if not isinstance(t, dict):
+            raise ParameterError(f"{path}: sensors.{ch} must be a table; allowed keys: "
+                                 f"{', '.join(SENSOR_KEYS)}")
+        bad = [k for k in t if k not in SENSOR_KEYS]
+        if bad:
+            raise ParameterError(f"{path}: sensors.{ch}.{bad[0]} is not a setting; allowed: "
+                                 f"{', '.join(SENSOR_KEYS)}")
+        if "signal" in t:
+            signals[ch] = str(t["signal"])
+        if t.get("calibrated", True) is False:
+            uncal.append(ch)
+        elif t.get("calibrated", True) is not True:
+            raise ParameterError(f"{path}: sensors.{ch}.calibrated = {t['calibrated']!r}; "
+                                 "allowed: true, false")
+    cal = doc.get("calibration", {})
+    if not isinstance(cal, dict):
+        raise ParameterError(f"{path}: calibration must be a table")
+    bad = [k for k in cal if k not in CALIBRATION_KEYS]
+    if bad:
+        raise ParameterError(f"{path}: calibration.{bad[0]} is not a setting; allowed: "
+                             f"{', '.join(CALIBRATION_KEYS)}")
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cal.items()}
+    kw.setdefault("uncalibrated_channels", tuple(uncal))
+    return CalibrationSetup(None, {}, CalibrationOptions(**kw), circuit, load, signals)
+
+
+def calibrate_setup(data: MeasuredData, setup: CalibrationSetup) -> dict:
+    """Run the whole method on a record with what a scenario declares
+    (:func:`load_calibration_scenario`); returns the report dictionary."""
+    preset = setup.preset or data.source.get("preset") if setup.circuit is None else None
+    if setup.circuit is None and not preset:
+        raise CalibrationError("the record's sidecar names no source.preset and none was "
+                               "given (--preset)")
+    replay = (setup.replay() if setup.circuit is not None
+              else BenchReplay(preset, setup.overrides))
+    return Calibration(data, preset or setup.circuit.name, setup.options, replay=replay).run()
 
 
 #: keys of a scenario's ``[calibration]`` table (the fields of :class:`CalibrationOptions`)

@@ -52,7 +52,8 @@ import numpy as np
 from afo_mj.hydraulics.params import ParameterError
 
 __all__ = ["EffectParameter", "Effect", "ModelSetting", "DeclaredParameter", "effects_for",
-           "lean_setting", "declared_parameters", "EFFECT_NAMES", "effect_by_name"]
+           "lean_setting", "declared_parameters", "EFFECT_NAMES", "effect_by_name",
+           "described_off"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -304,25 +305,36 @@ _LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _AIR: 0.0, _WALL[0]: 0.0, _WALL[1]: 0.
 _LEAN_VALVE = {_LAP: 0.0, _SPOOL_TAU: 5e-4}
 
 
-def _offered(e: Effect, available) -> bool:
-    return available is None or all(lab in available for lab in e.labels)
+def _offered(e: Effect, available, is_off=None) -> bool:
+    if available is not None and not all(lab in available for lab in e.labels):
+        return False
+    return is_off is None or is_off(e)
 
 
 def effects_for(kind: str, outputs: Sequence[str],
                 output_spread: dict[str, float] | None = None,
-                available: Collection[str] | None = None) -> list[Effect]:
+                available: Collection[str] | None = None,
+                is_off: Callable[[Effect], bool] | None = None,
+                uncalibrated: Collection[str] | None = None) -> list[Effect]:
     """The candidate effects for a ``kind`` (``"hafo"``/``"valve"``) replay whose record has
     the output channels ``outputs`` (one gain/offset effect per output). ``available``: the
     circuit's packed parameter labels; an effect writing a label the circuit has not (the
-    servo valve's lap in the digital circuit) is left out."""
-    if kind not in ("hafo", "valve"):
-        raise ParameterError(f"kind = {kind!r}; allowed: hafo, valve")
-    out = [e for e in _common_effects() if kind in e.kinds]
-    if kind == "valve":
+    servo valve's lap in the digital circuit) is left out. ``kind`` ``"circuit"`` (a
+    described rig): ``is_off(effect)`` tells whether the description has the effect switched
+    off (an effect the user described is part of the declared model, not a candidate), and a
+    sensor gain/offset is offered only for the channels in ``uncalibrated`` (those the user
+    marks so; every channel when ``None``)."""
+    if kind not in ("hafo", "valve", "circuit"):
+        raise ParameterError(f"kind = {kind!r}; allowed: hafo, valve, circuit")
+    out = [e for e in _common_effects() if kind in e.kinds or kind == "circuit"]
+    if kind in ("valve", "circuit"):
         out += _valve_effects()
-    out = [e for e in out if _offered(e, available)]
+    out = [e for e in out if e.labels or kind != "circuit" or e.name in _CIRCUIT_OTHER]
+    out = [e for e in out if _offered(e, available, is_off if kind == "circuit" else None)]
     spread = output_spread or {}
     for ch in outputs:
+        if uncalibrated is not None and ch not in uncalibrated:
+            continue
         out.append(_gain_offset_effect(ch, float(spread.get(ch, 1.0))))
     return out
 
@@ -334,9 +346,23 @@ def effect_by_name(effects: Sequence[Effect], name: str) -> Effect:
     raise ParameterError(f"effect = {name!r}; allowed: {', '.join(e.name for e in effects)}")
 
 
+def described_off(e: Effect, value: Callable[[str], float]) -> bool:
+    """Whether a described circuit has effect ``e`` switched off: each of its labels that the
+    lean model sets holds the lean value in the description (``value(label)``)."""
+    return all(value(lab) == _LEAN_ROW[lab] for lab in e.labels if lab in _LEAN_ROW)
+
+
+#: the effects a described circuit's replay offers besides those writing circuit labels
+#: (a simulated load has no imposed angle for the backlash's play operator)
+_CIRCUIT_OTHER = ("viscosity_drift", "sensor_delay")
+
+
 def lean_setting(kind: str, available: Collection[str] | None = None) -> ModelSetting:
     """The lean model: every effect of the library off (the entries of ``available`` labels
-    only, when given)."""
+    only, when given). A described circuit (``kind`` ``"circuit"``) is its own declared
+    model: nothing is switched off (its effects that are off are the candidates)."""
+    if kind == "circuit":
+        return ModelSetting(row={})
     row = dict(_LEAN_ROW)
     if kind == "valve":
         row.update(_LEAN_VALVE)
@@ -348,6 +374,8 @@ def lean_setting(kind: str, available: Collection[str] | None = None) -> ModelSe
 def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
     """The declared model's parameters the calibration fits before looking for effects."""
     D = DeclaredParameter
+    if kind == "circuit":
+        return _CIRCUIT_DECLARED
     common = (D("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 20.0,
                 "Coulomb friction of one cylinder's seals"),
               D("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
@@ -358,3 +386,39 @@ def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
     # the servo valve's metering area, or the digital circuit's open edges sized like it
     return (D("valve_full_area_m2", "m^2", ("servo.full_area", "edge_pa.area", "edge_bt.area"),
               0.5, 2.0, "servo valve metering area at full stroke"),) + common
+
+
+#: The broad declared set of a described circuit (labels by role,
+#: :func:`afo_mj.experiments.bench_replay.circuit_roles`): every datasheet value a record of
+#: the rig may or may not be able to estimate. The calibration's identifiability analysis
+#: (:func:`afo_mj.calibration.identifiability.select_parameters`) decides which are fitted;
+#: the rest stay at the description's values and are reported. A parameter whose label the
+#: circuit lacks, or whose described value is 0 (a factor cannot move it), is held.
+_CIRCUIT_DECLARED = (
+    DeclaredParameter("motor_resistance_ohm", "ohm", ("motor.R",), 0.5, 2.0,
+                      "winding resistance"),
+    DeclaredParameter("torque_constant_nm_a", "N m/A", ("motor.K",), 0.7, 1.4,
+                      "motor torque/back-EMF constant"),
+    DeclaredParameter("motor_coulomb_torque_nm", "N m", ("motor.coulomb_nm",), 0.0, 5.0,
+                      "motor + pump Coulomb friction torque"),
+    DeclaredParameter("motor_viscous_nm_s_rad", "N m s/rad", ("motor.viscous",), 0.0, 10.0,
+                      "motor viscous friction"),
+    DeclaredParameter("pump_slip_coefficient", "-", ("pump.slip",), 0.1, 10.0,
+                      "pump slip (laminar leakage) coefficient"),
+    DeclaredParameter("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 5.0,
+                      "Coulomb friction of the cylinder seals"),
+    DeclaredParameter("seal_viscous_n_s_m", "N s/m", ("cylinders.seal_fv",), 0.0, 10.0,
+                      "viscous friction of the cylinder seals"),
+    DeclaredParameter("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
+                      "oil bulk modulus"),
+    DeclaredParameter("air_fraction", "-", ("fluid.air_fraction",), 0.0, 10.0,
+                      "entrained air volume fraction at 1 atm"),
+    DeclaredParameter("charge_pressure_pa", "Pa", ("charge.pressure",), 0.5, 2.0,
+                      "charge reservoir pressure"),
+    DeclaredParameter("load_inertia_kg_m2", "kg m^2", ("load.inertia_kg_m2",), 0.5, 2.0,
+                      "foot + load inertia on the joint"),
+    DeclaredParameter("load_stiffness_nm_rad", "N m/rad", ("load.stiffness_nm_rad",), 0.5, 2.0,
+                      "bench load spring"),
+    DeclaredParameter("load_damping_nm_s_rad", "N m s/rad", ("load.damping_nm_s_rad",), 0.0,
+                      5.0, "bench load damper"),
+)

@@ -9,6 +9,9 @@ torque), so any described circuit walks and runs on the test stand like the pres
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
 from afo_mj.control import assistance as asst
@@ -34,6 +37,39 @@ class CircuitLog:
 
     def arrays(self) -> dict:
         return {f: self.data[:self.n, i].copy() for i, f in enumerate(self.FIELDS)}
+
+
+@dataclasses.dataclass(frozen=True)
+class JointLoad:
+    """A simulated joint load for :meth:`CircuitDevice.run_imposed`: a rigid inertia on a
+    torsional spring and a viscous damper, ``J θ̈ = τ − k (θ − θ_r) − c θ̇`` (the bench's foot
+    on its load spring; Newton's second law for a rotating body), starting at
+    ``(θ_0, θ̇_0)``."""
+
+    inertia_kg_m2: float
+    stiffness_nm_rad: float = 0.0
+    damping_nm_s_rad: float = 0.0
+    rest_angle_rad: float = 0.0
+    initial_angle_rad: float = 0.0
+    initial_velocity_rad_s: float = 0.0
+
+    def __post_init__(self):
+        checks = (("inertia_kg_m2", self.inertia_kg_m2 > 0, "> 0"),
+                  ("stiffness_nm_rad", self.stiffness_nm_rad >= 0, ">= 0"),
+                  ("damping_nm_s_rad", self.damping_nm_s_rad >= 0, ">= 0"))
+        for key, ok, allowed in checks:
+            v = getattr(self, key)
+            if not (math.isfinite(v) and ok):
+                raise CircuitError(f"load.{key} = {v!r}; allowed: {allowed}")
+        for key in ("rest_angle_rad", "initial_angle_rad", "initial_velocity_rad_s"):
+            if not math.isfinite(getattr(self, key)):
+                raise CircuitError(f"load.{key} = {getattr(self, key)!r}; allowed: finite")
+
+    def row(self) -> np.ndarray:
+        """The kernel's ``load`` argument ``(J, k, c, θ_r, θ_0, θ̇_0)``."""
+        return np.array([self.inertia_kg_m2, self.stiffness_nm_rad, self.damping_nm_s_rad,
+                         self.rest_angle_rad, self.initial_angle_rad,
+                         self.initial_velocity_rad_s], dtype=float)
 
 
 class CircuitDevice:
@@ -243,7 +279,7 @@ class CircuitDevice:
                            f"{', '.join(self.cc.input_names) or '(no named inputs)'}")
 
     def run_imposed(self, command, angle_rad, velocity_rad_s, inputs=None, temperature_k=None,
-                    substeps: int = 1) -> dict:
+                    substeps: int = 1, load: "JointLoad | None" = None) -> dict:
         """Replay with the joint motion imposed (per-sample angle and velocity, side 0).
 
         ``command`` is the controller's command per sample; ``inputs`` maps actuated inputs
@@ -253,7 +289,12 @@ class CircuitDevice:
         ``substeps`` steps of ``timestep_s``. Returns the logged signals per sample (the state
         at the end of each interval): ``time_s, angle_rad, velocity_rad_s, torque_nm,
         actuated_input``, the states and probes by name, ``battery_current_a``,
-        ``bus_voltage_v``, ``oil_temperature_k``."""
+        ``bus_voltage_v``, ``oil_temperature_k``.
+
+        ``load`` (a :class:`JointLoad`): the joint is not imposed but simulated, an inertia on
+        a spring and damper driven by the circuit (a bench whose foot is free); the angle and
+        velocity arrays then only fix the sample count and ``angle_rad``/``velocity_rad_s`` of
+        the log are the simulated motion."""
         cmd = np.ascontiguousarray(command, dtype=float)
         th = np.ascontiguousarray(angle_rad, dtype=float)
         thd = np.ascontiguousarray(velocity_rad_s, dtype=float)
@@ -278,8 +319,9 @@ class CircuitDevice:
             self.W[0, self.k.W_TEMP_K] = temp[0]
         ny, npr = len(self.cc.state_names), len(self.cc.probe_names)
         log = np.zeros((n, 8 + ny + npr))
+        load_row = np.zeros(0) if load is None else load.row()
         done = self.k.run_imposed(self._buf, self._meta, th, thd,
-                                  cmd, imposed, slots, temp, sub, log)
+                                  cmd, imposed, slots, temp, sub, load_row, log)
         self.steps += done * sub
         if done < n:
             raise FloatingPointError(f"circuit {self.cc.circuit.name!r}: non-finite state "

@@ -393,7 +393,7 @@ def run_load(buf, meta, theta0, theta_dot0, inertia, stiffness, damping, rest_an
     return n
 
 
-def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, log):
+def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, load, log):
     """The replay loop of worn side 0 of the device buffer with the joint motion imposed (a recorded
     angle and its velocity per sample, e.g. a bench record): the same coupled step with the measured
     velocity as the end velocity. Sample ``i`` → ``i + 1`` is ``sub`` equal steps of
@@ -404,7 +404,14 @@ def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, l
     whatever its controller computed. ``log`` (samples × columns) gets, at the end of each
     sample, ``t, θ, θ̇, τ, u`` (``τ`` the joint torque at the step's end), every state, every
     probe, then the battery current, the bus voltage and the oil temperature. Returns the
-    samples done (fewer when a state became non-finite)."""
+    samples done (fewer when a state became non-finite).
+
+    ``load`` empty: the joint motion is imposed. ``load = (J, k, c, θ_r, θ_0, θ̇_0)``: the joint
+    is a simulated load instead (a bench whose foot is free: the measured angle is an output,
+    ``theta``/``theta_dot`` are not read), an inertia ``J`` on a torsional spring ``k`` (rest
+    angle ``θ_r``) and damper ``c`` starting at ``(θ_0, θ̇_0)``, integrated in every sub-step
+    as :func:`run_load` integrates it (semi-implicit Euler with the device's damping ``−G``,
+    the load's damping and the spring implicit)."""
     Ya, Pa, Wa, Sa, ph, prof, V, outa, O = device_views(buf, meta)
     Y, P, W, S, out = Ya[:1], Pa[:1], Wa[:1], Sa[:1], outa[:1]
     th = V[V_THETA, :1]
@@ -415,6 +422,10 @@ def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, l
     nt = theta.shape[0]
     h = S[0, 0, 0]
     nimp = slots.shape[0]
+    loaded = load.shape[0] >= 6
+    if loaded:
+        th[0] = load[4]
+        thd[0] = load[5]
     for i in range(n):
         i1 = i + 1 if i + 1 < nt else i
         for j in range(sub):
@@ -422,17 +433,25 @@ def run_imposed(buf, meta, theta, theta_dot, cmd, imposed, slots, temp_k, sub, l
             f1 = (j + 1) / sub
             if temp_k.shape[0] > 0:
                 W[0, W_TEMP_K] = temp_k[i] + f0 * (temp_k[i1] - temp_k[i])
-            th[0] = theta[i] + f0 * (theta[i1] - theta[i])
-            thd[0] = theta_dot[i] + f0 * (theta_dot[i1] - theta_dot[i])
+            if not loaded:
+                th[0] = theta[i] + f0 * (theta[i1] - theta[i])
+                thd[0] = theta_dot[i] + f0 * (theta_dot[i1] - theta_dot[i])
             hold_inputs(Y[0], P[0], W[0], th[0], thd[0], cmd[i], h)
             for m in range(nimp):
                 W[0, W_U + slots[m]] = imposed[i, m]
             couple(Y[0], P[0], W[0], S[0], thd[0], out[0])
-            vnew[0] = theta_dot[i] + f1 * (theta_dot[i1] - theta_dot[i])
+            if loaded:
+                num = load[0] * thd[0] + h * (out[0, 0] - load[1] * (th[0] - load[3]))
+                vnew[0] = num / (load[0] + h * (load[2] + out[0, 1] + h * load[1]))
+            else:
+                vnew[0] = theta_dot[i] + f1 * (theta_dot[i1] - theta_dot[i])
             if not finish_all(Y, P, W, S, vnew, tau):
                 return i
+            if loaded:
+                th[0] += h * vnew[0]
+                thd[0] = vnew[0]
         log[i, 0] = (i + 1) * sub * h
-        log[i, 1] = theta[i1]
+        log[i, 1] = th[0] if loaded else theta[i1]
         log[i, 2] = vnew[0]
         log[i, 3] = W[0, W_TAU_END]
         log[i, 4] = W[0, W_U]

@@ -38,14 +38,16 @@ applied here with :func:`afo_mj.hydraulics.transmission.play_operator`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Mapping
 
 import numpy as np
 from scipy.signal import savgol_filter
 
+from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import build
-from afo_mj.circuits.device import CircuitDevice
+from afo_mj.circuits.device import CircuitDevice, JointLoad
 from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS, hafo_circuit, hafo_params
 from afo_mj.devices.valve_afo import (
     VALVE_PRESETS, valve_circuit, valve_initial_state, valve_params)
@@ -84,8 +86,59 @@ _SIGNALS = {
     "valve_position": ("servo.spool", "switching.position"),
     "ankle_torque_nm": "torque_nm", "motor_current_a": "motor.current_a",
     "motor_speed_rad_s": "shaft", "battery_current_a": "battery_current_a",
-    "bus_voltage_v": "bus_voltage_v",
+    "bus_voltage_v": "bus_voltage_v", "piston_position_m": "cylinders.piston_position_m",
 }
+
+
+#: the output channels a described circuit may produce (those whose signal it has), besides
+#: the oil temperature and, with a simulated load, the ankle angle
+CIRCUIT_OUTPUTS = ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
+                   "ankle_torque_nm", "motor_current_a", "motor_speed_rad_s",
+                   "piston_position_m", "battery_current_a", "bus_voltage_v")
+#: the simulated load's parameters as pseudo-labels of the packed row (a fit sets them like
+#: any circuit parameter)
+LOAD_LABELS = ("load.inertia_kg_m2", "load.stiffness_nm_rad", "load.damping_nm_s_rad")
+
+
+def circuit_geometry(circuit: Circuit):
+    """The parameters of the circuit's piston-cable ``pulley_cylinders`` (stroke, pulley
+    radius: what the record checks compare the angle with), or None."""
+    for c in circuit.components:
+        prm = getattr(c, "params", None)
+        cyl = getattr(prm, "cylinder", None)
+        if cyl is not None and hasattr(prm, "pulley_radius_m"):
+            return prm
+    return None
+
+
+#: component kinds that play the presets' roles (label prefixes of the calibration's
+#: parameters and effects)
+_ROLE_KINDS = {"cylinders": ("pulley_cylinders",), "pump": ("pump", "variable_pump"),
+               "motor": ("motor",), "hose_a": ("hose",), "hose_b": ("hose",),
+               "charge": ("reservoir",), "check_a": ("check_valve",),
+               "check_b": ("check_valve",), "servo": ("servo_valve",)}
+
+
+def circuit_roles(circuit: Circuit) -> dict[str, str]:
+    """Role → component name of a described circuit: the first ``pulley_cylinders`` plays
+    ``cylinders``, the first and second hoses ``hose_a`` and ``hose_b``, and so on (a
+    component whose name already is the role's keeps it)."""
+    names = {c.name: c.kind for c in circuit.components}
+    used: set = set()
+    roles: dict[str, str] = {}
+    for role, kinds in _ROLE_KINDS.items():
+        if names.get(role) in kinds:
+            roles[role] = role
+            used.add(role)
+    for role, kinds in _ROLE_KINDS.items():
+        if role in roles:
+            continue
+        for c in circuit.components:
+            if c.kind in kinds and c.name not in used:
+                roles[role] = c.name
+                used.add(c.name)
+                break
+    return roles
 
 
 def kind_of_preset(preset: str, key: str = "source.preset") -> str:
@@ -126,8 +179,22 @@ class BenchReplay:
     ``controller.valve_command_on`` switch.
     """
 
-    def __init__(self, preset: str, overrides: Mapping[str, object] | None = None,
-                 kind: str | None = None):
+    def __init__(self, preset: str | None = None,
+                 overrides: Mapping[str, object] | None = None, kind: str | None = None, *,
+                 circuit: Circuit | None = None, load: JointLoad | None = None,
+                 signals: Mapping[str, str] | None = None):
+        self.load = load
+        self._signal_overrides = dict(signals or {})
+        #: how the command is held over a sample interval: ``"sample"`` (zero-order hold: a
+        #: digital command, the presets' records) or ``"linear"`` (a sampled continuous
+        #: signal, a described rig's default: interpolated between the samples)
+        self.command_hold = "linear" if circuit is not None else "sample"
+        if circuit is not None:
+            self._init_circuit(circuit, load)
+            return
+        if load is not None:
+            raise ParameterError("a simulated load is available for a described circuit "
+                                 "([circuit] with [load]); the presets replay the imposed angle")
         self.preset = preset
         self.kind = kind or kind_of_preset(preset)
         if self.kind == "hafo":
@@ -159,18 +226,74 @@ class BenchReplay:
         self._columns = {name: self._signal(name) for name in self.outputs
                          if name != "fluid_temperature_k"}
 
+    def _init_circuit(self, circuit: Circuit, load: JointLoad | None) -> None:
+        """A described circuit (the user's rig): outputs are the channels its signals
+        produce; with ``load`` the joint is simulated and the angle is an output."""
+        self.kind = "circuit"
+        self.preset = circuit.name
+        self.circuit = circuit
+        self.params = circuit_geometry(circuit)
+        self.cc = build(circuit)
+        self.initial_state = {}
+        self.base_row = self.cc.P.copy()
+        self.roles = circuit_roles(circuit)
+        self.param_labels = tuple(self.cc.param_labels) + (LOAD_LABELS if load else ())
+        self._label_index = {lab: i for i, lab in enumerate(self.param_labels)}
+        self.open_loop = circuit.controller.kind == "open_loop"
+        self.inputs = ("motor_voltage_v",) if self.open_loop else ("commanded_torque_nm",)
+        self.ambient_temperature_k = float(circuit.thermal.ambient_temperature_k)
+        self.max_step_s = 5e-4
+        cols = {}
+        for name in CIRCUIT_OUTPUTS:
+            try:
+                cols[name] = self._signal(name)
+            except ReplayError:
+                continue
+        self._columns = cols
+        self.outputs = tuple(cols) + ("fluid_temperature_k",) + (
+            ("ankle_angle_rad",) if load else ())
+        self._piston_zero = 0.0
+        cyl = self.params
+        if cyl is not None:
+            self._piston_zero = 0.5 * float(cyl.cylinder.stroke_m)
+
     def _signal(self, channel: str) -> str:
         names = set(self.cc.state_names) | set(self.cc.probe_names) | {
             "torque_nm", "battery_current_a", "bus_voltage_v"}
+        if channel in self._signal_overrides:
+            sig = self._signal_overrides[channel]
+            if sig not in names:
+                raise ParameterError(
+                    f"sensors.{channel}.signal = {sig!r} is not a state or probe of the "
+                    f"circuit {self.cc.circuit.name!r}; allowed: {', '.join(sorted(names))}")
+            return sig
+        if channel not in _SIGNALS:
+            raise ReplayError(f"no default signal for {channel}")
         alts = _SIGNALS[channel]
+        roles = getattr(self, "roles", {})
         for a in (alts if isinstance(alts, tuple) else (alts,)):
+            comp, _, key = a.partition(".")
+            if key and comp in roles:
+                a = f"{roles[comp]}.{key}"
             if a in names:
                 return a
         raise ReplayError(f"circuit {self.cc.circuit.name!r} has no signal for {channel} "
                           f"(looked for {alts!r})")
 
+    def resolve(self, label: str) -> str:
+        """The circuit's own label of ``label``: a described circuit answers to the presets'
+        component names by role (``cylinders.seal_fc`` is its ``pulley_cylinders``
+        component's, ``hose_a.wall_inv`` its first hose's; :func:`circuit_roles`)."""
+        roles = getattr(self, "roles", None)
+        if roles and label not in self._label_index and "." in label:
+            comp, key = label.split(".", 1)
+            if comp in roles:
+                return f"{roles[comp]}.{key}"
+        return label
+
     def index(self, label: str) -> int:
         """Position of the packed parameter ``label`` in :attr:`base_row`."""
+        label = self.resolve(label)
         try:
             return self._label_index[label]
         except KeyError:
@@ -180,15 +303,29 @@ class BenchReplay:
 
     def has(self, label: str) -> bool:
         """Whether the circuit packs parameter ``label``."""
-        return label in self._label_index
+        return self.resolve(label) in self._label_index
 
     def value(self, label: str) -> float:
-        """The preset's value of the packed parameter ``label``."""
+        """The preset's value of the packed parameter ``label`` (a described circuit's
+        simulated load: ``load.inertia_kg_m2``, ``load.stiffness_nm_rad``,
+        ``load.damping_nm_s_rad``)."""
+        label = self.resolve(label)
+        if label in LOAD_LABELS and self.load is not None:
+            return float(getattr(self.load, label.split(".", 1)[1]))
         return float(self.base_row[self.index(label)])
 
     def check_inputs(self, channels) -> tuple[str, str]:
         """The record's command channel and the imposed angle: ``(command, "ankle_angle_rad")``
         (the open-loop command when the record has it, else ``commanded_torque_nm``)."""
+        if self.kind == "circuit":
+            cmd = self.inputs[0]
+            if cmd not in channels or (self.load is None and "ankle_angle_rad" not in channels):
+                need = [cmd] + ([] if self.load else ["ankle_angle_rad"])
+                raise ReplayError(f"the {self.preset!r} circuit replay needs {need} (its "
+                                  f"{self.circuit.controller.kind} controller"
+                                  + ("" if self.load else "; the joint angle is imposed")
+                                  + f"); the record has {sorted(channels)}")
+            return (cmd,) if self.load else (cmd, "ankle_angle_rad")
         cmds = [c for c in REPLAY_COMMANDS[self.kind] if c in channels]
         if not cmds or "ankle_angle_rad" not in channels:
             raise ReplayError(f"the {self.kind} bench replay needs ankle_angle_rad and one of "
@@ -209,9 +346,20 @@ class BenchReplay:
         t = np.asarray(time_s, dtype=float)
         dt = float(np.median(np.diff(t)))
         sub = max(1, int(math.ceil(dt / self.max_step_s - 1e-9)))
-        theta = np.ascontiguousarray(inputs["ankle_angle_rad"], dtype=float)
-        if backlash_rad > 0.0:
-            theta = play_operator(theta, backlash_rad)
+        changes = dict(row_changes or {})
+        load = None
+        if self.load is not None:
+            lv = {lab.split(".", 1)[1]: float(changes.pop(lab)) for lab in LOAD_LABELS
+                  if lab in changes}
+            load = dataclasses.replace(self.load, **lv) if lv else self.load
+            theta = np.zeros(len(t))
+            if backlash_rad > 0.0:
+                raise ReplayError("backlash on a simulated load is not modelled (the play "
+                                  "operator needs the imposed angle)")
+        else:
+            theta = np.ascontiguousarray(inputs["ankle_angle_rad"], dtype=float)
+            if backlash_rad > 0.0:
+                theta = play_operator(theta, backlash_rad)
         theta_dot = ankle_velocity(theta, dt)
         u = np.ascontiguousarray(inputs[cmd_name], dtype=float)
         if "fluid_temperature_k" in inputs:
@@ -221,7 +369,6 @@ class BenchReplay:
         dev = CircuitDevice(self.cc, timestep_s=dt / sub)
         for label, v in self.initial_state.items():
             dev.Y[0, self.cc.index(label)] = v
-        changes = dict(row_changes or {})
         open_loop = cmd_name != "commanded_torque_nm"
         imposed = None
         if open_loop and self.kind == "valve":
@@ -230,9 +377,26 @@ class BenchReplay:
             imposed = {"command": u[:-1]}
         for label, v in changes.items():
             dev.P[0, self.index(label)] = v
+        cmd, run_sub, take = u[:-1], sub, slice(None)
+        if self.command_hold == "linear" and sub > 1:
+            # a sampled continuous command (an analog voltage): each sub-step holds the
+            # linear interpolation at its midpoint, so the replay has no half-sample lag
+            n = len(t)
+            k = np.arange(n, dtype=float)
+            fine = np.arange((n - 1) * sub + 1) / sub
+            mid = (np.arange((n - 1) * sub) + 0.5) / sub
+            cmd = np.interp(mid, k, u)
+            imposed = None if imposed is None else {"command": cmd}
+            theta = np.interp(fine, k, theta)
+            theta_dot = np.interp(fine, k, theta_dot)
+            temp_run = np.interp(fine, k, temp)
+            run_sub, take = 1, slice(sub - 1, None, sub)
+        else:
+            temp_run = temp
         try:
-            log = dev.run_imposed(u[:-1], theta, theta_dot, inputs=imposed,
-                                  temperature_k=temp, substeps=sub)
+            log = dev.run_imposed(cmd, theta, theta_dot, inputs=imposed,
+                                  temperature_k=temp_run, substeps=run_sub, load=load)
+            log = {key: v[take] for key, v in log.items()}
         except FloatingPointError as exc:
             raise ReplayError(f"{self.kind} replay ({self.preset}) became non-finite: {exc}; "
                               f"parameters {dict(row_changes or {})}") from None
@@ -241,12 +405,17 @@ class BenchReplay:
             if name == "fluid_temperature_k":
                 out[name] = temp.copy()
                 continue
+            if name == "ankle_angle_rad" and load is not None:
+                out[name] = np.concatenate(([load.initial_angle_rad], log["angle_rad"]))
+                continue
             sig = self._columns[name]
             # sample 0 is the initial state; a signal that is no state starts at its value
             # over the first step
             first = (self.initial_state.get(sig, float(self.cc.y0[self.cc.index(sig)]))
                      if sig in self.cc.state_names else float(log[sig][0]))
             out[name] = np.concatenate(([first], log[sig]))
+            if name == "piston_position_m":
+                out[name] = out[name] - self._piston_zero
         bad = [k for k, v in out.items() if not np.all(np.isfinite(v))]
         if bad:
             raise ReplayError(f"{self.kind} replay ({self.preset}) became non-finite in "

@@ -218,6 +218,20 @@ def verdict_sentence(report: Mapping) -> str:
                 "explains the record to the noise level: every held-out residual is white "
                 f"and within {_EXCESS:g}× its sensor noise (held-out NRMSE "
                 f"{_f(before, '.4f')}). No candidate effect was added.")
+    if verdict == "structure_wrong":
+        base = report.get("baseline") or {}
+        ratio = base.get("ratio") or {}
+        worst = ", ".join(f"`{c}` {v:.2g}×" for c, v in sorted(ratio.items(),
+                                                                key=lambda kv: -kv[1])
+                          if v > base.get("noise_multiple", 2.0))
+        s = ("**The declared structure is wrong:** with the identifiable parameters fitted, "
+             f"the described rig does not reach {base.get('noise_multiple', 2.0):g}× the "
+             f"noise floor on {worst or 'some channels'} (held-out NRMSE over σ/SD), and no "
+             "candidate effect of the library explains the difference. Check the "
+             "description (components, connections, sensors, signs) before reading any "
+             "parameter.")
+        s += f"\n\nWhere the structure lives: {where or 'not located'}."
+        return s
     if verdict == "unexplained_residual":
         s = ("**Unexplained residual:** the held-out residual of the declared model is "
              "structured (not white and larger than the sensor noise), but no candidate "
@@ -261,6 +275,43 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
                  "this in mind:\n")
         L += [f"- {m}" for m in report["record_flags"]]
         L.append("")
+
+    # ---- baseline against the noise floor, identifiability (a described rig)
+    base = report.get("baseline")
+    if base:
+        L.append("## Baseline against the noise floor\n")
+        L.append(f"The declared model with its identifiable parameters fitted (before any "
+                 f"effect): held-out NRMSE of each channel next to its noise floor σ/SD; the "
+                 f"baseline must reach {base.get('noise_multiple', 2.0):g}× the floor.\n")
+        rows = [[f"`{c}`", _pct(base["held_out"].get(c)), _pct(base["noise_floor"].get(c)),
+                 f"{base['ratio'].get(c, float('nan')):.2f}"] for c in base.get("ratio", {})]
+        L.append(_md_table(["channel", "baseline [%]", "noise floor [%]", "ratio"], rows)
+                 + "\n")
+        L.append("Reaches the noise: **" + ("yes" if base.get("reaches_noise") else "no")
+                 + "**.\n")
+    ident = report.get("identifiability")
+    if ident:
+        L.append("## Identifiability\n")
+        L.append("Which declared parameters this record can estimate: sensitivities to a "
+                 "relative change of each datasheet value, whitened by the sensor noise; "
+                 "pivoted QR order and ratio |R_kk|/|R_00|; predicted relative standard "
+                 "error (Cramér–Rao). Held parameters stay at the description's values.\n")
+        held = report.get("declared_held") or {}
+        rows = []
+        for r in ident.get("parameters", []):
+            se = r.get("predicted_relative_se")
+            rows.append([f"`{r['name']}`", _f(r.get("sensitivity"), ".3g"),
+                         "—" if r.get("pivot_rank") is None else str(r["pivot_rank"]),
+                         _f(r.get("pivot_ratio"), ".2g"),
+                         "—" if se is None else _f(se, ".2g"),
+                         "fitted" if r.get("fitted") else
+                         f"held at {_f(held.get(r['name']), '.4g')}: {r.get('reason')}"])
+        L.append(_md_table(["parameter", "sensitivity", "pivot", "ratio", "rel. SE",
+                            "decision"], rows) + "\n")
+        sv = ident.get("singular_values") or []
+        if sv:
+            L.append("Whitened singular values: " + ", ".join(_f(v, ".3g") for v in sv)
+                     + ".\n")
 
     # ---- held-out error
     L.append("## Held-out error\n")
