@@ -22,7 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from afo_mj.calibration.calibrate import CalibrationOptions, calibrate, load_calibration_setup
+from afo_mj.calibration.calibrate import (CalibrationOptions, calibrate, load_calibration_scenario,
+                                          load_calibration_setup)
 from afo_mj.calibration.synthetic_records import generate_record
 from afo_mj.hydraulics.params import ParameterError
 
@@ -189,8 +190,15 @@ def test_bad_setup_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="held_out_fraction"):
         CalibrationOptions(held_out_fraction=1.5)
     for f in sorted((ROOT / "scenarios" / "calibration").glob("*.toml")):
+        setup = load_calibration_scenario(str(f))
+        if setup.circuit is not None:       # a rig described as a circuit
+            assert setup.preset is None and setup.load is not None
+            with pytest.raises(ParameterError, match="device.preset"):
+                load_calibration_setup(str(f))
+            continue
         preset, ov, opts = load_calibration_setup(str(f))
         assert preset == f.stem and opts.max_effects == 3
+        assert (setup.preset, setup.options) == (preset, opts)
 
 
 @pytest.mark.slow

@@ -747,6 +747,10 @@ class Calibration:
             where_base = ra.locate_structure(channels_before) if structured_before else None
             baseline["structure_wrong_where"] = where_base
         where = ra.locate_structure(channels_after) if structured_after else None
+        discrepancy = None
+        if verdict in ("unexplained_residual", "structure_wrong") or (
+                self.kind == "circuit" and not steps and structured_after):
+            discrepancy = self.data_driven_discrepancy(after_out)
         ident = self.identifiability(current)
         params = self.physical(current.effects, current.x)
         sd_phys = {}
@@ -793,6 +797,7 @@ class Calibration:
             "unexplained_where": where if verdict in ("unexplained_residual",
                                                       "structure_wrong") or (
                 verdict == "effect_found" and structured_after) else None,
+            "data_driven_discrepancy": discrepancy,
             "evaluations": self.evaluations,
             "wall_time_s": time.perf_counter() - t_start,
             "_series": {"time_s": self.t, "measured": self.meas, "before": before_out,
@@ -800,6 +805,36 @@ class Calibration:
         }
 
     # ---------------------------------------------------------------- residual analysis
+    def data_driven_discrepancy(self, out: Mapping[str, np.ndarray]) -> dict:
+        """When no physical effect explains the residual: per channel, a sparse regression
+        of the final model's residual on terms of the model's outputs and the inputs
+        (:func:`afo_mj.calibration.discrepancy.discrepancy_report`), fitted on the training
+        part and chosen on the held-out part; labelled a data-driven discrepancy, never a
+        physical effect. Only channels whose held-out residual exceeds their noise get
+        terms."""
+        from afo_mj.calibration.discrepancy import discrepancy_report
+        settled = np.arange(len(self.t))[self.t >= self.t[0] + self.options.settle_s]
+        idx = settled
+        pos = {k: i for i, k in enumerate(idx)}
+        train = np.array([pos[k] for k in self.train_idx if k in pos])
+        test = np.array([pos[k] for k in self.test_idx if k in pos])
+        signals = {c: v[idx] for c, v in self.inputs.items()}
+        for c in self.outputs:
+            if c not in signals:
+                signals[c] = np.asarray(out[c])[idx]
+        angle = signals.get("ankle_angle_rad")
+        if angle is not None:
+            signals["ankle_velocity_rad_s"] = np.gradient(angle, self.t[idx])
+        residuals = {c: (self.meas[c] - out[c])[idx] for c in self.outputs}
+        try:
+            rep = discrepancy_report(residuals, signals, self.t[idx], train, test,
+                                     {c: self.noise[c] for c in self.outputs})
+        except ValueError as exc:
+            return {"error": str(exc)}
+        for r in rep.values():
+            r["terms"] = [dataclasses.asdict(t) for t in r.get("terms", [])]
+        return rep
+
     def _whiteness(self, out: Mapping[str, np.ndarray]) -> dict:
         idx = self.test_idx
         return {c: ra.whiteness(self.meas[c][idx] - out[c][idx], self.noise[c], self.fs_hz)

@@ -313,6 +313,25 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
             L.append("Whitened singular values: " + ", ".join(_f(v, ".3g") for v in sv)
                      + ".\n")
 
+    # ---- data-driven discrepancy (afo_mj.calibration.discrepancy)
+    disc = report.get("data_driven_discrepancy")
+    if disc:
+        L.append("## Data-driven discrepancy (not a physical effect)\n")
+        L.append("No effect of the library explains the residual. A sparse regression of each "
+                 "channel's residual on terms of the model's outputs and the inputs (fitted on "
+                 "the training part, chosen on the held-out part) describes what is missing; "
+                 "it is a correlation in the data, not a named mechanism.\n")
+        rows = []
+        for ch, r in disc.items():
+            if not isinstance(r, Mapping):
+                continue
+            rows.append([f"`{ch}`", (r.get("expression") or "—") if r.get("found") else
+                         "within the noise" if r.get("within_noise") else
+                         "no sparse term predicts the held-out residual",
+                         _pct(r.get("held_out_gain")) if r.get("found") else "—"])
+        if rows:
+            L.append(_md_table(["channel", "discrepancy", "held-out gain [%]"], rows) + "\n")
+
     # ---- held-out error
     L.append("## Held-out error\n")
     L.append("NRMSE = RMS(measured − model) on the held-out part / SD of the channel over the "
