@@ -173,3 +173,51 @@ def test_clean_independent_rig_record_reaches_the_noise_floor(rig, tmp_path):
     assert max(ratio.values()) < 2.0, ratio
     assert rep["verdict"] == "no_missing_effect" and rep["effects_selected"] == []
     assert rep["identifiability"]["fitted"]         # the table is reported
+
+
+def test_piston_position_includes_the_series_cable_stretch():
+    """With a series cable compliance 1/k (rad/(N m)) the pistons travel ``A Δp / k_lin``
+    beyond the kinematic ``s/2 − r θ`` (a linear spring ``k_lin = k / r²`` loaded by the
+    piston force ``A Δp``; Hooke), checked with the joint locked at θ = 0 while the pump
+    loads the cylinder."""
+    from afo_mj.circuits.codegen import build
+    from afo_mj.circuits.device import CircuitDevice
+    from afo_mj.circuits.library import lab_bench
+
+    comp = 3.1e-4
+    cc = build(lab_bench())
+    dev = CircuitDevice(cc, timestep_s=1e-3)
+    dev.P[0, cc.param_labels.index("cylinder.series_compliance")] = comp
+    n = 400
+    cmd = np.where(np.arange(n) > 20, 3.0, 0.0)
+    log = dev.run_imposed(cmd, np.zeros(n + 1), np.zeros(n + 1))
+    r = 0.04
+    area = np.pi / 4 * (12e-3 ** 2 - 2e-3 ** 2)
+    dp = log["chamber_a"] - log["chamber_b"]
+    assert np.max(np.abs(dp)) > 5e5
+    k_lin = 1.0 / (comp * r * r)
+    expected = 0.5 * 0.06 + area * dp / k_lin
+    np.testing.assert_allclose(log["cylinder.piston_position_m"], expected, rtol=0, atol=1e-9)
+
+
+def test_first_order_sensor_lag_against_closed_forms():
+    """``τ ẏ_m = y − y_m`` from equilibrium: a ramp ``y = t`` gives
+    ``y_m = t − τ (1 − e^{−t/τ})`` and a sine of ω settles to amplitude ``1/√(1 + (ωτ)²)``
+    (Doebelin §3.3), on uniform and non-uniform sample times."""
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.hydraulics.sensor import first_order_lag
+    tau = 0.02
+    t = np.linspace(0.0, 0.2, 201)
+    np.testing.assert_allclose(first_order_lag(t, t, tau), t - tau * (1 - np.exp(-t / tau)),
+                               rtol=0, atol=1e-15)
+    tn = np.sort(np.concatenate([[0.0, 0.2], np.random.default_rng(1).uniform(0, 0.2, 300)]))
+    np.testing.assert_allclose(first_order_lag(tn, tn, tau),
+                               tn - tau * (1 - np.exp(-tn / tau)), rtol=0, atol=1e-15)
+    w = 2 * np.pi * 20.0
+    ts = np.arange(0, 2.0, 1e-4)
+    ym = first_order_lag(ts, np.sin(w * ts), tau)
+    amp = np.max(np.abs(ym[ts > 1.0]))
+    assert amp == pytest.approx(1 / np.sqrt(1 + (w * tau) ** 2), rel=1e-3)
+    np.testing.assert_array_equal(first_order_lag(t, np.sin(t), 0.0), np.sin(t))
+    with pytest.raises(ParameterError, match="tau_s"):
+        first_order_lag(t, t, -1.0)

@@ -61,7 +61,7 @@ from afo_mj.calibration.identifiability import select_parameters
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
 from afo_mj.calibration.record_checks import check_record, check_signs
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.sensor import sensor_reading
+from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
@@ -140,15 +140,18 @@ def model_outputs(replay: BenchReplay, time_s: np.ndarray, inputs: Mapping[str, 
 
 
 def sensor_outputs(time_s: np.ndarray, out: Mapping[str, np.ndarray],
-                   sensors: Sequence[tuple[str, float, float, float]]
+                   sensors: Sequence[tuple]
                    ) -> dict[str, np.ndarray]:
     """The replayed channels ``out`` read through the sensor transforms ``sensors``
     (:attr:`ModelSetting.sensors`, applied in order); ``out`` itself is left as it was."""
     out = dict(out)
-    for ch, gain, offset, delay in sensors:
+    for entry in sensors:
+        ch, gain, offset, delay = entry[:4]
+        lag = entry[4] if len(entry) > 4 else 0.0
         for c in (list(out) if ch == "*" else [ch]):
             if c in out:
-                out[c] = sensor_reading(time_s, out[c], gain, offset, delay)
+                y = first_order_lag(time_s, out[c], lag) if lag > 0.0 else out[c]
+                out[c] = sensor_reading(time_s, y, gain, offset, delay)
     return out
 
 
@@ -493,6 +496,14 @@ class Calibration:
                 v[0] = float(np.clip(typ[0] * (0.7 + 0.3 * f), e.parameters[0].lo,
                                      e.parameters[0].hi))
             probes.append(v)
+        if self.kind == "circuit":
+            # a described rig: the shape parameters' other plausible values too
+            for j, p in enumerate(e.parameters[1:], start=1):
+                for alt in p.probe_values:
+                    for base in list(probes[:3]):
+                        v = list(base)
+                        v[j] = float(np.clip(alt, p.lo, p.hi))
+                        probes.append(v)
         return probes
 
     def rank(self, m: _Model, pool: Sequence[Effect], label: str = "") -> list[dict]:
@@ -623,12 +634,42 @@ class Calibration:
             + "; held at the description's values: " + (", ".join(self.held_declared)
                                                          or "none"))
 
+    def declared_deviations(self, m: _Model, ident: dict) -> list[dict]:
+        """Fitted declared parameters beyond their datasheet tolerance
+        (:attr:`DeclaredParameter.tolerance`) by more than 3 standard errors, largest first
+        (in tolerances), each with the effects such a deviation is indistinguishable from
+        (:attr:`DeclaredParameter.above`/``below``)."""
+        out = []
+        for j, (d, labels) in enumerate(zip(self.declared, self.declared_labels)):
+            if d.tolerance <= 0.0:
+                continue
+            f = float(m.x[j])
+            sd = float(ident["sd"][j])
+            change = f - 1.0
+            if not (abs(change) > d.tolerance and abs(change) > 3.0 * sd):
+                continue
+            side = d.above if change > 0 else d.below
+            datasheet = self.replay.value(labels[0])
+            out.append({"parameter": d.name, "unit": d.unit, "datasheet": datasheet,
+                        "fitted": datasheet * f, "relative_change": change,
+                        "relative_sd": sd if math.isfinite(sd) else None,
+                        "tolerance": d.tolerance, "equivalent_to": list(side),
+                        "in_tolerances": abs(change) / d.tolerance})
+        out.sort(key=lambda r: -r["in_tolerances"])
+        return out
+
     # ---------------------------------------------------------------- the whole method
     def run(self) -> dict:
         t_start = time.perf_counter()
         opts = self.options
         self.held_declared: dict[str, float] = {}
         self.select_declared()
+        if self.kind == "circuit":
+            # an effect writing a fitted declared parameter is that parameter, not a candidate
+            fitted = {self.replay.resolve(lab) for labels in self.declared_labels
+                      for lab in labels}
+            self.candidates = [e for e in self.candidates
+                               if not {self.replay.resolve(lab) for lab in e.labels} & fitted]
         structure = list(self.declared_effects)
         x0 = np.concatenate([np.ones(len(self.declared))] + [
             [self._typical(e, p) / p.scale for p in e.parameters] for e in structure])
@@ -762,6 +803,7 @@ class Calibration:
             for p in e.parameters:
                 sd_phys[f"{e.name}.{p.name}"] = float(ident["sd"][k] * p.scale)
                 k += 1
+        deviations = self.declared_deviations(current, ident)
         # an inestimable parameter's SD is reported as None (JSON null), never inf/NaN
         sd_phys = {k: (v if math.isfinite(v) else None) for k, v in sd_phys.items()}
         for st in steps:
@@ -784,6 +826,7 @@ class Calibration:
             "error_drop": 1.0 - after_err["overall"] / before_err["overall"],
             "declared_fit": self.physical(declared_fit.effects, declared_fit.x),
             "declared_held": dict(self.held_declared),
+            "declared_deviations": deviations,
             "identifiability": (None if self.identifiability_table is None
                                 else self.identifiability_table.as_dict()),
             "baseline": baseline,

@@ -31,8 +31,15 @@ motor_current_limit         driver: voltage clamped to ``Kω ± R I_max`` (curre
 series_compliance           cable: differential capacitance ``(n A r)²/k`` (transmission)
 backlash                    cable: play operator of width ``b`` on the kinematics
 viscosity_drift             oil: ``T = T_0 + Ṫ t`` → ``μ(T)`` (Walther, ASTM D341)
+check_valve_cracking        charge check valves: flow only past ``p_crack`` (described
+                            circuits; Manring §4.5)
+motor_friction              motor: ``T_c tanh(ω/ω_c) + b ω`` (described circuits whose motor
+                            has no friction declared)
 sensor_delay                sensors: every output read ``d`` late
-sensor_gain_offset[ch]      sensor of channel ``ch``: ``g y + b``
+sensor_gain_offset[ch]      sensor of channel ``ch``: ``g y + b`` (a described circuit: only
+                            for channels marked uncalibrated)
+sensor_lag[ch]              sensor of channel ``ch``: first-order lag ``τ`` (described
+                            circuits; Doebelin §3.3)
 valve_overlap               servo valve: lap ``x_0`` of the spool (dead band)
 spool_lag                   servo valve: first-order spool ``τ ẋ = u − x``
 =========================  ==============================================================
@@ -67,6 +74,8 @@ class EffectParameter:
     hi: float
     typical: float
     doc: str = ""
+    #: values the ranking also probes for a shape parameter (a described rig's ranking)
+    probe_values: tuple[float, ...] = ()
 
     def __post_init__(self):
         if not (np.isfinite(self.lo) and np.isfinite(self.hi) and self.lo < self.hi):
@@ -127,7 +136,13 @@ class DeclaredParameter:
     """A parameter of the declared model the calibration always fits: packed circuit
     parameters (``labels``: those the circuit has are all set to the same factor times their
     preset values; the first present is the one reported), bounded to
-    ``[lo_factor, hi_factor]`` times the preset's value."""
+    ``[lo_factor, hi_factor]`` times the preset's value.
+
+    ``tolerance``: how far (relative) a real part may sit from its datasheet value (0: not
+    checked); ``above``/``below``: the effects a fitted value beyond the tolerance on that side
+    is indistinguishable from (a worn pump's extra slip *is* a larger slip coefficient; check
+    valves that crack late *are* a lower charge pressure), which the report names as what the
+    deviation may be."""
 
     name: str
     unit: str
@@ -135,6 +150,9 @@ class DeclaredParameter:
     lo_factor: float
     hi_factor: float
     doc: str = ""
+    tolerance: float = 0.0
+    above: tuple[str, ...] = ()
+    below: tuple[str, ...] = ()
 
 
 # ---------------------------------------------------------------------------- the effects
@@ -186,6 +204,8 @@ _PUMP_LEAK = "pump.extra_leak"
 _CURRENT_LIMIT = ("motor.limit_on", "motor.current_limit")
 _SERIES = "cylinders.series_compliance"
 _LAP = "servo.lap"
+_CHECK_CRACK = ("check_a.cracking", "check_b.cracking")
+_MOTOR_FRICTION = ("motor.coulomb_nm", "motor.viscous")
 _SPOOL_TAU = "servo.tau"
 
 
@@ -196,7 +216,8 @@ def _common_effects() -> list[Effect]:
                "F_S exp(-(v/v_St)^2) v/v_St added to the seal friction of each cylinder",
                "Stribeck breakaway peak; Simscape translational friction (facts.md)",
                (P("stribeck_force_n", "N", 0.0, 500.0, 30.0, "Stribeck gain F_S per cylinder"),
-                P("stribeck_velocity_m_s", "m/s", 1e-3, 0.1, 0.01, "v_St")),
+                P("stribeck_velocity_m_s", "m/s", 1e-3, 0.1, 0.01, "v_St",
+                  probe_values=(0.002, 0.03))),
                _row(*_STRIBECK), signature="torque residual odd in piston speed, peaked at "
                                            "low speed (velocity reversals)",
                labels=_flat(*_STRIBECK)),
@@ -252,6 +273,20 @@ def _common_effects() -> list[Effect]:
                "ASTM D341; afo_mj.hydraulics.fluid",
                (P("temperature_rate_k_s", "K/s", -2.0, 2.0, 0.2, "Ṫ"),),
                _set_drift, signature="residual growing with time (leakage/line loss drift)"),
+        Effect("check_valve_cracking", "check valve",
+               "flow G (p_c − p_crack − p)₊: the charge check valves open only past p_crack",
+               "afo_mj.hydraulics.laws (check valve with cracking pressure; Manring §4.5)",
+               (P("cracking_pa", "Pa", 0.0, 3e5, 3e4, "cracking pressure p_crack"),),
+               _row(_CHECK_CRACK), kinds=("circuit",),
+               signature="the low line sags below the charge pressure before the check "
+                         "valve feeds it", labels=_flat(_CHECK_CRACK)),
+        Effect("motor_friction", "motor",
+               "T_f = T_c tanh(ω/ω_c) + b ω on the motor shaft (bearing, brush, seal drag)",
+               "afo_mj.hydraulics.laws.motor_friction_torque_nm (Armstrong-Hélouvry 1994)",
+               (P("coulomb_torque_nm", "N m", 0.0, 0.1, 5e-3, "T_c"),
+                P("viscous_nm_s_rad", "N m s/rad", 0.0, 1e-3, 1e-5, "b")),
+               _row(*_MOTOR_FRICTION), kinds=("circuit",),
+               signature="current residual ∝ sign(ω) and ω", labels=_flat(*_MOTOR_FRICTION)),
         Effect("sensor_delay", "sensors",
                "every output read late: y_meas(t) = y(t − d)",
                "afo_mj.hydraulics.sensor (acquisition latency, filter group delay)",
@@ -268,6 +303,21 @@ def _gain_offset_effect(channel: str, spread: float) -> Effect:
                    P("offset", _unit(channel), -spread, spread, 0.0, "b")),
                   _set_gain_offset(channel), signature=f"{channel} residual ∝ y and constant",
                   channel=channel)
+
+
+def _set_lag(channel):
+    def set_(s, v, ctx):
+        s.sensors.append((channel, 1.0, 0.0, 0.0, float(v[0])))
+    return set_
+
+
+def _lag_effect(channel: str) -> Effect:
+    return Effect(f"sensor_lag[{channel}]", "sensors",
+                  f"{channel}: τ ẏ_m = y − y_m (first-order sensor dynamics)",
+                  "Doebelin, Measurement Systems §3.3; afo_mj.hydraulics.sensor.first_order_lag",
+                  (EffectParameter("time_constant_s", "s", 1e-4, 0.05, 2e-3, "τ"),),
+                  _set_lag(channel), signature=f"{channel} residual ∝ −τ dy/dt, growing "
+                                               "with frequency", channel=channel)
 
 
 def _unit(channel: str) -> str:
@@ -295,12 +345,16 @@ def _valve_effects() -> list[Effect]:
 
 
 #: names of the library's effects (per-channel sensor effects as ``sensor_gain_offset[ch]``)
-EFFECT_NAMES = tuple(e.name for e in _common_effects()) + ("sensor_gain_offset",) + tuple(
-    e.name for e in _valve_effects())
+EFFECT_NAMES = tuple(e.name for e in _common_effects()) + (
+    "sensor_gain_offset", "sensor_lag") + tuple(e.name for e in _valve_effects())
 
 #: the lean model's values of what the effects switch on (the circuits' shared entries)
 _LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _AIR: 0.0, _WALL[0]: 0.0, _WALL[1]: 0.0, _LEAK: 0.0,
              _PUMP_LEAK: 0.0, _CURRENT_LIMIT[0]: 0.0, _SERIES: 0.0}
+#: what "switched off" means in a described circuit (the lean values and the effects only a
+#: described circuit is offered)
+_OFF_VALUES = dict(_LEAN_ROW, **{_CHECK_CRACK[0]: 0.0, _CHECK_CRACK[1]: 0.0,
+                                 _MOTOR_FRICTION[0]: 0.0, _MOTOR_FRICTION[1]: 0.0})
 #: the servo valve's: critical-centre spool, and a fast one (0.5 ms: 320 Hz)
 _LEAN_VALVE = {_LAP: 0.0, _SPOOL_TAU: 5e-4}
 
@@ -336,6 +390,8 @@ def effects_for(kind: str, outputs: Sequence[str],
         if uncalibrated is not None and ch not in uncalibrated:
             continue
         out.append(_gain_offset_effect(ch, float(spread.get(ch, 1.0))))
+    if kind == "circuit":
+        out += [_lag_effect(ch) for ch in outputs]
     return out
 
 
@@ -349,7 +405,7 @@ def effect_by_name(effects: Sequence[Effect], name: str) -> Effect:
 def described_off(e: Effect, value: Callable[[str], float]) -> bool:
     """Whether a described circuit has effect ``e`` switched off: each of its labels that the
     lean model sets holds the lean value in the description (``value(label)``)."""
-    return all(value(lab) == _LEAN_ROW[lab] for lab in e.labels if lab in _LEAN_ROW)
+    return all(value(lab) == _OFF_VALUES[lab] for lab in e.labels if lab in _OFF_VALUES)
 
 
 #: the effects a described circuit's replay offers besides those writing circuit labels
@@ -396,29 +452,38 @@ def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
 #: circuit lacks, or whose described value is 0 (a factor cannot move it), is held.
 _CIRCUIT_DECLARED = (
     DeclaredParameter("motor_resistance_ohm", "ohm", ("motor.R",), 0.5, 2.0,
-                      "winding resistance"),
+                      "winding resistance", 0.2,
+                      above=("winding temperature rise", "connector/driver resistance")),
     DeclaredParameter("torque_constant_nm_a", "N m/A", ("motor.K",), 0.7, 1.4,
-                      "motor torque/back-EMF constant"),
+                      "motor torque/back-EMF constant", 0.1,
+                      below=("magnet demagnetisation (hot motor)",)),
     DeclaredParameter("motor_coulomb_torque_nm", "N m", ("motor.coulomb_nm",), 0.0, 5.0,
-                      "motor + pump Coulomb friction torque"),
+                      "motor + pump Coulomb friction torque", 0.5,
+                      above=("motor_friction (bearing/brush wear)",)),
     DeclaredParameter("motor_viscous_nm_s_rad", "N m s/rad", ("motor.viscous",), 0.0, 10.0,
-                      "motor viscous friction"),
+                      "motor viscous friction", 0.5, above=("motor_friction",)),
     DeclaredParameter("pump_slip_coefficient", "-", ("pump.slip",), 0.1, 10.0,
-                      "pump slip (laminar leakage) coefficient"),
+                      "pump slip (laminar leakage) coefficient", 1.0,
+                      above=("pump_leakage (worn pump)",)),
     DeclaredParameter("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 5.0,
-                      "Coulomb friction of the cylinder seals"),
+                      "Coulomb friction of the cylinder seals", 0.4,
+                      above=("pressure_friction", "seal squeeze above datasheet")),
     DeclaredParameter("seal_viscous_n_s_m", "N s/m", ("cylinders.seal_fv",), 0.0, 10.0,
-                      "viscous friction of the cylinder seals"),
+                      "viscous friction of the cylinder seals", 0.5),
     DeclaredParameter("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
-                      "oil bulk modulus"),
+                      "oil bulk modulus", 0.3,
+                      below=("hose_wall_compliance", "entrained_air")),
     DeclaredParameter("air_fraction", "-", ("fluid.air_fraction",), 0.0, 10.0,
-                      "entrained air volume fraction at 1 atm"),
+                      "entrained air volume fraction at 1 atm", 1.0,
+                      above=("entrained_air", "hose_wall_compliance")),
     DeclaredParameter("charge_pressure_pa", "Pa", ("charge.pressure",), 0.5, 2.0,
-                      "charge reservoir pressure"),
+                      "charge reservoir pressure", 0.1,
+                      below=("check_valve_cracking", "charge pressure below its setting")),
     DeclaredParameter("load_inertia_kg_m2", "kg m^2", ("load.inertia_kg_m2",), 0.5, 2.0,
-                      "foot + load inertia on the joint"),
+                      "foot + load inertia on the joint", 0.2,
+                      above=("piston/rod mass",)),
     DeclaredParameter("load_stiffness_nm_rad", "N m/rad", ("load.stiffness_nm_rad",), 0.5, 2.0,
-                      "bench load spring"),
+                      "bench load spring", 0.1),
     DeclaredParameter("load_damping_nm_s_rad", "N m s/rad", ("load.damping_nm_s_rad",), 0.0,
-                      5.0, "bench load damper"),
+                      5.0, "bench load damper", 0.5),
 )

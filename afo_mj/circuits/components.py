@@ -533,7 +533,9 @@ class PulleyCylinders(Component):
         g.store_rate(self, "end_stops", f"-{f_e} * {xd}")
         # the cable spring's energy ½ c_s Δp², booked at its rate c_s Δp Δṗ
         g.store_rate(self, "series_spring", f"{c_s} * ({pa} - {pb}) * (d{pa} - d{pb})")
-        g.probe(self, "piston_position_m", x)
+        # the pistons' travel: kinematic plus the series spring's stretch
+        g.probe(self, "piston_position_m", f"{x} + series_spring_stretch_m({r}, {n} * {area} "
+                f"* {r}, {comp_s}, {pa} - {pb})")
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
 
 

@@ -230,6 +230,17 @@ def series_spring_capacitance_m3_pa(torque_per_pa_m3, compliance_rad_per_nm):
 
 
 @law
+def series_spring_stretch_m(pulley_radius_m, torque_per_pa_m3, compliance_rad_per_nm, dp_pa):
+    """Piston travel taken up by a series spring between a joint pulley and its pistons:
+    ``δ = r (1/k) n A r Δp``: the pressure difference loads the spring with ``τ = n A r Δp``,
+    which stretches it by ``τ/k`` rad, i.e. ``r τ/k`` of piston travel toward the
+    low-pressure chamber on top of the kinematic ``s/2 − r θ`` (the displacement behind
+    :func:`series_spring_capacitance_m3_pa`: ``n A δ = c_s Δp``). Example: r = 0.04 m,
+    n A r = 6.03e-6 m³, 1/k = 3.1e-4 rad/(N m), Δp = 1 MPa → δ = 7.5e-5 m."""
+    return pulley_radius_m * compliance_rad_per_nm * torque_per_pa_m3 * dp_pa
+
+
+@law
 def coupled_node_rate_pa_s(net_inflow_m3_s, other_inflow_m3_s, capacitance_m3_pa,
                            other_capacitance_m3_pa, coupling_m3_pa):
     """Pressure rate of one of two nodes joined by a differential capacitance ``c_s`` (a

@@ -213,6 +213,19 @@ def verdict_sentence(report: Mapping) -> str:
             s += (f"\n\nSome structure remains in the residual after the selected effects: "
                   f"{where}.")
         return s
+    devs = report.get("declared_deviations") or []
+    if verdict == "no_missing_effect" and devs:
+        d = devs[0]
+        eq = " or ".join(d.get("equivalent_to") or []) or "a wrong datasheet value"
+        return ("**No missing effect, but a declared value is off:** the described rig "
+                f"explains the record to the noise level once `{d['parameter']}` moves "
+                f"{_signed_pct(d.get('relative_change'))} from its datasheet value (tolerance "
+                f"±{100 * d['tolerance']:.0f} %): {eq}. "
+                f"{len(devs) - 1} more beyond tolerance." if len(devs) > 1 else
+                "**No missing effect, but a declared value is off:** the described rig "
+                f"explains the record to the noise level once `{d['parameter']}` moves "
+                f"{_signed_pct(d.get('relative_change'))} from its datasheet value (tolerance "
+                f"±{100 * d['tolerance']:.0f} %): {eq}.")
     if verdict == "no_missing_effect":
         return ("**No missing effect:** the declared model, with its parameters fitted, "
                 "explains the record to the noise level: every held-out residual is white "
@@ -312,6 +325,19 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
         if sv:
             L.append("Whitened singular values: " + ", ".join(_f(v, ".3g") for v in sv)
                      + ".\n")
+
+    # ---- declared parameters beyond their datasheet tolerance
+    devs = report.get("declared_deviations")
+    if devs:
+        L.append("## Declared parameters beyond their datasheet tolerance\n")
+        L.append("A fitted datasheet value outside its tolerance (by more than 3 standard "
+                 "errors) is either a wrong datasheet value or an effect that acts exactly "
+                 "like it; the record cannot separate the two.\n")
+        rows = [[f"`{d['parameter']}`", _f(d.get("datasheet")), _f(d.get("fitted")),
+                 _signed_pct(d.get("relative_change")), f"±{100 * d['tolerance']:.0f} %",
+                 ", ".join(d.get("equivalent_to") or []) or "—"] for d in devs]
+        L.append(_md_table(["parameter", "datasheet", "fitted", "change", "tolerance",
+                            "indistinguishable from"], rows) + "\n")
 
     # ---- data-driven discrepancy (afo_mj.calibration.discrepancy)
     disc = report.get("data_driven_discrepancy")
