@@ -464,7 +464,9 @@ _CIRCUIT_DECLARED = (
                       "motor viscous friction", 0.5, above=("motor_friction",)),
     DeclaredParameter("pump_slip_coefficient", "-", ("pump.slip",), 0.1, 10.0,
                       "pump slip (laminar leakage) coefficient", 1.0,
-                      above=("pump_leakage (worn pump)",)),
+                      above=("pump_leakage (worn pump)",
+                             "piston_leakage (both leak line a into line b; the hose "
+                             "resistance between them is too small to tell them apart)")),
     DeclaredParameter("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 5.0,
                       "Coulomb friction of the cylinder seals", 0.4,
                       above=("pressure_friction", "seal squeeze above datasheet")),
@@ -481,7 +483,8 @@ _CIRCUIT_DECLARED = (
                       below=("check_valve_cracking", "charge pressure below its setting")),
     DeclaredParameter("load_inertia_kg_m2", "kg m^2", ("load.inertia_kg_m2",), 0.5, 2.0,
                       "foot + load inertia on the joint", 0.2,
-                      above=("piston/rod mass",)),
+                      above=("line_inertance (the hoses' oil column, reflected to the "
+                             "joint as 2 (n A r)² ρ l / A_hose)", "piston/rod mass")),
     DeclaredParameter("load_stiffness_nm_rad", "N m/rad", ("load.stiffness_nm_rad",), 0.5, 2.0,
                       "bench load spring", 0.1),
     DeclaredParameter("load_damping_nm_s_rad", "N m s/rad", ("load.damping_nm_s_rad",), 0.0,
