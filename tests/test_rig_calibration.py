@@ -153,20 +153,43 @@ def rig():
     return independent_rig
 
 
+def _rig_setup(**options):
+    from afo_mj.calibration.calibrate import CalibrationOptions, load_calibration_scenario
+    setup = load_calibration_scenario(str(RIG_SCENARIO))
+    return type(setup)(setup.preset, setup.overrides,
+                       CalibrationOptions(uncalibrated_channels=(), **options),
+                       setup.circuit, setup.load, setup.signals)
+
+
+@pytest.mark.slow
+def test_effect_outside_the_library_is_not_named(rig, tmp_path):
+    """Blind: a 10 s record of the independent rig whose torque cell rings at 80 Hz (a
+    second-order sensor, not in the library): the baseline misses 2× the torque channel's
+    noise floor, no physical effect is named, the verdict says the structure is wrong and
+    where (the torque channel, near 80 Hz), and the data-driven discrepancy is reported."""
+    from afo_mj.calibration.calibrate import calibrate_setup
+    data = rig.write_record(tmp_path / "ring.csv", duration_s=10.0, seed=4,
+                            effects={"torque_sensor_resonance": 80.0})
+    rep = calibrate_setup(data, _rig_setup(max_effects=1, refit_top=2))
+    assert rep["baseline"]["ratio"]["ankle_torque_nm"] > 2.0
+    assert rep["effects_selected"] == []
+    assert rep["verdict"] == "structure_wrong"
+    where = rep["baseline"]["structure_wrong_where"]
+    assert "ankle_torque_nm" in where
+    freq = float(where.split("dominant frequency ")[1].split(" Hz")[0])
+    assert 60.0 < freq < 100.0
+    disc = rep["data_driven_discrepancy"]
+    assert "ankle_torque_nm" in disc and "data-driven" in disc["ankle_torque_nm"]["label"]
+
+
 @pytest.mark.slow
 def test_clean_independent_rig_record_reaches_the_noise_floor(rig, tmp_path):
     """Blind: a clean 10 s record of the independent rig, calibrated from the datasheet
     description: every channel's held-out baseline NRMSE within 2× its noise floor (σ/SD),
     verdict ``no_missing_effect`` and no effect named."""
-    from afo_mj.calibration.calibrate import (CalibrationOptions, calibrate_setup,
-                                              load_calibration_scenario)
+    from afo_mj.calibration.calibrate import calibrate_setup
     data = rig.write_record(tmp_path / "clean.csv", duration_s=10.0, seed=3)
-    setup = load_calibration_scenario(str(RIG_SCENARIO))
-    setup = type(setup)(setup.preset, setup.overrides,
-                        CalibrationOptions(max_effects=1, refit_top=2,
-                                           uncalibrated_channels=()),
-                        setup.circuit, setup.load, setup.signals)
-    rep = calibrate_setup(data, setup)
+    rep = calibrate_setup(data, _rig_setup(max_effects=1, refit_top=2))
     ratio = rep["baseline"]["ratio"]
     assert set(ratio) >= {"pressure_a_pa", "ankle_torque_nm", "motor_current_a",
                           "ankle_angle_rad"}
@@ -221,3 +244,19 @@ def test_first_order_sensor_lag_against_closed_forms():
     np.testing.assert_array_equal(first_order_lag(t, np.sin(t), 0.0), np.sin(t))
     with pytest.raises(ParameterError, match="tau_s"):
         first_order_lag(t, t, -1.0)
+
+
+def test_effect_at_a_library_bound_does_not_earn_its_name():
+    """A fitted value within 1 % of its range at a bound (of the log-range for a positive
+    range over decades) is flagged; a lower bound of 0 ("off") is not."""
+    from afo_mj.calibration.calibrate import Calibration
+    from afo_mj.calibration.effect_library import effects_for
+    lib = {e.name: e for e in effects_for("circuit", ["ankle_torque_nm"])}
+    st = lib["stribeck_friction"]
+    x = lambda *vals: np.array([v / p.scale for v, p in zip(vals, st.parameters)])  # noqa: E731
+    assert Calibration.at_bound(None, st, x(40.0, 1.6e-3)) == []       # 2 mm/s-ish: fine
+    hit = Calibration.at_bound(None, st, x(40.0, 1.02e-3))               # pinned at 1 mm/s
+    assert len(hit) == 1 and "stribeck_velocity_m_s" in hit[0]
+    assert Calibration.at_bound(None, st, x(499.0, 0.01))                # force at 500 N
+    leak = lib["piston_leakage"]
+    assert Calibration.at_bound(None, leak, np.array([0.0])) == []       # off is allowed

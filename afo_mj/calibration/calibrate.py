@@ -645,6 +645,49 @@ class Calibration:
             + "; held at the description's values: " + (", ".join(self.held_declared)
                                                          or "none"))
 
+    def at_bound(self, e: Effect, xe: np.ndarray) -> list[str]:
+        """The parameters of effect ``e`` (normalised values ``xe``) that the fit pinned
+        within 1 % of the span (of its logarithm, for a positive range over decades) at a
+        library bound (a lower bound of 0, an effect's natural "off", does not count): such a
+        value is not a physical estimate."""
+        out = []
+        for p, v in zip(e.parameters, xe):
+            val = float(v) * p.scale
+            if p.lo > 0.0 and p.hi / p.lo >= 10.0 and val > 0.0:
+                # a range over decades: 1 % of its logarithmic span
+                span = math.log(p.hi / p.lo)
+                near = (math.log(p.hi / val) < 0.01 * span
+                        or math.log(val / p.lo) < 0.01 * span)
+            else:
+                span = p.hi - p.lo
+                near = p.hi - val < 0.01 * span or (p.lo != 0.0 and val - p.lo < 0.01 * span)
+            if near:
+                out.append(f"{p.name} = {val:.3g} {p.unit} at its bound [{p.lo:g}, {p.hi:g}]")
+        return out
+
+    def generic_correction(self, m: _Model, n_params: int) -> dict:
+        """The best generic discrepancy with ``n_params`` parameters (1: a gain, 2: a gain and
+        an offset) on one output channel of model ``m``, fitted on the training part by linear
+        least squares: its held-out overall NRMSE drop and channel. A named effect must do
+        better (issue 20: a per-channel gain must not win by absorbing structure)."""
+        out = self.simulate(m.effects, m.x)
+        base = m.held_out["overall"]
+        best = {"channel": None, "held_out_drop": 0.0, "parameters": n_params}
+        tr, te = self.train_idx, self.test_idx
+        for c in self.outputs:
+            y, z = out[c], self.meas[c]
+            cols = [y] if n_params <= 1 else [y, np.ones_like(y)]
+            A = np.column_stack([col[tr] for col in cols])
+            coef, *_ = np.linalg.lstsq(A, z[tr], rcond=None)
+            yc = np.column_stack(cols) @ coef
+            err = {k: v for k, v in m.held_out.items() if k != "overall"}
+            err[c] = float(np.sqrt(np.mean((yc[te] - z[te]) ** 2)) / self.scale[c])
+            overall = float(math.sqrt(np.mean([err[k] ** 2 for k in self.outputs])))
+            drop = 1.0 - overall / base
+            if drop > best["held_out_drop"]:
+                best = {"channel": c, "held_out_drop": drop, "parameters": n_params}
+        return best
+
     def declared_deviations(self, m: _Model, ident: dict) -> list[dict]:
         """Fitted declared parameters beyond their datasheet tolerance
         (:attr:`DeclaredParameter.tolerance`) by more than 3 standard errors, largest first
@@ -747,7 +790,16 @@ class Calibration:
                 d_bic = info["bic"] - info_cur["bic"]
                 pays = bool(d_bic < -opts.bic_margin and drop >= opts.min_error_drop
                             and identifiable)
-                rec = {"round": len(steps) + 1, "score": sc["score"],
+                earned = {}
+                if self.kind == "circuit":
+                    # a described rig: the effect must also be physically plausible (no
+                    # parameter pinned at a library bound) and beat a generic per-channel
+                    # correction with as many parameters
+                    earned = {"at_bound": self.at_bound(e, m.x[k0:]),
+                              "generic": self.generic_correction(current, len(e.parameters))}
+                    earned["beats_generic"] = bool(drop > earned["generic"]["held_out_drop"])
+                    pays = bool(pays and not earned["at_bound"] and earned["beats_generic"])
+                rec = {"round": len(steps) + 1, "score": sc["score"], **earned,
                        "delta_bic": d_bic, "delta_aic": info["aic"] - info_cur["aic"],
                        "held_out_overall": m.held_out["overall"], "held_out_drop": drop,
                        "relative_se": [float(v) for v in rel], "max_correlation": max_corr,
@@ -759,7 +811,13 @@ class Calibration:
                 rep.stage(f"{rnd}: {e.name}: held-out error {-100 * drop:+.0f} %, "
                           f"ΔBIC {d_bic:+.1f}, "
                           + ("pays" if pays else "does not pay"
-                             + ("" if identifiable else " (not identifiable)")))
+                             + ("" if identifiable else " (not identifiable)")
+                             + (f" (at a bound: {'; '.join(earned['at_bound'])})"
+                                if earned.get("at_bound") else "")
+                             + (" (a gain on {} does as well: {:.0f} %)".format(
+                                 earned["generic"]["channel"],
+                                 100 * earned["generic"]["held_out_drop"])
+                                if earned and not earned["beats_generic"] else "")))
                 refits.advance()
             refits.close()
             paying = [t for t in tried if t[2]["pays"]]

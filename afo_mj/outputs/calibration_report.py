@@ -438,6 +438,20 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
                             "identifiable", "pays", "selected"], crow) + "\n")
     else:
         L.append("No candidate was ranked.\n")
+    for name, c in order:
+        r = _best_refit(c)
+        if not r or "beats_generic" not in r:
+            continue
+        g = r.get("generic") or {}
+        why = []
+        if r.get("at_bound"):
+            why.append("fitted at a library bound: " + "; ".join(r["at_bound"]))
+        if not r.get("beats_generic"):
+            why.append(f"a generic gain on `{g.get('channel')}` with as many parameters cuts "
+                       f"the held-out error as much ({_signed_pct(-g.get('held_out_drop', 0))})")
+        if why:
+            L.append(f"- `{name}` does not earn its name: " + "; ".join(why) + ".")
+            L.append("")
     errs = [(n, c["refit_error"]) for n, c in order if c.get("refit_error")]
     for n, msg in errs:
         L.append(f"- refit of `{n}` failed: {msg}")
