@@ -637,6 +637,8 @@ SAMPLES = {
     "oring_coulomb_force_n": [(0.01, 1.78e-3, 0.12, 0.4, 3.5e6, 1.0)],
     "annular_gap_conductance_m3": [(0.012, 10e-6, 5e-3)],
     "series_spring_capacitance_m3_pa": [(6.4e-6, 5e-4), (6.4e-6, 0.0)],
+    "series_spring_stretch_m": [(0.04, 6.03e-6, 3.1e-4, 1e6), (0.04, 6.03e-6, 0.0, 1e6),
+                                (0.04, 6.03e-6, 3.1e-4, -2e5)],
     "coupled_node_rate_pa_s": [(3e-6, -1e-6, 3e-15, 4e-15, 2e-15),
                                (-1e-6, 3e-6, 4e-15, 3e-15, 2e-15),
                                (3e-6, -1e-6, 3e-15, 4e-15, 0.0)],
