@@ -92,8 +92,8 @@ class CalibrationOptions:
     #: a described rig: the baseline must reach this multiple of each channel's noise floor
     #: (held-out NRMSE over σ/SD), else the declared structure is reported as wrong
     baseline_noise_multiple: float = 2.0
-    #: channels whose sensors the user marks as uncalibrated (only they get a gain/offset
-    #: candidate; ``None``: every channel, the presets' behaviour)
+    #: channels whose sensors the user marks as uncalibrated: only they get a gain/offset
+    #: candidate (``None`` or empty: none)
     uncalibrated_channels: tuple[str, ...] | None = None
     #: a candidate is refitted only when its ranking score (the fraction of the training
     #: residual its linearised change explains) exceeds this; ``None``: 0.05 for a described
@@ -277,9 +277,9 @@ class Calibration:
         self.declared_labels = [declared_labels(self.replay, d) for d in self.declared]
         spread = {c: 0.5 * self.scale[c] + abs(float(np.mean(self.meas[c])))
                   for c in self.outputs}
-        uncal = options.uncalibrated_channels
-        if self.kind == "circuit" and uncal is None:
-            uncal = ()
+        # a sensor gain/offset only for channels the user marks uncalibrated (issue 20: a
+        # per-channel gain must not absorb structure on a channel the user vouches for)
+        uncal = options.uncalibrated_channels or ()
         self.library = effects_for(
             self.kind, self.outputs, spread, self.available,
             is_off=lambda e: described_off(e, self.replay.value), uncalibrated=uncal)

@@ -36,8 +36,8 @@ check_valve_cracking        charge check valves: flow only past ``p_crack`` (des
 motor_friction              motor: ``T_c tanh(ω/ω_c) + b ω`` (described circuits whose motor
                             has no friction declared)
 sensor_delay                sensors: every output read ``d`` late
-sensor_gain_offset[ch]      sensor of channel ``ch``: ``g y + b`` (a described circuit: only
-                            for channels marked uncalibrated)
+sensor_gain_offset[ch]      sensor of channel ``ch``: ``g y + b`` (only for channels
+                            marked uncalibrated)
 sensor_lag[ch]              sensor of channel ``ch``: first-order lag ``τ`` (described
                             circuits; Doebelin §3.3)
 valve_overlap               servo valve: lap ``x_0`` of the spool (dead band)
