@@ -645,6 +645,37 @@ class Calibration:
             + "; held at the description's values: " + (", ".join(self.held_declared)
                                                          or "none"))
 
+    def sensor_lags(self, out: Mapping[str, np.ndarray], max_lag: int = 25) -> dict:
+        """Per channel, the time shift of the measured channel against the model's that
+        maximises their correlation on the settled record (integer lags up to ``max_lag``
+        samples, refined by a parabola through the peak; Bendat & Piersol, *Random Data*,
+        §11.1): how far the sensor's clock sits from the model's. Positive: the measurement
+        lags. A shift shared by every channel is an acquisition delay (the ``sensor_delay``
+        candidate); one channel's alone, that sensor's lag or filter."""
+        i0 = int(np.searchsorted(self.t, self.t[0] + self.options.settle_s))
+        dt = 1.0 / self.fs_hz
+        lags = {}
+        for c in self.outputs:
+            y = np.asarray(out[c][i0:], dtype=float)
+            z = np.asarray(self.meas[c][i0:], dtype=float)
+            n = len(y)
+            if n <= 4 * max_lag or np.std(y) == 0.0:
+                lags[c] = None
+                continue
+            y = y - y.mean()
+            z = z - z.mean()
+            ks = np.arange(-max_lag, max_lag + 1)
+            r = np.array([np.dot(z[max_lag + k:n - max_lag + k], y[max_lag:n - max_lag])
+                          for k in ks])
+            j = int(np.argmax(r))
+            shift = float(ks[j])
+            if 0 < j < len(ks) - 1:
+                den = r[j - 1] - 2 * r[j] + r[j + 1]
+                if den < 0:
+                    shift += 0.5 * (r[j - 1] - r[j + 1]) / den
+            lags[c] = shift * dt
+        return lags
+
     def at_bound(self, e: Effect, xe: np.ndarray) -> list[str]:
         """The parameters of effect ``e`` (normalised values ``xe``) that the fit pinned
         within 1 % of the span (of its logarithm, for a positive range over decades) at a
@@ -752,6 +783,7 @@ class Calibration:
                     "held_out": {c: before_err[c] for c in self.outputs},
                     "ratio": {c: before_err[c] / max(floor[c], 1e-12) for c in self.outputs}}
         baseline["reaches_noise"] = bool(all(v <= mult for v in baseline["ratio"].values()))
+        baseline["lag_s"] = self.sensor_lags(before_out)
         whiteness_before = self._whiteness(before_out)
         steps = []
         candidates_report: dict[str, dict] = {}

@@ -302,11 +302,15 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
         for c in base.get("ratio", {}):
             fl = base["noise_floor"].get(c)
             a = ea.get(c)
+            lag = (base.get("lag_s") or {}).get(c)
             rows.append([f"`{c}`", _pct(fl), _pct(base["held_out"].get(c)),
                          f"{base['ratio'].get(c, float('nan')):.2f}", _pct(a),
-                         f"{a / fl:.2f}" if isinstance(a, (int, float)) and fl else "—"])
+                         f"{a / fl:.2f}" if isinstance(a, (int, float)) and fl else "—",
+                         "—" if lag is None else f"{1e3 * lag:+.2f}"])
         L.append(_md_table(["channel", "noise floor [%]", "baseline [%]", "baseline / floor",
-                            "final [%]", "final / floor"], rows) + "\n")
+                            "final [%]", "final / floor", "sensor lag [ms]"], rows) + "\n")
+        L.append("Sensor lag: the shift of the measured channel against the baseline model "
+                 "that best aligns them (positive: the measurement lags).\n")
         L.append("Reaches the noise: **" + ("yes" if base.get("reaches_noise") else "no")
                  + "**.\n")
     ident = report.get("identifiability")
