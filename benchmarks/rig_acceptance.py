@@ -67,7 +67,7 @@ def named(report: dict) -> list[str]:
     out = [s["effect"] for s in report["effects_selected"]]
     if not out:
         for d in report.get("declared_deviations") or []:
-            out += [e.split(" ")[0] for e in d["equivalent_to"]]
+            out += [e.split(" (")[0] for e in d["equivalent_to"]]
     return out
 
 

@@ -280,3 +280,25 @@ def test_sensor_lag_estimate_recovers_a_known_shift():
     lags = Calibration.sensor_lags(fake, {"a": y, "b": y})
     assert lags["a"] == pytest.approx(3.4e-3, abs=2e-4)
     assert lags["b"] == pytest.approx(0.0, abs=2e-4)
+
+
+def test_declared_value_beyond_tolerance_names_its_equivalent_effects():
+    """Charge pressure fitted at 0.69× its datasheet value (tolerance ±10 %, SE 1 %) is
+    reported with check-valve cracking; pump slip at 1.5× (tolerance ±100 %) and a motor R
+    at 1.3× with an SE of 0.2 (not 3 SE beyond) are not."""
+    from types import SimpleNamespace
+
+    from afo_mj.calibration.calibrate import Calibration
+    from afo_mj.calibration.effect_library import declared_parameters
+    by = {d.name: d for d in declared_parameters("circuit")}
+    names = ["charge_pressure_pa", "pump_slip_coefficient", "motor_resistance_ohm"]
+    values = {"charge.pressure": 5e5, "pump.slip": 7e-8, "motor.R": 0.6}
+    fake = SimpleNamespace(declared=[by[n] for n in names],
+                           declared_labels=[by[n].labels for n in names],
+                           replay=SimpleNamespace(value=values.__getitem__))
+    m = SimpleNamespace(x=np.array([0.69, 1.5, 1.3]))
+    out = Calibration.declared_deviations(fake, m, {"sd": np.array([0.01, 0.05, 0.2])})
+    assert [d["parameter"] for d in out] == ["charge_pressure_pa"]
+    d = out[0]
+    assert d["fitted"] == pytest.approx(3.45e5) and d["relative_change"] == pytest.approx(-0.31)
+    assert d["equivalent_to"][0].startswith("check_valve_cracking")
