@@ -166,7 +166,8 @@ def test_effect_outside_the_library_is_not_named(rig, tmp_path):
     """Blind: a 10 s record of the independent rig whose torque cell rings at 80 Hz (a
     second-order sensor, not in the library): the baseline misses 2× the torque channel's
     noise floor, no physical effect is named, the verdict says the structure is wrong and
-    where (the torque channel, near 80 Hz), and the data-driven discrepancy is reported."""
+    where (the torque channel, near 80 Hz), and the data-driven discrepancy reads the torque
+    channel as the model's torque through a second-order instrument near 80 Hz."""
     from afo_mj.calibration.calibrate import calibrate_setup
     data = rig.write_record(tmp_path / "ring.csv", duration_s=10.0, seed=4,
                             effects={"torque_sensor_resonance": 80.0})
@@ -180,6 +181,11 @@ def test_effect_outside_the_library_is_not_named(rig, tmp_path):
     assert 60.0 < freq < 100.0
     disc = rep["data_driven_discrepancy"]
     assert "ankle_torque_nm" in disc and "data-driven" in disc["ankle_torque_nm"]["label"]
+    # the discrepancy reads the torque cell as a second-order instrument near its 80 Hz
+    torque = disc["ankle_torque_nm"]
+    assert torque["found"] and torque["form"] == "second_order_reading", torque
+    assert 70.0 < torque["natural_frequency_hz"] < 90.0
+    assert torque["held_out_gain"] > 0.3
 
 
 @pytest.mark.slow

@@ -9,8 +9,8 @@ held-out gain (:func:`sparse_discrepancy`, :func:`discrepancy_report`).
 Method:
 
 * **Library** (:func:`candidate_features`): constant, linear, drift, smoothed sign, absolute
-  value, Coulomb-like ``x·sign(v)``, time derivative and pairwise product terms of the given
-  signals; near-duplicate columns (``|ρ| > 0.999``) are dropped.
+  value, Coulomb-like ``x·sign(v)``, first and second time derivative and pairwise product
+  terms of the given signals; near-duplicate columns (``|ρ| > 0.999``) are dropped.
 * **Normalisation**: every non-constant column is z-scored with the *training* mean and
   standard deviation (so thresholds compare coefficients in the residual's unit per standard
   deviation of the feature); the coefficients are mapped back to physical units for the report.
@@ -24,6 +24,13 @@ Method:
 * **Model choice on held-out data**: the candidate with the lowest held-out mean squared error,
   then the sparsest candidate within one standard error of it (the one-standard-error rule;
   Hastie, Tibshirani & Friedman, ESL §7.10).
+
+A second, dynamic form (:func:`second_order_discrepancy`) asks whether a channel reads the
+model's own output through a second-order linear system (a ringing sensor or an unmodelled
+structural mode): ``reading = H(s)·y_model``, ``H = ω_n²/(s² + 2ζω_n s + ω_n²)``, ω_n and ζ
+fitted on the training part (grid, then ``scipy.optimize.least_squares``), judged on the
+held-out part. :func:`discrepancy_report` reports, per channel, whichever form predicts the
+held-out residual better, with the other as the alternative.
 
 The result is labelled a **data-driven discrepancy (not a physical effect)**: a correlation
 found in the data, with no claim about the mechanism behind it.
@@ -44,6 +51,8 @@ __all__ = [
     "DiscrepancyTerm",
     "candidate_features",
     "sparse_discrepancy",
+    "second_order_reading",
+    "second_order_discrepancy",
     "discrepancy_report",
 ]
 
@@ -143,7 +152,14 @@ def candidate_features(signals: Mapping[str, np.ndarray], time_s: np.ndarray, *,
        times direction;
     7. ``d/dt x``: time derivative by central differences (``np.gradient``; a missing inertia,
        damping or compliance);
-    8. ``x·y`` and ``x²``: pairwise products of the signals (interactions, quadratic drag).
+    8. ``d²/dt² x``: second time derivative (``np.gradient`` twice): a missing mass, or a
+       sensor's own second-order dynamics. A sensor of natural frequency ω_n and damping ζ
+       reads ``H(s)·x`` with ``H = ω_n²/(s² + 2ζω_n s + ω_n²)``, and below ω_n
+       ``H − 1 ≈ −(2ζ/ω_n)s − s²/ω_n²`` (Doebelin, *Measurement Systems*, 5th ed., §3.5): the
+       residual ``≈ −(1/ω_n²)·ẍ − (2ζ/ω_n)·ẋ``, so the ``d²/dt²`` coefficient reads as
+       ``ω_n = 1/√(−c)``. Differentiating twice amplifies noise, so these terms help only for
+       noise-free signals (the model's outputs); held-out selection drops them otherwise;
+    9. ``x·y`` and ``x²``: pairwise products of the signals (interactions, quadratic drag).
 
     A column is skipped when it is (numerically) constant or its ``|correlation|`` with an
     already kept column exceeds 0.999 (redundant: e.g. ``|x|`` of a positive ``x``); at most
@@ -217,6 +233,8 @@ def candidate_features(signals: Mapping[str, np.ndarray], time_s: np.ndarray, *,
                 add(f"{name}·sign({v})", x * smooth_sign[v])
     for name, x in sig.items():
         add(f"d/dt {name}", np.gradient(x, t))
+    for name, x in sig.items():
+        add(f"d²/dt² {name}", np.gradient(np.gradient(x, t), t))
     names = list(sig)
     for i, a in enumerate(names):
         for b in names[i:]:
@@ -463,13 +481,131 @@ def sparse_discrepancy(channel: str, residual: np.ndarray, features: Mapping[str
     return result
 
 
+# ---------------------------------------------------------------------------- dynamic form
+
+#: Natural frequencies tried by the grid of :func:`second_order_discrepancy`, as fractions of
+#: the Nyquist frequency (log-spaced) and damping ratios.
+_GRID_FN = np.logspace(np.log10(0.005), np.log10(0.9), 36)
+_GRID_ZETA = np.array([0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.5])
+
+
+def second_order_reading(y: np.ndarray, sample_period_s: float, natural_frequency_hz: float,
+                         damping_ratio: float) -> np.ndarray:
+    """``y`` read through a second-order instrument, ``H(s) = ω_n²/(s² + 2ζω_n s + ω_n²)``
+    (unit static gain; Doebelin, *Measurement Systems*, 5th ed., §3.4), starting at rest at
+    ``y[0]``.
+
+    Exact for ``y`` linear between samples: ``H`` discretised with a first-order hold
+    (``scipy.signal.cont2discrete(method="foh")``), filtered by ``scipy.signal.lfilter`` from
+    the steady state of ``y[0]``.
+
+    >>> import numpy as np
+    >>> float(second_order_reading(np.ones(5), 1e-3, 80.0, 0.05)[-1])
+    1.0
+    """
+    from scipy import signal
+    wn = 2.0 * math.pi * natural_frequency_hz
+    num, den, _ = signal.cont2discrete(([wn * wn], [1.0, 2.0 * damping_ratio * wn, wn * wn]),
+                                       sample_period_s, method="foh")
+    b = np.ravel(num)
+    a = np.ravel(den)
+    zi = signal.lfilter_zi(b, a) * y[0]
+    return signal.lfilter(b, a, y, zi=zi)[0]
+
+
+def second_order_discrepancy(channel: str, residual: np.ndarray, model_output: np.ndarray,
+                             time_s: np.ndarray, train_idx: np.ndarray, test_idx: np.ndarray,
+                             noise_sigma: float) -> dict:
+    """Does the channel read the model's output through a second-order system?
+
+    Fits ``residual ≈ H(s)·y − y`` (``y`` = ``model_output``, :func:`second_order_reading`)
+    on ``train_idx`` over the natural frequency (0.5 % to 90 % of the Nyquist frequency) and
+    the damping ratio (0.005–3): a grid of 36 × 9, then bounded least squares in
+    ``(log f_n, log ζ)``; the held-out RMS after is measured on ``test_idx``. ``found`` as in
+    :func:`sparse_discrepancy` (above 1.2 σ before, ≥ 10 % held-out drop). Needs uniform
+    sampling (else ``found`` is False with a ``"reason"``).
+
+    Returns the keys of :func:`sparse_discrepancy` (``terms`` empty; ``expression`` names the
+    filter) plus ``"form": "second_order_reading"``, ``"natural_frequency_hz"`` and
+    ``"damping_ratio"``."""
+    from scipy.optimize import least_squares
+    r = _vector("residual", residual)
+    n = r.shape[0]
+    y = _vector("model_output", model_output, n)
+    t = _vector("time_s", time_s, n)
+    tr = _index("train_idx", train_idx, n)
+    te = _index("test_idx", test_idx, n)
+    sigma = float(noise_sigma)
+    before = _rms(r[te])
+    result: dict = {
+        "channel": channel, "label": LABEL, "form": "second_order_reading", "found": False,
+        "terms": [], "expression": _expression([]), "held_out_rms_before": before,
+        "held_out_rms_after": before, "held_out_gain": 0.0, "best_held_out_gain": 0.0,
+        "noise_sigma": sigma, "within_noise": bool(before <= NOISE_FACTOR * sigma),
+        "natural_frequency_hz": None, "damping_ratio": None,
+        "n_features": 2, "n_train": int(tr.size), "n_test": int(te.size),
+    }
+    dt = np.diff(t)
+    h = float(np.median(dt)) if dt.size else 0.0
+    if n < 10 or h <= 0.0 or float(np.max(np.abs(dt - h))) > 1e-6 * h:
+        result["reason"] = "needs uniformly sampled data"
+        return result
+    nyq = 0.5 / h
+    if float(np.std(y[tr])) <= 0.0:
+        result["reason"] = "the model output is constant"
+        return result
+
+    def resid(z: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        f, zeta = math.exp(z[0]), math.exp(z[1])
+        return r[idx] - (second_order_reading(y, h, f, zeta)[idx] - y[idx])
+
+    best_z, best_sse = None, math.inf
+    for f in _GRID_FN * nyq:
+        for zeta in _GRID_ZETA:
+            z = np.array([math.log(f), math.log(zeta)])
+            e = resid(z, tr)
+            sse = float(e @ e)
+            if math.isfinite(sse) and sse < best_sse:
+                best_z, best_sse = z, sse
+    if best_z is None:
+        return result
+    lo = np.array([math.log(0.005 * nyq), math.log(0.005)])
+    hi = np.array([math.log(0.9 * nyq), math.log(3.0)])
+    try:
+        sol = least_squares(resid, np.clip(best_z, lo, hi), bounds=(lo, hi), args=(tr,),
+                            x_scale=1.0, diff_step=1e-4, max_nfev=60)
+        z = sol.x if float(2.0 * sol.cost) <= best_sse else best_z
+    except ValueError:
+        z = best_z
+    after = _rms(resid(z, te))
+    gain = 1.0 - after / before if before > 0.0 else 0.0
+    if not math.isfinite(gain):
+        return result
+    result["best_held_out_gain"] = float(max(gain, 0.0))
+    if result["within_noise"] or gain < MIN_RELATIVE_GAIN:
+        return result
+    f, zeta = math.exp(z[0]), math.exp(z[1])
+    result.update({
+        "found": True, "natural_frequency_hz": f, "damping_ratio": zeta,
+        "expression": (f"{channel} reads the model through ω_n²/(s² + 2ζω_n s + ω_n²), "
+                       f"f_n = {f:.3g} Hz, ζ = {zeta:.2g}"),
+        "held_out_rms_after": after, "held_out_gain": float(gain),
+        "within_noise": bool(after <= NOISE_FACTOR * sigma),
+    })
+    return result
+
+
 def discrepancy_report(residuals: Mapping[str, np.ndarray], signals: Mapping[str, np.ndarray],
                        time_s: np.ndarray, train_idx: np.ndarray, test_idx: np.ndarray,
                        noise: Mapping[str, float], *, max_terms: int = 3) -> dict[str, dict]:
     """Data-driven discrepancy of every channel of ``residuals``: one shared
     :func:`candidate_features` library from ``signals`` and ``time_s``, then
     :func:`sparse_discrepancy` per channel with its noise σ from ``noise`` (held-out model
-    choice, ESL §7.10; STLSQ, Brunton, Proctor & Kutz 2016). Returns ``{channel: result}``."""
+    choice, ESL §7.10; STLSQ, Brunton, Proctor & Kutz 2016) and, for a channel that is also a
+    signal (the model's output of it) and is not within its noise,
+    :func:`second_order_discrepancy`. Per channel the form with the lower held-out RMS among
+    those found is reported (``"form"``), the other under ``"alternative"``. Returns
+    ``{channel: result}``."""
     if not isinstance(residuals, Mapping) or not residuals:
         raise ValueError(f"residuals must be a non-empty mapping of channel -> 1-D array; got "
                          f"{type(residuals).__name__}")
@@ -485,6 +621,23 @@ def discrepancy_report(residuals: Mapping[str, np.ndarray], signals: Mapping[str
     out: dict[str, dict] = {}
     for ch, res in residuals.items():
         _vector(f"residuals[{ch!r}]", res, n)
-        out[ch] = sparse_discrepancy(ch, res, features, train_idx, test_idx, noise[ch],
-                                     max_terms=max_terms)
+        static = sparse_discrepancy(ch, res, features, train_idx, test_idx, noise[ch],
+                                    max_terms=max_terms)
+        dynamic = None
+        if ch in signals and not static["within_noise"]:
+            dynamic = second_order_discrepancy(ch, res, signals[ch], time_s, train_idx,
+                                               test_idx, noise[ch])
+        if dynamic is not None and dynamic["found"] and (
+                not static["found"]
+                or dynamic["held_out_rms_after"] < static["held_out_rms_after"]):
+            best, other = dynamic, static
+        else:
+            best, other = static, dynamic
+        if other is not None:
+            best["alternative"] = {k: other[k] for k in (
+                "form", "found", "expression", "held_out_gain", "best_held_out_gain")
+                if k in other}
+            best["alternative"].setdefault("form", "sparse_regression")
+        best.setdefault("form", "sparse_regression")
+        out[ch] = best
     return out

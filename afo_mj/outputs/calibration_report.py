@@ -355,9 +355,10 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
     if disc:
         L.append("## Data-driven discrepancy (not a physical effect)\n")
         L.append("No effect of the library explains the residual. A sparse regression of each "
-                 "channel's residual on terms of the model's outputs and the inputs (fitted on "
-                 "the training part, chosen on the held-out part) describes what is missing; "
-                 "it is a correlation in the data, not a named mechanism.\n")
+                 "channel's residual on terms of the model's outputs and the inputs, or a "
+                 "second-order reading of the channel's model output (ω_n, ζ), fitted on "
+                 "the training part and chosen on the held-out part, describes what is "
+                 "missing; it is a correlation in the data, not a named mechanism.\n")
         rows = []
         for ch, r in disc.items():
             if not isinstance(r, Mapping):
