@@ -39,10 +39,14 @@ spring about the trunk's target. For the first ``warmup_cycles`` they are ``warm
 times stronger and fade out (a supported start, like a hand on a rail); analysis skips those
 strides.
 
-Hot loop: per 1 ms step one compiled function (:mod:`afo_mj.gait.control_law`, numba) reads
-MuJoCo's state and writes ``data.ctrl`` and the ankle's torque range, Python calls ``mj_step``
-and copies the raw state into preallocated buffers, which become a
-:class:`~afo_mj.gait.record.GaitRecord` after the run (``benchmarks/gait_step.py``).
+Hot loop: the whole 1 ms step runs in compiled code (:mod:`afo_mj.gait.walk_loop`): the
+control law (:mod:`afo_mj.gait.control_law`) reads MuJoCo's state and writes ``data.ctrl`` and
+the ankle's torque range, MuJoCo's C ``mj_step`` is called directly
+(:mod:`afo_mj.gait.native_step`), events and the raw state go into preallocated buffers, which
+become a :class:`~afo_mj.gait.record.GaitRecord` after the run; Python is entered only between
+progress updates (``benchmarks/gait_step.py``: 1.16× a bare native ``mj_step``). A device whose
+torque is a Python callback runs the same step in a Python loop (``loop="python"``), which
+gives the same record bit for bit.
 """
 
 from __future__ import annotations
@@ -260,7 +264,7 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
              device: "AnkleDevice | CoupledAnkleDevice | None" = None,
              max_time_s: float | None = None,
-             label: str = "") -> GaitRecord:
+             label: str = "", loop: str = "auto") -> GaitRecord:
     """Walk ``strides`` right-leg cycles (or until a fall) and return the record.
 
     The walker starts in the reference posture at right heel strike (left leg at phase 0.5)
@@ -272,7 +276,16 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     the controller's first compilation, and the simulated time every
     ``PROGRESS_EVERY_S`` simulated seconds (one integer comparison per step otherwise);
     ``label`` names the run in those lines (e.g. a device condition).
+
+    ``loop``: ``"compiled"`` runs the per-step loop in compiled code
+    (:mod:`afo_mj.gait.walk_loop`: controller, ``mj_step`` through MuJoCo's C library,
+    events, recording, checks; no Python per step), ``"python"`` runs it in Python around the
+    same compiled controller, ``"auto"`` (default) the compiled loop where it applies (no
+    device, or a coupled device with compiled kernels) and Python otherwise (a device whose
+    torque is a Python callback). Both give the same record bit for bit.
     """
+    if loop not in ("auto", "compiled", "python"):
+        raise ValueError(f"loop = {loop!r}; allowed: 'auto', 'compiled', 'python'")
     c = controller or ControllerParams()
     m_body = walker.body_mass_kg
     ds = DynamicScale.of(m_body, walker.height_m)
@@ -399,6 +412,10 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
         raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
                          f"MuJoCo timestep {dt}; allowed: equal")
+    compiled = loop != "python" and device is None
+    if loop == "compiled" and not compiled:
+        raise ValueError("loop = 'compiled' needs device = None (a device whose torque is a "
+                         "Python callback runs in the Python loop); allowed: 'auto', 'python'")
     phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
     swing = state[law.S_SWING:law.S_SWING + 2]
     ev = state[law.S_EVENT:law.S_EVENT + 2]
@@ -418,7 +435,10 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     else:
         task, report_every = None, n_max + 1
     next_report = report_every
-    while k < n_max:
+    if compiled:
+        k = _compiled_loop(model, data, buf, events, state, tab, tab_step, const, index,
+                           actfrc, contact_geoms, strides, fall_dz, n_max, task, report_every)
+    while not compiled and k < n_max:
         t = data.time
         step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
         if ev[0] or ev[1]:
@@ -495,6 +515,62 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                    + (f" (fell at t = {events.fall_time_s:.2f} s)"
                       if events.fall_time_s is not None else ""))
     return _assemble(buf, k, phys, walker, events, radius, dt)
+
+
+def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, tab_step, const,
+                   index, actfrc, contact_geoms, strides: int, fall_dz: float, n_max: int,
+                   task, report_every: int) -> int:
+    """Steps of the walk in :func:`afo_mj.gait.walk_loop.walk_steps`, in chunks of
+    ``report_every`` when progress is shown (one call otherwise); fills ``buf`` and
+    ``events``; returns the rows recorded."""
+    from afo_mj.gait import walk_loop as wl
+    from afo_mj.gait.native_step import native_step, time_view
+    native = native_step()
+    time1 = time_view(data)
+    loop_const = np.zeros(wl.N_LOOP_CONST)
+    loop_const[wl.L_STRIDES] = strides
+    loop_const[wl.L_FALL_DZ] = fall_dz
+    loop_const[wl.L_FALL_TILT] = FALL_TILT_RAD
+    loop_index = np.zeros(wl.N_LOOP_INDEX, dtype=np.int64)
+    loop_index[wl.LI_PZ] = index[law.I_PZ]
+    loop_index[wl.LI_PT] = index[law.I_PT]
+    loop_index[wl.LI_FN] = native.mj_step_address
+    loop_index[wl.LI_MODEL] = model._address
+    loop_index[wl.LI_DATA] = data._address
+    ev_time = np.zeros(2 * n_max + 4)
+    ev_code = np.zeros((2 * n_max + 4, 2), dtype=np.int64)
+    cz = buf.contact_z
+    args = (time1, data.qpos, data.qvel, data.sensordata, data.geom_xpos, state, tab, tab_step,
+            const, index, data.ctrl, actfrc, data.qfrc_actuator, data.actuator_force,
+            np.ascontiguousarray(contact_geoms, dtype=np.int64), buf.time, buf.qpos, buf.qvel,
+            buf.qfrc_actuator, buf.actuator_force, buf.sensors, cz, buf.phase, ev_time, ev_code,
+            loop_const, loop_index)
+    progress.compile_stage(wl.walk_steps, (0, 0) + args, "the walk loop", "~1 s")
+    k = 0
+    code = wl.CHUNK_DONE
+    while k < n_max:
+        k_end = min(k + report_every, n_max) if task is not None else n_max
+        code, k = wl.walk_steps(k, k_end, *args)
+        if task is not None:
+            task.update(min(data.time, task.total))
+        if code != wl.CHUNK_DONE:
+            break
+    for n in range(int(loop_index[wl.LI_N_EVENTS])):
+        t, side, kind = float(ev_time[n]), int(ev_code[n, 0]), int(ev_code[n, 1])
+        if kind == wl.EV_HEEL_STRIKE:
+            events.heel_strikes_s[side].append(t)
+        elif kind == wl.EV_TOE_OFF:
+            events.toe_offs_s[side].append(t)
+        else:
+            events.swing_toe_contacts.append((t, side))
+    if code == wl.NON_FINITE:
+        if task is not None:
+            task.abort()
+        raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
+                                f"(qpos={data.qpos.tolist()}, qvel={data.qvel.tolist()})")
+    if code == wl.FELL:
+        events.fall_time_s = float(data.time)
+    return k
 
 
 def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
