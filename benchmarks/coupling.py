@@ -1,7 +1,7 @@
 """Cost of the HAFO coupling: µs per 1 ms step, bare walker vs the full coupled run.
 
-Both from ``scenarios/gait_assist_hafo.toml`` (healthy 75 kg walker, 10 strides), in the same
-process, alternated so that both see the same machine load:
+All from ``scenarios/gait_assist_hafo.toml`` (healthy 75 kg walker, 10 strides), in the same
+process, alternated so that all see the same machine load:
 
 * bare: :func:`afo_mj.gait.walk.run_walk` with no device (the walker with its controllers and
   the recording of the GaitRecord; model build included);
@@ -10,11 +10,17 @@ process, alternated so that both see the same machine load:
   :class:`~afo_mj.devices.hafo.HafoDevice` built, the walker (with the device's worn masses)
   stepped with the HAFO hydraulics coupled implicitly each step (phase estimate, assistance
   profile, torque controller, pump/hose/cylinder model, device log), then the gait analysis
-  and the condition's summary metrics.
+  and the condition's summary metrics;
+* the coupled walk's step alone (model build excluded, as ``benchmarks/gait_step.py`` does),
+  with the compiled loop (default) and with the Python loop (``loop="python"``), against the
+  native bare ``mj_step`` of the same walker (with the HAFO's worn masses), replayed from a
+  compiled loop (``benchmarks/gait_step.py``'s method): issue 21's target is the coupled
+  step ≤ 1.5 × that.
 
 numba is warmed up (compiled or loaded from its cache) by one untimed run of each before the
 timed repeats; the figures are medians over the repeats (the minimum is printed beside).
-Target: coupled ≤ 1.5 × bare. Prints the figures; the last line is a JSON object.
+Targets: coupled run ≤ 1.5 × bare walker run (issue 18); coupled walk step ≤ 1.5 × bare
+``mj_step`` (issue 21). Prints the figures; the last line is a JSON object.
 Run: ``.venv/bin/python benchmarks/coupling.py [repeats]``
 """
 
@@ -32,8 +38,14 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait  # noqa: E402
 from afo_mj.devices.hafo import HafoDevice  # noqa: E402
 from afo_mj.gait.walk import run_walk  # noqa: E402
-from afo_mj.experiments.device_walk import condition_summary, device_config  # noqa: E402
+from afo_mj.experiments.device_walk import condition_summary  # noqa: E402
+from afo_mj.scenarios.device_scenario import device_config  # noqa: E402
 from afo_mj.scenarios.walk_scenario import load_scenario  # noqa: E402
+from afo_mj.gait import walk  # noqa: E402
+from afo_mj.human.walker import WalkerPhysics, build_walker  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gait_step import _native_replay  # noqa: E402
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "gait_assist_hafo.toml"
 TARGET_RATIO = 1.5
@@ -70,6 +82,69 @@ def coupled_run(sc, cfg, ref, T, dt) -> tuple[float, float, int]:
     return time.perf_counter() - t0, t_walk, len(rec.time_s)
 
 
+def coupled_step(sc, cfg, ref, T, dt, loop: str) -> tuple[float, int]:
+    """µs per step of the coupled walk alone (model build excluded) and its steps."""
+    steps = int(((sc.strides + 1.5) * T + 1.0) / dt) + 4
+    dev = HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile, timestep_s=dt,
+                     max_steps=steps)
+    worn = dev.worn_masses()
+    t0 = time.perf_counter()
+    WalkerPhysics(build_walker(sc.walker, worn))          # the build run_walk also does
+    t_build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    rec = run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(), worn_masses=worn,
+                   device=dev, loop=loop)
+    wall = time.perf_counter() - t0 - t_build
+    return wall / len(rec.time_s) * 1e6, len(rec.time_s)
+
+
+def bare_native_step(sc, cfg, ref, T, dt) -> float:
+    """µs per native ``mj_step`` of the walker wearing the HAFO's masses, replaying the
+    controls, ankle torque ranges, applied device torques and ankle damping of a coupled
+    walk (captured from the Python loop)."""
+    import mujoco
+    import numpy as np
+    from afo_mj.gait.native_step import native_step
+    steps = int(((sc.strides + 1.5) * T + 1.0) / dt) + 4
+    dev = HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile, timestep_s=dt,
+                     max_steps=steps)
+    captured, start = [], {}
+    original = walk.mujoco.mj_step
+
+    def capture(model, data):
+        if not start:
+            start.update(qpos=data.qpos.copy(), qvel=data.qvel.copy(), model=model)
+        captured.append((data.ctrl.copy(), model.jnt_actfrcrange.copy(),
+                         data.qfrc_applied.copy(), model.dof_damping.copy()))
+        original(model, data)
+
+    walk.mujoco.mj_step = capture
+    try:
+        run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(),
+                 worn_masses=dev.worn_masses(), device=dev, loop="python")
+    finally:
+        walk.mujoco.mj_step = original
+    model = start["model"]
+    data = mujoco.MjData(model)
+    data.qpos[:] = start["qpos"]
+    data.qvel[:] = start["qvel"]
+    mujoco.mj_forward(model, data)
+    # the applied torques and damping are replayed as the last captured values: their cost
+    # in mj_step does not depend on their values
+    data.qfrc_applied[:] = captured[-1][2]
+    model.dof_damping[:] = captured[-1][3]
+    ctrls = np.array([c[0] for c in captured])
+    ranges = np.array([c[1] for c in captured])
+    fn = native_step().mj_step_address
+    warm = mujoco.MjData(model)                  # held: the call reads it by address
+    _native_replay(ctrls[:2], ranges[:2], warm.ctrl, model.jnt_actfrcrange, fn,
+                   model._address, warm._address)
+    t0 = time.perf_counter()
+    _native_replay(ctrls, ranges, data.ctrl, model.jnt_actfrcrange, fn, model._address,
+                   data._address)
+    return (time.perf_counter() - t0) / len(captured) * 1e6
+
+
 def main(repeats: int = 7) -> dict:
     sc, cfg, ref, T, dt = _setup()
     bare_run(sc, ref, T)                      # warm-up: numba compile / cache load
@@ -84,6 +159,10 @@ def main(repeats: int = 7) -> dict:
         walk_only.append(w_walk / n_coupled * 1e6)
     b, c, cw = (statistics.median(x) for x in (bare, coupled, walk_only))
     ratio = c / b
+    coupled_step(sc, cfg, ref, T, dt, "compiled")          # warm-up: the device's C entries
+    step_c = min(coupled_step(sc, cfg, ref, T, dt, "compiled")[0] for _ in range(3))
+    step_py = min(coupled_step(sc, cfg, ref, T, dt, "python")[0] for _ in range(3))
+    native = min(bare_native_step(sc, cfg, ref, T, dt) for _ in range(3))
     result = {
         "bare_us_per_step": round(b, 2),
         "coupled_us_per_step": round(c, 2),
@@ -101,6 +180,11 @@ def main(repeats: int = 7) -> dict:
         "scenario": SCENARIO.name,
         "condition": "assist",
         "device_preset": cfg.preset,
+        "bare_native_mj_step_us": round(native, 2),
+        "coupled_walk_step_compiled_us": round(step_c, 2),
+        "coupled_walk_step_python_loop_us": round(step_py, 2),
+        "coupled_step_over_bare_mj_step": round(step_c / native, 3),
+        "target_coupled_step_over_bare_mj_step": 1.5,
     }
     print(f"{SCENARIO.name}: {sc.strides} strides, 1 ms step, median of {repeats} repeats "
           f"(minimum in brackets)")
@@ -110,6 +194,10 @@ def main(repeats: int = 7) -> dict:
           f"{n_coupled} steps")
     print(f"    of which walk + device:     {cw:6.1f} us/step, metrics {c - cw:4.1f} us/step")
     print(f"  ratio coupled / bare:         {ratio:6.2f} (target <= {TARGET_RATIO})")
+    print(f"  coupled walk step, build excluded (best of 3): compiled loop {step_c:5.1f} "
+          f"us/step, Python loop {step_py:5.1f} us/step")
+    print(f"  bare native mj_step, HAFO's worn masses:        {native:5.1f} us/step; "
+          f"coupled / bare mj_step {step_c / native:.2f} (issue 21 target <= 1.5)")
     print(json.dumps(result))
     return result
 

@@ -57,8 +57,10 @@ def record_walk():
         return end(v)
 
     dev.begin_step, dev.end_step = rec_begin, rec_end
+    # the Python loop calls begin_step / end_step (the compiled loop calls the device's C
+    # entry points directly, so these wrappers would see nothing); the record is the same
     run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(),
-             worn_masses=dev.worn_masses(), device=dev)
+             worn_masses=dev.worn_masses(), device=dev, loop="python")
 
     def make():
         return HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile,

@@ -134,3 +134,46 @@ def test_python_callback_device_refuses_the_compiled_loop():
         _walk("compiled", device=Flat())
     # auto takes the Python loop for it
     assert len(_walk("auto", strides=1, device=Flat()).time_s) > 0
+
+
+def _hafo_walk(loop, strides=2, **device_kw):
+    from afo_mj.experiments.device_walk import make_device
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(ROOT / "scenarios" / "gait_assist_hafo.toml")
+    ref = sc.load_reference()
+    T, dt = sc.cycle_time_s(ref), sc.walker.timestep_s
+    dev = make_device(device_config(sc), "assist", dt, int((strides + 2.5) * T / dt) + 4)
+    for k, v in device_kw.items():
+        setattr(dev, k, v)
+    rec = walk.run_walk(sc.walker, ref, T, strides, sc.controller_params(),
+                        worn_masses=dev.worn_masses(), device=dev, loop=loop)
+    return rec, dev
+
+
+def test_coupled_hafo_walk_compiled_equals_python_loop():
+    """The HAFO coupled to the walker (assist): the compiled loop calls the generated
+    circuit's C entry points (afo_mj.circuits.native_entry) where the Python loop calls
+    begin_step / end_step; walk record, device log, step count, time and energy ledger are
+    the same bit for bit."""
+    a, da = _hafo_walk("python")
+    b, db = _hafo_walk("compiled")
+    _same(a, b)
+    assert np.any(b.device_moment_nm != 0.0)
+    assert da.steps == db.steps == len(b.time_s)
+    assert da.log.n == db.log.n == len(b.time_s)
+    assert np.array_equal(da.log.data, db.log.data)
+    assert da.t_s == db.t_s
+    assert da.ledger(0) == db.ledger(0)
+    _same(b, _hafo_walk("auto")[0])
+
+
+def test_python_command_device_takes_the_python_loop():
+    """A circuit device whose command is a Python function has no C entry points: ``auto``
+    walks it in the Python loop, ``compiled`` is refused with the reason."""
+    from afo_mj.circuits.device import CircuitDevice
+    rec, dev = _hafo_walk("auto", strides=1, torque_fn=lambda t, th, thd: 0.0)
+    assert dev.native_coupling() is None and dev.steps == len(rec.time_s)
+    with pytest.raises(ValueError, match="Python callback"):
+        _hafo_walk("compiled", strides=1, torque_fn=lambda t, th, thd: 0.0)
+    assert issubclass(type(dev), CircuitDevice)

@@ -183,6 +183,37 @@ class CircuitDevice:
         self.k.device_couple(self._buf, self._meta)
         return self._out2
 
+    def native_coupling(self):
+        """The entry points and buffers a compiled loop steps this device with
+        (:class:`afo_mj.circuits.native_entry.NativeCoupling`), or None when the command
+        comes from a Python ``torque_fn`` (that device needs the Python loop). The loop calls
+        ``begin``/``end`` as :meth:`begin_step`/:meth:`end_step` do and reports back with
+        :meth:`native_finished`."""
+        if self.torque_fn is not None:
+            return None
+        from afo_mj.circuits.native_entry import NativeCoupling, entry_points
+        ep = entry_points(self.cc)
+        return NativeCoupling(ep.begin_address, ep.end_address, self._buf, self._meta,
+                              self._log_data, self.force2, self.damping2, self.delivered2)
+
+    def native_finished(self, steps: int, last_t_s: float, failed: bool = False) -> None:
+        """A compiled loop stepped this device ``steps`` times, the last one beginning at
+        ``last_t_s``: the step counter, the log's length and the time move on as
+        :meth:`end_step` would have moved them; ``failed`` (a state became non-finite in the
+        last step) raises the error :meth:`end_step` raises."""
+        if steps:
+            self.t_s = float(last_t_s)
+        if failed:
+            self.steps += steps - 1
+            if self.log is not None:
+                self.log.n = min(self.steps, self.log.data.shape[0])
+            raise FloatingPointError(
+                f"circuit {self.cc.circuit.name!r}: a state became non-finite at t = "
+                f"{self.t_s:.4f} s: {dict(zip(self.cc.state_names, self.Y[0].tolist()))}")
+        self.steps += steps
+        if self.log is not None:
+            self.log.n = min(self.steps, self.log.data.shape[0])
+
     def end_step(self, velocity_new_rad_s):
         """Close the step with the joint velocity MuJoCo produced; returns the delivered
         torques (length 2, zero where not worn)."""

@@ -412,10 +412,14 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
         raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
                          f"MuJoCo timestep {dt}; allowed: equal")
-    compiled = loop != "python" and device is None
+    native = None
+    if loop != "python" and coupled and hasattr(device, "native_coupling"):
+        native = device.native_coupling()
+    compiled = loop != "python" and (device is None or native is not None)
     if loop == "compiled" and not compiled:
-        raise ValueError("loop = 'compiled' needs device = None (a device whose torque is a "
-                         "Python callback runs in the Python loop); allowed: 'auto', 'python'")
+        raise ValueError("loop = 'compiled' needs no device or a coupled device with compiled "
+                         "entry points (native_coupling); a device whose torque is a Python "
+                         "callback runs in the Python loop; allowed: 'auto', 'python'")
     phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
     swing = state[law.S_SWING:law.S_SWING + 2]
     ev = state[law.S_EVENT:law.S_EVENT + 2]
@@ -436,8 +440,13 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
         task, report_every = None, n_max + 1
     next_report = report_every
     if compiled:
+        dev_args = None
+        if native is not None:
+            dev_args = (native, device, (ank_r, ank_l, dank_r, dank_l, ff_ank_r, ff_ank_l),
+                        base_damp, adapt, float(device.timestep_s))
         k = _compiled_loop(model, data, buf, events, state, tab, tab_step, const, index,
-                           actfrc, contact_geoms, strides, fall_dz, n_max, task, report_every)
+                           actfrc, contact_geoms, strides, fall_dz, n_max, task, report_every,
+                           dev_args)
     while not compiled and k < n_max:
         t = data.time
         step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
@@ -519,10 +528,11 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
 
 def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, tab_step, const,
                    index, actfrc, contact_geoms, strides: int, fall_dz: float, n_max: int,
-                   task, report_every: int) -> int:
+                   task, report_every: int, dev_args=None) -> int:
     """Steps of the walk in :func:`afo_mj.gait.walk_loop.walk_steps`, in chunks of
     ``report_every`` when progress is shown (one call otherwise); fills ``buf`` and
-    ``events``; returns the rows recorded."""
+    ``events``; returns the rows recorded. ``dev_args``: a coupled device's native coupling,
+    the device, its ankle addresses, base damping, the adaptation and the device step."""
     from afo_mj.gait import walk_loop as wl
     from afo_mj.gait.native_step import native_step, time_view
     native = native_step()
@@ -539,12 +549,36 @@ def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, t
     loop_index[wl.LI_DATA] = data._address
     ev_time = np.zeros(2 * n_max + 4)
     ev_code = np.zeros((2 * n_max + 4, 2), dtype=np.int64)
+    dev_io = np.zeros(6)
+    outs = (np.zeros(2), np.zeros(2), np.zeros(2))
+    device = None
+    if dev_args is not None:
+        nc, device, addr, base_damp, adapt, dev_dt = dev_args
+        log = nc.log
+        if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
+                and nc.meta.flags.c_contiguous and log.ndim == 3):
+            raise AssertionError("device coupling: buffer, layout and log must be C arrays")
+        loop_index[wl.LI_DEV_BEGIN] = nc.begin_address
+        loop_index[wl.LI_DEV_END] = nc.end_address
+        loop_index[wl.LI_P_IO] = dev_io.ctypes.data
+        loop_index[wl.LI_P_BUF] = nc.buffer.ctypes.data
+        loop_index[wl.LI_P_META] = nc.meta.ctypes.data
+        loop_index[wl.LI_P_LOG] = log.ctypes.data
+        loop_index[wl.LI_LOG_N:wl.LI_LOG_S + 1] = log.shape
+        loop_index[wl.LI_DEV_STEPS] = device.steps
+        loop_index[wl.LI_ANK_R:wl.LI_FF_L + 1] = addr
+        loop_const[wl.L_BASE_DAMP_R], loop_const[wl.L_BASE_DAMP_L] = base_damp
+        loop_const[wl.L_ADAPT] = adapt
+        loop_const[wl.L_DEV_DT] = dev_dt
+        outs = (nc.force2, nc.damping2, nc.delivered2)
+    steps0 = int(loop_index[wl.LI_DEV_STEPS])
     cz = buf.contact_z
     args = (time1, data.qpos, data.qvel, data.sensordata, data.geom_xpos, state, tab, tab_step,
             const, index, data.ctrl, actfrc, data.qfrc_actuator, data.actuator_force,
             np.ascontiguousarray(contact_geoms, dtype=np.int64), buf.time, buf.qpos, buf.qvel,
             buf.qfrc_actuator, buf.actuator_force, buf.sensors, cz, buf.phase, ev_time, ev_code,
-            loop_const, loop_index)
+            loop_const, loop_index, data.qfrc_applied, model.dof_damping, dev_io) + outs + (
+            buf.device,)
     progress.compile_stage(wl.walk_steps, (0, 0) + args, "the walk loop", "~1 s")
     k = 0
     code = wl.CHUNK_DONE
@@ -555,6 +589,12 @@ def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, t
             task.update(min(data.time, task.total))
         if code != wl.CHUNK_DONE:
             break
+    if device is not None:
+        done = int(loop_index[wl.LI_DEV_STEPS]) - steps0
+        if code == wl.DEVICE_NON_FINITE and task is not None:
+            task.abort()
+        device.native_finished(done, float(loop_const[wl.L_DEV_LAST_T]),
+                               failed=code == wl.DEVICE_NON_FINITE)
     for n in range(int(loop_index[wl.LI_N_EVENTS])):
         t, side, kind = float(ev_time[n]), int(ev_code[n, 0]), int(ev_code[n, 1])
         if kind == wl.EV_HEEL_STRIKE:
