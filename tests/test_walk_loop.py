@@ -177,3 +177,39 @@ def test_python_command_device_takes_the_python_loop():
     with pytest.raises(ValueError, match="Python callback"):
         _hafo_walk("compiled", strides=1, torque_fn=lambda t, th, thd: 0.0)
     assert issubclass(type(dev), CircuitDevice)
+
+
+DEVICE_SCENARIOS = ["gait_assist_hafo", "gait_assist_hafo_prototype", "gait_assist_valve",
+                    "gait_assist_digital", "gait_lab_bench", "gait_pump_accumulator",
+                    "gait_spring_return", "gait_stiffness_emulation",
+                    "gait_weak_plantarflexors_hafo"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", DEVICE_SCENARIOS)
+def test_shipped_device_scenarios_equal(name):
+    """Every shipped device scenario, each of its device conditions, 2 strides: the compiled
+    loop (the circuit's C entry points) equals the Python loop bit for bit, device log
+    included."""
+    from afo_mj.experiments.device_walk import make_device
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(ROOT / "scenarios" / f"{name}.toml", ["gait.strides=2",
+                                                            "gait.analyse_strides=[1, 2]"])
+    ref = sc.load_reference()
+    T, dt = sc.cycle_time_s(ref), sc.walker.timestep_s
+    cfg = device_config(sc)
+    conditions = [c for c in cfg.conditions if c != "no_device"]
+    assert conditions
+    for cond in conditions:
+        runs = []
+        for loop in ("python", "compiled"):
+            dev = make_device(cfg, cond, dt, int(4.5 * T / dt) + 4)
+            worn = dev.worn_masses() if hasattr(dev, "worn_masses") else ()
+            rec = walk.run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(),
+                                worn_masses=worn, device=dev, loop=loop)
+            runs.append((rec, dev))
+        (a, da), (b, db) = runs
+        _same(a, b)
+        assert np.array_equal(da.log.data[:da.log.n], db.log.data[:db.log.n]), cond
+        assert da.steps == db.steps

@@ -124,6 +124,15 @@ def strides_overrides(n: int) -> list[str]:
     return [f"gait.strides={n}", f"gait.analyse_strides=[{first}, {n}]"]
 
 
+def _rebuild_walk_scenario(state: dict) -> "WalkScenario":
+    """Inverse of :meth:`WalkScenario.__reduce__`."""
+    return WalkScenario(**{k: (MappingProxyType(v) if k in _MAPPING_FIELDS else v)
+                           for k, v in state.items()})
+
+
+_MAPPING_FIELDS = ("controller", "device", "assistance", "circuit")
+
+
 @dataclasses.dataclass(frozen=True)
 class WalkScenario:
     """A validated walking scenario (see the module docstring for the TOML schema).
@@ -163,6 +172,14 @@ class WalkScenario:
     record: bool = False
     record_signal_rate_hz: float = 500.0
     record_transform_rate_hz: float = 50.0
+
+    def __reduce__(self):
+        """Pickle support (batches and sweeps send scenarios to worker processes): the
+        read-only mapping fields travel as dicts and come back read-only."""
+        state = {f.name: (dict(getattr(self, f.name))
+                          if isinstance(getattr(self, f.name), MappingProxyType)
+                          else getattr(self, f.name)) for f in dataclasses.fields(self)}
+        return _rebuild_walk_scenario, (state,)
 
     def load_reference(self):
         """The reference gait (:class:`afo_mj.gait.reference.ReferenceGait`)."""

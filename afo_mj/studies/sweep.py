@@ -20,20 +20,18 @@ again with the same study and ``DIR``: runs whose row exists are not recomputed,
 when it stopped are run again, and no row is duplicated (a row's file name is its run id). A
 run that raises or exits non-zero is recorded with its error and does not stop the sweep.
 
-Executors: local worker processes (:class:`concurrent.futures.ProcessPoolExecutor`, spawn
-start method) by default; a Dask ``distributed`` cluster when a scheduler address is given, or
-``"local"`` for a :class:`distributed.LocalCluster` of ``workers`` single-threaded processes
-on this machine (Dask's own scheduler does the placement, retries of lost workers and
-transfers; we only submit runs and collect rows).
+Executors: local worker processes (:func:`afo_mj.experiments.batch.run_unordered`: forked
+where the platform allows, so workers start with the parent's compiled code) by default; a
+Dask ``distributed`` cluster when a scheduler address is given, or ``"local"`` for a
+:class:`distributed.LocalCluster` of ``workers`` single-threaded processes on this machine
+(Dask's own scheduler does the placement, retries of lost workers and transfers; we only
+submit runs and collect rows).
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-import contextlib
 import json
 import math
-import multiprocessing
 import os
 import re
 import signal
@@ -371,22 +369,15 @@ class Sweep:
             yield from self._execute_local(todo)
 
     def _execute_local(self, todo):
-        ctx = multiprocessing.get_context("spawn")
-        pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
-                                      initializer=_worker_init)
-        try:
-            futs = {pool.submit(self.runner, *self._args(rid, p)): (i, rid, p)
-                    for i, rid, p in todo}
-            for k, fut in enumerate(cf.as_completed(futs)):
-                i, rid, p = futs[fut]
-                try:
-                    row = fut.result()
-                except Exception as exc:            # a worker that died
-                    row = _failed_row(rid, p, f"worker failed: {type(exc).__name__}: {exc}")
-                yield k, row
-        finally:
-            pool.shutdown(wait=False, cancel_futures=True)
-            _terminate_pool(pool)
+        from afo_mj.experiments.batch import call_packed, run_unordered
+        packed = [(self.runner,) + self._args(rid, p) for _, rid, p in todo]
+        for k, (j, res) in enumerate(run_unordered(call_packed, packed, self.workers)):
+            i, rid, p = todo[j]
+            if res.ok:
+                yield k, res.value
+            else:                                    # a worker that died
+                exc = res.error
+                yield k, _failed_row(rid, p, f"worker failed: {type(exc).__name__}: {exc}")
 
     def _execute_dask(self, todo):
         from distributed import Client, LocalCluster, as_completed
@@ -423,20 +414,6 @@ def _failed_row(rid, p, error) -> dict:
     for k, v in p.items():
         row[PARAM_PREFIX + k] = v
     return row
-
-
-def _worker_init() -> None:
-    """Workers ignore SIGINT: the parent decides when to stop (and terminates them)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.environ.setdefault("MUJOCO_GL", "egl")
-
-
-def _terminate_pool(pool) -> None:
-    procs = getattr(pool, "_processes", None) or {}
-    for proc in list(procs.values()):
-        with contextlib.suppress(Exception):
-            if proc.is_alive():
-                proc.terminate()
 
 
 def _is_main_thread() -> bool:
