@@ -1,0 +1,343 @@
+"""Hill-type muscle–tendon units with compliant tendons (Geyer & Herr 2010), compiled.
+
+A muscle–tendon unit (MTU) is a contractile element (CE) in series with a tendon (the series
+elastic element, SE), with a parallel elastic element (PE) that resists stretch beyond the
+optimum length and a buckling element (BE) that keeps the CE from collapsing. The model and
+its shared constants are Geyer & Herr, "A muscle-reflex model that encodes principles of
+legged mechanics produces human walking dynamics and muscle activities", IEEE Trans. Neural
+Syst. Rehabil. Eng. 18 (2010) 263–273, and Geyer, Seyfarth & Blickhan, Proc. R. Soc. B 270
+(2003) 2173 (the CE and SE relations):
+
+* CE force ``F_CE = a · F_max · f_L(l_CE) · f_V(v_CE)``;
+* force–length ``f_L = exp(c · |(l_CE − l_opt)/(l_opt · w)|³)``, ``w = 0.56``,
+  ``c = ln 0.05`` (5 % force left at ``l_opt(1 ± w)``);
+* force–velocity, ``v`` in ``l_opt/s`` (negative = shortening), ``v_max`` the maximum
+  shortening speed: concentric ``f_V = (v_max + v)/(v_max − K v)``; eccentric
+  ``f_V = N + (N − 1)(v_max − v)/(7.56 K v + v_max)`` (Geyer & Herr write these with the
+  opposite sign of ``v``), ``N = 1.5`` the eccentric force enhancement, ``K = 5`` the curvature;
+* tendon ``F_SE = F_max (ε/ε_ref)²`` for the strain ``ε = (l_SE − l_slack)/l_slack > 0``,
+  ``ε_ref = 0.04`` (zero when slack): a stiffening spring that stores and returns energy;
+* PE ``F_PE = F_max ((l_CE − l_opt)/(l_opt w))²`` beyond ``l_opt``; BE
+  ``F_BE = F_max ((l_CE − l_opt(1 − w))/(l_opt w/2))²`` below ``l_opt(1 − w)``;
+* equilibrium ``F_SE = F_CE + F_PE − F_BE`` gives ``f_V``, inverted to ``v_CE``;
+* activation ``τ ȧ = u − a``, ``τ = 10 ms``, from the excitation (stimulation) ``u``.
+
+Path geometry (Geyer & Herr 2010, section II-B): at an ankle or knee the moment arm is
+``r(φ) = r_0 cos(φ − φ_max)`` and the MTU length changes by
+``Δl = s ρ r_0 [sin(φ − φ_max) − sin(φ_ref − φ_max)]``; at the hip ``r = r_0`` and
+``Δl = s ρ r_0 (φ − φ_ref)``; ``l_MTU = l_opt + l_slack + Σ Δl`` (so at every ``φ_ref`` the MTU
+is exactly ``l_opt + l_slack`` long). ``φ`` are Geyer's internal joint angles: ankle
+``φ_a = π/2 − θ_ankle`` (``θ`` dorsiflexion positive, as in the walker), knee
+``φ_k = π − θ_knee``, hip ``φ_h = π − θ_hip`` (flexion positive). ``s = +1`` when the muscle
+lengthens as ``φ`` grows (TA, GAS at the knee, HAM at the knee, HFL), ``−1`` otherwise; ``ρ``
+accounts for pennation and fibre compliance in the length change. The joint torque, in the
+walker's positive direction, is ``τ_θ = s · r(φ) · F`` (a plantarflexor, ``s = −1``, gives a
+negative, plantarflexing torque).
+
+The CE length is the MTU's state. Its ODE ``l̇_CE = v_CE(l_CE, a, l_MTU)`` is stiff when the
+activation is low (a slack fibre relaxes in microseconds), so :func:`mtu_step` advances it by
+backward Euler: the scalar equation ``x − l_CE,n − h v_CE(x, a_{n+1}, l_MTU,n+1) = 0`` solved by
+a safeguarded Newton iteration inside a bracket (bisection where Newton leaves it), to a
+relative tolerance of 1e-12; ``tests/test_muscle.py`` checks it against scipy's Radau.
+
+Parameters of the seven muscles per leg (:data:`GEYER_HERR_2010`): ``F_max``, ``v_max``,
+``l_opt``, ``l_slack``, ``r_0``, ``φ_max``, ``φ_ref``, ``ρ`` from the model's published
+parameter set (Geyer & Herr 2010, Table I); muscle masses and slow-twitch fractions for the
+metabolic models (:mod:`afo_mj.human.metabolics`) from Song & Geyer, J. Physiol. 593 (2015)
+3493 (their metabolic extension of the same model).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numba
+import numpy as np
+
+from afo_mj.hydraulics.params import ParameterError, Parameters, param
+
+__all__ = [
+    "W_WIDTH", "C_RESIDUAL", "N_ECCENTRIC", "K_CURVATURE", "F_V_INFINITY", "EPS_REF",
+    "TAU_ACTIVATION_S", "PREACTIVATION", "MuscleParams", "JointPath", "GEYER_HERR_2010",
+    "MUSCLE_NAMES",
+    "ce_force_length", "ce_force_velocity", "ce_velocity_from_force", "se_force_n",
+    "pe_force_n", "be_force_n", "activation_step", "path_length_and_arm",
+    "mtu_rate", "mtu_step", "equilibrium_ce_length_m", "to_geyer_angle",
+]
+
+#: force–length width (in l_opt) and the force left at its edges, ln(0.05)
+W_WIDTH = 0.56
+C_RESIDUAL = math.log(0.05)
+#: eccentric force enhancement and force–velocity curvature
+N_ECCENTRIC = 1.5
+K_CURVATURE = 5.0
+#: the lengthening force–velocity factor's limit as v → ∞
+F_V_INFINITY = N_ECCENTRIC + (N_ECCENTRIC - 1.0) / (7.56 * K_CURVATURE)
+#: tendon reference strain (F_SE = F_max at ε = ε_ref)
+EPS_REF = 0.04
+#: excitation–contraction time constant and the resting (pre-)activation
+TAU_ACTIVATION_S = 0.01
+PREACTIVATION = 0.01
+
+#: joint codes of a path: 0 ankle, 1 knee, 2 hip
+JOINTS = ("ankle", "knee", "hip")
+
+
+@dataclasses.dataclass(frozen=True)
+class JointPath:
+    """How a muscle crosses one joint (Geyer & Herr 2010, section II-B): ``sign`` +1 when it
+    lengthens as Geyer's internal angle grows, −1 otherwise; ``r0_m`` the moment arm
+    (at ``phi_max``); ``phi_max_rad`` (ankle, knee; None at the hip: constant arm),
+    ``phi_ref_rad`` where the MTU is ``l_opt + l_slack`` long; ``rho`` the length scaling."""
+
+    joint: str
+    sign: int
+    r0_m: float
+    phi_ref_rad: float
+    rho: float
+    phi_max_rad: float | None = None
+
+    def __post_init__(self):
+        if self.joint not in JOINTS:
+            raise ParameterError(f"JointPath.joint = {self.joint!r}; allowed: {JOINTS}")
+        if self.sign not in (-1, 1):
+            raise ParameterError(f"JointPath.sign = {self.sign!r}; allowed: -1 or 1")
+        if not (0.0 < self.r0_m <= 0.3):
+            raise ParameterError(f"JointPath.r0_m = {self.r0_m!r}; allowed: (0, 0.3] m")
+        if not (0.0 < self.rho <= 1.0):
+            raise ParameterError(f"JointPath.rho = {self.rho!r}; allowed: (0, 1]")
+        if (self.phi_max_rad is None) != (self.joint == "hip"):
+            raise ParameterError(f"JointPath({self.joint}).phi_max_rad = {self.phi_max_rad!r}; "
+                                 "allowed: a value at the ankle and knee, None at the hip")
+
+
+@dataclasses.dataclass(frozen=True)
+class MuscleParams(Parameters):
+    """One muscle–tendon unit (Geyer & Herr 2010, Table I; metabolic figures Song & Geyer
+    2015)."""
+
+    max_force_n: float = param(1000.0, unit="N", lo=0.0, lo_open=True, hi=2e4)
+    max_velocity_lopt_s: float = param(12.0, unit="l_opt/s", lo=0.0, lo_open=True, hi=30.0,
+                                       doc="maximum shortening speed")
+    optimal_length_m: float = param(0.05, unit="m", lo=0.0, lo_open=True, hi=0.5)
+    slack_length_m: float = param(0.25, unit="m", lo=0.0, lo_open=True, hi=1.0)
+    mass_kg: float = param(0.5, unit="kg", lo=0.0, lo_open=True, hi=10.0,
+                           doc="muscle mass, for the metabolic models")
+    slow_twitch_fraction: float = param(0.5, unit="1", lo=0.0, hi=1.0)
+
+
+def _deg(x: float) -> float:
+    return math.radians(x)
+
+
+#: the seven muscles per leg of Geyer & Herr (2010): MTU parameters and their joint paths
+GEYER_HERR_2010: dict[str, tuple[MuscleParams, tuple[JointPath, ...]]] = {
+    "soleus": (MuscleParams(4000.0, 6.0, 0.04, 0.26, 0.70, 0.75),
+               (JointPath("ankle", -1, 0.05, _deg(80), 0.5, _deg(110)),)),
+    "gastrocnemius": (MuscleParams(1500.0, 12.0, 0.05, 0.40, 0.30, 0.50),
+                      (JointPath("ankle", -1, 0.05, _deg(80), 0.7, _deg(110)),
+                       JointPath("knee", 1, 0.05, _deg(165), 0.7, _deg(140)))),
+    "tibialis_anterior": (MuscleParams(800.0, 12.0, 0.06, 0.24, 0.20, 0.70),
+                          (JointPath("ankle", 1, 0.04, _deg(110), 0.7, _deg(80)),)),
+    "vasti": (MuscleParams(6000.0, 12.0, 0.08, 0.23, 2.05, 0.50),
+              (JointPath("knee", -1, 0.06, _deg(125), 0.7, _deg(165)),)),
+    "hamstrings": (MuscleParams(3000.0, 12.0, 0.10, 0.31, 1.25, 0.60),
+                   (JointPath("knee", 1, 0.05, _deg(180), 0.7, _deg(180)),
+                    JointPath("hip", -1, 0.08, _deg(155), 0.7))),
+    "gluteals": (MuscleParams(1500.0, 12.0, 0.11, 0.13, 0.70, 0.50),
+                 (JointPath("hip", -1, 0.10, _deg(150), 0.5),)),
+    "hip_flexors": (MuscleParams(2000.0, 12.0, 0.11, 0.10, 0.95, 0.55),
+                    (JointPath("hip", 1, 0.10, _deg(180), 0.5),)),
+}
+MUSCLE_NAMES = tuple(GEYER_HERR_2010)
+
+
+# ------------------------------------------------------------------------------ CE, SE, PE
+
+
+@numba.njit(cache=True)
+def ce_force_length(l_ce_m: float, l_opt_m: float) -> float:
+    """``f_L = exp(c |(l_CE − l_opt)/(l_opt w)|³)`` (Geyer & Herr 2010, eq. in section II-A):
+    1 at ``l_opt``, 0.05 at ``l_opt (1 ± w)``.
+
+    >>> round(ce_force_length(0.04 * 1.56, 0.04), 6)
+    0.05
+    """
+    x = abs((l_ce_m - l_opt_m) / (l_opt_m * W_WIDTH))
+    return math.exp(C_RESIDUAL * x * x * x)
+
+
+@numba.njit(cache=True)
+def ce_force_velocity(v_lopt_s: float, v_max_lopt_s: float) -> float:
+    """Hill's force–velocity factor ``f_V`` at the CE velocity ``v`` (l_opt/s, negative =
+    shortening; Geyer & Herr 2010): ``(v_max + v)/(v_max − K v)`` shortening (0 at
+    ``v = −v_max``), ``N + (N − 1)(v_max − v)/(7.56 K v + v_max)`` lengthening (1 at 0,
+    tending to ``N``); below ``−v_max`` it is 0."""
+    if v_lopt_s < 0.0:
+        if v_lopt_s <= -v_max_lopt_s:
+            return 0.0
+        return (v_max_lopt_s + v_lopt_s) / (v_max_lopt_s - K_CURVATURE * v_lopt_s)
+    return N_ECCENTRIC + (N_ECCENTRIC - 1.0) * (v_lopt_s - v_max_lopt_s) / (
+        7.56 * K_CURVATURE * v_lopt_s + v_max_lopt_s)
+
+
+@numba.njit(cache=True)
+def ce_velocity_from_force(f_v: float, v_max_lopt_s: float) -> float:
+    """The inverse of :func:`ce_force_velocity`: the CE velocity (l_opt/s) at which the
+    force–velocity factor is ``f_v``; ``−v_max`` for ``f_v ≤ 0``. The lengthening branch
+    tends to ``F_V∞ = N + (N − 1)/(7.56 K)`` as ``v → ∞``, so the returned speed is capped at
+    ``10 v_max`` (reached just below ``F_V∞`` and kept above it: a continuous, monotone
+    inverse)."""
+    vm = v_max_lopt_s
+    if f_v <= 0.0:
+        return -vm
+    if f_v <= 1.0:
+        # (vm + v) = f (vm − K v)  →  v = vm (f − 1)/(1 + K f)
+        return vm * (f_v - 1.0) / (1.0 + K_CURVATURE * f_v)
+    if f_v >= F_V_INFINITY:
+        return 10.0 * vm
+    # f = N + (N − 1)(v − vm)/(7.56 K v + vm)  →  (f − N)(7.56 K v + vm) = (N − 1)(v − vm)
+    d = f_v - N_ECCENTRIC
+    v = -vm * (d + N_ECCENTRIC - 1.0) / (7.56 * K_CURVATURE * d - (N_ECCENTRIC - 1.0))
+    return min(v, 10.0 * vm)
+
+
+@numba.njit(cache=True)
+def se_force_n(l_se_m: float, l_slack_m: float, f_max_n: float) -> float:
+    """Tendon force ``F_max (ε/ε_ref)²`` for strain ``ε = (l_SE − l_slack)/l_slack > 0``, else
+    0 (Geyer & Herr 2010)."""
+    eps = (l_se_m - l_slack_m) / l_slack_m
+    if eps <= 0.0:
+        return 0.0
+    return f_max_n * (eps / EPS_REF) ** 2
+
+
+@numba.njit(cache=True)
+def pe_force_n(l_ce_m: float, l_opt_m: float, f_max_n: float) -> float:
+    """Parallel elastic force ``F_max ((l_CE − l_opt)/(l_opt w))²`` beyond ``l_opt``."""
+    if l_ce_m <= l_opt_m:
+        return 0.0
+    x = (l_ce_m - l_opt_m) / (l_opt_m * W_WIDTH)
+    return f_max_n * x * x
+
+
+@numba.njit(cache=True)
+def be_force_n(l_ce_m: float, l_opt_m: float, f_max_n: float) -> float:
+    """Buckling-element force ``F_max ((l_CE − l_opt(1 − w))/(l_opt w/2))²`` below
+    ``l_opt (1 − w)`` (it keeps the CE from collapsing; Geyer & Herr 2010)."""
+    lo = l_opt_m * (1.0 - W_WIDTH)
+    if l_ce_m >= lo:
+        return 0.0
+    x = (l_ce_m - lo) / (l_opt_m * W_WIDTH * 0.5)
+    return f_max_n * x * x
+
+
+@numba.njit(cache=True)
+def activation_step(a: float, u: float, h_s: float, tau_s: float) -> float:
+    """Activation after ``h_s`` with the excitation ``u`` held: the exact solution of
+    ``τ ȧ = u − a``, ``a + (u − a)(1 − e^{−h/τ})``."""
+    return a + (u - a) * (1.0 - math.exp(-h_s / tau_s))
+
+
+# ------------------------------------------------------------------------------ geometry
+
+
+def to_geyer_angle(joint: str, theta_rad):
+    """Geyer's internal angle from the walker's joint angle (ankle dorsiflexion, knee and
+    hip flexion positive): ``π/2 − θ`` at the ankle, ``π − θ`` at the knee and hip."""
+    if joint not in JOINTS:
+        raise ValueError(f"joint = {joint!r}; allowed: {JOINTS}")
+    return (0.5 * math.pi if joint == "ankle" else math.pi) - np.asarray(theta_rad, float)
+
+
+@numba.njit(cache=True)
+def path_length_and_arm(phi: float, sign: float, r0: float, phi_max: float, phi_ref: float,
+                        rho: float, constant_arm: bool):
+    """One joint's contribution to the MTU length and its moment arm (Geyer & Herr 2010,
+    section II-B): ``(Δl, r)``; ``Δl = s ρ r_0 [sin(φ − φ_max) − sin(φ_ref − φ_max)]`` and
+    ``r = r_0 cos(φ − φ_max)``, or, with a constant arm (the hip), ``Δl = s ρ r_0 (φ − φ_ref)``
+    and ``r = r_0``. ``dΔl/dφ = s ρ r``."""
+    if constant_arm:
+        return sign * rho * r0 * (phi - phi_ref), r0
+    return (sign * rho * r0 * (math.sin(phi - phi_max) - math.sin(phi_ref - phi_max)),
+            r0 * math.cos(phi - phi_max))
+
+
+# ------------------------------------------------------------------------------ dynamics
+
+
+@numba.njit(cache=True)
+def mtu_rate(l_ce: float, a: float, l_mtu: float, f_max: float, v_max: float, l_opt: float,
+             l_slack: float) -> float:
+    """``l̇_CE`` (m/s): the CE velocity at which the tendon force balances CE, PE and BE,
+    ``F_SE = a F_max f_L f_V + F_PE − F_BE`` solved for ``f_V`` and inverted
+    (:func:`ce_velocity_from_force`). The active force is floored at 1e-6 F_max so that the
+    relation stays invertible."""
+    f_se = se_force_n(l_mtu - l_ce, l_slack, f_max)
+    f_pe = pe_force_n(l_ce, l_opt, f_max)
+    f_be = be_force_n(l_ce, l_opt, f_max)
+    act = max(a * f_max * ce_force_length(l_ce, l_opt), 1e-6 * f_max)
+    f_v = (f_se - f_pe + f_be) / act
+    return ce_velocity_from_force(f_v, v_max) * l_opt
+
+
+@numba.njit(cache=True)
+def mtu_step(l_ce: float, a: float, l_mtu: float, h: float, f_max: float, v_max: float,
+             l_opt: float, l_slack: float) -> float:
+    """The CE length after a backward-Euler step ``h`` (activation ``a`` and MTU length
+    ``l_mtu`` at the step's end): the root of ``R(x) = x − l_CE − h · mtu_rate(x)`` by Newton
+    with a numerical derivative, kept inside a bracket (bisection when a Newton step leaves
+    it; ``R`` increases with ``x`` for a muscle on the rising tendon curve). Tolerance 1e-12
+    relative to ``l_opt``."""
+    tol = 1e-12 * l_opt
+    lo = 0.0
+    hi = l_mtu                       # the CE cannot be longer than the MTU (slack tendon)
+    if hi <= lo:
+        return 1e-6 * l_opt
+    x = min(max(l_ce, lo + 1e-9 * l_opt), hi)
+    # bracket: R(lo) < 0 < R(hi) for a monotone R; widen toward the ends if needed
+    for _ in range(100):
+        r = x - l_ce - h * mtu_rate(x, a, l_mtu, f_max, v_max, l_opt, l_slack)
+        if abs(r) < tol:
+            return x
+        if r > 0.0:
+            hi = x
+        else:
+            lo = x
+        d = 1e-7 * l_opt
+        r2 = (x + d) - l_ce - h * mtu_rate(x + d, a, l_mtu, f_max, v_max, l_opt, l_slack)
+        slope = (r2 - r) / d
+        xn = x - r / slope if slope > 0.0 else 0.5 * (lo + hi)
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+        if abs(xn - x) < tol:
+            return xn
+        x = xn
+    return x
+
+
+def equilibrium_ce_length_m(a: float, l_mtu: float, p: MuscleParams) -> float:
+    """The CE length at which an MTU of length ``l_mtu`` held still with activation ``a`` is
+    in equilibrium (``v_CE = 0``: ``F_SE = a F_max f_L + F_PE − F_BE``), by bisection on
+    the force balance between a vanishing CE and the longest CE the tendon allows
+    (``l_mtu − l_slack``, or 3 ``l_opt``), where the balance changes sign."""
+    f, lo_m, ls = p.max_force_n, p.optimal_length_m, p.slack_length_m
+
+    def g(x):
+        return (se_force_n(l_mtu - x, ls, f) - a * f * ce_force_length(x, lo_m)
+                - pe_force_n(x, lo_m, f) + be_force_n(x, lo_m, f))
+
+    # g > 0 at small x (stretched tendon), g < 0 once the tendon is slack
+    hi = min(l_mtu - ls, 3.0 * lo_m) if l_mtu > ls else 1e-9
+    if g(hi) > 0.0:
+        raise ValueError(f"l_mtu = {l_mtu!r} m: no equilibrium with a slack tendon below "
+                         f"{hi:.4g} m of CE; allowed: an MTU the CE can balance")
+    lo = 1e-9
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if g(mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
