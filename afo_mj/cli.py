@@ -226,18 +226,17 @@ def _optimize(args) -> int:
     from afo_mj.app.study_runs import run_optimization
     res = run_optimization(args.study, args.out, args.workers, args.scheduler,
                            progress=not args.quiet)
-    metric = res["config"]["metric"] if isinstance(res.get("config"), dict) else ""
-    print(f"afo-mj optimize: {res['study_name']}: {res['n_runs']} runs ({res['state']}); best "
-          f"{metric} = {res['best_metric']} "
-          f"({'feasible' if res['best_feasible'] else 'INFEASIBLE'})")
-    for k, v in (res.get("best_point") or {}).items():
-        print(f"  {k} = {v}")
-    for k, v in (res.get("constraint_values") or {}).items():
-        print(f"  constraint {k} = {v}")
-    print(f"  {res.get('message', '')}; {args.out}/optimization.json")
-    print(json.dumps({k: res.get(k) for k in ("best_point", "best_metric", "best_feasible",
-                                              "constraint_values", "n_runs", "state",
-                                              "message")}, default=str))
+    _print(console.optimization_lines(res, args.out))
+    return 0
+
+
+def _optimize_gait(args) -> int:
+    """Exit 0 done (resumable: run again to continue), 2 invalid options."""
+    from afo_mj.app.gait_optimization import optimize_reflex_gait
+    doc = optimize_reflex_gait(args.out, args.speed, args.generations, args.popsize,
+                               args.seed, args.start, args.workers, args.body_mass_kg,
+                               args.height_m)
+    _print(console.gait_optimization_lines(doc, args.out))
     return 0
 
 
@@ -272,7 +271,7 @@ def _version() -> str:
 
 
 _COMMANDS = ("demo", "run", "view", "render", "compare", "calibrate", "make_bench_record",
-             "sweep", "study", "optimize", "design", "build_models")
+             "sweep", "study", "optimize", "optimize_gait", "design", "build_models")
 
 
 def main(argv: list[str] | None = None) -> int:

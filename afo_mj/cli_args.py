@@ -136,6 +136,20 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                     help="Dask scheduler address, or 'local'")
     op.add_argument("--quiet", action="store_true", help="no progress bar")
     op.set_defaults(func=handlers["optimize"])
+    og = sub.add_parser("optimize-gait", help="optimise the muscle-reflex walker's controller "
+                        "(CMA-ES) for steady walking at a speed with little effort; resumable")
+    og.add_argument("--out", required=True, help="directory for reflex_params.json and the "
+                    "optimiser's state (run again to continue)")
+    og.add_argument("--speed", type=float, default=1.25, help="target speed, m/s")
+    og.add_argument("--generations", type=int, default=60, help="CMA-ES generations in all")
+    og.add_argument("--popsize", type=int, default=16, help="walks per generation")
+    og.add_argument("--seed", type=int, default=1, help="CMA-ES seed (same seed, same result)")
+    og.add_argument("--start", default=None, help="reflex_params.json to start from")
+    og.add_argument("--workers", type=int, default=None, help="worker processes")
+    og.add_argument("--body-mass-kg", type=float, default=75.0, help="walker body mass, kg")
+    og.add_argument("--height-m", type=float, default=1.75, help="walker stature, m")
+    og.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    og.set_defaults(func=handlers["optimize_gait"])
     de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "
                         "requirements and write it as scenarios afo-mj run accepts")
     de.add_argument("requirements", help="requirements file, e.g. "

@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 from typing import Mapping
 
-__all__ = ["fmt_stat", "walk_lines", "device_walk_lines", "bench_lines", "circuit_bench_lines",
+__all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_lines",
+           "device_walk_lines", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines"]
 
 
@@ -246,4 +247,42 @@ def hydraulics_demo_lines(d: Mapping) -> list[str]:
     lines.append(f"    delivered to load    {e['load_out_j']:9.4f}")
     lines.append(f"    balance residual     {e['residual_j']:9.2e}  "
                  f"({100 * e['relative_residual']:.3f} % of input)")
+    return lines
+
+
+def optimization_lines(res: Mapping, out) -> list[str]:
+    """``afo-mj optimize``: the best point, its metric and constraints, and a JSON line."""
+    import json
+    metric = res["config"]["metric"] if isinstance(res.get("config"), dict) else ""
+    lines = [f"afo-mj optimize: {res['study_name']}: {res['n_runs']} runs ({res['state']}); "
+             f"best {metric} = {res['best_metric']} "
+             f"({'feasible' if res['best_feasible'] else 'INFEASIBLE'})"]
+    lines += [f"  {k} = {v}" for k, v in (res.get("best_point") or {}).items()]
+    lines += [f"  constraint {k} = {v}" for k, v in (res.get("constraint_values") or {}).items()]
+    lines.append(f"  {res.get('message', '')}; {out}/optimization.json")
+    lines.append(json.dumps({k: res.get(k) for k in (
+        "best_point", "best_metric", "best_feasible", "constraint_values", "n_runs", "state",
+        "message")}, default=str))
+    return lines
+
+
+def gait_optimization_lines(doc: Mapping, out) -> list[str]:
+    """``afo-mj optimize-gait``: the best reflex set's cost and gait, and a JSON line."""
+    import json
+    q = doc.get("quality") or {}
+    opt = doc["optimizer"]
+    lines = [f"afo-mj optimize-gait: CMA-ES, {opt['generations']} generations, "
+             f"{opt['evaluations']} walks; best cost {doc['cost']:.2f}"]
+    if "speed_m_s" in q:
+        rms = q["angle_rms_deg"]
+        lines.append(f"  speed {q['speed_m_s']:.2f} m/s (target "
+                     f"{doc['objective']['target_speed_m_s']}), stride {q['stride_s']:.2f} s, "
+                     f"angle RMS vs Winter [deg] hip {rms['hip']:.1f}, knee {rms['knee']:.1f}, "
+                     f"ankle {rms['ankle']:.1f}")
+        lines.append(f"  net cost of transport {q['net_cost_of_transport_j_per_kg_m']:.2f} "
+                     "J/(kg m) (Umberger 2010)")
+    elif q:
+        lines.append(f"  no steady walk yet: {q}")
+    lines.append(f"  {out}/reflex_params.json")
+    lines.append(json.dumps({"cost": doc["cost"], "quality": q}, default=str))
     return lines

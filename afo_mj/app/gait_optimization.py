@@ -1,0 +1,67 @@
+"""``afo-mj optimize-gait``: optimise the muscle-reflex walker's controller (CMA-ES,
+:mod:`afo_mj.studies.gait_optimization`) for steady walking at a target speed, with progress
+per generation; resumable (run again with the same ``--out`` to continue).
+
+Raises :class:`~afo_mj.app.errors.InvalidInput` (exit 2, nothing written) for an option out
+of range, a ``--start`` file that is not a reflex parameter set, or an output folder that
+holds an optimisation of another objective.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from afo_mj.app.errors import InvalidInput
+
+__all__ = ["optimize_reflex_gait"]
+
+
+def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
+                         popsize: int = 16, seed: int = 1, start: str | None = None,
+                         workers: int | None = None, body_mass_kg: float = 75.0,
+                         height_m: float = 1.75) -> dict:
+    """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
+    content."""
+    from afo_mj import progress
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.human.walker import WalkerParams
+    from afo_mj.studies.gait_optimization import (GaitObjective, load_reflex_set,
+                                                  optimize_gait)
+    from afo_mj.gait import reflex_law as rl
+    checks = (("--speed", speed_m_s, 0.3 <= speed_m_s <= 2.5, "0.3 to 2.5 m/s"),
+              ("--generations", generations, generations >= 1, ">= 1"),
+              ("--popsize", popsize, popsize >= 4, ">= 4"),
+              ("--workers", workers, workers is None or workers >= 1, ">= 1"))
+    for name, value, ok, allowed in checks:
+        if not ok or (isinstance(value, float) and not math.isfinite(value)):
+            raise InvalidInput(f"{name} = {value!r}; allowed: {allowed}")
+    try:
+        walker = WalkerParams(body_mass_kg=body_mass_kg, height_m=height_m)
+    except ParameterError as exc:
+        raise InvalidInput(str(exc).replace("WalkerParams.body_mass_kg", "--body-mass-kg")
+                           .replace("WalkerParams.height_m", "--height-m")) from None
+    start_set = None
+    if start is not None:
+        try:
+            start_set = dict(zip(rl.PARAM_NAMES, load_reflex_set(start).tolist()))
+        except (OSError, ValueError, KeyError) as exc:
+            raise InvalidInput(f"--start {start}: {exc}") from None
+    objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker)
+    rep = progress.reporter()
+    task = rep.task(f"optimising the reflex controller for {speed_m_s} m/s", generations,
+                    "generations") if rep.active else None
+
+    def tick(gen, total, best):
+        if task is not None:
+            task.update(gen)
+    try:
+        doc = optimize_gait(Path(out), objective, generations=generations, popsize=popsize,
+                            seed=seed, start=start_set, workers=workers, progress=tick)
+    except ValueError as exc:
+        if task is not None:
+            task.abort()
+        raise InvalidInput(str(exc)) from None
+    if task is not None:
+        task.close()
+    return doc

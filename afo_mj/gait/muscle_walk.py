@@ -1,0 +1,231 @@
+"""The muscle-driven walker: the planar skeleton moved by 14 Hill-type muscle–tendon units under
+a reflex controller (Geyer & Herr 2010), with each muscle's metabolic rate.
+
+Model: the same seven-segment MuJoCo walker as the torque-driven one
+(:mod:`afo_mj.human.walker`), with its PD servos switched off (zero gains), its joint torque
+motors carrying the muscles' torques (no strength clamp: the muscles' own force–length–
+velocity relations and activations limit them), hinge limits active, and the pelvis residual
+actuators at zero. The controller and the muscles are one compiled law,
+:func:`afo_mj.gait.reflex_law.reflex_step`; the loop around it is Python (one compiled call
+and one ``mj_step`` per 1 ms step).
+
+Start (Geyer & Herr 2010): the left leg in stance (hip 5° flexed, knee 5°, ankle 5°
+dorsiflexed), the right leg swinging forward (hip 40°, knee 5°, ankle 0°), trunk leaning
+6°, moving forward at ``initial_speed_m_s``; the lowest contact point on the floor.
+
+The result (:class:`MuscleWalk`) holds a :class:`~afo_mj.gait.record.GaitRecord` (so every
+gait metric and figure of the torque walker applies: heel strikes are stance onsets, toe offs
+stance ends) and, per step and muscle, the excitation, activation, tendon force, CE velocity
+and the metabolic rates by Umberger (2010) and Bhargava et al. (2004); whole-body rates add
+the basal 1.2 W/kg.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+
+from afo_mj.gait import reflex_law as rl
+from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.human.metabolics import basal_rate_w
+from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
+
+__all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "run_muscle_walk"]
+
+GRAVITY_M_S2 = 9.81
+#: fall: hip below this drop from its start (m, for a 1.75 m walker) or trunk beyond 1 rad
+FALL_DROP_M = 0.25
+FALL_TILT_RAD = 1.0
+
+
+def reflex_params(overrides: dict | None = None) -> np.ndarray:
+    """The controller's parameter vector ``P``: Geyer & Herr's (2010) values
+    (:data:`afo_mj.gait.reflex_law.DEFAULTS`) with ``overrides`` by name. A name not in the
+    set, or a value that is not a finite number, raises ValueError naming it."""
+    p = dict(rl.DEFAULTS)
+    for k, v in (overrides or {}).items():
+        if k not in p:
+            raise ValueError(f"reflex parameter {k!r}; allowed: {', '.join(rl.PARAM_NAMES)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"reflex parameter {k} = {v!r}; allowed: a finite number")
+        p[k] = float(v)
+    return np.array([p[n] for n in rl.PARAM_NAMES])
+
+
+def build_muscle_walker(walker: WalkerParams, worn_masses=()) -> WalkerPhysics:
+    """The walker with zero PD gains, hinge limits on, and torque motors unclamped (the
+    strength parameters at their upper bounds: the muscles limit themselves)."""
+    w = dataclasses.replace(walker, hip_knee_strength_nm_per_kg=6.0,
+                            plantarflexor_strength_nm_per_kg=5.0,
+                            dorsiflexor_strength_nm_per_kg=3.0,
+                            plantarflexor_strength_fraction=1.0,
+                            dorsiflexor_strength_fraction=1.0)
+    zero = {"hip": 0.0, "knee": 0.0, "ankle": 0.0}
+    root = build_walker(w, worn_masses, kp=zero, kv=zero)
+    for s in ("r", "l"):
+        for j in ("hip", "knee", "ankle"):
+            root.find("joint", f"{j}_{s}").limited = "true"
+            root.find("joint", f"{j}_{s}").actuatorfrclimited = "false"
+    return WalkerPhysics(root)
+
+
+@dataclasses.dataclass
+class MuscleWalk:
+    """A muscle-driven walk: the gait ``record`` and per step and muscle ``(n, 2, 7)``
+    (:data:`afo_mj.gait.reflex_law.MUSCLES` order) excitation, activation, tendon force (N),
+    CE velocity (m/s), metabolic rate (W) by Umberger 2010 and by Bhargava 2004."""
+
+    record: GaitRecord
+    excitation: np.ndarray
+    activation: np.ndarray
+    force_n: np.ndarray
+    ce_velocity_m_s: np.ndarray
+    metabolic_umberger_w: np.ndarray
+    metabolic_bhargava_w: np.ndarray
+    muscles: tuple = rl.MUSCLES
+
+    def metabolic_rate_w(self, model: str = "umberger") -> np.ndarray:
+        """(n,) whole-body metabolic rate: every muscle plus the basal rate."""
+        arr = {"umberger": self.metabolic_umberger_w,
+               "bhargava": self.metabolic_bhargava_w}.get(model)
+        if arr is None:
+            raise ValueError(f"model = {model!r}; allowed: 'umberger', 'bhargava'")
+        return arr.sum(axis=(1, 2)) + basal_rate_w(self.record.body_mass_kg)
+
+    def cost_of_transport(self, t0_s: float, t1_s: float, model: str = "umberger",
+                          net: bool = True) -> float:
+        """Metabolic energy per kg and metre walked between ``t0_s`` and ``t1_s`` (J/(kg m));
+        ``net`` leaves out the basal rate."""
+        r = self.record
+        sel = (r.time_s > t0_s) & (r.time_s <= t1_s)
+        if sel.sum() < 2:
+            raise ValueError(f"[{t0_s}, {t1_s}] s holds fewer than 2 samples of the walk "
+                             f"(0 … {r.time_s[-1]:.3f} s)")
+        rate = self.metabolic_rate_w(model)[sel]
+        if net:
+            rate = rate - basal_rate_w(r.body_mass_kg)
+        energy = float(rate.sum() * r.sample_period_s)
+        dist = float(r.pelvis_position_m[sel][-1, 0] - r.pelvis_position_m[sel][0, 0])
+        if not dist > 0:
+            raise ValueError(f"the walker did not move forward between {t0_s} and {t1_s} s")
+        return energy / (r.body_mass_kg * dist)
+
+
+def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
+                    duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
+                    worn_masses=(), device_torque=None) -> MuscleWalk:
+    """Walk the muscle-driven walker for ``duration_s`` (or until it falls) under the reflex
+    parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's).
+
+    ``device_torque(t, angle2, velocity2, stance2) -> (2,)`` optionally adds an ankle torque
+    per side (N·m, + dorsiflexion) beside the muscles (an ideal assistance profile).
+    """
+    w = walker or WalkerParams()
+    P = reflex_params() if params is None else np.asarray(params, dtype=float)
+    if P.shape != (rl.N_P,) or not np.all(np.isfinite(P)):
+        raise ValueError(f"params: shape {P.shape}; allowed: {rl.N_P} finite numbers "
+                         f"(reflex_params)")
+    if not (duration_s > 0 and math.isfinite(duration_s)):
+        raise ValueError(f"duration_s = {duration_s!r}; allowed: finite > 0")
+    phys = build_muscle_walker(w, worn_masses)
+    m, d = phys.model, phys.data
+    h = float(m.opt.timestep)
+    T = rl.muscle_table(h)
+    mg = phys.body_mass_kg * GRAVITY_M_S2
+    lq, lv = phys.leg_qpos, phys.leg_dof
+    q = d.qpos
+    start = np.radians([[40.0, 5.0, 0.0], [5.0, 5.0, 5.0]])       # [right swing, left stance]
+    for s in range(2):
+        q[lq[s]] = start[s]
+    q[phys.pelvis_qpos[2]] = rl.DEFAULTS["trunk_lean_ref_rad"]
+    d.qvel[phys.pelvis_dof[0]] = initial_speed_m_s * math.sqrt(w.height_m / 1.75)
+    mujoco.mj_kinematics(m, d)
+    q[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.0005
+    mujoco.mj_forward(m, d)
+    X = rl.initial_state(T, start, (False, True), (-0.5, 0.0), float(q[phys.pelvis_qpos[2]]))
+    ring = np.zeros((rl.RING_LEN, rl.RING_COLS))
+    n_max = int(duration_s / h) + 1
+    z0 = float(q[phys.pelvis_qpos[1]])
+    drop = FALL_DROP_M * w.height_m / 1.75
+    buf = {k: np.zeros((n_max,) + shp) for k, shp in (
+        ("time", ()), ("qpos", (m.nq,)), ("qvel", (m.nv,)), ("sens", (m.nsensordata,)),
+        ("cz", (4,)), ("dev", (2,)), ("u", (2, 7)), ("a", (2, 7)), ("f", (2, 7)),
+        ("v", (2, 7)), ("eu", (2, 7)), ("eb", (2, 7)), ("tau", (2, 3)))}
+    events = GaitEvents()
+    ctrl, ff = d.ctrl, phys.ff_act
+    pt_q, pt_v = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
+    contact = phys.contact_geoms.ravel()
+    dank = phys.leg_dof[:, 2]
+    k = 0
+    tau = X[rl.X_TAU:rl.X_TAU + 6]
+    while k < n_max:
+        t = d.time
+        rl.reflex_step(t, h, q, d.qvel, d.sensordata, lq, lv, phys.touch_adr, pt_q, pt_v, P, T,
+                       X, ring, mg)
+        for s in range(2):
+            code = X[rl.X_EVENT + s]
+            if code == 1.0:
+                events.heel_strikes_s[s].append(t)
+            elif code == 2.0:
+                events.toe_offs_s[s].append(t)
+        ctrl[ff[0, 0]], ctrl[ff[0, 1]], ctrl[ff[0, 2]] = tau[0], tau[1], tau[2]
+        ctrl[ff[1, 0]], ctrl[ff[1, 1]], ctrl[ff[1, 2]] = tau[3], tau[4], tau[5]
+        if device_torque is not None:
+            dev = np.asarray(device_torque(t, q[lq[:, 2]], d.qvel[dank],
+                                           X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5), float)
+            d.qfrc_applied[dank] = dev
+            buf["dev"][k] = dev
+        mujoco.mj_step(m, d)
+        buf["time"][k] = d.time
+        buf["qpos"][k] = q
+        buf["qvel"][k] = d.qvel
+        buf["sens"][k] = d.sensordata
+        buf["cz"][k] = d.geom_xpos[contact, 2]
+        buf["u"][k] = X[rl.X_U:rl.X_U + 14].reshape(2, 7)
+        buf["a"][k] = X[rl.X_ACT:rl.X_ACT + 14].reshape(2, 7)
+        buf["f"][k] = X[rl.X_F:rl.X_F + 14].reshape(2, 7)
+        buf["v"][k] = X[rl.X_VCE:rl.X_VCE + 14].reshape(2, 7)
+        buf["eu"][k] = X[rl.X_EDOT_U:rl.X_EDOT_U + 14].reshape(2, 7)
+        buf["eb"][k] = X[rl.X_EDOT_B:rl.X_EDOT_B + 14].reshape(2, 7)
+        buf["tau"][k] = tau.reshape(2, 3)
+        k += 1
+        if not np.isfinite(q).all() or not np.isfinite(X).all():
+            raise FloatingPointError(f"muscle walk: non-finite state at t = {d.time:.4f} s")
+        if q[phys.pelvis_qpos[1]] < z0 - drop or abs(q[phys.pelvis_qpos[2]]) > FALL_TILT_RAD:
+            events.fall_time_s = float(d.time)
+            break
+    b = {key: v[:k] for key, v in buf.items()}
+    qq, vv = b["qpos"], b["qvel"]
+    record = GaitRecord(
+        body_mass_kg=w.body_mass_kg, height_m=w.height_m, sample_period_s=h,
+        time_s=b["time"].copy(), joint_angle_rad=qq[:, phys.leg_qpos],
+        joint_velocity_rad_s=vv[:, phys.leg_dof], joint_moment_nm=b["tau"].copy(),
+        device_moment_nm=b["dev"].copy(),
+        grf_n=-b["sens"][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
+        contact_force_n=b["sens"][:, phys.touch_adr],
+        contact_height_m=b["cz"].reshape(k, 2, 2) - phys.contact_radius_m,
+        pelvis_position_m=np.column_stack([qq[:, phys.pelvis_qpos[0]],
+                                           qq[:, phys.pelvis_qpos[1]]
+                                           + phys.pelvis_height_offset_m]),
+        pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
+        pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
+        residual_force_n=np.zeros((k, 2)), residual_moment_nm=np.zeros(k),
+        gait_phase=_phase_from_events(b["time"], events), qpos=qq.copy(), model_xml=phys.xml)
+    record.events = events
+    return MuscleWalk(record, b["u"].copy(), b["a"].copy(), b["f"].copy(), b["v"].copy(),
+                      b["eu"].copy(), b["eb"].copy())
+
+
+def _phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
+    """(n, 2) gait phase per leg: time since its last heel strike over the last stride's
+    duration (0 before its second heel strike), clipped to [0, 1]."""
+    out = np.zeros((len(time_s), 2))
+    for s in range(2):
+        hs = np.asarray(events.heel_strikes_s[s], float)
+        for a, b_, c in zip(hs[:-1], hs[1:], list(hs[2:]) + [np.inf]):
+            sel = (time_s >= b_) & (time_s < c)
+            out[sel, s] = np.clip((time_s[sel] - b_) / (b_ - a), 0.0, 1.0)
+    return out

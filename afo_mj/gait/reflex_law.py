@@ -1,0 +1,315 @@
+"""The muscle-reflex walking controller's per-step law, compiled (numba).
+
+Fourteen muscle–tendon units (seven per leg, :mod:`afo_mj.human.muscle`) driven by the reflex
+controller of Geyer & Herr, "A muscle-reflex model that encodes principles of legged
+mechanics produces human walking dynamics and muscle activities", IEEE TNSRE 18 (2010) 263
+(their parameter set as the defaults, :data:`DEFAULTS`). Each step :func:`reflex_step`:
+
+1. detects stance per leg from the foot's load (heel + ball touch sensors) with hysteresis
+   (on above 5 % of body weight, off below 1 %, each phase lasting at least 50 ms), and
+   records the event (stance onset = heel
+   strike, 1; stance end = toe off, 2) and, at toe off, the trunk's lean;
+2. stores the signals the reflexes read into a ring buffer (muscle forces / F_max, CE lengths
+   / l_opt, knee angle and velocity, leg load / body weight, trunk lean and its rate) and
+   reads them back with the neural delays: 20 ms for the ankle muscles (SOL, GAS, TA),
+   10 ms for VAS, 5 ms for the hip muscles (HAM, GLU, HFL);
+3. sets the stimulations (clipped to [0.01, 1]):
+   stance — SOL, GAS: positive force feedback; TA: length feedback beyond ``l_off,TA``, less
+   SOL force; VAS: force feedback less the knee-overextension term
+   ``k_φ (φ_k − φ_off)`` (extending past φ_off); hip muscles: a PD law on the trunk's lean
+   ``k_p (θ − θ_ref) + k_d θ̇`` scaled by the leg's load (GLU and HAM +, HFL −); in double
+   support the trailing leg adds ``ΔS`` to HFL, takes it from GLU, and inhibits VAS by
+   ``k_bw`` × the other leg's load;
+   swing — HFL: ``k_lean (θ_TO − θ_ref)`` plus length feedback beyond ``l_off,HFL`` less
+   HAM length beyond ``l_off,HAM``; HAM, GLU: force feedback; TA: length feedback; SOL, GAS,
+   VAS: their pre-stimulation;
+4. advances every activation (exact first-order step) and CE length (backward Euler,
+   :func:`afo_mj.human.muscle.mtu_step`) and takes the tendon force;
+5. sums the joint torques ``s r(φ) F`` of every path, adds Geyer's soft joint limits (knee
+   beyond 5° of hyperextension, ankle outside −40…+20°: 0.3 N·m/deg, damped toward a
+   1°/s penetration speed) and writes them to the joint torque motors;
+6. computes each muscle's metabolic rate by Umberger (2010) and Bhargava et al. (2004)
+   (:mod:`afo_mj.human.metabolics`).
+
+Layouts: muscle table ``T`` (:func:`muscle_table`), parameters ``P`` (:data:`PARAM_NAMES`),
+state ``X`` (the ``X_*`` offsets), ring buffer ``ring`` (``RING_LEN`` × ``RING_COLS``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from afo_mj.human import metabolics as me
+from afo_mj.human import muscle as mu
+
+#: muscle order per leg; index ``side * 7 + m``
+MUSCLES = ("soleus", "gastrocnemius", "tibialis_anterior", "vasti", "hamstrings", "gluteals",
+           "hip_flexors")
+SOL, GAS, TA, VAS, HAM, GLU, HFL = range(7)
+N_MUSCLES = 7
+#: neural delays per muscle (ms): ankle 20, knee 10, hip 5 (Geyer & Herr 2010)
+DELAY_MS = (20, 20, 20, 10, 5, 5, 5)
+#: joint index of the walker's (hip, knee, ankle) order
+JOINT_INDEX = {"hip": 0, "knee": 1, "ankle": 2}
+
+# muscle table columns: F_max, v_max, l_opt, l_slack, delay (steps), paths, then per path
+# (joint, sign, r0, φ_max, φ_ref, ρ, constant arm), then mass, slow-twitch fraction
+T_FMAX, T_VMAX, T_LOPT, T_LSLACK, T_DELAY, T_NPATH, T_PATH = range(7)
+PATH_W = 7
+T_MASS = T_PATH + 2 * PATH_W
+T_SLOW = T_MASS + 1
+T_COLS = T_SLOW + 1
+
+#: the controller's parameters, in ``P`` order, with Geyer & Herr's (2010) values
+DEFAULTS = {
+    "s0_soleus": 0.01, "g_soleus": 1.2, "s0_tibialis": 0.01, "g_tibialis": 1.1,
+    "loff_tibialis": 1.0 - 0.5 * mu.W_WIDTH, "g_soleus_tibialis": 0.4,
+    "s0_gastrocnemius": 0.01, "g_gastrocnemius": 1.1, "s0_vasti": 0.08, "g_vasti": 1.2,
+    "k_knee_overextension": 2.0, "knee_overextension_rad": math.radians(170.0),
+    "s0_stance_hip": 0.05, "kp_trunk_per_rad": 1.0 / math.radians(30.0),
+    "kd_trunk_s_per_rad": 0.2, "trunk_lean_ref_rad": math.radians(6.0),
+    "swing_initiation": 0.25, "k_bodyweight_vasti": 1.0, "s0_hip_flexors": 0.01,
+    "k_lean": 2.0 / 100.0 * 180.0 / math.pi, "g_hip_flexors": 0.5, "loff_hip_flexors": 0.65,
+    "g_hamstrings_hip_flexors": 4.0, "loff_hamstrings": 0.85, "s0_hamstrings": 0.01,
+    "g_hamstrings": 0.65, "s0_gluteals": 0.01, "g_gluteals": 0.5,
+}
+PARAM_NAMES = tuple(DEFAULTS)
+N_P = len(PARAM_NAMES)
+(P_S0_SOL, P_G_SOL, P_S0_TA, P_G_TA, P_LOFF_TA, P_G_SOLTA, P_S0_GAS, P_G_GAS, P_S0_VAS,
+ P_G_VAS, P_K_PHI, P_PHI_OFF, P_S0_GG, P_KP, P_KD, P_THETA_REF, P_DS, P_K_BW, P_S0_HFL,
+ P_K_LEAN, P_G_HFL, P_LOFF_HFL, P_G_HAMHFL, P_LOFF_HAM, P_S0_HAM, P_G_HAM, P_S0_GLU,
+ P_G_GLU) = range(N_P)
+
+# state X offsets (14 = 2 legs × 7 muscles)
+X_ACT, X_LCE, X_F, X_U, X_VCE = 0, 14, 28, 42, 56
+X_EDOT_U, X_EDOT_B, X_TAU = 70, 84, 98                     # X_TAU: 2 × 3
+X_STANCE, X_TOUCHDOWN_T, X_THETA_TO, X_EVENT, X_SWITCH_T = 104, 106, 108, 110, 112
+X_RING_POS = 114
+N_X = 115
+#: ring buffer: per leg 17 columns (force/F_max ×7, l_CE/l_opt ×7, φ_k, φ̇_k, load/mg), then
+#: trunk lean and its rate
+RING_LEN = 32
+RING_LEG = 17
+RING_COLS = 2 * RING_LEG + 2
+#: stance hysteresis (fraction of body weight) and the shortest stance or swing (s): a
+#: foot that bounces at contact does not end its stance
+STANCE_ON, STANCE_OFF = 0.05, 0.01
+MIN_PHASE_S = 0.05
+#: soft joint limits (Geyer's model): stiffness per rad, relaxation speed, knee and ankle
+SOFT_LIMIT_NM_PER_RAD = 0.3 / math.radians(1.0)
+SOFT_LIMIT_SPEED_RAD_S = math.radians(1.0)
+KNEE_LIMIT_RAD = math.radians(5.0)
+ANKLE_LIMITS_RAD = (math.radians(-40.0), math.radians(20.0))
+
+
+def muscle_table(timestep_s: float) -> np.ndarray:
+    """The compiled law's muscle table (7 × ``T_COLS``) from
+    :data:`afo_mj.human.muscle.GEYER_HERR_2010`, delays in steps of ``timestep_s``."""
+    T = np.zeros((N_MUSCLES, T_COLS))
+    for m, name in enumerate(MUSCLES):
+        p, paths = mu.GEYER_HERR_2010[name]
+        T[m, :T_PATH] = [p.max_force_n, p.max_velocity_lopt_s, p.optimal_length_m,
+                         p.slack_length_m, round(DELAY_MS[m] * 1e-3 / timestep_s), len(paths)]
+        for k, jp in enumerate(paths):
+            c = T_PATH + PATH_W * k
+            T[m, c:c + PATH_W] = [JOINT_INDEX[jp.joint], jp.sign, jp.r0_m, jp.phi_max_rad or 0.0,
+                                  jp.phi_ref_rad, jp.rho, 1.0 if jp.phi_max_rad is None else 0.0]
+        T[m, T_MASS] = p.mass_kg
+        T[m, T_SLOW] = p.slow_twitch_fraction
+    if T[:, T_DELAY].max() >= RING_LEN:
+        raise ValueError(f"timestep_s = {timestep_s!r}: the 20 ms delay needs "
+                         f"{int(T[:, T_DELAY].max())} steps; allowed: >= {0.02 / (RING_LEN - 1)}")
+    return T
+
+
+@numba.njit(cache=True)
+def geyer_angles(hip, knee, ankle):
+    """Geyer's internal angles (φ_h, φ_k, φ_a) from the walker's (flexion, flexion,
+    dorsiflexion) angles."""
+    return math.pi - hip, math.pi - knee, 0.5 * math.pi - ankle
+
+
+@numba.njit(cache=True)
+def mtu_length(T, m, phi_h, phi_k, phi_a):
+    """MTU length of muscle ``m`` at Geyer's angles (Geyer & Herr 2010, section II-B)."""
+    lm = T[m, T_LOPT] + T[m, T_LSLACK]
+    for q in range(int(T[m, T_NPATH])):
+        c = T_PATH + PATH_W * q
+        j = int(T[m, c])
+        phi = phi_h if j == 0 else (phi_k if j == 1 else phi_a)
+        dl, r = mu.path_length_and_arm(phi, T[m, c + 1], T[m, c + 2], T[m, c + 3],
+                                       T[m, c + 4], T[m, c + 5], T[m, c + 6] > 0.5)
+        lm += dl
+    return lm
+
+
+@numba.njit(cache=True)
+def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelvis_tilt_v,
+                P, T, X, ring, mg):  # pragma: no cover - compiled; exercised by the tests
+    """One control step at time ``t`` (step ``h``): reads MuJoCo's state, advances the
+    muscles, leaves the joint torques (N·m, walker sign, ``X[X_TAU:X_TAU+6]`` as [side][hip,
+    knee, ankle]), the events, and the metabolic rates in ``X``."""
+    pos = int(X[X_RING_POS])
+    theta = qpos[pelvis_tilt_q]
+    omega = qvel[pelvis_tilt_v]
+    # --- stance detection with hysteresis, events ------------------------------------------
+    for s in range(2):
+        load = sens[touch[s, 0]] + sens[touch[s, 1]]
+        was = X[X_STANCE + s] > 0.5
+        st = load > (STANCE_OFF * mg if was else STANCE_ON * mg)
+        if st != was and t - X[X_SWITCH_T + s] < MIN_PHASE_S:
+            st = was
+        X[X_EVENT + s] = 0.0
+        if st != was:
+            X[X_SWITCH_T + s] = t
+        if st and not was:
+            X[X_TOUCHDOWN_T + s] = t
+            X[X_EVENT + s] = 1.0
+        elif was and not st:
+            X[X_THETA_TO + s] = theta
+            X[X_EVENT + s] = 2.0
+        X[X_STANCE + s] = 1.0 if st else 0.0
+    # --- the present signals into the ring -------------------------------------------------
+    w = pos % RING_LEN
+    for s in range(2):
+        b = s * RING_LEG
+        for m in range(N_MUSCLES):
+            ring[w, b + m] = X[X_F + s * N_MUSCLES + m] / T[m, T_FMAX]
+            ring[w, b + N_MUSCLES + m] = X[X_LCE + s * N_MUSCLES + m] / T[m, T_LOPT]
+        ring[w, b + 14] = math.pi - qpos[leg_q[s, 1]]
+        ring[w, b + 15] = -qvel[leg_v[s, 1]]
+        ring[w, b + 16] = (sens[touch[s, 0]] + sens[touch[s, 1]]) / mg
+    ring[w, 2 * RING_LEG] = theta
+    ring[w, 2 * RING_LEG + 1] = omega
+    X[X_RING_POS] = pos + 1
+    d_knee = int(T[VAS, T_DELAY])
+    d_hip = int(T[HFL, T_DELAY])
+    # --- stimulations ----------------------------------------------------------------------
+    S = np.empty(N_MUSCLES)
+    for s in range(2):
+        o = 1 - s
+        b = s * RING_LEG
+        F = np.empty(N_MUSCLES)
+        L = np.empty(N_MUSCLES)
+        for m in range(N_MUSCLES):
+            r_ = (pos - int(T[m, T_DELAY])) % RING_LEN
+            F[m] = ring[r_, b + m]
+            L[m] = ring[r_, b + N_MUSCLES + m]
+        if X[X_STANCE + s] > 0.5:
+            S[SOL] = P[P_S0_SOL] + P[P_G_SOL] * F[SOL]
+            S[TA] = (P[P_S0_TA] + P[P_G_TA] * max(L[TA] - P[P_LOFF_TA], 0.0)
+                     - P[P_G_SOLTA] * F[SOL])
+            S[GAS] = P[P_S0_GAS] + P[P_G_GAS] * F[GAS]
+            rk = (pos - d_knee) % RING_LEN
+            phik = ring[rk, b + 14]
+            dphi = phik - P[P_PHI_OFF] if (phik > P[P_PHI_OFF] and ring[rk, b + 15] > 0.0) \
+                else 0.0
+            S[VAS] = P[P_S0_VAS] + P[P_G_VAS] * F[VAS] - P[P_K_PHI] * dphi
+            rh = (pos - d_hip) % RING_LEN
+            load = min(max(ring[rh, b + 16], 0.0), 1.0)
+            pd = (P[P_KP] * (ring[rh, 2 * RING_LEG] - P[P_THETA_REF])
+                  + P[P_KD] * ring[rh, 2 * RING_LEG + 1])
+            S[GLU] = P[P_S0_GG] + pd * load
+            S[HAM] = P[P_S0_GG] + pd * load
+            S[HFL] = P[P_S0_GG] - pd * load
+            if X[X_STANCE + o] > 0.5 and X[X_TOUCHDOWN_T + o] > X[X_TOUCHDOWN_T + s]:
+                # double support, this leg trailing: prepare its swing
+                S[HFL] += P[P_DS]
+                S[GLU] -= P[P_DS]
+                S[VAS] -= P[P_K_BW] * min(max(ring[rk, o * RING_LEG + 16], 0.0), 1.0)
+        else:
+            S[SOL] = P[P_S0_SOL]
+            S[GAS] = P[P_S0_GAS]
+            S[VAS] = P[P_S0_VAS]
+            S[TA] = P[P_S0_TA] + P[P_G_TA] * max(L[TA] - P[P_LOFF_TA], 0.0)
+            S[HFL] = (P[P_S0_HFL] + P[P_K_LEAN] * (X[X_THETA_TO + s] - P[P_THETA_REF])
+                      + P[P_G_HFL] * max(L[HFL] - P[P_LOFF_HFL], 0.0)
+                      - P[P_G_HAMHFL] * max(L[HAM] - P[P_LOFF_HAM], 0.0))
+            S[HAM] = P[P_S0_HAM] + P[P_G_HAM] * F[HAM]
+            S[GLU] = P[P_S0_GLU] + P[P_G_GLU] * F[GLU]
+        # --- muscles ---------------------------------------------------------------------
+        phi_h, phi_k, phi_a = geyer_angles(qpos[leg_q[s, 0]], qpos[leg_q[s, 1]],
+                                           qpos[leg_q[s, 2]])
+        tau0 = 0.0
+        tau1 = 0.0
+        tau2 = 0.0
+        for m in range(N_MUSCLES):
+            k = s * N_MUSCLES + m
+            u = min(max(S[m], mu.PREACTIVATION), 1.0)
+            a = mu.activation_step(X[X_ACT + k], u, h, mu.TAU_ACTIVATION_S)
+            lm = mtu_length(T, m, phi_h, phi_k, phi_a)
+            fmax = T[m, T_FMAX]
+            lopt = T[m, T_LOPT]
+            lce_old = X[X_LCE + k]
+            lce = mu.mtu_step(lce_old, a, lm, h, fmax, T[m, T_VMAX], lopt, T[m, T_LSLACK])
+            f_se = mu.se_force_n(lm - lce, T[m, T_LSLACK], fmax)
+            v = (lce - lce_old) / h
+            X[X_ACT + k] = a
+            X[X_U + k] = u
+            X[X_LCE + k] = lce
+            X[X_F + k] = f_se
+            X[X_VCE + k] = v
+            # metabolic rates
+            fl = mu.ce_force_length(lce, lopt)
+            fv = mu.ce_force_velocity(v / lopt, T[m, T_VMAX])
+            f_act = a * fmax * fl * fv
+            f_fib = f_act + mu.pe_force_n(lce, lopt, fmax)
+            X[X_EDOT_U + k] = me.umberger2010_rate_w(u, a, lce / lopt, v / lopt, f_act, fl,
+                                                     T[m, T_VMAX], lopt, T[m, T_MASS],
+                                                     T[m, T_SLOW])[0]
+            X[X_EDOT_B + k] = me.bhargava2004_rate_w(u, lce / lopt, v, f_fib, f_act,
+                                                     T[m, T_MASS], T[m, T_SLOW])[0]
+            for q in range(int(T[m, T_NPATH])):
+                c = T_PATH + PATH_W * q
+                j = int(T[m, c])
+                phi = phi_h if j == 0 else (phi_k if j == 1 else phi_a)
+                _, r = mu.path_length_and_arm(phi, T[m, c + 1], T[m, c + 2], T[m, c + 3],
+                                              T[m, c + 4], T[m, c + 5], T[m, c + 6] > 0.5)
+                tq = T[m, c + 1] * r * f_se
+                if j == 0:
+                    tau0 += tq
+                elif j == 1:
+                    tau1 += tq
+                else:
+                    tau2 += tq
+        # --- soft joint limits (Geyer's model) --------------------------------------------
+        thk = qpos[leg_q[s, 1]]
+        if thk < KNEE_LIMIT_RAD:
+            tau1 += SOFT_LIMIT_NM_PER_RAD * (KNEE_LIMIT_RAD - thk) * max(
+                1.0 - qvel[leg_v[s, 1]] / SOFT_LIMIT_SPEED_RAD_S, 0.0)
+        tha = qpos[leg_q[s, 2]]
+        wa = qvel[leg_v[s, 2]]
+        if tha > ANKLE_LIMITS_RAD[1]:
+            tau2 -= SOFT_LIMIT_NM_PER_RAD * (tha - ANKLE_LIMITS_RAD[1]) * max(
+                1.0 + wa / SOFT_LIMIT_SPEED_RAD_S, 0.0)
+        elif tha < ANKLE_LIMITS_RAD[0]:
+            tau2 += SOFT_LIMIT_NM_PER_RAD * (ANKLE_LIMITS_RAD[0] - tha) * max(
+                1.0 - wa / SOFT_LIMIT_SPEED_RAD_S, 0.0)
+        X[X_TAU + 3 * s] = tau0
+        X[X_TAU + 3 * s + 1] = tau1
+        X[X_TAU + 3 * s + 2] = tau2
+
+
+def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool, bool],
+                  touchdown_s: tuple[float, float] = (0.0, -0.5),
+                  trunk_lean_rad: float = 0.0) -> np.ndarray:
+    """``X`` at the start: pre-activation, every CE at its static balance with the tendon at
+    the initial joint angles (``leg_angles_rad`` (2, 3) [side][hip, knee, ankle]), the
+    stance flags and touchdown times, the trunk lean as the lean at the last toe off."""
+    X = np.zeros(N_X)
+    X[X_ACT:X_ACT + 14] = mu.PREACTIVATION
+    X[X_U:X_U + 14] = mu.PREACTIVATION
+    for s in range(2):
+        ph, pk, pa = geyer_angles(*[float(v) for v in leg_angles_rad[s]])
+        for m, name in enumerate(MUSCLES):
+            lm = mtu_length(T, m, ph, pk, pa)
+            X[X_LCE + s * N_MUSCLES + m] = mu.equilibrium_ce_length_m(
+                mu.PREACTIVATION, lm, mu.GEYER_HERR_2010[name][0])
+        X[X_STANCE + s] = 1.0 if stance[s] else 0.0
+        X[X_TOUCHDOWN_T + s] = touchdown_s[s]
+        X[X_SWITCH_T + s] = -1.0
+        X[X_THETA_TO + s] = trunk_lean_rad
+    return X

@@ -1,0 +1,224 @@
+"""Optimising the muscle-reflex walker's controller with CMA-ES: steady walking at a target
+speed, close to normal kinematics, with little effort.
+
+Search space: the logarithm of each reflex parameter's factor on Geyer & Herr's (2010) value
+(:data:`afo_mj.gait.reflex_law.DEFAULTS`), so every parameter keeps its sign and the search
+starts at their published controller (or at a given set, warm start). Optimiser: CMA-ES
+(Hansen & Ostermeier 2001, Evol. Comput. 9:159; the ``cma`` package), initial step 0.2, its
+default population for 28 parameters (or ``popsize``), fixed seed: the same command gives
+the same result. A generation's walks run in parallel (:func:`afo_mj.experiments.batch.
+run_batch`).
+
+Objective (:func:`gait_cost`) of one walk of ``duration_s`` (the first ``settle_s`` not
+scored), lower is better, in stages so that any walk that stands beats any fall:
+
+* a fall: ``1000 − 10 (distance + 2 × time walked)``: walking further and longer first;
+* a walk with fewer than 3 scored strides: 900;
+* else ``w_v |v − v_target| + mean angle RMS vs the reference (°, hip, knee, ankle) +
+  w_e × net metabolic cost of transport (J/(kg m), Umberger 2010) + 50 if the mean stride
+  is under 0.8 s`` (short, shuffling steps are a known local optimum).
+
+Resumable: after every generation the optimiser's whole state (``es.pickle_dumps()``) and the
+best set so far are written atomically to the output folder; run again with the same folder
+and it continues from there.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import pickle
+import time
+from pathlib import Path
+
+import numpy as np
+
+from afo_mj.experiments.batch import run_batch
+from afo_mj.gait import reflex_law as rl
+from afo_mj.gait.muscle_walk import reflex_params, run_muscle_walk
+from afo_mj.gait.reference import load_normative
+from afo_mj.human.walker import WalkerParams
+
+__all__ = ["GaitObjective", "gait_cost", "gait_quality", "optimize_gait", "params_from_log",
+           "load_reflex_set"]
+
+#: the reference kinematics at 50 phase points
+_PHASE = np.linspace(0.0, 1.0, 51)[:-1]
+
+
+@dataclasses.dataclass(frozen=True)
+class GaitObjective:
+    """What the optimiser asks of a walk (see the module docstring)."""
+
+    target_speed_m_s: float = 1.25
+    duration_s: float = 12.0
+    settle_s: float = 3.0
+    speed_weight: float = 20.0
+    effort_weight: float = 1.0
+    min_stride_s: float = 0.8
+    walker: WalkerParams = dataclasses.field(default_factory=WalkerParams)
+
+    def __post_init__(self):
+        for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
+                         ("speed_weight", 0.0), ("effort_weight", 0.0), ("min_stride_s", 0.0)):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= lo):
+                raise ValueError(f"GaitObjective.{name} = {v!r}; allowed: finite >= {lo}")
+        if self.settle_s >= self.duration_s - 1.0:
+            raise ValueError(f"GaitObjective.settle_s = {self.settle_s}; allowed: at least "
+                             f"1 s below duration_s ({self.duration_s})")
+
+
+def gait_quality(walk, settle_s: float, reference=None) -> dict | None:
+    """Speed, mean stride, angle RMS per joint (°, right leg, strides after ``settle_s``
+    resampled on 50 phase points against the reference, Winter's normal cadence by default)
+    and the net metabolic cost of transport (Umberger 2010, J/(kg m)); None with fewer than
+    three scored right heel strikes."""
+    r = walk.record
+    ref = reference or load_normative("winter", "normal")
+    hs = np.asarray(r.events.heel_strikes_s[0], float)
+    hs = hs[hs > settle_s]
+    if len(hs) < 3:
+        return None
+    target = ref.angles_rad(_PHASE)
+    rms = []
+    for a, b in zip(hs[:-1], hs[1:]):
+        ph = (r.time_s - a) / (b - a)
+        sel = (ph >= 0.0) & (ph < 1.0)
+        if sel.sum() < 10:
+            continue
+        ang = np.column_stack([np.interp(_PHASE, ph[sel], r.joint_angle_rad[sel, 0, j])
+                               for j in range(3)])
+        rms.append(np.sqrt(np.mean((ang - target) ** 2, axis=0)))
+    t0, t1 = float(hs[0]), float(hs[-1])
+    sel = (r.time_s >= t0) & (r.time_s <= t1)
+    dist = float(r.pelvis_position_m[sel][-1, 0] - r.pelvis_position_m[sel][0, 0])
+    speed = dist / (t1 - t0)
+    try:
+        cot = walk.cost_of_transport(t0, t1)
+    except ValueError:
+        cot = math.inf
+    rms_deg = np.degrees(np.mean(rms, axis=0))
+    return {"speed_m_s": speed, "stride_s": float(np.mean(np.diff(hs))),
+            "angle_rms_deg": {"hip": float(rms_deg[0]), "knee": float(rms_deg[1]),
+                              "ankle": float(rms_deg[2])},
+            "net_cost_of_transport_j_per_kg_m": cot, "strides": len(hs) - 1}
+
+
+def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict]:
+    """The objective of one walk under ``params`` (lower is better) and what it measured."""
+    try:
+        walk = run_muscle_walk(objective.walker, params, objective.duration_s)
+    except FloatingPointError as exc:
+        return 2000.0, {"error": str(exc)}
+    r = walk.record
+    t = float(r.time_s[-1])
+    dist = float(r.pelvis_position_m[-1, 0] - r.pelvis_position_m[0, 0])
+    if r.events.fall_time_s is not None:
+        return 1000.0 - 10.0 * (max(dist, -1.0) + 2.0 * t), {"fell_s": t, "distance_m": dist}
+    q = gait_quality(walk, objective.settle_s)
+    if q is None:
+        return 900.0, {"distance_m": dist, "strides": 0}
+    rms = float(np.mean(list(q["angle_rms_deg"].values())))
+    cot = q["net_cost_of_transport_j_per_kg_m"]
+    cost = (objective.speed_weight * abs(q["speed_m_s"] - objective.target_speed_m_s) + rms
+            + objective.effort_weight * (cot if math.isfinite(cot) else 100.0)
+            + (50.0 if q["stride_s"] < objective.min_stride_s else 0.0))
+    return cost, q
+
+
+def _evaluate(packed):
+    z, base, objective = packed
+    return gait_cost(base * np.exp(z), objective)
+
+
+def params_from_log(base: np.ndarray, z) -> np.ndarray:
+    """Reflex parameters from the search variables: ``base × exp(z)``."""
+    return np.asarray(base, float) * np.exp(np.asarray(z, float))
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: int = 60,
+                  popsize: int | None = None, seed: int = 1, start: dict | None = None,
+                  workers: int | None = None, sigma0: float = 0.2, progress=None) -> dict:
+    """CMA-ES on the reflex parameters (module docstring); resumes from ``out_dir`` when it
+    holds a state of the same objective. Writes ``out_dir/reflex_params.json`` (the best set
+    by name, its cost and gait quality, the objective, generations and evaluations) and
+    ``out_dir/cma_state.pkl``; returns the JSON's content. ``start``: a parameter set by name
+    (warm start, e.g. the set optimised without a device)."""
+    import cma
+    objective = objective or GaitObjective()
+    if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
+        raise ValueError(f"generations = {generations!r}; allowed: an integer >= 1")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    base = reflex_params()
+    state_file = out / "cma_state.pkl"
+    key = repr(objective)
+    if state_file.exists():
+        saved = pickle.loads(state_file.read_bytes())
+        if saved.get("objective") != key:
+            raise ValueError(f"{out} holds an optimisation of another objective "
+                             f"({saved.get('objective')}); use another output folder")
+        es = pickle.loads(saved["es"])
+        best, best_info, history = saved["best"], saved["best_info"], saved["history"]
+    else:
+        z0 = np.zeros(rl.N_P)
+        if start:
+            z0 = np.log(reflex_params(start) / base)
+        opts = {"seed": seed, "verbose": -9}
+        if popsize:
+            opts["popsize"] = int(popsize)
+        es = cma.CMAEvolutionStrategy(z0, sigma0, opts)
+        best, best_info, history = (math.inf, None), {}, []
+    t_start = time.perf_counter()
+    while es.countiter < generations and not es.stop():
+        Z = es.ask()
+        res = run_batch(_evaluate, [(z, base, objective) for z in Z], workers)
+        costs = [r.value[0] if r.ok else 3000.0 for r in res]
+        es.tell(Z, costs)
+        i = int(np.argmin(costs))
+        if costs[i] < best[0]:
+            best = (float(costs[i]), np.asarray(Z[i]).tolist())
+            best_info = res[i].value[1] if res[i].ok else {}
+        history.append({"generation": es.countiter, "best": best[0],
+                        "generation_best": float(costs[i]),
+                        "evaluations": es.countevals})
+        _write_atomic(state_file, pickle.dumps({"objective": key, "es": es.pickle_dumps(),
+                                                "best": best, "best_info": best_info,
+                                                "history": history}))
+        if progress is not None:
+            progress(es.countiter, generations, best[0])
+    params = params_from_log(base, best[1])
+    doc = {"format": "afo_mj reflex parameters v1",
+           "model": "Geyer & Herr 2010 reflex controller, 14 Hill-type MTUs",
+           "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
+           "cost": best[0], "quality": best_info,
+           "objective": {k: v for k, v in dataclasses.asdict(objective).items()
+                         if k != "walker"},
+           "walker": {"body_mass_kg": objective.walker.body_mass_kg,
+                      "height_m": objective.walker.height_m},
+           "optimizer": {"method": "CMA-ES", "seed": seed, "sigma0": sigma0,
+                         "generations": es.countiter, "evaluations": es.countevals,
+                         "popsize": es.popsize},
+           "history": history,
+           "wall_s_this_run": time.perf_counter() - t_start}
+    _write_atomic(out / "reflex_params.json", json.dumps(doc, indent=1).encode())
+    return doc
+
+
+def load_reflex_set(path) -> np.ndarray:
+    """The parameter vector of a ``reflex_params.json`` (by name; missing names keep Geyer &
+    Herr's values)."""
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("format") != "afo_mj reflex parameters v1":
+        raise ValueError(f"{path}: format {doc.get('format')!r}; allowed: "
+                         "'afo_mj reflex parameters v1'")
+    return reflex_params(doc["parameters"])

@@ -1,0 +1,127 @@
+"""The muscle-driven walker (afo_mj.gait.muscle_walk, reflex_law) and its CMA-ES optimiser
+(afo_mj.studies.gait_optimization, ``afo-mj optimize-gait``): falls reported, the record's
+joint moments equal the muscles' path torques, metabolic rates bounded as the models state,
+the cost of transport by hand, bitwise reproducibility, and an optimisation that resumes to
+exactly where an uninterrupted one gets."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from afo_mj.gait import muscle_walk as mw
+from afo_mj.gait import reflex_law as rl
+from afo_mj.human import muscle as mu
+from afo_mj.human.metabolics import BASAL_W_PER_KG
+
+
+@pytest.fixture(scope="module")
+def geyer_walk():
+    """Geyer & Herr's published gains on this skeleton: a few steps, then a fall."""
+    return mw.run_muscle_walk(duration_s=3.0)
+
+
+def test_fall_is_reported(geyer_walk):
+    r = geyer_walk.record
+    assert r.events.fall_time_s is not None and r.events.fall_time_s < 3.0
+    assert r.time_s[-1] == pytest.approx(r.events.fall_time_s)
+    assert len(r.events.heel_strikes_s[0]) >= 1 and len(r.events.toe_offs_s[1]) >= 1
+
+
+def test_joint_moments_are_the_muscles_path_torques(geyer_walk):
+    """Recompute every joint's muscle torque from the logged tendon forces and the recorded
+    joint angles with the path geometry (moment arm r(φ), sign s): equal to the record's
+    joint moment (soft joint limits aside, i.e. inside the limits)."""
+    r = geyer_walk.record
+    ang = r.joint_angle_rad
+    # samples k: the force of step k was applied with the angles before step k (k - 1)
+    for k in range(50, len(r.time_s), 97):
+        for s in range(2):
+            hip, knee, ankle = ang[k - 1, s]
+            if knee < rl.KNEE_LIMIT_RAD or not (rl.ANKLE_LIMITS_RAD[0] < ankle
+                                                < rl.ANKLE_LIMITS_RAD[1]):
+                continue
+            phi = {"hip": math.pi - hip, "knee": math.pi - knee, "ankle": math.pi / 2 - ankle}
+            tau = {"hip": 0.0, "knee": 0.0, "ankle": 0.0}
+            for m, name in enumerate(rl.MUSCLES):
+                for jp in mu.GEYER_HERR_2010[name][1]:
+                    const = jp.phi_max_rad is None
+                    r_arm = jp.r0_m if const else jp.r0_m * math.cos(phi[jp.joint]
+                                                                     - jp.phi_max_rad)
+                    tau[jp.joint] += jp.sign * r_arm * geyer_walk.force_n[k, s, m]
+            got = r.joint_moment_nm[k, s]
+            assert got == pytest.approx([tau["hip"], tau["knee"], tau["ankle"]], rel=1e-9,
+                                        abs=1e-9)
+
+
+def test_metabolic_rates_respect_the_models(geyer_walk):
+    """Bhargava: heat ≥ 1 W per kg of muscle and work ≥ 0, so each muscle's rate ≥ its mass
+    in W; Umberger counts negative work but never lets the total fall below 0."""
+    masses = np.array([mu.GEYER_HERR_2010[n][0].mass_kg for n in rl.MUSCLES])
+    b = geyer_walk.metabolic_bhargava_w
+    assert np.all(b >= masses[None, None, :] * (1.0 - 1e-9))
+    u = geyer_walk.metabolic_umberger_w
+    assert np.all(u >= -1e-9) and np.all(np.isfinite(u))
+    assert np.all(geyer_walk.metabolic_rate_w("bhargava")
+                  >= BASAL_W_PER_KG * 75.0 + 2 * masses.sum() * (1 - 1e-9))
+    assert np.all((geyer_walk.activation >= mu.PREACTIVATION * 0.999)
+                  & (geyer_walk.activation <= 1.0))
+
+
+def test_cost_of_transport_by_hand(geyer_walk):
+    r = geyer_walk.record
+    t0, t1 = 0.2, float(r.time_s[-1]) - 0.1
+    sel = (r.time_s > t0) & (r.time_s <= t1)
+    e = (geyer_walk.metabolic_umberger_w.sum(axis=(1, 2))[sel]).sum() * r.sample_period_s
+    d = r.pelvis_position_m[sel][-1, 0] - r.pelvis_position_m[sel][0, 0]
+    assert geyer_walk.cost_of_transport(t0, t1) == pytest.approx(e / (75.0 * d), rel=1e-12)
+    with pytest.raises(ValueError, match="model"):
+        geyer_walk.metabolic_rate_w("margaria")
+
+
+def test_bitwise_reproducible():
+    a = mw.run_muscle_walk(duration_s=0.6)
+    b = mw.run_muscle_walk(duration_s=0.6)
+    assert np.array_equal(a.record.qpos, b.record.qpos)
+    assert np.array_equal(a.metabolic_umberger_w, b.metabolic_umberger_w)
+
+
+def test_bad_input_names_the_key():
+    with pytest.raises(ValueError, match="g_sol"):
+        mw.reflex_params({"g_sol": 1.0})
+    with pytest.raises(ValueError, match="g_soleus"):
+        mw.reflex_params({"g_soleus": float("nan")})
+    with pytest.raises(ValueError, match="duration_s"):
+        mw.run_muscle_walk(duration_s=-1.0)
+    with pytest.raises(ValueError, match="params"):
+        mw.run_muscle_walk(params=np.ones(3))
+
+
+def test_optimisation_resumes_where_it_stopped(tmp_path):
+    """Two generations, stopped, then continued to three, give exactly the result of three
+    generations run at once (same seed); the state is kept between runs."""
+    from afo_mj.studies.gait_optimization import GaitObjective, optimize_gait
+    obj = GaitObjective(duration_s=3.0, settle_s=1.0)
+    a = optimize_gait(tmp_path / "a", obj, generations=2, popsize=4, workers=1)
+    assert a["optimizer"]["generations"] == 2 and (tmp_path / "a" / "cma_state.pkl").exists()
+    a = optimize_gait(tmp_path / "a", obj, generations=3, popsize=4, workers=1)
+    b = optimize_gait(tmp_path / "b", obj, generations=3, popsize=4, workers=1)
+    assert a["optimizer"]["generations"] == b["optimizer"]["generations"] == 3
+    assert a["parameters"] == b["parameters"] and a["cost"] == b["cost"]
+    assert [h["best"] for h in a["history"]] == [h["best"] for h in b["history"]]
+    doc = json.loads((tmp_path / "a" / "reflex_params.json").read_text())
+    assert set(doc["parameters"]) == set(rl.PARAM_NAMES)
+    with pytest.raises(ValueError, match="another objective"):
+        optimize_gait(tmp_path / "a", dataclasses.replace(obj, target_speed_m_s=1.0),
+                      generations=1, popsize=4, workers=1)
+
+
+def test_cli_optimize_gait(tmp_path, capsys):
+    from afo_mj.cli import main
+    assert main(["optimize-gait", "--out", str(tmp_path / "bad"), "--speed", "9"]) == 2
+    assert not (tmp_path / "bad").exists()
+    assert "--speed" in capsys.readouterr().err
