@@ -125,3 +125,32 @@ def test_cli_optimize_gait(tmp_path, capsys):
     assert main(["optimize-gait", "--out", str(tmp_path / "bad"), "--speed", "9"]) == 2
     assert not (tmp_path / "bad").exists()
     assert "--speed" in capsys.readouterr().err
+
+
+SHIPPED = ["1.25"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("speed", SHIPPED)
+def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
+    """The shipped set for ``speed`` m/s: 22 s without a fall (≥ 20 right strides), the mean
+    speed within 0.15 m/s of the target, and the optimiser's recorded cost reproduced exactly
+    by a new evaluation (the walk is deterministic)."""
+    from pathlib import Path
+
+    from afo_mj.studies.gait_optimization import (GaitObjective, gait_cost, gait_quality,
+                                                  load_reflex_set)
+    path = Path(__file__).resolve().parents[1] / "afo_mj" / "data" / \
+        f"reflex_params_{speed}.json"
+    doc = json.loads(path.read_text())
+    params = load_reflex_set(path)
+    walk = mw.run_muscle_walk(params=params, duration_s=22.0)
+    r = walk.record
+    assert r.events.fall_time_s is None
+    assert len(r.events.heel_strikes_s[0]) >= 21
+    q = gait_quality(walk, 3.0)
+    assert abs(q["speed_m_s"] - float(speed)) < 0.15, q
+    assert walk.cost_of_transport(3.0, 22.0) > 0
+    obj = GaitObjective(**{k: v for k, v in doc["objective"].items()})
+    cost, info = gait_cost(params, obj)
+    assert cost == doc["cost"]

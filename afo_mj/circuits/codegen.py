@@ -639,6 +639,30 @@ def _announce(name: str, d: Path, digest: str) -> None:
                   f"at its first step; cached in {d})…")
 
 
+def write_once(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` unless it exists, safely against concurrent writers.
+
+    Several processes may build the same circuit at once (test workers, sweep workers): each
+    writes its own temporary file, and the first one to link it in place wins. A hard link
+    never replaces, so the module keeps the first writer's mtime, which numba's on-disk cache
+    records as the source's stamp (a replaced file would make a kernel just cached by another
+    process stale, to be compiled again). On a file system without hard links the file is
+    moved into place if it is still missing."""
+    if path.exists():
+        return
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    tmp.write_text(text)
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        pass
+    except OSError:                    # a file system without hard links
+        if not path.exists():
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def build(circuit: Circuit) -> CompiledCircuit:
     """Generate, write (once, atomically) and import the circuit's kernel."""
     text, g, layout = generate(circuit)
@@ -646,23 +670,7 @@ def build(circuit: Circuit) -> CompiledCircuit:
     d = cache_dir()
     d.mkdir(parents=True, exist_ok=True)
     path = d / f"circuit_{digest}.py"
-    if not path.exists():
-        # several processes may build the same circuit at once (test workers, sweep workers):
-        # each writes its own temporary file, and the first one to link it in place wins.
-        # A hard link never replaces, so the module keeps the first writer's mtime, which
-        # numba's on-disk cache records as the source's stamp (a replaced file would make a
-        # kernel just cached by another process stale, to be compiled again)
-        tmp = d / f".circuit_{digest}.{os.getpid()}.{threading.get_ident()}.tmp"
-        tmp.write_text(text)
-        try:
-            os.link(tmp, path)
-        except FileExistsError:
-            pass
-        except OSError:                    # a file system without hard links
-            if not path.exists():
-                os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
+    write_once(path, text)
     modname = f"afo_mj_circuit_{digest}"
     module = sys.modules.get(modname)
     if module is None:
@@ -689,4 +697,5 @@ def build(circuit: Circuit) -> CompiledCircuit:
         state_stores=tuple(s["kind"] != "own" or s["store"] is not None for s in g.states))
 
 
-__all__ = ["build", "generate", "CompiledCircuit", "Emitter", "cache_dir", "leaf_fields"]
+__all__ = ["build", "generate", "write_once", "CompiledCircuit", "Emitter", "cache_dir",
+           "leaf_fields"]

@@ -5,9 +5,9 @@ steps without returning to Python. It cannot call the circuit's numba functions 
 loop serves every circuit, and numba does not cache a function specialised on another
 function), so it calls them by address: for a circuit built by
 :func:`afo_mj.circuits.codegen.build` (module ``circuit_<digest>.py``), :func:`entry_points`
-writes a small companion module ``circuit_<digest>_native.py`` beside it (once; the same
-atomic hard-link write) with two ``numba.cfunc`` wrappers, compiled and cached on disk by
-numba, and returns their addresses:
+writes a small companion module ``circuit_<digest>_native.py`` beside it (once,
+:func:`afo_mj.circuits.codegen.write_once`) with two ``numba.cfunc`` wrappers, compiled and
+cached on disk by numba, and returns their addresses:
 
 ``begin(t, angle2*, velocity2*, stance2*, buf*, meta*)`` (``void``)
     :func:`afo_mj.circuits.stepper.device_begin` on arrays of the given pointers: walker-side
@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import os
 import sys
 import threading
 from pathlib import Path
+
+from afo_mj.circuits.codegen import write_once
 
 __all__ = ["NativeEntryPoints", "NativeCoupling", "entry_points", "companion_source"]
 
@@ -106,18 +107,7 @@ def entry_points(compiled_circuit) -> NativeEntryPoints:
         if got is not None:
             return got
         native = path.with_name(f"{path.stem}_native.py")
-        if not native.exists():
-            tmp = native.with_name(f".{native.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-            tmp.write_text(companion_source(modname))
-            try:
-                os.link(tmp, native)
-            except FileExistsError:
-                pass
-            except OSError:
-                if not native.exists():
-                    os.replace(tmp, native)
-            finally:
-                tmp.unlink(missing_ok=True)
+        write_once(native, companion_source(modname))
         name = f"afo_mj_circuit_{digest}_native"
         module = sys.modules.get(name)
         if module is None:

@@ -133,9 +133,12 @@ def geyer_angles(hip, knee, ankle):
 
 
 @numba.njit(cache=True)
-def mtu_length(T, m, phi_h, phi_k, phi_a):
-    """MTU length of muscle ``m`` at Geyer's angles (Geyer & Herr 2010, section II-B)."""
+def mtu_length_and_arms(T, m, phi_h, phi_k, phi_a):
+    """MTU length of muscle ``m`` at Geyer's angles and the moment arms of its (up to two)
+    paths (Geyer & Herr 2010, section II-B): ``(l_MTU, r_0, r_1)``."""
     lm = T[m, T_LOPT] + T[m, T_LSLACK]
+    r0 = 0.0
+    r1 = 0.0
     for q in range(int(T[m, T_NPATH])):
         c = T_PATH + PATH_W * q
         j = int(T[m, c])
@@ -143,7 +146,11 @@ def mtu_length(T, m, phi_h, phi_k, phi_a):
         dl, r = mu.path_length_and_arm(phi, T[m, c + 1], T[m, c + 2], T[m, c + 3],
                                        T[m, c + 4], T[m, c + 5], T[m, c + 6] > 0.5)
         lm += dl
-    return lm
+        if q == 0:
+            r0 = r
+        else:
+            r1 = r
+    return lm, r0, r1
 
 
 @numba.njit(cache=True)
@@ -240,7 +247,7 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
             k = s * N_MUSCLES + m
             u = min(max(S[m], mu.PREACTIVATION), 1.0)
             a = mu.activation_step(X[X_ACT + k], u, h, mu.TAU_ACTIVATION_S)
-            lm = mtu_length(T, m, phi_h, phi_k, phi_a)
+            lm, r0, r1 = mtu_length_and_arms(T, m, phi_h, phi_k, phi_a)
             fmax = T[m, T_FMAX]
             lopt = T[m, T_LOPT]
             lce_old = X[X_LCE + k]
@@ -265,10 +272,7 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
             for q in range(int(T[m, T_NPATH])):
                 c = T_PATH + PATH_W * q
                 j = int(T[m, c])
-                phi = phi_h if j == 0 else (phi_k if j == 1 else phi_a)
-                _, r = mu.path_length_and_arm(phi, T[m, c + 1], T[m, c + 2], T[m, c + 3],
-                                              T[m, c + 4], T[m, c + 5], T[m, c + 6] > 0.5)
-                tq = T[m, c + 1] * r * f_se
+                tq = T[m, c + 1] * (r0 if q == 0 else r1) * f_se
                 if j == 0:
                     tau0 += tq
                 elif j == 1:
@@ -305,7 +309,7 @@ def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool,
     for s in range(2):
         ph, pk, pa = geyer_angles(*[float(v) for v in leg_angles_rad[s]])
         for m, name in enumerate(MUSCLES):
-            lm = mtu_length(T, m, ph, pk, pa)
+            lm = mtu_length_and_arms(T, m, ph, pk, pa)[0]
             X[X_LCE + s * N_MUSCLES + m] = mu.equilibrium_ce_length_m(
                 mu.PREACTIVATION, lm, mu.GEYER_HERR_2010[name][0])
         X[X_STANCE + s] = 1.0 if stance[s] else 0.0
