@@ -509,8 +509,9 @@ def generate(circuit: Circuit):
     consts["W_PROBE_INT"] = off      # time integral of every probe (right-point rule)
     off += max(len(g.probes), 1)
     n_w = off
-    s_width = max(n_y, n_f, 2)
-    n_scratch = 14 + 3 * n_y
+    n_u = len(U_NAMES) + len(g.inputs)
+    s_width = max(n_y, n_f, n_u, 2)
+    n_scratch = 16 + 3 * n_y
 
     # begin / close / controller / floor
     begin = [f"W[W_U + U_MU] = dynamic_viscosity_pa_s(W[W_TEMP_K], {wb}, {wc}, {rho0}, "
@@ -587,6 +588,8 @@ def generate(circuit: Circuit):
         src.append(f"{k} = {v}")
     src.append(f"NEWTON_TOL = {stepper.NEWTON_TOL!r}")
     src.append(f"MIN_SUBSTEP_FRACTION = {stepper.MIN_SUBSTEP_FRACTION!r}")
+    for name in ("JAC_MAX_AGE", "JAC_INPUT_REL", "JAC_COUPLE_REL"):
+        src.append(f"{name} = {getattr(stepper, name)!r}")
     src.append("Y_TYP = np.array([" + ", ".join(repr(float(s["typ"])) for s in g.states)
                + "])")
     src.append("")

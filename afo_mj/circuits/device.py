@@ -262,6 +262,7 @@ class CircuitDevice:
                 "probe_integrals": {n: float(W[k.W_PROBE_INT + i])
                                     for i, n in enumerate(cc.probe_names)},
                 "newton_iterations": int(W[k.W_NEWTON_ITERS]),
+                "jacobian_builds": int(self.S[j, 0, 2]),
                 "newton_unconverged_steps": int(W[k.W_NEWTON_FAIL]),
                 "substepped_steps": int(W[k.W_SUBSTEPPED]),
                 "pressure_floor_steps": int(W[k.W_CLIP_STEPS]),

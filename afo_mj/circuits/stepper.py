@@ -27,6 +27,20 @@ redone as adaptive sub-steps (halved on failure, doubled after success, down to
 step. Jacobians are forward differences of ``rhs``; systems are solved by Gaussian elimination
 with partial pivoting (:func:`lu_factor`, :func:`lu_solve`).
 
+The prediction's matrix ``I − h J_y`` (factored) and ``∂τ/∂y`` are kept and reused by the next
+steps (a W-method: the linearly implicit step is consistent with any matrix and stays stable
+with one close to the Jacobian; Steihaug & Wolfbrandt 1979, Math. Comp. 33:521; Hairer &
+Wanner, *Solving ODEs II*, IV.7), as stiff solvers keep theirs (CVODE refreshes it every 20
+steps or on slow Newton convergence; Hindmarsh et al. 2005, ACM TOMS 31:363). Each step still
+evaluates ``f`` and ``∂f/∂θ̇`` fresh, so only the state coupling ages. The matrix is rebuilt
+when it has served ``JAC_MAX_AGE`` steps, when the controller's actuated inputs moved by more
+than ``JAC_INPUT_REL`` of their size since it was built (a valve switching), when the step's
+Newton correction needed a fresh Jacobian (its chord iterations contracted less than tenfold)
+or sub-steps, and when the torque MuJoCo integrated missed the step's end torque by more than
+``JAC_COUPLE_REL`` of the torque's size. The end state is the same converged backward-Euler
+step either way (within ``NEWTON_TOL``); what the reuse changes is the prediction, i.e. the
+torque and damping handed to MuJoCo, by the coupling error these rules bound.
+
 The backward-Euler residual is written with ``rhs_step(y, y_old, …)``: the same right-hand side
 with each node's oil compliance the mean of ``1/B`` over ``[p_old, p]``
 (:func:`~afo_mj.hydraulics.laws.oil_mean_compliance_per_pa`) instead of ``1/B(p)``, so a step
@@ -49,12 +63,21 @@ from __future__ import annotations
 NEWTON_TOL = 1e-9
 #: Smallest sub-step, as a fraction of the MuJoCo step, before a step is accepted unconverged.
 MIN_SUBSTEP_FRACTION = 1.0 / 1024.0
+#: Steps a prediction matrix serves before it is rebuilt (module docstring).
+JAC_MAX_AGE = 10
+#: Relative change of any actuated input since the matrix was built that rebuilds it.
+JAC_INPUT_REL = 0.5
+#: Coupling miss ``|τ_MuJoCo − τ_end|`` over ``|τ_end| + 1 N·m`` that rebuilds the matrix.
+JAC_COUPLE_REL = 1e-3
 
 # scratch rows of the per-side scratch array S (``N_SCRATCH`` rows × ``S_WIDTH``):
-# 0: [h]; 1: f at the Newton iterate; 2: its power flows F; 3: y_old; 4: y_best; 5: Newton
-# step; 6: f0; 7: F0; 8: y perturbed; 9: f perturbed; 10: F perturbed; 11: dτ/dy; 12: y_start;
-# 13 … 13+N_Y: matrix; then its copy (the prediction's LU factors); then N_Y rows of
-# right-hand sides (2 columns); then the factors' pivot rows
+# 0: [h, steps the kept prediction matrix has served (0: none), matrices built]; 1: f at the
+# Newton iterate; 2: its power flows F; 3: y_old; 4: y_best; 5: Newton step; 6: f0; 7: F0;
+# 8: y perturbed; 9: f perturbed; 10: F perturbed; 11: dτ/dy (kept with the matrix);
+# 12: y_start; 13 … 13+N_Y: the Newton matrix; then the prediction's LU factors (kept); then
+# N_Y rows of right-hand sides (2 columns); then the prediction factors' pivot row
+# (13 + 3 N_Y), the Newton matrix's pivot row, and the actuated inputs the prediction matrix
+# was built at
 
 
 def lu_factor(M, piv, n):
@@ -135,36 +158,48 @@ def jacobian(y, yo, theta, theta_dot, h, U, P, S, M):
 
 def linearise(y, P, W, S):
     """The prediction of the step ``h = S[0, 0]`` with the inputs held in ``W``: fills
-    ``W[W_A + k]``, ``W[W_B + k]``, ``W[W_TAU0]``, ``W[W_G]``."""
+    ``W[W_A + k]``, ``W[W_B + k]``, ``W[W_TAU0]``, ``W[W_G]``. The matrix ``I − h J_y`` and
+    ``∂τ/∂y`` are rebuilt by forward differences, or reused from an earlier step (module
+    docstring; ``S[0, 1]`` counts the steps they have served, 0 rebuilds them)."""
     h = S[0, 0]
     U = W[W_U:W_U + N_U]
     theta, thd = W[W_THETA], W[W_THETA_DOT]
     (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, M, Mc,
      R) = scratch_views(S)
+    piv = S[13 + 3 * N_Y, :N_Y]
+    ujac = S[15 + 3 * N_Y, :N_U]
     rhs(y, theta + h * thd, thd, U, P, f0, F0)
     tau0 = F0[F_TAU]
-    for j in range(N_Y):
-        for k in range(N_Y):
-            yp[k] = y[k]
-        d = 1e-7 * max(abs(y[j]), Y_TYP[j])
-        yp[j] = y[j] + d
-        rhs_step(yp, y, theta + h * thd, thd, U, P, fp, Fp)
-        for k in range(N_Y):
-            M[k, j] = -h * (fp[k] - f0[k]) / d
-        M[j, j] += 1.0
-        dtau[j] = (Fp[F_TAU] - tau0) / d
+    age = S[0, 1]
+    if age > 0.0 and age < JAC_MAX_AGE:
+        for k in range(N_U):
+            if abs(U[k] - ujac[k]) > JAC_INPUT_REL * max(abs(U[k]), abs(ujac[k])):
+                age = 0.0
+    if age > 0.0 and age < JAC_MAX_AGE:
+        S[0, 1] = age + 1.0
+    else:
+        S[0, 1] = 1.0
+        S[0, 2] += 1.0
+        for k in range(N_U):
+            ujac[k] = U[k]
+        for j in range(N_Y):
+            for k in range(N_Y):
+                yp[k] = y[k]
+            d = 1e-7 * max(abs(y[j]), Y_TYP[j])
+            yp[j] = y[j] + d
+            rhs_step(yp, y, theta + h * thd, thd, U, P, fp, Fp)
+            for k in range(N_Y):
+                Mc[k, j] = -h * (fp[k] - f0[k]) / d
+            Mc[j, j] += 1.0
+            dtau[j] = (Fp[F_TAU] - tau0) / d
+        # the factors stay in Mc for this and later steps' predictions and chord iterations
+        lu_factor(Mc, piv, N_Y)
     dv = 1e-7 * max(abs(thd), 1.0)
     rhs(y, theta + h * (thd + dv), thd + dv, U, P, fp, Fp)
     dtau_dv = (Fp[F_TAU] - tau0) / dv
     for k in range(N_Y):
         R[k, 0] = h * f0[k]
         R[k, 1] = h * (fp[k] - f0[k]) / dv
-    for j in range(N_Y):
-        for k in range(N_Y):
-            Mc[j, k] = M[j, k]
-    # the factors stay in Mc for the chord iterations of the step's Newton correction
-    piv = S[13 + 3 * N_Y, :N_Y]
-    lu_factor(Mc, piv, N_Y)
     lu_solve(Mc, piv, R, N_Y, 2)
     g = dtau_dv
     t0 = tau0
@@ -180,7 +215,8 @@ def linearise(y, P, W, S):
 def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place); the
     first iterations reuse the prediction's matrix while they contract tenfold (chord), then
-    fresh Jacobians; a diverging or cycling iteration halves its last step (damped Newton).
+    fresh Jacobians (and the kept prediction matrix is marked for rebuilding); a diverging or
+    cycling iteration halves its last step (damped Newton).
     Leaves ``f`` and the power flows at the solution in scratch rows 1–2."""
     (f1, F1, yo_, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mcopy,
      R) = scratch_views(S)
@@ -210,10 +246,11 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
         if chord:
             lu_solve(Mcopy, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         else:
+            # the prediction matrix did not serve: the next step rebuilds it
+            S[0, 1] = 0.0
             jacobian(y, yold, theta, theta_dot, h, U, P, S, Mw)
-            # a fresh matrix ends the chord: its factors may take the pivot row
-            lu_factor(Mw, S[13 + 3 * N_Y, :N_Y], N_Y)
-            lu_solve(Mw, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
+            lu_factor(Mw, S[14 + 3 * N_Y, :N_Y], N_Y)
+            lu_solve(Mw, S[14 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         for k in range(N_Y):
             ybest[k] = y[k]
             step[k] = rv[k, 0]
@@ -300,6 +337,8 @@ def finish_step(y, P, W, theta_dot_new, S):
     W[W_TAU] = tau
     W[W_TAU_END] = F1[F_TAU]
     W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
+    if abs(tau - F1[F_TAU]) > JAC_COUPLE_REL * (abs(F1[F_TAU]) + 1.0):
+        S[0, 1] = 0.0
     W[W_P_MECH] = F1[F_TAU] * theta_dot_new
     return tau
 
