@@ -148,6 +148,9 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     og.add_argument("--workers", type=int, default=None, help="worker processes")
     og.add_argument("--body-mass-kg", type=float, default=75.0, help="walker body mass, kg")
     og.add_argument("--height-m", type=float, default=1.75, help="walker stature, m")
+    og.add_argument("--assistance", default="none",
+                    choices=("none", "worn_mass", "zhang", "clutched_spring", "hafo"),
+                    help="device worn while optimising (the adapted wearer; default none)")
     og.add_argument("--quiet", action="store_true", help="no progress on stderr")
     og.set_defaults(func=handlers["optimize_gait"])
     de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "

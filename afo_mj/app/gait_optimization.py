@@ -20,12 +20,14 @@ __all__ = ["optimize_reflex_gait"]
 def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
                          popsize: int = 16, seed: int = 1, start: str | None = None,
                          workers: int | None = None, body_mass_kg: float = 75.0,
-                         height_m: float = 1.75) -> dict:
+                         height_m: float = 1.75, assistance: str = "none") -> dict:
     """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
-    content."""
+    content. ``assistance``: the condition worn while walking
+    (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults)."""
     from afo_mj import progress
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.human.walker import WalkerParams
+    from afo_mj.experiments.muscle_assistance import Assistance
     from afo_mj.studies.gait_optimization import (GaitObjective, load_reflex_set,
                                                   optimize_gait)
     from afo_mj.gait import reflex_law as rl
@@ -47,7 +49,12 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
             start_set = dict(zip(rl.PARAM_NAMES, load_reflex_set(start).tolist()))
         except (OSError, ValueError, KeyError) as exc:
             raise InvalidInput(f"--start {start}: {exc}") from None
-    objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker)
+    try:
+        device = Assistance(kind=assistance)
+    except ValueError as exc:
+        raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")) from None
+    objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker,
+                              assistance=device)
     rep = progress.reporter()
     task = rep.task(f"optimising the reflex controller for {speed_m_s} m/s", generations,
                     "generations") if rep.active else None

@@ -33,7 +33,8 @@ from afo_mj.gait.record import GaitEvents, GaitRecord
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
 
-__all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "run_muscle_walk"]
+__all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_scaled",
+           "run_muscle_walk"]
 
 GRAVITY_M_S2 = 9.81
 #: fall: hip below this drop from its start (m, for a 1.75 m walker) or trunk beyond 1 rad
@@ -114,14 +115,36 @@ class MuscleWalk:
         return energy / (r.body_mass_kg * dist)
 
 
+def muscle_table_scaled(timestep_s: float, max_force_scale: dict | None = None) -> np.ndarray:
+    """The compiled law's muscle table with each named muscle's maximum isometric force
+    scaled (both legs), e.g. ``{"soleus": 0.5, "gastrocnemius": 0.5}`` for a plantarflexor
+    weakness; masses (and so the metabolic models' scale) stay. A name not in
+    :data:`afo_mj.gait.reflex_law.MUSCLES` or a factor outside (0, 2] raises ValueError."""
+    T = rl.muscle_table(timestep_s)
+    for name, f in (max_force_scale or {}).items():
+        if name not in rl.MUSCLES:
+            raise ValueError(f"max_force_scale[{name!r}]; allowed: {', '.join(rl.MUSCLES)}")
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not 0.0 < f <= 2.0:
+            raise ValueError(f"max_force_scale[{name!r}] = {f!r}; allowed: 0 < factor <= 2")
+        T[rl.MUSCLES.index(name), rl.T_FMAX] *= float(f)
+    return T
+
+
 def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
                     duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
-                    worn_masses=(), device_torque=None) -> MuscleWalk:
+                    worn_masses=(), device_torque=None, device=None,
+                    max_force_scale: dict | None = None) -> MuscleWalk:
     """Walk the muscle-driven walker for ``duration_s`` (or until it falls) under the reflex
     parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's).
 
     ``device_torque(t, angle2, velocity2, stance2) -> (2,)`` optionally adds an ankle torque
     per side (N·m, + dorsiflexion) beside the muscles (an ideal assistance profile).
+    ``device``: a coupled orthosis (:class:`afo_mj.circuits.device.CircuitDevice`, e.g. the
+    HAFO) stepped with MuJoCo as :func:`afo_mj.gait.walk.run_walk` steps it: each step its
+    joint force and extra damping go to MuJoCo (the damping integrated implicitly) and the
+    new ankle velocities close its step; its timestep must be the walker's. Its foot switch
+    is the reflex controller's stance state. ``max_force_scale``: see
+    :func:`muscle_table_scaled`.
     """
     w = walker or WalkerParams()
     P = reflex_params() if params is None else np.asarray(params, dtype=float)
@@ -130,10 +153,15 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
                          f"(reflex_params)")
     if not (duration_s > 0 and math.isfinite(duration_s)):
         raise ValueError(f"duration_s = {duration_s!r}; allowed: finite > 0")
+    if device is not None and device_torque is not None:
+        raise ValueError("run_muscle_walk: both device and device_torque given; allowed: one")
     phys = build_muscle_walker(w, worn_masses)
     m, d = phys.model, phys.data
     h = float(m.opt.timestep)
-    T = rl.muscle_table(h)
+    if device is not None and abs(device.timestep_s - h) > 1e-12:
+        raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
+                         f"MuJoCo timestep {h}; allowed: equal")
+    T = muscle_table_scaled(h, max_force_scale)
     mg = phys.body_mass_kg * GRAVITY_M_S2
     lq, lv = phys.leg_qpos, phys.leg_dof
     q = d.qpos
@@ -159,6 +187,7 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
     pt_q, pt_v = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
     contact = phys.contact_geoms.ravel()
     dank = phys.leg_dof[:, 2]
+    base_damping = m.dof_damping[dank].copy()
     k = 0
     tau = X[rl.X_TAU:rl.X_TAU + 6]
     while k < n_max:
@@ -178,7 +207,15 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
                                            X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5), float)
             d.qfrc_applied[dank] = dev
             buf["dev"][k] = dev
+        elif device is not None:
+            # end-of-step torque = force − D q̇_{n+1}, D integrated implicitly by MuJoCo
+            force2, extra2 = device.begin_step(t, q[lq[:, 2]], d.qvel[dank],
+                                               X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5)
+            d.qfrc_applied[dank] = force2
+            m.dof_damping[dank] = base_damping + extra2
         mujoco.mj_step(m, d)
+        if device is not None:
+            buf["dev"][k] = device.end_step(d.qvel[dank])
         buf["time"][k] = d.time
         buf["qpos"][k] = q
         buf["qvel"][k] = d.qvel

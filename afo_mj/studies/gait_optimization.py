@@ -36,8 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from afo_mj.experiments.batch import run_batch
+from afo_mj.experiments.muscle_assistance import Assistance, assistance_walk
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.muscle_walk import reflex_params, run_muscle_walk
+from afo_mj.gait.muscle_walk import reflex_params
 from afo_mj.gait.reference import load_normative
 from afo_mj.human.walker import WalkerParams
 
@@ -59,6 +60,9 @@ class GaitObjective:
     effort_weight: float = 1.0
     min_stride_s: float = 0.8
     walker: WalkerParams = dataclasses.field(default_factory=WalkerParams)
+    #: the device worn while walking (:mod:`afo_mj.experiments.muscle_assistance`): the
+    #: "adapted" wearer is this objective's optimum with the device, warm-started
+    assistance: Assistance = dataclasses.field(default_factory=Assistance)
 
     def __post_init__(self):
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
@@ -110,7 +114,8 @@ def gait_quality(walk, settle_s: float, reference=None) -> dict | None:
 def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict]:
     """The objective of one walk under ``params`` (lower is better) and what it measured."""
     try:
-        walk = run_muscle_walk(objective.walker, params, objective.duration_s)
+        walk, _ = assistance_walk(objective.assistance, objective.walker, params,
+                                  objective.duration_s)
     except FloatingPointError as exc:
         return 2000.0, {"error": str(exc)}
     r = walk.record
@@ -202,7 +207,8 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
            "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
            "cost": best[0], "quality": best_info,
            "objective": {k: v for k, v in dataclasses.asdict(objective).items()
-                         if k != "walker"},
+                         if k not in ("walker", "assistance")},
+           "assistance": dataclasses.asdict(objective.assistance),
            "walker": {"body_mass_kg": objective.walker.body_mass_kg,
                       "height_m": objective.walker.height_m},
            "optimizer": {"method": "CMA-ES", "seed": seed, "sigma0": sigma0,

@@ -1,0 +1,212 @@
+"""Assistance on the muscle-driven walker: what a device does to the wearer's metabolic cost.
+
+No rule of the wearer's response is written in: the device's torque, its worn masses and (for
+the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller and muscles
+(:mod:`afo_mj.gait.muscle_walk`) respond. A condition is an :class:`Assistance`:
+
+* ``none`` — the walker alone;
+* ``worn_mass`` — the HAFO's worn masses (:meth:`afo_mj.devices.hafo.HafoDevice.worn_masses`,
+  3.58 kg of which 0.97 kg at the ankle for ``hafo_gait``) and no torque;
+* ``zhang`` — an ideal ankle torque following the profile of Zhang et al. (2017, *Science*
+  356:1280; :func:`afo_mj.control.assistance.zhang_profile`, published timing: peak at
+  52.9 %, rise 26.2 %, fall 9.8 % of the stride) against the gait phase estimated from each
+  foot's stance (:func:`afo_mj.control.assistance.phase_update`), massless;
+* ``clutched_spring`` — an ideal, massless clutched spring in parallel with the calf (as in
+  Collins, Wiggin & Sawicki 2015, *Nature* 522:212): while the foot is on the ground and
+  before ``spring_release_phase`` of the stride it resists dorsiflexion past
+  ``spring_rest_rad`` with ``spring_nm_per_rad`` (:func:`afo_mj.control.impedance.
+  impedance_torque`, engaged only past the rest angle), free in swing;
+* ``hafo`` — the HAFO (preset ``hafo_gait``) worn on the right ankle, its pump, hoses,
+  cylinders and controller stepped with MuJoCo, commanding the Zhang profile of
+  ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result.
+
+The wearer is reported with the controller it walked with before (*naive*: the same reflex
+set) or re-optimised with the device worn (*adapted*: a warm-started CMA-ES run of
+:func:`afo_mj.studies.gait_optimization.optimize_gait` with this condition in its
+objective). :func:`assistance_summary` gives the metabolic rate (Umberger 2010 and Bhargava
+2004, net of the 1.2 W/kg basal rate), speed, stride, the human's and the device's ankle work
+per stride and the push-off power.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.control import assistance as asst
+from afo_mj.control.impedance import impedance_table, impedance_torque
+from afo_mj.devices.hafo import HafoDevice, hafo_params
+from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
+from afo_mj.human.metabolics import basal_rate_w
+from afo_mj.human.walker import WalkerParams
+
+__all__ = ["KINDS", "Assistance", "assistance_walk", "assistance_summary"]
+
+#: the conditions :class:`Assistance` knows
+KINDS = ("none", "worn_mass", "zhang", "clutched_spring", "hafo")
+#: Zhang et al. (2017) published timing (% of stride): peak, rise, fall
+ZHANG_TIMING_PCT = (52.9, 26.2, 9.8)
+SIDE_INDEX = {"right": 0, "left": 1}
+
+
+@dataclasses.dataclass(frozen=True)
+class Assistance:
+    """One assistance condition (module docstring). ``sides``: the assisted ankles of the
+    ideal conditions (the HAFO is worn on the right).
+
+    Defaults: Zhang peak 0.5 N·m/kg (a moderate torque chosen here, about a third of the
+    1.6 N·m/kg biological ankle moment peak); spring 180 N·m/rad about neutral, released at
+    62 % of the stride (Collins et al. 2015 found the metabolic minimum at their medium
+    spring of about this stiffness); HAFO peak 40 N·m (``scenarios/gait_assist_hafo.toml``).
+    """
+
+    kind: str = "none"
+    sides: tuple = ("right", "left")
+    zhang_peak_nm_per_kg: float = 0.5
+    spring_nm_per_rad: float = 180.0
+    spring_rest_rad: float = 0.0
+    spring_release_phase: float = 0.62
+    hafo_peak_torque_nm: float = 40.0
+    hafo_preset: str = "hafo_gait"
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"assistance.kind = {self.kind!r}; allowed: {', '.join(KINDS)}")
+        sides = tuple(self.sides)
+        if not sides or len(set(sides)) != len(sides) or any(s not in SIDE_INDEX
+                                                             for s in sides):
+            raise ValueError(f"assistance.sides = {list(self.sides)!r}; allowed: a non-empty "
+                             "subset of ['right', 'left']")
+        object.__setattr__(self, "sides", sides)
+        for name, lo, hi in (("zhang_peak_nm_per_kg", 0.0, 3.0),
+                             ("spring_nm_per_rad", 0.0, 2000.0),
+                             ("spring_rest_rad", -0.5, 0.5),
+                             ("spring_release_phase", 0.3, 1.0),
+                             ("hafo_peak_torque_nm", 0.0, 80.0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+                raise ValueError(f"assistance.{name} = {v!r}; allowed: {lo:g} … {hi:g}")
+
+    @property
+    def label(self) -> str:
+        """A short name for tables."""
+        if self.kind == "zhang":
+            return f"zhang {self.zhang_peak_nm_per_kg:g} N·m/kg"
+        if self.kind == "clutched_spring":
+            return f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
+        if self.kind == "hafo":
+            return f"HAFO ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
+        return self.kind
+
+
+class _IdealTorque:
+    """The ideal (massless) torque of ``zhang`` or ``clutched_spring`` per side, with the
+    gait phase estimated from stance as a device would estimate it."""
+
+    def __init__(self, a: Assistance, body_mass_kg: float):
+        self.sides = np.array([SIDE_INDEX[s] for s in a.sides])
+        self.phase = asst.new_phase_state(2)
+        if a.kind == "zhang":
+            self.table = asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
+                                            *ZHANG_TIMING_PCT)
+            self.impedance = False
+        else:
+            self.table = impedance_table([
+                (a.spring_release_phase, a.spring_nm_per_rad, 0.0, a.spring_rest_rad, 1.0),
+                (1.0, 0.0, 0.0, 0.0, 0.0)])
+            self.impedance = True
+        self.out = np.zeros(2)
+
+    def __call__(self, t, angle2, velocity2, stance2):
+        out = self.out
+        out[:] = 0.0
+        for s in self.sides:
+            ph = asst.phase_update(self.phase[s], t, bool(stance2[s]), 0.4, 3.0)
+            if self.impedance:
+                # the clutch holds only while the foot is on the ground (and not before the
+                # estimator has a stride, phase −1)
+                out[s] = (impedance_torque(self.table, ph, angle2[s], velocity2[s])
+                          if ph >= 0.0 and stance2[s] else 0.0)
+            else:
+                out[s] = asst.table_lookup(self.table, ph)
+        return out
+
+
+def hafo_device(a: Assistance, timestep_s: float, max_steps: int = 0) -> HafoDevice:
+    """The HAFO of a ``hafo`` condition, on the right ankle, commanding the Zhang profile."""
+    return HafoDevice(hafo_params(preset=a.hafo_preset), sides=("right",),
+                      profile=asst.zhang_profile(a.hafo_peak_torque_nm, *ZHANG_TIMING_PCT),
+                      timestep_s=timestep_s, max_steps=max_steps)
+
+
+def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
+                    params: np.ndarray | None = None, duration_s: float = 12.0,
+                    max_force_scale: dict | None = None):
+    """Walk the muscle walker under one condition. Returns ``(walk, device)`` (the
+    :class:`~afo_mj.gait.muscle_walk.MuscleWalk` and the HAFO device, or None)."""
+    w = walker or WalkerParams()
+    a = assistance
+    if a.kind == "none":
+        return run_muscle_walk(w, params, duration_s, max_force_scale=max_force_scale), None
+    if a.kind in ("zhang", "clutched_spring"):
+        return run_muscle_walk(w, params, duration_s, max_force_scale=max_force_scale,
+                               device_torque=_IdealTorque(a, w.body_mass_kg)), None
+    dev = hafo_device(a, w.timestep_s, int(duration_s / w.timestep_s) + 4)
+    if a.kind == "worn_mass":
+        return run_muscle_walk(w, params, duration_s, worn_masses=dev.worn_masses(),
+                               max_force_scale=max_force_scale), None
+    walk = run_muscle_walk(w, params, duration_s, worn_masses=dev.worn_masses(), device=dev,
+                           max_force_scale=max_force_scale)
+    return walk, dev
+
+
+def assistance_summary(walk: MuscleWalk, settle_s: float = 3.0, device=None) -> dict:
+    """What a condition did, over the whole strides of the right leg after ``settle_s``:
+    ``fell`` (time or None), ``strides``, ``speed_m_s``, ``stride_s``, net metabolic rate
+    (W/kg, Umberger 2010 and Bhargava 2004, basal 1.2 W/kg left out) and net cost of
+    transport (J/(kg m), Umberger), per stride on the right ankle the muscles' positive and
+    net work and the device's net work (J; + into the body), the peak right ankle power of
+    muscles plus device (W/kg), and with a HAFO its ledger (input, mechanical output, every
+    loss). Rates are means over the scored strides."""
+    r = walk.record
+    out = {"fell_s": r.events.fall_time_s, "duration_s": float(r.time_s[-1])}
+    hs = np.asarray(r.events.heel_strikes_s[0], float)
+    hs = hs[hs > settle_s]
+    out["strides"] = max(len(hs) - 1, 0)
+    if len(hs) < 3:
+        return out
+    t0, t1 = float(hs[0]), float(hs[-1])
+    sel = (r.time_s > t0) & (r.time_s <= t1)
+    dt = r.sample_period_s
+    m = r.body_mass_kg
+    dist = float(r.pelvis_position_m[sel][-1, 0] - r.pelvis_position_m[sel][0, 0])
+    n_str = len(hs) - 1
+    basal = basal_rate_w(m)
+    rates = {}
+    for model in ("umberger", "bhargava"):
+        rate = walk.metabolic_rate_w(model)[sel] - basal
+        rates[model] = float(rate.mean()) / m
+    v_ank = r.joint_velocity_rad_s[sel, 0, 2]
+    p_musc = r.joint_moment_nm[sel, 0, 2] * v_ank
+    p_dev = r.device_moment_nm[sel, 0] * v_ank
+    out.update({
+        "speed_m_s": dist / (t1 - t0), "stride_s": (t1 - t0) / n_str,
+        "net_metabolic_w_per_kg": rates["umberger"],
+        "net_metabolic_bhargava_w_per_kg": rates["bhargava"],
+        "net_cost_of_transport_j_per_kg_m": rates["umberger"] * (t1 - t0) / dist
+        if dist > 0 else math.inf,
+        "ankle_muscle_positive_work_j_per_stride": float(np.clip(p_musc, 0, None).sum() * dt
+                                                         / n_str),
+        "ankle_muscle_net_work_j_per_stride": float(p_musc.sum() * dt / n_str),
+        "ankle_device_net_work_j_per_stride": float(p_dev.sum() * dt / n_str),
+        "ankle_peak_power_w_per_kg": float((p_musc + p_dev).max() / m),
+    })
+    if device is not None:
+        led = device.ledger(0)
+        out["device_ledger"] = {"input_j": led["input_j"],
+                                "mechanical_out_j": led["mechanical_out_j"],
+                                "losses_j": led["losses_j"],
+                                "balance_error_rel": led["balance_error_rel"]}
+    return out

@@ -1,0 +1,163 @@
+"""Assistance on the muscle-driven walker (issue 22): the ideal Zhang torque and clutched spring
+against their definitions worked here, the HAFO coupled to the muscle walker (ledger closed,
+its torque the one the record holds), worn masses, the plantarflexor weakness, and the
+summary's rates against the per-muscle arrays summed by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from afo_mj.experiments import muscle_assistance as ma
+from afo_mj.gait import reflex_law as rl
+from afo_mj.gait.muscle_walk import muscle_table_scaled, run_muscle_walk
+from afo_mj.human.metabolics import BASAL_W_PER_KG
+from afo_mj.human.walker import WalkerParams
+from afo_mj.studies.gait_optimization import GaitObjective, load_reflex_set
+from importlib.resources import files
+
+SET_125 = files("afo_mj") / "data" / "reflex_params_1.25.json"
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_reflex_set(SET_125)
+
+
+def _zhang_by_hand(phase, peak):
+    """Zhang et al. 2017 with the published timing, written out here: zero before the onset
+    26.7 %, a flat-ended cubic rise to ``peak`` at 52.9 %, a flat-ended cubic fall to zero at
+    62.7 %; plantarflexion (negative)."""
+    x = 100.0 * phase
+    if x < 26.7 or x > 62.7:
+        return 0.0
+    if x <= 52.9:
+        u = (x - 26.7) / 26.2
+    else:
+        u = (62.7 - x) / 9.8
+    return -peak * u * u * (3.0 - 2.0 * u)
+
+
+def test_ideal_zhang_torque_follows_the_profile_on_the_estimated_phase(params):
+    walk, dev = ma.assistance_walk(ma.Assistance("zhang", zhang_peak_nm_per_kg=0.3),
+                                   params=params, duration_s=4.0)
+    assert dev is None
+    r = walk.record
+    peak = 0.3 * r.body_mass_kg
+    tau = r.device_moment_nm
+    assert tau.min() < -0.9 * peak and tau.max() <= 0.0
+    # the phase estimate: time since the last right heel strike over the mean of the
+    # stride durations seen so far (up to three), from the second heel strike on
+    hs = np.asarray(r.events.heel_strikes_s[0])
+    assert len(hs) >= 3
+    checked = 0
+    for k in range(0, len(r.time_s), 37):
+        t = r.time_s[k] - r.sample_period_s            # the torque was set at the step start
+        past = hs[hs <= t + 1e-9]
+        if len(past) < 2:
+            assert tau[k, 0] == 0.0
+            continue
+        strides = np.diff(past)[-3:]
+        ph = min((t - past[-1]) / strides.mean(), 1.0)
+        assert tau[k, 0] == pytest.approx(_zhang_by_hand(ph, peak), abs=0.02 * peak)
+        checked += 1
+    assert checked > 30
+
+
+def test_clutched_spring_resists_dorsiflexion_only_in_stance(params):
+    a = ma.Assistance("clutched_spring", spring_nm_per_rad=150.0, spring_rest_rad=0.02)
+    walk, _ = ma.assistance_walk(a, params=params, duration_s=4.0)
+    r = walk.record
+    # sample k's torque was set with the angle recorded at sample k − 1 (the step's start)
+    tau = r.device_moment_nm[1:, 0]
+    ang = r.joint_angle_rad[:-1, 0, 2]
+    engaged = tau < 0.0
+    assert engaged.any() and tau.max() <= 0.0
+    # where engaged the torque is the spring's, −K (θ − θ0), at the angle of the step start
+    np.testing.assert_allclose(tau[engaged], -150.0 * (ang[engaged] - 0.02), rtol=1e-9)
+    # no torque while plantarflexed past rest, none in swing (toe off to heel strike)
+    assert np.all(tau[ang <= 0.02] == 0.0)
+    t = r.time_s[1:]
+    swings = 0
+    for to in r.events.toe_offs_s[0]:
+        nxt = [h for h in r.events.heel_strikes_s[0] if h > to]
+        if nxt:
+            sw = (t > to + 2e-3) & (t < nxt[0])
+            assert np.all(tau[sw] == 0.0)
+            swings += 1
+    assert swings >= 2
+
+
+def test_hafo_on_the_muscle_walker_closes_its_ledger_and_drives_the_ankle(params):
+    walk, dev = ma.assistance_walk(ma.Assistance("hafo"), params=params, duration_s=2.5)
+    r = walk.record
+    led = dev.ledger(0)
+    assert abs(led["balance_error_rel"]) < 1e-9
+    assert set(led["losses_j"]) and all(v >= -1e-9 for v in led["losses_j"].values())
+    # the record's device torque is the HAFO's delivered torque, on the right ankle only
+    log = dev.log.arrays()
+    n = min(len(r.time_s), len(log["delivered_torque_nm"]))
+    np.testing.assert_array_equal(r.device_moment_nm[:n, 0], log["delivered_torque_nm"][:n, 0])
+    assert np.all(r.device_moment_nm[:, 1] == 0.0)
+    # its worn masses are on the body: heavier than the bare walker by the device's mass
+    bare = run_muscle_walk(WalkerParams(), params, 0.01)
+    assert walk.record.body_mass_kg == bare.record.body_mass_kg      # body mass is the person
+    assert dev.mass_total_kg > 3.0
+
+
+def test_worn_mass_condition_only_adds_mass(params):
+    walk, dev = ma.assistance_walk(ma.Assistance("worn_mass"), params=params, duration_s=0.3)
+    assert dev is None and np.all(walk.record.device_moment_nm == 0.0)
+    plain = run_muscle_walk(WalkerParams(), params, 0.3)
+    assert not np.array_equal(walk.record.qpos, plain.record.qpos)
+
+
+def test_weakness_scales_the_maximum_force_of_the_named_muscles_only():
+    T = rl.muscle_table(1e-3)
+    W = muscle_table_scaled(1e-3, {"soleus": 0.5, "gastrocnemius": 0.5})
+    for m, name in enumerate(rl.MUSCLES):
+        f = 0.5 if name in ("soleus", "gastrocnemius") else 1.0
+        assert W[m, rl.T_FMAX] == T[m, rl.T_FMAX] * f
+        assert W[m, rl.T_MASS] == T[m, rl.T_MASS]
+    with pytest.raises(ValueError, match="max_force_scale\\['calf'\\]"):
+        muscle_table_scaled(1e-3, {"calf": 0.5})
+    with pytest.raises(ValueError, match="allowed: 0 < factor <= 2"):
+        muscle_table_scaled(1e-3, {"soleus": 0.0})
+
+
+def test_weak_plantarflexors_cap_the_soleus_force(params):
+    weak = run_muscle_walk(WalkerParams(), params, 2.0,
+                           max_force_scale={"soleus": 0.5, "gastrocnemius": 0.5})
+    i = rl.MUSCLES.index("soleus")
+    fmax = rl.muscle_table(1e-3)[i, rl.T_FMAX]
+    # the tendon force of a CE at full activation is bounded by F_max f_V ≤ 1.8 F_max (the
+    # eccentric plateau of Geyer & Herr's f_V): halved here
+    assert weak.force_n[:, :, i].max() < 1.8 * 0.5 * fmax
+
+
+def test_summary_rates_against_the_arrays_summed_by_hand(params):
+    walk, _ = ma.assistance_walk(ma.Assistance("none"), params=params, duration_s=8.0)
+    s = ma.assistance_summary(walk, settle_s=3.0)
+    r = walk.record
+    hs = np.asarray(r.events.heel_strikes_s[0])
+    hs = hs[hs > 3.0]
+    sel = (r.time_s > hs[0]) & (r.time_s <= hs[-1])
+    net = walk.metabolic_umberger_w[sel].sum(axis=(1, 2)).mean() / r.body_mass_kg
+    assert s["net_metabolic_w_per_kg"] == pytest.approx(net, rel=1e-12)
+    gross = walk.metabolic_rate_w("umberger")[sel].mean() / r.body_mass_kg
+    assert gross - s["net_metabolic_w_per_kg"] == pytest.approx(BASAL_W_PER_KG, rel=1e-9)
+    assert s["strides"] == len(hs) - 1
+    assert s["net_cost_of_transport_j_per_kg_m"] == pytest.approx(
+        s["net_metabolic_w_per_kg"] / s["speed_m_s"], rel=1e-9)
+
+
+def test_bad_assistance_is_named():
+    with pytest.raises(ValueError, match="assistance.kind = 'spring'; allowed: none"):
+        ma.Assistance("spring")
+    with pytest.raises(ValueError, match="assistance.sides"):
+        ma.Assistance("zhang", sides=("right", "right"))
+    with pytest.raises(ValueError, match="assistance.zhang_peak_nm_per_kg = 5"):
+        ma.Assistance("zhang", zhang_peak_nm_per_kg=5)
+    assert not math.isnan(GaitObjective(assistance=ma.Assistance("hafo")).target_speed_m_s)
