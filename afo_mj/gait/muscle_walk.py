@@ -234,6 +234,13 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
         if q[phys.pelvis_qpos[1]] < z0 - drop or abs(q[phys.pelvis_qpos[2]]) > FALL_TILT_RAD:
             events.fall_time_s = float(d.time)
             break
+    bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
+           if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]
+    if bad:
+        # MuJoCo met a non-finite or huge control or acceleration (a diverging muscle state)
+        # and reset the state: what follows is not a walk
+        raise FloatingPointError(f"muscle walk: the simulation diverged ({', '.join(bad)}) "
+                                 f"before t = {d.time:.4f} s")
     b = {key: v[:k] for key, v in buf.items()}
     qq, vv = b["qpos"], b["qvel"]
     record = GaitRecord(

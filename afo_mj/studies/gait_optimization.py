@@ -12,7 +12,10 @@ run_batch`).
 Objective (:func:`gait_cost`) of one walk of ``duration_s`` (the first ``settle_s`` not
 scored), lower is better, in stages so that any walk that stands beats any fall:
 
-* a fall: ``1000 − 10 (distance + 2 × time walked)``: walking further and longer first;
+* a fall: ``1000 − 10 (distance + 2 × time walked)``: walking further and longer first (the
+  distance credited up to 2.5 m/s of the time walked);
+* a diverged simulation (MuJoCo's bad-control/acceleration warnings, non-finite states):
+  2000;
 * a walk with fewer than 3 scored strides: 900;
 * else ``w_v |v − v_target| + mean angle RMS vs the reference (°, hip, knee, ankle) +
   w_e × net metabolic cost of transport (J/(kg m), Umberger 2010) + 50 if the mean stride
@@ -122,7 +125,9 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
     t = float(r.time_s[-1])
     dist = float(r.pelvis_position_m[-1, 0] - r.pelvis_position_m[0, 0])
     if r.events.fall_time_s is not None:
-        return 1000.0 - 10.0 * (max(dist, -1.0) + 2.0 * t), {"fell_s": t, "distance_m": dist}
+        # distance credited up to 2.5 m/s of the time walked: a fall earns nothing by flying
+        dist_c = min(max(dist, -1.0), 2.5 * t)
+        return 1000.0 - 10.0 * (dist_c + 2.0 * t), {"fell_s": t, "distance_m": dist}
     q = gait_quality(walk, objective.settle_s)
     if q is None:
         return 900.0, {"distance_m": dist, "strides": 0}
