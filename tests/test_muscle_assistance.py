@@ -161,3 +161,27 @@ def test_bad_assistance_is_named():
     with pytest.raises(ValueError, match="assistance.zhang_peak_nm_per_kg = 5"):
         ma.Assistance("zhang", zhang_peak_nm_per_kg=5)
     assert not math.isnan(GaitObjective(assistance=ma.Assistance("hafo")).target_speed_m_s)
+
+
+def test_robust_objective_penalises_each_variant_that_falls(params):
+    """The shipped 1.25 set (optimised without variants) walks with 15 % less body mass and
+    falls with 15 % more: the robust cost is its plain cost plus 50 + 10 × (12 s − time
+    walked) for each variant that fell, and nothing for one that walked."""
+    from afo_mj.human.walker import WornMass
+    from afo_mj.studies.gait_optimization import WalkVariant, gait_cost
+    plain, _ = gait_cost(params, GaitObjective())
+    light, heavy = WalkVariant("light", 0.85), WalkVariant("heavy", 1.15)
+    cost, info = gait_cost(params, GaitObjective(variants=(light, heavy)))
+    falls = info["variant_falls_s"]
+    assert set(falls) == {"heavy"}
+    assert cost == pytest.approx(plain + 50.0 + 10.0 * (12.0 - falls["heavy"]), rel=1e-12)
+    # the heavy variant is the same walk as run_muscle_walk of the heavier walker
+    heavy_walk = run_muscle_walk(WalkerParams(body_mass_kg=75.0 * 1.15), params, 12.0)
+    assert heavy_walk.record.events.fall_time_s == falls["heavy"]
+    with pytest.raises(ValueError, match="body_mass_scale = 2.0"):
+        WalkVariant("x", 2.0)
+    # extra worn masses reach the walk
+    w1, _ = ma.assistance_walk(ma.Assistance("none"), params=params, duration_s=0.3,
+                               worn_masses=(WornMass("ankle_axis_r", 1.0, "w"),))
+    w0, _ = ma.assistance_walk(ma.Assistance("none"), params=params, duration_s=0.3)
+    assert not np.array_equal(w1.record.qpos, w0.record.qpos)

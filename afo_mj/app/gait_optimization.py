@@ -20,16 +20,19 @@ __all__ = ["optimize_reflex_gait"]
 def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
                          popsize: int = 16, seed: int = 1, start: str | None = None,
                          workers: int | None = None, body_mass_kg: float = 75.0,
-                         height_m: float = 1.75, assistance: str = "none") -> dict:
+                         height_m: float = 1.75, assistance: str = "none",
+                         robust: bool = False) -> dict:
     """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
     content. ``assistance``: the condition worn while walking
-    (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults)."""
+    (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults); ``robust``: the
+    perturbed walkers of :func:`~afo_mj.studies.gait_optimization.robustness_variants` must
+    walk too."""
     from afo_mj import progress
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.human.walker import WalkerParams
     from afo_mj.experiments.muscle_assistance import Assistance
     from afo_mj.studies.gait_optimization import (GaitObjective, load_reflex_set,
-                                                  optimize_gait)
+                                                  optimize_gait, robustness_variants)
     from afo_mj.gait import reflex_law as rl
     checks = (("--speed", speed_m_s, 0.3 <= speed_m_s <= 2.5, "0.3 to 2.5 m/s"),
               ("--generations", generations, generations >= 1, ">= 1"),
@@ -54,7 +57,8 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
     except ValueError as exc:
         raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")) from None
     objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker,
-                              assistance=device)
+                              assistance=device,
+                              variants=robustness_variants() if robust else ())
     rep = progress.reporter()
     task = rep.task(f"optimising the reflex controller for {speed_m_s} m/s", generations,
                     "generations") if rep.active else None

@@ -143,21 +143,26 @@ def hafo_device(a: Assistance, timestep_s: float, max_steps: int = 0) -> HafoDev
 
 def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
                     params: np.ndarray | None = None, duration_s: float = 12.0,
-                    max_force_scale: dict | None = None):
-    """Walk the muscle walker under one condition. Returns ``(walk, device)`` (the
-    :class:`~afo_mj.gait.muscle_walk.MuscleWalk` and the HAFO device, or None)."""
+                    max_force_scale: dict | None = None, worn_masses=()):
+    """Walk the muscle walker under one condition (with ``worn_masses`` besides the
+    device's). Returns ``(walk, device)`` (the :class:`~afo_mj.gait.muscle_walk.MuscleWalk`
+    and the HAFO device, or None)."""
     w = walker or WalkerParams()
     a = assistance
+    extra = tuple(worn_masses)
     if a.kind == "none":
-        return run_muscle_walk(w, params, duration_s, max_force_scale=max_force_scale), None
+        return run_muscle_walk(w, params, duration_s, worn_masses=extra,
+                               max_force_scale=max_force_scale), None
     if a.kind in ("zhang", "clutched_spring"):
-        return run_muscle_walk(w, params, duration_s, max_force_scale=max_force_scale,
+        return run_muscle_walk(w, params, duration_s, worn_masses=extra,
+                               max_force_scale=max_force_scale,
                                device_torque=_IdealTorque(a, w.body_mass_kg)), None
     dev = hafo_device(a, w.timestep_s, int(duration_s / w.timestep_s) + 4)
+    worn = tuple(dev.worn_masses()) + extra
     if a.kind == "worn_mass":
-        return run_muscle_walk(w, params, duration_s, worn_masses=dev.worn_masses(),
+        return run_muscle_walk(w, params, duration_s, worn_masses=worn,
                                max_force_scale=max_force_scale), None
-    walk = run_muscle_walk(w, params, duration_s, worn_masses=dev.worn_masses(), device=dev,
+    walk = run_muscle_walk(w, params, duration_s, worn_masses=worn, device=dev,
                            max_force_scale=max_force_scale)
     return walk, dev
 

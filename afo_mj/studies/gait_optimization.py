@@ -45,11 +45,40 @@ from afo_mj.gait.muscle_walk import reflex_params
 from afo_mj.gait.reference import load_normative
 from afo_mj.human.walker import WalkerParams
 
-__all__ = ["GaitObjective", "gait_cost", "gait_quality", "optimize_gait", "params_from_log",
-           "load_reflex_set"]
+__all__ = ["GaitObjective", "WalkVariant", "robustness_variants", "gait_cost", "gait_quality",
+           "optimize_gait", "params_from_log", "load_reflex_set"]
 
 #: the reference kinematics at 50 phase points
 _PHASE = np.linspace(0.0, 1.0, 51)[:-1]
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkVariant:
+    """A perturbed walker the objective also asks to walk (robustness): the body mass scaled
+    by ``body_mass_scale`` and ``worn_masses`` added (:class:`afo_mj.human.walker.WornMass`).
+    """
+
+    name: str
+    body_mass_scale: float = 1.0
+    worn_masses: tuple = ()
+
+    def __post_init__(self):
+        if not (math.isfinite(self.body_mass_scale) and 0.5 <= self.body_mass_scale <= 1.5):
+            raise ValueError(f"WalkVariant({self.name}).body_mass_scale = "
+                             f"{self.body_mass_scale!r}; allowed: 0.5 … 1.5")
+        object.__setattr__(self, "worn_masses", tuple(self.worn_masses))
+
+
+def robustness_variants() -> tuple:
+    """The perturbations of issue 22's robustness check: body mass −15 % and +15 %, 1 kg worn
+    at the right ankle, and the HAFO's worn masses (preset ``hafo_gait``, right side)."""
+    from afo_mj.devices.hafo import HafoDevice, hafo_params
+    from afo_mj.human.walker import WornMass
+    hafo = tuple(HafoDevice(hafo_params(preset="hafo_gait"), sides=("right",)).worn_masses())
+    return (WalkVariant("body mass -15 %", 0.85), WalkVariant("body mass +15 %", 1.15),
+            WalkVariant("1 kg at the right ankle",
+                        worn_masses=(WornMass("ankle_axis_r", 1.0, "ankle_weight"),)),
+            WalkVariant("HAFO worn masses", worn_masses=hafo))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,6 +95,10 @@ class GaitObjective:
     #: the device worn while walking (:mod:`afo_mj.experiments.muscle_assistance`): the
     #: "adapted" wearer is this objective's optimum with the device, warm-started
     assistance: Assistance = dataclasses.field(default_factory=Assistance)
+    #: perturbed walkers that must walk too (:func:`robustness_variants`); each that falls
+    #: adds ``variant_fall_penalty + 10 × (duration − time walked)``
+    variants: tuple = ()
+    variant_fall_penalty: float = 50.0
 
     def __post_init__(self):
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
@@ -136,6 +169,21 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
     cost = (objective.speed_weight * abs(q["speed_m_s"] - objective.target_speed_m_s) + rms
             + objective.effort_weight * (cot if math.isfinite(cot) else 100.0)
             + (50.0 if q["stride_s"] < objective.min_stride_s else 0.0))
+    if objective.variants:
+        falls = {}
+        for v in objective.variants:
+            w = dataclasses.replace(objective.walker, body_mass_kg=objective.walker.body_mass_kg
+                                    * v.body_mass_scale)
+            try:
+                vw, _ = assistance_walk(objective.assistance, w, params, objective.duration_s,
+                                        worn_masses=v.worn_masses)
+                fell = vw.record.events.fall_time_s
+            except FloatingPointError:
+                fell = 0.0
+            if fell is not None:
+                falls[v.name] = fell
+                cost += objective.variant_fall_penalty + 10.0 * (objective.duration_s - fell)
+        q = dict(q, variant_falls_s=falls)
     return cost, q
 
 
@@ -212,7 +260,8 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
            "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
            "cost": best[0], "quality": best_info,
            "objective": {k: v for k, v in dataclasses.asdict(objective).items()
-                         if k not in ("walker", "assistance")},
+                         if k not in ("walker", "assistance", "variants")},
+           "variants": [v.name for v in objective.variants],
            "assistance": dataclasses.asdict(objective.assistance),
            "walker": {"body_mass_kg": objective.walker.body_mass_kg,
                       "height_m": objective.walker.height_m},
