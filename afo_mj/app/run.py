@@ -199,9 +199,14 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
     from afo_mj.outputs.recording import RecordedRun
 
     t0 = time.perf_counter()
+    muscle_walk = None
     try:
-        record = simulate_walk(scenario)
-    except WalkNumericsError as exc:
+        if scenario.walker_model == "muscle":
+            muscle_walk = _simulate_muscle_walk(scenario)
+            record = muscle_walk.record
+        else:
+            record = simulate_walk(scenario)
+    except (WalkNumericsError, FloatingPointError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
     runs = [RecordedRun("walk", record)]
@@ -230,6 +235,9 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
                 raise RunFailed(f"{scenario.name}: {exc2}") from None
         return WalkRun(scenario, reference, record, None, summary, wall, out)
     summary = {"scenario": scenario.as_dict(), **analysis.summary}
+    muscle_files = None
+    if muscle_walk is not None:
+        summary["muscle"], muscle_files = _muscle_outputs(muscle_walk, analysis)
     try:
         if scenario.band_references:
             from afo_mj.gait.reference import load_normative
@@ -242,11 +250,50 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
             out = write_run_outputs(out_dir, summary, analysis.cycles, reference, record,
                                     scenario.text, extra_files=_chain(
                                         _run_info_writer(wall),
-                                        _recording_writer(scenario, runs, reference)),
+                                        _recording_writer(scenario, runs, reference),
+                                        *([muscle_files] if muscle_files else [])),
                                     figures=figures)
     except (GaitAnalysisError, ReportError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}") from None
     return WalkRun(scenario, reference, record, analysis, summary, wall, out)
+
+
+def _simulate_muscle_walk(scenario):
+    """The muscle-driven walk of a ``walker.model = "muscle"`` scenario: its reflex set, for
+    ``gait.strides`` right strides of the set's recorded stride time (plus two and 1 s), the
+    ``[impairment]`` strength fractions as the muscles' maximum-force factors (plantarflexor:
+    soleus and gastrocnemius; dorsiflexor: tibialis anterior)."""
+    from afo_mj.gait.muscle_walk import run_muscle_walk
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    try:
+        params = load_reflex_set(scenario.reflex_set)
+        doc = json.loads(Path(scenario.reflex_set).read_text())
+    except (OSError, ValueError, KeyError) as exc:
+        raise InvalidInput(f"walker.reflex_set = {str(scenario.reflex_set)!r}: {exc}") from None
+    stride = float((doc.get("quality") or {}).get("stride_s") or 1.2)
+    w = scenario.walker
+    scale = {}
+    for names, f in ((("soleus", "gastrocnemius"), w.plantarflexor_strength_fraction),
+                     (("tibialis_anterior",), w.dorsiflexor_strength_fraction)):
+        if f != 1.0:
+            scale.update({n: max(float(f), 0.01) for n in names})
+    return run_muscle_walk(w, params, 1.0 + (scenario.strides + 2) * stride,
+                           max_force_scale=scale or None)
+
+
+def _muscle_outputs(walk, analysis):
+    """The summary's ``muscle`` block over the analysed strides and a writer of
+    ``muscles_cycle.csv`` (:func:`afo_mj.metrics.muscle_metrics.muscle_cycle_table`)."""
+    from afo_mj.metrics.muscle_metrics import muscle_cycle_table, muscle_summary
+    t0, t1 = analysis.summary["analysed_span_s"]
+    block = muscle_summary(walk, t0, t1)
+    hs = [h for h in walk.record.events.heel_strikes_s[0] if t0 - 1e-9 <= h <= t1 + 1e-9]
+    header, rows = muscle_cycle_table(walk, hs)
+
+    def write(tmp: Path) -> None:
+        np.savetxt(tmp / "muscles_cycle.csv", rows, delimiter=",", header=",".join(header),
+                   comments="", fmt="%.6g")
+    return block, write
 
 
 def _device_files_writer(results, reference, dsum, name, wall_s, figures: bool):

@@ -42,7 +42,7 @@ from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams
 
-__all__ = ["KINDS", "Assistance", "assistance_walk", "assistance_summary"]
+__all__ = ["KINDS", "Assistance", "assistance_walk", "assistance_summary", "assistance_comparison"]
 
 #: the conditions :class:`Assistance` knows
 KINDS = ("none", "worn_mass", "zhang", "clutched_spring", "hafo")
@@ -215,3 +215,34 @@ def assistance_summary(walk: MuscleWalk, settle_s: float = 3.0, device=None) -> 
                                 "losses_j": led["losses_j"],
                                 "balance_error_rel": led["balance_error_rel"]}
     return out
+
+
+def assistance_comparison(params: np.ndarray, conditions=None, walker: WalkerParams | None = None,
+                          duration_s: float = 20.0, settle_s: float = 3.0,
+                          max_force_scale: dict | None = None, workers: int | None = None
+                          ) -> list[dict]:
+    """Every condition (default: one of each kind) walked by the same reflex set (the naive
+    wearer), in parallel; per condition its :func:`assistance_summary` with ``label``, and,
+    where both it and the first condition walked, ``metabolic_change_pct``: the change of the
+    net metabolic rate (Umberger) against the first condition."""
+    from afo_mj.experiments.batch import run_batch
+    conds = list(conditions) if conditions is not None else [Assistance(k) for k in KINDS]
+    items = [(a, walker, params, duration_s, settle_s, max_force_scale) for a in conds]
+    res = run_batch(_compare_one, items, workers)
+    rows = []
+    for a, r in zip(conds, res):
+        if not r.ok:
+            raise RuntimeError(f"assistance {a.label}: {r.error}")
+        rows.append(dict(r.value, label=a.label, kind=a.kind))
+    base = rows[0].get("net_metabolic_w_per_kg")
+    for row in rows:
+        v = row.get("net_metabolic_w_per_kg")
+        if base and v is not None and row["fell_s"] is None and rows[0]["fell_s"] is None:
+            row["metabolic_change_pct"] = 100.0 * (v - base) / base
+    return rows
+
+
+def _compare_one(item):
+    a, walker, params, duration_s, settle_s, scale = item
+    walk, dev = assistance_walk(a, walker, params, duration_s, max_force_scale=scale)
+    return assistance_summary(walk, settle_s, dev)

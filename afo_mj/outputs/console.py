@@ -57,6 +57,16 @@ def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -
     span = s["residual_force_rms_percent_body_weight"].get("over_analysed_span")
     lines.append(f"  residual force RMS {'-' if span is None else f'{span:.2f}'} % body "
                  f"weight; residual moment RMS {_f(s['residual_moment_rms_nm'])} N*m")
+    mus = s.get("muscle")
+    if mus:
+        cot = mus["net_cost_of_transport_umberger_j_per_kg_m"]
+        lines.append(f"  muscles: net metabolic rate {mus['net_metabolic_umberger_w_per_kg']:.2f} "
+                     f"W/kg (Umberger 2010), {mus['net_metabolic_bhargava_w_per_kg']:.2f} "
+                     f"(Bhargava 2004); net cost of transport "
+                     f"{'-' if cot is None else f'{cot:.2f}'} J/(kg m)")
+        if mus["emg_timing_right"]:
+            lines.append("  EMG timing agreement with Perry (fraction of the cycle): " + ", ".join(
+                f"{k} {v['agreement']:.2f}" for k, v in mus["emg_timing_right"].items()))
     for name, fractions in s.get("band_fraction_vs", {}).items():
         lines.append(f"  fraction of the cycle inside the ±1 SD band of {name}: " + ", ".join(
             f"{ch.split('_')[0]} {_f(v, '.2f')}" for ch, v in fractions.items()))

@@ -13,6 +13,15 @@ Schema (every section and key optional except where said; unknown keys are error
     height_m = 1.75
     timestep_s = 0.001               # default 1 ms, but 0.5 ms when the resulting height_m is
                                      # below 1.3 m (body_presets.default_timestep_s)
+    model = "torque"                 # "torque" (PD tracking of the reference, the default) or
+                                     # "muscle": 14 Hill-type muscles under a reflex controller
+                                     # (afo_mj.gait.muscle_walk); the reference then only scores
+                                     # the walk, [impairment] strength fractions scale the
+                                     # muscles' maximum forces, [controller] and [device] do
+                                     # not apply
+    reflex_set = "1.25"              # muscle model: a shipped set (MUSCLE_REFLEX_SETS) or a
+                                     # reflex_params.json path (afo-mj optimize-gait), relative
+                                     # to the file
     [gait]
     reference = "winter"             # "winter" | "schwartz2008" (default "winter")
     condition = "normal"             # winter: normal; schwartz2008: VerySlow|Slow|Free (Fast and
@@ -172,6 +181,10 @@ class WalkScenario:
     record: bool = False
     record_signal_rate_hz: float = 500.0
     record_transform_rate_hz: float = 50.0
+    #: ``walker.model``: "torque" or "muscle"; ``walker.reflex_set``: the muscle model's
+    #: reflex parameter file (absolute path; None for the torque model)
+    walker_model: str = "torque"
+    reflex_set: Path | None = None
 
     def __reduce__(self):
         """Pickle support (batches and sweeps send scenarios to worker processes): the
@@ -240,6 +253,8 @@ class WalkScenario:
                 "band_references": [f"{s}:{c}" for s, c in self.band_references],
                 "walker": {f.name: getattr(self.walker, f.name)
                            for f in dataclasses.fields(self.walker)},
+                "walker_model": self.walker_model,
+                "reflex_set": None if self.reflex_set is None else str(self.reflex_set),
                 "controller": dict(self.controller),
                 # every gain the run used (defaults included), so a result can be reproduced
                 "controller_effective": dataclasses.asdict(self.controller_params())}
@@ -367,6 +382,53 @@ def _walker(ctx: _Ctx, walker_tbl: dict, imp_tbl: dict) -> WalkerParams:
                             f"{', '.join(dotted.values())} rejected together: {exc}") from None
 
 
+#: walker models (``walker.model``)
+WALKER_MODELS = ("torque", "muscle")
+
+
+def muscle_reflex_sets() -> dict[str, Path]:
+    """The shipped reflex parameter sets of the muscle walker by name (``"1.25"`` is
+    ``afo_mj/data/reflex_params_1.25.json``)."""
+    from importlib.resources import files
+    data = Path(str(files("afo_mj") / "data"))
+    return {p.stem.removeprefix("reflex_params_"): p
+            for p in sorted(data.glob("reflex_params_*.json"))}
+
+
+def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -> Path | None:
+    """``walker.model`` and ``walker.reflex_set``: the reflex file of a muscle walker (None
+    for the torque model); the muscle model refuses the torque walker's ``[controller]`` and
+    the orthosis tables."""
+    model = ctx.string("walker.model", model, " | ".join(repr(m) for m in WALKER_MODELS))
+    if model not in WALKER_MODELS:
+        raise ctx.fail("walker.model", model, "is not a walker model",
+                       " | ".join(repr(m) for m in WALKER_MODELS))
+    if model == "torque":
+        if raw_set is not None:
+            raise ctx.fail("walker.reflex_set", raw_set, "is given for the torque model",
+                           "walker.reflex_set with walker.model = 'muscle'")
+        return None
+    for table in ("controller", "device", "circuit", "assistance"):
+        if ctx.table(doc, table):
+            raise ctx.fail(table, dict(ctx.table(doc, table)),
+                           "does not apply to walker.model = 'muscle'",
+                           f"no [{table}] table (assistance on the muscle walker: "
+                           "afo_mj.experiments.muscle_assistance)")
+    shipped = muscle_reflex_sets()
+    raw = ctx.string("walker.reflex_set", "1.25" if raw_set is None else raw_set,
+                     "a shipped set (" + ", ".join(shipped) + ") or a reflex_params.json path")
+    if raw in shipped:
+        return shipped[raw]
+    p = Path(raw)
+    if not p.is_absolute() and base_dir is not None:
+        p = base_dir / p
+    if p.suffix.lower() != ".json" or not p.is_file():
+        raise ctx.fail("walker.reflex_set", raw, f"is neither a shipped set nor a file (looked "
+                       f"at {p})", "a shipped set (" + ", ".join(shipped) + ") or an existing "
+                       "reflex_params.json (afo-mj optimize-gait)")
+    return p
+
+
 def _controller(ctx: _Ctx, tbl: dict) -> dict[str, float]:
     fields = _controller_fields()
     out: dict[str, float] = {}
@@ -477,7 +539,11 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         raise ctx.fail("name", name, "is not a valid name", "letters, digits, _ . - (non-empty)")
     description = ctx.string("description", doc.get("description", ""))
 
-    walker = _walker(ctx, ctx.table(doc, "walker"), ctx.table(doc, "impairment"))
+    walker_tbl = dict(ctx.table(doc, "walker"))
+    model = walker_tbl.pop("model", "torque")
+    raw_set = walker_tbl.pop("reflex_set", None)
+    walker = _walker(ctx, walker_tbl, ctx.table(doc, "impairment"))
+    reflex_set = _muscle_model(ctx, doc, model, raw_set, base_dir)
 
     gait = ctx.table(doc, "gait")
     ctx.unknown("gait", gait, _GAIT_KEYS)
@@ -593,6 +659,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                         strides=strides, analyse_strides=(first, last),
                         controller=MappingProxyType(controller), source_path=source_path,
                         text=text, notes=tuple(notes),
+                        walker_model=model, reflex_set=reflex_set,
                         device=MappingProxyType(ctx.table(doc, "device")),
                         assistance=MappingProxyType(ctx.table(doc, "assistance")),
                         circuit=MappingProxyType(ctx.table(doc, "circuit")))

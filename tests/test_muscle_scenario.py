@@ -1,0 +1,93 @@
+"""``[walker] model = "muscle"`` scenarios (issue 22): parsing with named errors, a run through
+``run_scenario`` equal to the muscle walk run directly, and its summary's muscle block against
+the per-muscle arrays summed by hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from afo_mj.scenarios.walk_scenario import ScenarioError, muscle_reflex_sets, parse_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+BASE = """
+[walker]
+model = "muscle"
+{extra}
+[gait]
+strides = 6
+analyse_strides = [3, 6]
+"""
+
+
+def test_shipped_sets_and_default():
+    sets = muscle_reflex_sets()
+    assert {"1.0", "1.25", "1.5"} <= set(sets)
+    sc = parse_scenario(BASE.format(extra=""))
+    assert sc.walker_model == "muscle" and sc.reflex_set == sets["1.25"]
+    assert parse_scenario("").walker_model == "torque" and parse_scenario("").reflex_set is None
+
+
+@pytest.mark.parametrize("text, match", [
+    ('[walker]\nmodel = "hill"', r"walker.model = 'hill'.*allowed: 'torque' \| 'muscle'"),
+    ('[walker]\nreflex_set = "1.25"', r"walker.reflex_set = '1.25' is given for the torque"),
+    (BASE.format(extra='reflex_set = "2.0"'), r"walker.reflex_set = '2.0' is neither a shipped"),
+    (BASE.format(extra="") + "[controller]\nkp_hip_nm_per_rad = 100.0\n",
+     r"controller = .* does not apply to walker.model = 'muscle'"),
+    (BASE.format(extra="") + '[device]\npreset = "hafo"\n',
+     r"device = .* does not apply to walker.model = 'muscle'"),
+])
+def test_bad_muscle_scenarios_are_named(text, match):
+    with pytest.raises(ScenarioError, match=match):
+        parse_scenario(text)
+
+
+def test_reflex_set_path_relative_to_the_file(tmp_path):
+    src = muscle_reflex_sets()["1.5"]
+    (tmp_path / "mine.json").write_text(src.read_text())
+    sc = parse_scenario(BASE.format(extra='reflex_set = "mine.json"'), base_dir=tmp_path)
+    assert sc.reflex_set == tmp_path / "mine.json"
+
+
+def test_run_scenario_is_the_muscle_walk_with_its_metabolics():
+    from afo_mj.app.run import run_scenario
+    from afo_mj.gait.muscle_walk import run_muscle_walk
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    res = run_scenario(ROOT / "scenarios" / "walk_muscle_healthy.toml",
+                       overrides=["gait.strides=6", "gait.analyse_strides=[3, 6]"])
+    s = res.summary
+    assert not res.fell and s["completed_strides"] >= 6
+    params = load_reflex_set(muscle_reflex_sets()["1.25"])
+    direct = run_muscle_walk(None, params, float(res.record.time_s[-1]))
+    n = min(len(direct.record.time_s), len(res.record.time_s))
+    assert n >= len(res.record.time_s) - 1
+    np.testing.assert_array_equal(direct.record.qpos[:n], res.record.qpos[:n])
+    t0, t1 = s["analysed_span_s"]
+    sel = (direct.record.time_s > t0) & (direct.record.time_s <= t1)
+    m = s["muscle"]
+    want = direct.metabolic_umberger_w[sel].sum(axis=(1, 2)).mean() / 75.0
+    assert m["net_metabolic_umberger_w_per_kg"] == pytest.approx(want, rel=1e-12)
+    sol = m["muscles"]["soleus"]
+    assert sol["peak_activation"] == pytest.approx(direct.activation[sel, :, 0].max())
+    assert set(m["emg_timing_right"]) == {"soleus", "gastrocnemius", "tibialis_anterior"}
+
+
+def test_impairment_fractions_are_the_muscles_force_factors():
+    """plantarflexor_strength_fraction 0.5 is the walk with soleus and gastrocnemius at half
+    their maximum force (and the dorsiflexor fraction the tibialis anterior's)."""
+    from afo_mj.app.run import run_scenario
+    from afo_mj.gait.muscle_walk import run_muscle_walk
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    res = run_scenario(ROOT / "scenarios" / "walk_muscle_healthy.toml",
+                       overrides=["gait.strides=2", "gait.analyse_strides=[1, 2]",
+                                  "impairment.plantarflexor_strength_fraction=0.5",
+                                  "impairment.dorsiflexor_strength_fraction=0.8"])
+    params = load_reflex_set(muscle_reflex_sets()["1.25"])
+    scale = {"soleus": 0.5, "gastrocnemius": 0.5, "tibialis_anterior": 0.8}
+    direct = run_muscle_walk(None, params, 1.0, max_force_scale=scale)
+    n = len(direct.record.time_s)
+    np.testing.assert_array_equal(direct.record.qpos, res.record.qpos[:n])
+    healthy = run_muscle_walk(None, params, 1.0)
+    assert not np.array_equal(healthy.record.qpos, direct.record.qpos)
