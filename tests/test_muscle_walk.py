@@ -156,3 +156,29 @@ def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
     obj = GaitObjective(**{k: v for k, v in doc["objective"].items()})
     cost, info = gait_cost(params, obj)
     assert cost == doc["cost"]
+
+
+@pytest.mark.slow
+def test_robust_set_walks_twenty_strides_under_every_perturbation():
+    """Issue 22's robustness: the shipped robust 1.25 m/s set walks 22 s (≥ 20 right strides)
+    with body mass −15 % and +15 %, 1 kg at the right ankle, and the HAFO's worn masses, and
+    still reproduces its recorded robust cost exactly."""
+    from pathlib import Path
+
+    from afo_mj.human.walker import WalkerParams
+    from afo_mj.studies.gait_optimization import (GaitObjective, gait_cost, load_reflex_set,
+                                                  robustness_variants)
+    path = Path(__file__).resolve().parents[1] / "afo_mj" / "data" / \
+        "reflex_params_1.25_robust.json"
+    doc = json.loads(path.read_text())
+    params = load_reflex_set(path)
+    variants = robustness_variants()
+    assert [v.name for v in variants] == doc["variants"]
+    for v in variants:
+        walk = mw.run_muscle_walk(WalkerParams(body_mass_kg=75.0 * v.body_mass_scale), params,
+                                  22.0, worn_masses=v.worn_masses)
+        r = walk.record
+        assert r.events.fall_time_s is None, v.name
+        assert len(r.events.heel_strikes_s[0]) >= 21, v.name
+    cost, _ = gait_cost(params, GaitObjective(**doc["objective"], variants=variants))
+    assert cost == doc["cost"]

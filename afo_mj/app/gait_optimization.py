@@ -41,8 +41,12 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
     for name, value, ok, allowed in checks:
         if not ok or (isinstance(value, float) and not math.isfinite(value)):
             raise InvalidInput(f"{name} = {value!r}; allowed: {allowed}")
+    from afo_mj.human.body_presets import SMALL_BODY_HEIGHT_M, default_timestep_s
     try:
-        walker = WalkerParams(body_mass_kg=body_mass_kg, height_m=height_m)
+        # a small body's dynamics are faster: its step as its scenarios take it
+        kw = ({"timestep_s": default_timestep_s(float(height_m))}
+              if isinstance(height_m, (int, float)) and height_m < SMALL_BODY_HEIGHT_M else {})
+        walker = WalkerParams(body_mass_kg=body_mass_kg, height_m=height_m, **kw)
     except ParameterError as exc:
         raise InvalidInput(str(exc).replace("WalkerParams.body_mass_kg", "--body-mass-kg")
                            .replace("WalkerParams.height_m", "--height-m")) from None

@@ -11,11 +11,12 @@ the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller 
   356:1280; :func:`afo_mj.control.assistance.zhang_profile`, published timing: peak at
   52.9 %, rise 26.2 %, fall 9.8 % of the stride) against the gait phase estimated from each
   foot's stance (:func:`afo_mj.control.assistance.phase_update`), massless;
-* ``clutched_spring`` — an ideal, massless clutched spring in parallel with the calf (as in
-  Collins, Wiggin & Sawicki 2015, *Nature* 522:212): while the foot is on the ground and
-  before ``spring_release_phase`` of the stride it resists dorsiflexion past
-  ``spring_rest_rad`` with ``spring_nm_per_rad`` (:func:`afo_mj.control.impedance.
-  impedance_torque`, engaged only past the rest angle), free in swing;
+* ``clutched_spring`` — an ideal, massless clutched spring in parallel with the calf, as in
+  Collins, Wiggin & Sawicki (2015, *Nature* 522:212): the clutch engages once per stance,
+  at ``spring_engage_phase`` of the stride (foot flat), with the spring slack at the ankle
+  angle of that moment; it then resists dorsiflexion past that angle with
+  ``spring_nm_per_rad`` and returns the energy in push-off, and opens at toe off or at
+  ``spring_release_phase``, free in swing;
 * ``hafo`` — the HAFO (preset ``hafo_gait``) worn on the right ankle, its pump, hoses,
   cylinders and controller stepped with MuJoCo, commanding the Zhang profile of
   ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result.
@@ -36,7 +37,6 @@ import math
 import numpy as np
 
 from afo_mj.control import assistance as asst
-from afo_mj.control.impedance import impedance_table, impedance_torque
 from afo_mj.devices.hafo import HafoDevice, hafo_params
 from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
@@ -57,16 +57,17 @@ class Assistance:
     ideal conditions (the HAFO is worn on the right).
 
     Defaults: Zhang peak 0.5 N·m/kg (a moderate torque chosen here, about a third of the
-    1.6 N·m/kg biological ankle moment peak); spring 180 N·m/rad about neutral, released at
-    62 % of the stride (Collins et al. 2015 found the metabolic minimum at their medium
-    spring of about this stiffness); HAFO peak 40 N·m (``scenarios/gait_assist_hafo.toml``).
+    1.6 N·m/kg biological ankle moment peak); spring 180 N·m/rad engaged at 10 % of the
+    stride (foot flat) and released by 62 % or at toe off (Collins et al. 2015 found the
+    metabolic minimum at their medium spring of about this stiffness); HAFO peak 40 N·m
+    (``scenarios/gait_assist_hafo.toml``).
     """
 
     kind: str = "none"
     sides: tuple = ("right", "left")
     zhang_peak_nm_per_kg: float = 0.5
     spring_nm_per_rad: float = 180.0
-    spring_rest_rad: float = 0.0
+    spring_engage_phase: float = 0.10
     spring_release_phase: float = 0.62
     hafo_peak_torque_nm: float = 40.0
     hafo_preset: str = "hafo_gait"
@@ -82,7 +83,7 @@ class Assistance:
         object.__setattr__(self, "sides", sides)
         for name, lo, hi in (("zhang_peak_nm_per_kg", 0.0, 3.0),
                              ("spring_nm_per_rad", 0.0, 2000.0),
-                             ("spring_rest_rad", -0.5, 0.5),
+                             ("spring_engage_phase", 0.0, 0.5),
                              ("spring_release_phase", 0.3, 1.0),
                              ("hafo_peak_torque_nm", 0.0, 80.0)):
             v = getattr(self, name)
@@ -108,15 +109,15 @@ class _IdealTorque:
     def __init__(self, a: Assistance, body_mass_kg: float):
         self.sides = np.array([SIDE_INDEX[s] for s in a.sides])
         self.phase = asst.new_phase_state(2)
-        if a.kind == "zhang":
-            self.table = asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
-                                            *ZHANG_TIMING_PCT)
-            self.impedance = False
-        else:
-            self.table = impedance_table([
-                (a.spring_release_phase, a.spring_nm_per_rad, 0.0, a.spring_rest_rad, 1.0),
-                (1.0, 0.0, 0.0, 0.0, 0.0)])
-            self.impedance = True
+        self.spring = a.kind == "clutched_spring"
+        self.k = a.spring_nm_per_rad
+        self.engage_phase = a.spring_engage_phase
+        self.release_phase = a.spring_release_phase
+        self.table = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
+                                         *ZHANG_TIMING_PCT) if a.kind == "zhang" else None)
+        #: per side: the clutch's engagement angle (rad), NaN while open; engaged this stance
+        self.theta_engaged = np.full(2, np.nan)
+        self.used = np.zeros(2, bool)
         self.out = np.zeros(2)
 
     def __call__(self, t, angle2, velocity2, stance2):
@@ -124,13 +125,21 @@ class _IdealTorque:
         out[:] = 0.0
         for s in self.sides:
             ph = asst.phase_update(self.phase[s], t, bool(stance2[s]), 0.4, 3.0)
-            if self.impedance:
-                # the clutch holds only while the foot is on the ground (and not before the
-                # estimator has a stride, phase −1)
-                out[s] = (impedance_torque(self.table, ph, angle2[s], velocity2[s])
-                          if ph >= 0.0 and stance2[s] else 0.0)
-            else:
+            if not self.spring:
                 out[s] = asst.table_lookup(self.table, ph)
+                continue
+            if not stance2[s] or ph < 0.0 or ph > self.release_phase:
+                # swing (or no stride estimate yet, or past the release): the clutch is open
+                self.theta_engaged[s] = np.nan
+                if not stance2[s]:
+                    self.used[s] = False
+                continue
+            if math.isnan(self.theta_engaged[s]) and not self.used[s] \
+                    and ph >= self.engage_phase:
+                self.theta_engaged[s] = angle2[s]          # engages slack, at foot flat
+                self.used[s] = True
+            if not math.isnan(self.theta_engaged[s]):
+                out[s] = -self.k * max(angle2[s] - self.theta_engaged[s], 0.0)
         return out
 
 

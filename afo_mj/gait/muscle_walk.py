@@ -37,6 +37,8 @@ __all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_s
            "run_muscle_walk"]
 
 GRAVITY_M_S2 = 9.81
+#: the stature Geyer & Herr's muscle lengths are for (m)
+REFERENCE_HEIGHT_M = 1.75
 #: fall: hip below this drop from its start (m, for a 1.75 m walker) or trunk beyond 1 rad
 FALL_DROP_M = 0.25
 FALL_TILT_RAD = 1.0
@@ -115,12 +117,31 @@ class MuscleWalk:
         return energy / (r.body_mass_kg * dist)
 
 
-def muscle_table_scaled(timestep_s: float, max_force_scale: dict | None = None) -> np.ndarray:
-    """The compiled law's muscle table with each named muscle's maximum isometric force
-    scaled (both legs), e.g. ``{"soleus": 0.5, "gastrocnemius": 0.5}`` for a plantarflexor
-    weakness; masses (and so the metabolic models' scale) stay. A name not in
-    :data:`afo_mj.gait.reflex_law.MUSCLES` or a factor outside (0, 2] raises ValueError."""
+def muscle_table_scaled(timestep_s: float, max_force_scale: dict | None = None,
+                        height_m: float = REFERENCE_HEIGHT_M) -> np.ndarray:
+    """The compiled law's muscle table for a walker of stature ``height_m`` with each named
+    muscle's maximum isometric force scaled (both legs), e.g. ``{"soleus": 0.5,
+    "gastrocnemius": 0.5}`` for a plantarflexor weakness (masses, and so the metabolic
+    models' scale, stay). A name not in :data:`afo_mj.gait.reflex_law.MUSCLES` or a factor
+    outside (0, 2] raises ValueError.
+
+    Body size by geometric similarity from Geyer & Herr's 1.75 m adult (their lengths):
+    with ``s = height_m / 1.75`` the optimal fibre and slack lengths and the moment arms
+    scale by ``s``, the maximum force by ``s²`` (cross-section) and the muscle mass by ``s³``
+    (volume); maximum velocities are in optimal lengths per second and neural delays are
+    kept. A body mass other than 75 kg at the same stature keeps the muscles (a heavier or
+    lighter person of the same build carries it with the same muscles)."""
     T = rl.muscle_table(timestep_s)
+    sc = float(height_m) / REFERENCE_HEIGHT_M
+    if not 0.3 <= sc <= 1.5:
+        raise ValueError(f"height_m = {height_m!r}; allowed: 0.5 … 2.6 m")
+    if sc != 1.0:
+        T[:, rl.T_LOPT] *= sc
+        T[:, rl.T_LSLACK] *= sc
+        T[:, rl.T_FMAX] *= sc * sc
+        T[:, rl.T_MASS] *= sc ** 3
+        for q in range(2):
+            T[:, rl.T_PATH + rl.PATH_W * q + 2] *= sc          # r_0 of each path
     for name, f in (max_force_scale or {}).items():
         if name not in rl.MUSCLES:
             raise ValueError(f"max_force_scale[{name!r}]; allowed: {', '.join(rl.MUSCLES)}")
@@ -161,7 +182,7 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
     if device is not None and abs(device.timestep_s - h) > 1e-12:
         raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
                          f"MuJoCo timestep {h}; allowed: equal")
-    T = muscle_table_scaled(h, max_force_scale)
+    T = muscle_table_scaled(h, max_force_scale, w.height_m)
     mg = phys.body_mass_kg * GRAVITY_M_S2
     lq, lv = phys.leg_qpos, phys.leg_dof
     q = d.qpos

@@ -37,6 +37,7 @@ state ``X`` (the ``X_*`` offsets), ring buffer ``ring`` (``RING_LEN`` × ``RING_
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numba
@@ -91,7 +92,7 @@ X_RING_POS = 114
 N_X = 115
 #: ring buffer: per leg 17 columns (force/F_max ×7, l_CE/l_opt ×7, φ_k, φ̇_k, load/mg), then
 #: trunk lean and its rate
-RING_LEN = 32
+RING_LEN = 64
 RING_LEG = 17
 RING_COLS = 2 * RING_LEG + 2
 #: stance hysteresis (fraction of body weight) and the shortest stance or swing (s): a
@@ -310,8 +311,12 @@ def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool,
         ph, pk, pa = geyer_angles(*[float(v) for v in leg_angles_rad[s]])
         for m, name in enumerate(MUSCLES):
             lm = mtu_length_and_arms(T, m, ph, pk, pa)[0]
+            # the table's muscle (scaled by body size or strength) balanced at rest
+            p = dataclasses.replace(mu.GEYER_HERR_2010[name][0], max_force_n=T[m, T_FMAX],
+                                    optimal_length_m=T[m, T_LOPT],
+                                    slack_length_m=T[m, T_LSLACK])
             X[X_LCE + s * N_MUSCLES + m] = mu.equilibrium_ce_length_m(
-                mu.PREACTIVATION, lm, mu.GEYER_HERR_2010[name][0])
+                mu.PREACTIVATION, lm, p)
         X[X_STANCE + s] = 1.0 if stance[s] else 0.0
         X[X_TOUCHDOWN_T + s] = touchdown_s[s]
         X[X_SWITCH_T + s] = -1.0

@@ -1,0 +1,99 @@
+"""The muscle walker's assistance table (README, issue 22): every condition of
+:mod:`afo_mj.experiments.muscle_assistance` walked by the naive wearer (one reflex set) and,
+when given, by the adapted wearer (a set re-optimised with each condition worn).
+
+Run::
+
+    .venv/bin/python tools/muscle_assistance_table.py \\
+        --naive afo_mj/data/reflex_params_1.25_robust.json [--adapted DIR] [--weak 0.5]
+
+``DIR/<kind>/reflex_params.json`` are the adapted sets (``afo-mj optimize-gait --assistance
+KIND --start NAIVE --out DIR/KIND``; ``DIR/none`` is the control: the same generations
+without a device). ``--weak F`` adds the rows of a walker whose soleus and gastrocnemius have
+``F`` of their maximum force. Prints markdown tables and, last, a JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from afo_mj.experiments.muscle_assistance import (KINDS, Assistance,  # noqa: E402
+                                                  assistance_comparison, assistance_summary,
+                                                  assistance_walk)
+from afo_mj.studies.gait_optimization import load_reflex_set  # noqa: E402
+
+
+def _fmt(v, f=".2f"):
+    return "–" if v is None else format(v, f)
+
+
+def rows_table(rows, title):
+    head = ("| condition | walks | speed m/s | net metabolic W/kg (Umberger) | change | "
+            "Bhargava W/kg | ankle muscle +work J/stride | device net work J/stride | "
+            "peak ankle power W/kg |")
+    out = [f"**{title}**", "", head, "|" + "---|" * 9]
+    for r in rows:
+        walks = "yes" if r["fell_s"] is None else f"falls at {r['fell_s']:.1f} s"
+        ch = r.get("metabolic_change_pct")
+        out.append(f"| {r['label']} | {walks} | {_fmt(r.get('speed_m_s'))} | "
+                   f"{_fmt(r.get('net_metabolic_w_per_kg'))} | "
+                   f"{'–' if ch is None else f'{ch:+.1f} %'} | "
+                   f"{_fmt(r.get('net_metabolic_bhargava_w_per_kg'))} | "
+                   f"{_fmt(r.get('ankle_muscle_positive_work_j_per_stride'), '.1f')} | "
+                   f"{_fmt(r.get('ankle_device_net_work_j_per_stride'), '.1f')} | "
+                   f"{_fmt(r.get('ankle_peak_power_w_per_kg'))} |")
+    return "\n".join(out)
+
+
+def adapted_rows(directory: Path, duration_s: float):
+    rows = []
+    for kind in KINDS:
+        f = directory / kind / "reflex_params.json"
+        if not f.is_file():
+            continue
+        a = Assistance(kind)
+        walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s)
+        rows.append(dict(assistance_summary(walk, 3.0, dev), label=a.label, kind=kind))
+    base = rows[0] if rows and rows[0]["kind"] == "none" else None
+    for r in rows:
+        if base and base["fell_s"] is None and r["fell_s"] is None:
+            r["metabolic_change_pct"] = 100.0 * (r["net_metabolic_w_per_kg"]
+                                                 / base["net_metabolic_w_per_kg"] - 1.0)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--naive", required=True, help="the naive wearer's reflex_params.json")
+    ap.add_argument("--adapted", default=None, help="folder of adapted sets, one per kind")
+    ap.add_argument("--weak", type=float, default=None, help="plantarflexor force factor")
+    ap.add_argument("--duration", type=float, default=20.0, help="walk seconds")
+    args = ap.parse_args(argv)
+    params = load_reflex_set(args.naive)
+    result = {"naive": assistance_comparison(params, duration_s=args.duration)}
+    print(rows_table(result["naive"], f"Naive wearer ({Path(args.naive).name})"))
+    if args.weak is not None:
+        scale = {"soleus": args.weak, "gastrocnemius": args.weak}
+        conds = [Assistance("none"), Assistance("zhang"), Assistance("hafo")]
+        weak = assistance_comparison(params, conds, duration_s=args.duration,
+                                     max_force_scale=scale)
+        result["weak"] = weak
+        print()
+        print(rows_table(weak, f"Plantarflexors at {args.weak:g} of their maximum force, naive"))
+    if args.adapted:
+        result["adapted"] = adapted_rows(Path(args.adapted), args.duration)
+        print()
+        print(rows_table(result["adapted"], "Adapted wearer (re-optimised with each condition)"))
+    for rows in result.values():
+        for r in rows:
+            r.pop("device_ledger", None)
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
