@@ -235,7 +235,8 @@ def _optimize_gait(args) -> int:
     from afo_mj.app.gait_optimization import optimize_reflex_gait
     doc = optimize_reflex_gait(args.out, args.speed, args.generations, args.popsize,
                                args.seed, args.start, args.workers, args.body_mass_kg,
-                               args.height_m, args.assistance, args.robust)
+                               args.height_m, args.assistance, args.robust,
+                               args.plantarflexor_strength)
     _print(console.gait_optimization_lines(doc, args.out))
     return 0
 

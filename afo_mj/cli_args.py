@@ -151,6 +151,8 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     og.add_argument("--assistance", default="none",
                     choices=("none", "worn_mass", "zhang", "clutched_spring", "hafo"),
                     help="device worn while optimising (the adapted wearer; default none)")
+    og.add_argument("--plantarflexor-strength", type=float, default=1.0,
+                    help="soleus and gastrocnemius maximum force as a fraction (weakness)")
     og.add_argument("--robust", action="store_true",
                     help="also walk with body mass -15 %% and +15 %%, 1 kg at the right ankle "
                          "and the HAFO's worn masses (each fall penalised)")

@@ -125,6 +125,10 @@ def test_cli_optimize_gait(tmp_path, capsys):
     assert main(["optimize-gait", "--out", str(tmp_path / "bad"), "--speed", "9"]) == 2
     assert not (tmp_path / "bad").exists()
     assert "--speed" in capsys.readouterr().err
+    assert main(["optimize-gait", "--out", str(tmp_path / "weak"),
+                 "--plantarflexor-strength", "1.5"]) == 2
+    assert "--plantarflexor-strength = 1.5; allowed: 0.05 to 1" in capsys.readouterr().err
+    assert not (tmp_path / "weak").exists()
 
 
 SHIPPED = ["1.0", "1.25", "1.5"]
@@ -182,3 +186,18 @@ def test_robust_set_walks_twenty_strides_under_every_perturbation():
         assert len(r.events.heel_strikes_s[0]) >= 21, v.name
     cost, _ = gait_cost(params, GaitObjective(**doc["objective"], variants=variants))
     assert cost == doc["cost"]
+
+
+def test_weak_objective_walks_the_weak_walker():
+    """GaitObjective.max_force_scale reaches the walk: the cost is the one of the walk with
+    those muscles weakened."""
+    from afo_mj.studies.gait_optimization import GaitObjective, gait_cost
+    weak = (("soleus", 0.6), ("gastrocnemius", 0.6))
+    obj = GaitObjective(duration_s=3.0, settle_s=1.0, max_force_scale=weak)
+    p = mw.reflex_params()
+    cost, info = gait_cost(p, obj)
+    walk = mw.run_muscle_walk(None, p, 3.0, max_force_scale=dict(weak))
+    t = float(walk.record.time_s[-1])
+    assert walk.record.events.fall_time_s is not None and info["fell_s"] == t
+    plain, _ = gait_cost(p, GaitObjective(duration_s=3.0, settle_s=1.0))
+    assert cost != plain

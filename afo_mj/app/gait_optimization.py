@@ -21,12 +21,13 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
                          popsize: int = 16, seed: int = 1, start: str | None = None,
                          workers: int | None = None, body_mass_kg: float = 75.0,
                          height_m: float = 1.75, assistance: str = "none",
-                         robust: bool = False) -> dict:
+                         robust: bool = False, plantarflexor_strength: float = 1.0) -> dict:
     """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
     content. ``assistance``: the condition worn while walking
     (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults); ``robust``: the
     perturbed walkers of :func:`~afo_mj.studies.gait_optimization.robustness_variants` must
-    walk too."""
+    walk too; ``plantarflexor_strength``: the wearer's soleus and gastrocnemius maximum force
+    as a fraction (a weakness, 0.05 … 1)."""
     from afo_mj import progress
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.human.walker import WalkerParams
@@ -37,7 +38,9 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
     checks = (("--speed", speed_m_s, 0.3 <= speed_m_s <= 2.5, "0.3 to 2.5 m/s"),
               ("--generations", generations, generations >= 1, ">= 1"),
               ("--popsize", popsize, popsize >= 4, ">= 4"),
-              ("--workers", workers, workers is None or workers >= 1, ">= 1"))
+              ("--workers", workers, workers is None or workers >= 1, ">= 1"),
+              ("--plantarflexor-strength", plantarflexor_strength,
+               0.05 <= plantarflexor_strength <= 1.0, "0.05 to 1"))
     for name, value, ok, allowed in checks:
         if not ok or (isinstance(value, float) and not math.isfinite(value)):
             raise InvalidInput(f"{name} = {value!r}; allowed: {allowed}")
@@ -62,7 +65,11 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
         raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")) from None
     objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker,
                               assistance=device,
-                              variants=robustness_variants() if robust else ())
+                              variants=robustness_variants() if robust else (),
+                              max_force_scale=(() if plantarflexor_strength == 1.0 else
+                                               (("soleus", float(plantarflexor_strength)),
+                                                ("gastrocnemius",
+                                                 float(plantarflexor_strength)))))
     rep = progress.reporter()
     task = rep.task(f"optimising the reflex controller for {speed_m_s} m/s", generations,
                     "generations") if rep.active else None

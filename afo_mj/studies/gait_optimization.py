@@ -99,6 +99,9 @@ class GaitObjective:
     #: adds ``variant_fall_penalty + 10 × (duration − time walked)``
     variants: tuple = ()
     variant_fall_penalty: float = 50.0
+    #: ``((muscle, factor), …)``: maximum isometric forces scaled (a weakness the wearer
+    #: has; :func:`afo_mj.gait.muscle_walk.muscle_table_scaled`)
+    max_force_scale: tuple = ()
 
     def __post_init__(self):
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
@@ -151,7 +154,8 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
     """The objective of one walk under ``params`` (lower is better) and what it measured."""
     try:
         walk, _ = assistance_walk(objective.assistance, objective.walker, params,
-                                  objective.duration_s)
+                                  objective.duration_s,
+                                  max_force_scale=dict(objective.max_force_scale) or None)
     except FloatingPointError as exc:
         return 2000.0, {"error": str(exc)}
     r = walk.record
@@ -176,6 +180,7 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
                                     * v.body_mass_scale)
             try:
                 vw, _ = assistance_walk(objective.assistance, w, params, objective.duration_s,
+                                        max_force_scale=dict(objective.max_force_scale) or None,
                                         worn_masses=v.worn_masses)
                 fell = vw.record.events.fall_time_s
             except FloatingPointError:
@@ -260,7 +265,8 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
            "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
            "cost": best[0], "quality": best_info,
            "objective": {k: v for k, v in dataclasses.asdict(objective).items()
-                         if k not in ("walker", "assistance", "variants")},
+                         if k not in ("walker", "assistance", "variants", "max_force_scale")},
+           "max_force_scale": dict(objective.max_force_scale),
            "variants": [v.name for v in objective.variants],
            "assistance": dataclasses.asdict(objective.assistance),
            "walker": {"body_mass_kg": objective.walker.body_mass_kg,
