@@ -132,6 +132,24 @@ def _recording_writer(scenario, runs, reference):
     return write
 
 
+def _opensim_writer(scenario, runs):
+    """Writer of ``opensim/<run>_{ik,id,grf}`` files (:mod:`afo_mj.outputs.opensim_export`)
+    for every run (a walk, or each condition of a device walk) when the scenario's
+    ``[output] opensim`` is true."""
+    if not getattr(scenario, "opensim", False):
+        return None
+
+    def write(tmp: Path) -> None:
+        from afo_mj.outputs.gait_report import ReportError
+        from afo_mj.outputs.opensim_export import write_opensim
+        try:
+            for run in runs:
+                write_opensim(run.record, tmp / "opensim", run.name)
+        except ValueError as exc:
+            raise ReportError(f"opensim files: {exc}") from None
+    return write
+
+
 def write_rrd(path, scenario, runs, reference) -> dict:
     """The rerun recording of ``runs`` (:class:`~afo_mj.outputs.recording.RecordedRun`) at
     the scenario's recording rates; returns the writer's info (``path``, ``entities``)."""
@@ -229,7 +247,8 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
                 out = write_run_outputs(out_dir, summary, [], reference, record, scenario.text,
                                         extra_files=_chain(_run_info_writer(wall),
                                                            _recording_writer(scenario, runs,
-                                                                             reference)),
+                                                                             reference),
+                                                           _opensim_writer(scenario, runs)),
                                         figures=figures)
             except ReportError as exc2:
                 raise RunFailed(f"{scenario.name}: {exc2}") from None
@@ -251,7 +270,7 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
                                     scenario.text, extra_files=_chain(
                                         _run_info_writer(wall),
                                         _recording_writer(scenario, runs, reference),
-                                        *([muscle_files] if muscle_files else [])),
+                                        _opensim_writer(scenario, runs), muscle_files),
                                     figures=figures)
     except (GaitAnalysisError, ReportError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}") from None
@@ -356,7 +375,8 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
                                     extra_files=_chain(
                                         _device_files_writer(results, reference, dsum,
                                                              scenario.name, wall, figures),
-                                        _recording_writer(scenario, runs, reference)),
+                                        _recording_writer(scenario, runs, reference),
+                                        _opensim_writer(scenario, runs)),
                                     figures=figures)
         except ReportError as exc:
             raise RunFailed(f"{scenario.name}: {exc}") from None

@@ -49,6 +49,8 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # the command line writes one anywhere)
     signal_rate_hz = 500.0           # recording: scalar signals sample rate, 1..100000 Hz
     transform_rate_hz = 50.0         # recording: 3D body transforms sample rate, 1..10000 Hz
+    opensim = false                  # true: opensim/<run>_ik.mot, _id.sto, _grf.mot in the
+                                     # results directory (afo_mj.outputs.opensim_export)
 
 Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
 file) raises one :class:`ScenarioError` naming the file, the dotted key, the value and what
@@ -107,7 +109,7 @@ IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_frac
 
 _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller", "device",
              "assistance", "output", "circuit")
-_OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz")
+_OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz", "opensim")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
               "analyse_strides", "band_references", "reference_id_path")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
@@ -181,6 +183,8 @@ class WalkScenario:
     record: bool = False
     record_signal_rate_hz: float = 500.0
     record_transform_rate_hz: float = 50.0
+    #: ``[output] opensim``: write the run(s) as OpenSim storage files
+    opensim: bool = False
     #: ``walker.model``: "torque" or "muscle"; ``walker.reflex_set``: the muscle model's
     #: reflex parameter file (absolute path; None for the torque model)
     walker_model: str = "torque"
@@ -650,7 +654,10 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                         1.0, 1e5, "Hz")
     tf_hz = ctx.number("output.transform_rate_hz", out_tbl.get("transform_rate_hz", 50.0),
                        1.0, 1e4, "Hz")
-    return WalkScenario(record=record, record_signal_rate_hz=sig_hz,
+    opensim = out_tbl.get("opensim", False)
+    if not isinstance(opensim, bool):
+        raise ctx.fail("output.opensim", opensim, "has the wrong type", "true | false")
+    return WalkScenario(record=record, record_signal_rate_hz=sig_hz, opensim=opensim,
                         record_transform_rate_hz=tf_hz, band_references=tuple(bands),
                         reference_id_path=reference_id_path, name=name, description=description,
                         walker=walker,

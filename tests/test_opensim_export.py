@@ -1,0 +1,98 @@
+"""Writing a simulated walk as OpenSim storage files (issue 23): the files read back by
+afo_mj's OpenSim reader equal the record (values, names, signs, units), and the measured-trial
+machinery finds the walk's own gait events in the written ground reaction forces."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from afo_mj.gait.measured_trial import load_measured_trial
+from afo_mj.gait.reference import read_opensim_storage
+from afo_mj.outputs.opensim_export import write_opensim, write_storage
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def walk_record():
+    from afo_mj.gait.walk import simulate_walk
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(ROOT / "scenarios" / "walk_healthy.toml",
+                       overrides=["gait.strides=6", "gait.analyse_strides=[2, 6]"])
+    return simulate_walk(sc)
+
+
+def test_files_read_back_equal_the_record(walk_record, tmp_path):
+    r = walk_record
+    paths = write_opensim(r, tmp_path, "walk")
+    assert {p.name for p in paths.values()} == {"walk_ik.mot", "walk_id.sto", "walk_grf.mot"}
+    hdr, labels, data = read_opensim_storage(paths["ik"])
+    assert hdr["inDegrees"] == "yes" and hdr["source"] == "afo_mj"
+    col = {lab: data[:, i] for i, lab in enumerate(labels)}
+    np.testing.assert_allclose(col["time"], r.time_s, rtol=1e-9)
+    np.testing.assert_allclose(np.radians(col["knee_angle_r"]), r.joint_angle_rad[:, 0, 1],
+                               rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(np.radians(col["ankle_angle_l"]), r.joint_angle_rad[:, 1, 2],
+                               rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(np.radians(col["pelvis_tilt"]), -r.pelvis_tilt_rad, rtol=1e-8,
+                               atol=1e-10)
+    _, labels, data = read_opensim_storage(paths["id"])
+    col = {lab: data[:, i] for i, lab in enumerate(labels)}
+    np.testing.assert_allclose(col["ankle_angle_r_moment"], r.joint_moment_nm[:, 0, 2],
+                               rtol=1e-8, atol=1e-8)
+    _, labels, data = read_opensim_storage(paths["grf"])
+    col = {lab: data[:, i] for i, lab in enumerate(labels)}
+    np.testing.assert_allclose(col["ground_force_l_vy"], r.grf_n[:, 1, 1], rtol=1e-8, atol=1e-8)
+
+
+def test_the_written_trial_gives_back_the_walks_events(walk_record, tmp_path):
+    r = walk_record
+    paths = write_opensim(r, tmp_path, "walk")
+    trial = load_measured_trial(paths["ik"], paths["grf"])
+    assert trial.reference.metadata["knee_flexion_sign"] == 1          # Rajagopal's sign
+    for s, side in enumerate(("right", "left")):
+        sim = np.asarray(r.events.heel_strikes_s[s])
+        got = trial.events.heel_strikes_s[side]
+        # every force-plate heel strike is one of the walk's own (its foot switch), within
+        # a few samples (the switch is a contact, the plate a 50 N threshold); the plate also
+        # sees the first landing of the supported start, before the walk counts strikes
+        for h in got[got > sim[0] - 0.05]:
+            assert np.min(np.abs(sim - h)) < 0.015, (side, h)
+        assert len(got) >= len(sim) - 1
+    assert trial.n_cycles >= 8
+    # the trial's mean cycle is the walk's own: its knee within a degree of the record's
+    # stride-averaged knee angle
+    hs = trial.events.heel_strikes_s["right"]
+    ph = np.linspace(0, 0.99, 50)
+    mean = np.mean([np.interp(a + ph * (b - a), r.time_s, r.joint_angle_rad[:, 0, 1])
+                    for a, b in trial.cycles["right"]], axis=0)
+    both = trial.reference.angles_rad(ph)[:, 1]
+    assert math.degrees(np.max(np.abs(both - mean))) < 3.0
+    assert len(hs) >= 5
+
+
+def test_write_storage_refuses_bad_data(tmp_path):
+    with pytest.raises(ValueError, match="'time' first"):
+        write_storage(tmp_path / "x.sto", ["a", "time"], np.zeros((3, 2)), name="x",
+                      in_degrees=False)
+    with pytest.raises(ValueError, match="column 'b' has non-finite"):
+        write_storage(tmp_path / "x.sto", ["time", "b"], [[0.0, math.nan]], name="x",
+                      in_degrees=False)
+    assert not list(tmp_path.iterdir())
+
+
+def test_output_opensim_writes_every_run_into_the_results(tmp_path):
+    from afo_mj.app.run import run_scenario
+    out = tmp_path / "res"
+    run_scenario(ROOT / "scenarios" / "walk_healthy.toml", out_dir=out, figures=False,
+                 overrides=["gait.strides=3", "gait.analyse_strides=[2, 3]",
+                            "output.opensim=true"])
+    assert sorted(p.name for p in (out / "opensim").iterdir()) == [
+        "walk_grf.mot", "walk_id.sto", "walk_ik.mot"]
+    from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
+    with pytest.raises(ScenarioError, match="output.opensim = 'yes'"):
+        parse_scenario('[output]\nopensim = "yes"')
