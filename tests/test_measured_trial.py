@@ -178,3 +178,30 @@ def test_grf_column_conventions():
         "right": "ground_force_r_vy", "left": "ground_force_l_vy"}
     with pytest.raises(ReferenceGaitError, match="pass grf_columns="):
         grf_columns(["time", "plate1_force_vy", "plate2_force_vy"])
+
+
+def test_a_trial_is_not_taken_for_one_cycle(tmp_path):
+    """The issue's case: a 1.35 s record from 16 % of the right cycle loaded as a reference
+    used to be taken as one cycle from heel strike; now its unmet ends refuse it, naming the
+    way to load a trial."""
+    from afo_mj.gait.reference import load_opensim_storage
+    ik, _ = _write_trial(tmp_path, 0.0, 1.35, -0.16 * T, name="issue")
+    with pytest.raises(ReferenceGaitError, match="ends do not meet.*load_measured_trial"):
+        load_opensim_storage(ik)
+
+
+def test_scenario_reference_from_a_trial(tmp_path):
+    """gait.reference_path + gait.reference_grf_path: the walk is scored against the mean of
+    the trial's cycles."""
+    from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
+    _write_trial(tmp_path, 0.0, 5.0 * T, -0.16 * T)
+    text = ('[gait]\nreference_path = "trial_ik.sto"\nreference_grf_path = "trial_grf.mot"\n'
+            'strides = 4\nanalyse_strides = [2, 4]\n')
+    sc = parse_scenario(text, base_dir=tmp_path)
+    ref = sc.load_reference()
+    assert ref.source == "trial" and ref.cycle_time_s == pytest.approx(T, abs=0.01)
+    assert np.all(_rms_deg(ref) < 0.5)
+    with pytest.raises(ScenarioError, match="gait.reference_grf_path = 'nope.mot'"):
+        parse_scenario(text.replace("trial_grf.mot", "nope.mot"), base_dir=tmp_path)
+    with pytest.raises(ScenarioError, match="given without gait.reference_path"):
+        parse_scenario('[gait]\nreference_grf_path = "trial_grf.mot"\n', base_dir=tmp_path)

@@ -602,6 +602,11 @@ def _find_label(labels: Sequence[str], name: str) -> int | None:
     return None
 
 
+#: how far a record's angles may differ between its first and last sample to be taken as
+#: one gait cycle (gait is periodic: measured cycles close within a few degrees)
+CYCLE_CLOSURE_TOLERANCE_RAD = math.radians(5.0)
+
+
 def load_opensim_storage(path, mapping: Mapping[str, Any] | None = None,
                          body_mass_kg: float | None = None, *, id_path=None,
                          knee_flexion_sign: int | str = "auto", in_degrees: bool | None = None,
@@ -628,7 +633,9 @@ def load_opensim_storage(path, mapping: Mapping[str, Any] | None = None,
     (+ dorsiflexion) already match our convention.
 
     The ``time`` span is one gait cycle from heel strike unless ``cycle_start_s`` /
-    ``cycle_end_s`` (two successive heel strikes) are given.
+    ``cycle_end_s`` (two successive heel strikes) are given; a record whose angles at its two
+    ends differ by more than :data:`CYCLE_CLOSURE_TOLERANCE_RAD` is refused as not one cycle
+    (load a trial with :func:`afo_mj.gait.measured_trial.load_measured_trial`).
     """
     files = [Path(path)] + ([Path(id_path)] if id_path is not None else [])
     parsed = [(str(f), *read_opensim_storage(f)) for f in files]
@@ -691,6 +698,21 @@ def load_opensim_storage(path, mapping: Mapping[str, Any] | None = None,
         if ch in values:
             values[ch] = values[ch] * knee_flexion_sign
 
+    if cycle_start_s is None and cycle_end_s is None:
+        # the whole record is taken as one cycle: its ends must meet (a trial that starts
+        # mid-cycle or holds several cycles does not)
+        jumps = {ch: float(values[ch][-1] - values[ch][0]) for ch in ANGLE_CHANNELS
+                 if ch in values}
+        worst = max(jumps, key=lambda c: abs(jumps[c])) if jumps else None
+        if worst is not None and abs(jumps[worst]) > CYCLE_CLOSURE_TOLERANCE_RAD:
+            raise ReferenceGaitError(
+                f"{origin}: taken as one gait cycle, the record's ends do not meet ({worst} "
+                f"{math.degrees(values[worst][0]):.1f} deg at {t_ref[0]:g} s, "
+                f"{math.degrees(values[worst][-1]):.1f} deg at {t_ref[-1]:g} s; tolerance "
+                f"{math.degrees(CYCLE_CLOSURE_TOLERANCE_RAD):.0f} deg): it is not one cycle "
+                "from heel strike; allowed: cycle_start_s/cycle_end_s at two heel strikes, or "
+                "the trial with its ground reaction forces (afo_mj.gait.measured_trial."
+                "load_measured_trial; a scenario's gait.reference_grf_path)")
     phase, values, period = _cycle_window(t_ref, values, cycle_start_s, cycle_end_s, origin,
                                           "time")
     meta = {"file": origin, "in_degrees": in_degrees, "knee_flexion_sign": knee_flexion_sign,

@@ -30,6 +30,10 @@ Schema (every section and key optional except where said; unknown keys are error
     reference_path = "my_gait.csv"   # instead of reference/condition: a user's cycle, CSV
                                      # (afo_mj.gait.reference.load_reference_csv) or OpenSim
                                      # .sto/.mot (load_opensim_storage); relative to the file
+    reference_grf_path = "grf.mot"   # with an OpenSim reference_path: it is a trial (any
+                                     # start, many cycles); the reference is the mean of its
+                                     # complete cycles, events from these forces
+                                     # (afo_mj.gait.measured_trial)
     cadence_steps_per_min = 105.3    # 30..200; default: the reference's own cadence
     strides = 10                     # right-leg cycles to simulate, 1..1000
     analyse_strides = [4, 10]        # first, last stride analysed (1-based, inclusive)
@@ -111,7 +115,8 @@ _TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller"
              "assistance", "output", "circuit")
 _OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz", "opensim")
 _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
-              "analyse_strides", "band_references", "reference_id_path")
+              "analyse_strides", "band_references", "reference_id_path",
+              "reference_grf_path")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 CADENCE_RANGE = (30.0, 200.0)
 STRIDES_RANGE = (1, 1000)
@@ -166,6 +171,9 @@ class WalkScenario:
     controller: Mapping[str, float]
     band_references: tuple[tuple[str, str], ...] = ()
     reference_id_path: Path | None = None
+    #: ``gait.reference_grf_path``: the trial's ground reaction forces; the reference is
+    #: then the mean of the trial's complete cycles (afo_mj.gait.measured_trial)
+    reference_grf_path: Path | None = None
     source_path: Path | None = None
     text: str = ""
     #: what the parser adjusted on the user's behalf (e.g. the analysed strides following a
@@ -204,7 +212,7 @@ class WalkScenario:
         if self.reference_path is None:
             return ref.load_normative(self.reference, self.condition)
         return _load_reference_file(self.reference_path, self.walker.body_mass_kg,
-                                    self.reference_id_path)
+                                    self.reference_id_path, self.reference_grf_path)
 
     def cycle_time_s(self, reference=None) -> float:
         """Gait cycle time: 120 / cadence; without a cadence, the reference's cycle time
@@ -252,6 +260,8 @@ class WalkScenario:
                 "reference_path": None if self.reference_path is None else str(self.reference_path),
                 "reference_id_path": (None if self.reference_id_path is None
                                       else str(self.reference_id_path)),
+                "reference_grf_path": (None if self.reference_grf_path is None
+                                       else str(self.reference_grf_path)),
                 "cadence_steps_per_min": self.cadence_steps_per_min, "strides": self.strides,
                 "analyse_strides": list(self.analyse_strides),
                 "band_references": [f"{s}:{c}" for s, c in self.band_references],
@@ -264,10 +274,16 @@ class WalkScenario:
                 "controller_effective": dataclasses.asdict(self.controller_params())}
 
 
-def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None = None):
+def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None = None,
+                         grf_path: Path | None = None):
     """A user's reference cycle: OpenSim ``.sto``/``.mot`` coordinates (with an optional
-    inverse-dynamics ``.sto``) or CSV, with the loaders' documented default column mapping."""
+    inverse-dynamics ``.sto``) or CSV, with the loaders' documented default column mapping;
+    with ``grf_path`` the coordinates are a trial and the reference is the mean of its
+    complete cycles (:func:`afo_mj.gait.measured_trial.load_measured_trial`)."""
     from afo_mj.gait import reference as ref
+    if grf_path is not None:
+        from afo_mj.gait.measured_trial import load_measured_trial
+        return load_measured_trial(path, grf_path).reference
     if path.suffix.lower() in (".sto", ".mot"):
         return ref.load_opensim_storage(path, body_mass_kg=body_mass_kg, id_path=id_path)
     return ref.load_reference_csv(path, body_mass_kg=body_mass_kg)
@@ -579,16 +595,33 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                 raise ctx.fail("gait.reference_id_path", raw_id,
                                "needs an OpenSim gait.reference_path and an existing file",
                                "an existing .sto beside an OpenSim .sto/.mot reference_path")
+        grf_path = None
+        if "reference_grf_path" in gait:
+            raw_grf = ctx.string("gait.reference_grf_path", gait["reference_grf_path"],
+                                 "a path to an OpenSim ground-reaction .mot file")
+            grf_path = Path(raw_grf)
+            if not grf_path.is_absolute() and base_dir is not None:
+                grf_path = base_dir / grf_path
+            if p.suffix.lower() not in (".sto", ".mot") or not grf_path.is_file() \
+                    or id_path is not None:
+                raise ctx.fail("gait.reference_grf_path", raw_grf,
+                               "needs an OpenSim gait.reference_path, no reference_id_path "
+                               "and an existing file",
+                               "an existing .mot beside an OpenSim .sto/.mot trial")
         from afo_mj.gait.reference import ReferenceGaitError
         try:
-            _load_reference_file(p, walker.body_mass_kg, id_path)
+            _load_reference_file(p, walker.body_mass_kg, id_path, grf_path)
         except ReferenceGaitError as exc:
             raise ScenarioError(f"{origin}: gait.reference_path = {raw!r} cannot be used: "
                                 f"{exc}") from None
         reference_path, reference, condition = p, "file", None
         reference_id_path = id_path
     else:
-        reference_id_path = None
+        reference_id_path = grf_path = None
+        if "reference_grf_path" in gait:
+            raise ctx.fail("gait.reference_grf_path", gait["reference_grf_path"],
+                           "is given without gait.reference_path",
+                           "a ground-reaction .mot beside an OpenSim gait.reference_path trial")
         if "reference_id_path" in gait:
             raise ctx.fail("gait.reference_id_path", gait["reference_id_path"],
                            "is given without gait.reference_path",
@@ -659,7 +692,8 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
         raise ctx.fail("output.opensim", opensim, "has the wrong type", "true | false")
     return WalkScenario(record=record, record_signal_rate_hz=sig_hz, opensim=opensim,
                         record_transform_rate_hz=tf_hz, band_references=tuple(bands),
-                        reference_id_path=reference_id_path, name=name, description=description,
+                        reference_id_path=reference_id_path, reference_grf_path=grf_path,
+                        name=name, description=description,
                         walker=walker,
                         reference=reference, condition=condition,
                         reference_path=reference_path, cadence_steps_per_min=cadence,
