@@ -260,6 +260,427 @@ class _Buffers:
                    z((n, model.nsensordata)), z((n, 4)), z((n, 2)), z((n, 2)))
 
 
+class Walk:
+    """A steppable walk of the torque-driven walker, in the manner of dm_control's ``Physics``:
+    :meth:`reset`, :meth:`step` (one MuJoCo step of the controller, the device and the
+    physics, returning that step's gait events), named accessors of the state and
+    :meth:`record` (the :class:`~afo_mj.gait.record.GaitRecord` of the steps so far).
+    :func:`run_walk` is a loop over it (or over the same steps compiled), so a walk stepped
+    here to its end is the record ``run_walk`` returns, bit for bit.
+
+    ``step(action)``: ``action`` an extra ankle torque per side (N·m, + dorsiflexion, right
+    then left) applied beside the muscles and any device for this step, and recorded with the
+    device's in ``device_moment_nm``; None applies nothing. The walk is over (:attr:`done`)
+    when the walker fell, when ``strides`` right strides are done or at ``max_time_s``; a
+    non-finite state raises :class:`WalkNumericsError`.
+
+    Example::
+
+        w = Walk(WalkerParams(), load_normative(), 1.1396, strides=4)
+        while not w.done:
+            events = w.step()                 # (right, left): 1 heel strike, 2 toe off, …
+        rec = w.record()
+    """
+
+    #: event codes :meth:`step` returns per side
+    NO_EVENT, HEEL_STRIKE, TOE_OFF, SWING_TOE_CONTACT = 0, 1, 2, 3
+
+    def __init__(self, walker: WalkerParams, reference, cycle_time_s: float, strides: int,
+                 controller: ControllerParams | None = None, worn_masses=(),
+                 device: "AnkleDevice | CoupledAnkleDevice | None" = None,
+                 max_time_s: float | None = None):
+        self._args = (walker, reference, cycle_time_s, strides, controller, tuple(worn_masses),
+                      device, max_time_s)
+        self._stepped = False
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start: the reference posture at right heel strike (a new MuJoCo state
+        and a new controller state). A device keeps its own state: with a device, make a new
+        Walk with a fresh device instead (refused here once stepped)."""
+        (walker, reference, cycle_time_s, strides, controller, worn_masses, device,
+         max_time_s) = self._args
+        if device is not None and self._stepped:
+            raise RuntimeError("Walk.reset: the device keeps its own state (pressures, "
+                               "battery, phase estimate); allowed: a new Walk with a new device")
+
+        c = controller or ControllerParams()
+        m_body = walker.body_mass_kg
+        ds = DynamicScale.of(m_body, walker.height_m)
+        kp = (np.array([c.hip_kp_nm_per_rad, c.knee_kp_nm_per_rad, c.ankle_kp_nm_per_rad])
+              * ds.torque)
+        kv = (np.array([c.hip_kv_nm_s_per_rad, c.knee_kv_nm_s_per_rad, c.ankle_kv_nm_s_per_rad])
+              * ds.rotational_damping)
+        root = build_walker(walker, worn_masses,
+                            kp=dict(zip(("hip", "knee", "ankle"), kp.tolist())),
+                            kv=dict(zip(("hip", "knee", "ankle"), kv.tolist())))
+        phys = WalkerPhysics(root)
+        model, data = phys.model, phys.data
+        seg = scale_body(walker.body_mass_kg, walker.height_m)
+        table = ReferenceTable(reference, seg.thigh.length_m, seg.shank.length_m)
+        T = float(cycle_time_s)
+        dt = model.opt.timestep
+        weight = phys.body_mass_kg * GRAVITY_M_S2
+
+        # --- initial state: reference posture at right heel strike ------------------------------
+        phase = np.array([0.0, 0.5])
+        a0, r0, _ = table.angles_rates_moments(phase)
+        data.qpos[phys.leg_qpos] = a0
+        data.qvel[phys.leg_dof] = r0 / T
+        data.qvel[phys.pelvis_dof[0]] = c.initial_speed_m_s * ds.speed
+        mujoco.mj_kinematics(model, data)
+        data.qpos[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.001
+        mujoco.mj_forward(model, data)
+
+        # --- constants of the loop ----------------------------------------------------------------
+        lead_over_T = np.where(kp > 0, kv / np.maximum(kp, 1e-12), 0.0) / T
+        lead_hip = float(lead_over_T[0] * T)
+        # Reference moments per kg are for a 1.75 m body; a dynamically similar walker of another
+        # stature needs them × λ (moment / (m·g·L) is invariant).
+        ff = (np.array([c.hip_feedforward, c.knee_feedforward, c.ankle_feedforward]) * m_body
+              * ds.length)
+        trunk_kp = c.trunk_kp_nm_per_rad * ds.torque
+        trunk_kd = c.trunk_kd_nm_s_per_rad * ds.rotational_damping
+        alpha_track = c.stance_hip_tracking
+        cv = c.swing_hip_velocity_gain_rad_s_per_m / ds.speed
+        clear_m = c.swing_clearance_m * ds.length
+        clear_gain = c.swing_clearance_gain_rad_per_m / ds.length
+        on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
+        hs_phase = c.min_swing_phase_for_heel_strike
+        alpha = dt / (c.speed_filter_time_s * ds.time)
+        warmup_s = max(c.warmup_cycles * T, 1e-9)
+        extra_gain = c.warmup_gain - 1.0
+        res_tx = c.residual_tx_damping_n_s_per_m * ds.linear_damping
+        res_tz = c.residual_tz_stiffness_n_per_m * ds.linear_stiffness
+        res_tzd = c.residual_tz_damping_n_s_per_m * ds.linear_damping
+        res_tk = c.residual_tilt_stiffness_nm_per_rad * ds.torque
+        res_tkd = c.residual_tilt_damping_nm_s_per_rad * ds.rotational_damping
+        # No-slip speed of the reference posture at this cadence: the scale of the trunk lean
+        # (a P law toward it; the walker is never pushed toward it by a residual).
+        v_ref = table.geometric_stride_m / T
+        lean_gain, lean_max = c.trunk_lean_gain_rad_s_per_m / ds.speed, c.max_trunk_lean_rad
+        ahead_norm = 1.0 / table.mean_ahead_rate
+        pf_w_max = walker.plantarflexor_max_velocity_rad_s / ds.time
+        hill_a = walker.hill_curvature
+        pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()      # negative: plantarflexion
+
+        ctrl, qpos, qvel, qfrc_applied = data.ctrl, data.qpos, data.qvel, data.qfrc_applied
+        sens, gxpos = data.sensordata, data.geom_xpos
+        if phys.touch_adr.ravel().tolist() != [0, 1, 2, 3]:
+            raise AssertionError("walker sensors: the four touch sensors must come first")
+        (ank_r, ank_l) = phys.leg_qpos[:, 2].tolist()
+        (dank_r, dank_l) = phys.leg_dof[:, 2].tolist()
+        pz, pt = int(phys.pelvis_qpos[1]), int(phys.pelvis_qpos[2])
+        contact_geoms = phys.contact_geoms.ravel()
+        radius = phys.contact_radius_m
+
+        const = np.zeros(law.N_CONST)
+        const[[law.C_DT, law.C_INV_T, law.C_ON_N, law.C_OFF_N, law.C_HS_PHASE, law.C_CHATTER_S,
+               law.C_ALPHA, law.C_V_REF, law.C_LEAN_GAIN, law.C_LEAN_MAX, law.C_AHEAD_NORM,
+               law.C_CV,
+               law.C_CLEAR_M, law.C_CLEAR_GAIN, law.C_RADIUS, law.C_TRACK, law.C_LEAD_HIP,
+               law.C_TRUNK_KP, law.C_TRUNK_KD, law.C_EXTRA_GAIN, law.C_WARMUP_S, law.C_RES_TX,
+               law.C_RES_TZ, law.C_RES_TZD, law.C_RES_TK, law.C_RES_TKD, law.C_PF_W_MAX,
+               law.C_HILL_A, law.C_TABLE_N]] = [
+            dt, 1.0 / T, on_n, off_n, hs_phase, TOE_OFF_CHATTER_S, alpha, v_ref, lean_gain,
+            lean_max, ahead_norm, cv, clear_m, clear_gain, radius, alpha_track, lead_hip, trunk_kp,
+            trunk_kd, extra_gain, warmup_s, res_tx, res_tz, res_tzd, res_tk, res_tkd, pf_w_max,
+            hill_a, table.n]
+        const[law.C_PF_ISO:law.C_PF_ISO + 2] = pf_iso
+        const[law.C_LEAD:law.C_LEAD + 3] = lead_over_T
+        const[law.C_FF:law.C_FF + 3] = ff
+        const[law.C_SPEED_ADAPT] = c.foot_placement_speed_adaptation
+        index = np.zeros(law.N_INDEX, dtype=np.int64)
+        index[law.I_TOUCH:law.I_TOUCH + 4] = phys.touch_adr.ravel()
+        index[law.I_HIP_Q:law.I_HIP_Q + 2] = phys.leg_qpos[:, 0]
+        index[law.I_HIP_V:law.I_HIP_V + 2] = phys.leg_dof[:, 0]
+        index[law.I_ANKLE_V:law.I_ANKLE_V + 2] = phys.leg_dof[:, 2]
+        index[[law.I_PX, law.I_PZ, law.I_PT]] = phys.pelvis_qpos
+        index[[law.I_DPX, law.I_DPZ, law.I_DPT]] = phys.pelvis_dof
+        index[law.I_BALL:law.I_BALL + 2] = phys.contact_geoms[:, 1]
+        index[law.I_ANKLE_J:law.I_ANKLE_J + 2] = phys.ankle_joint
+        index[law.I_PD:law.I_PD + 6] = phys.pd_act.ravel()
+        index[law.I_FF:law.I_FF + 6] = phys.ff_act.ravel()
+        index[[law.I_RES_X, law.I_RES_Z, law.I_RES_T]] = phys.residual_act
+        adapt = c.assistance_adaptation
+        ff_ank_r, ff_ank_l = int(phys.ff_act[0, 2]), int(phys.ff_act[1, 2])
+        state = np.zeros(law.N_STATE)
+        state[law.S_PHASE:law.S_PHASE + 2] = (0.0, 0.5)
+        state[law.S_TOE_OFF_T:law.S_TOE_OFF_T + 2] = -1.0
+        state[law.S_V_MEAN] = c.initial_speed_m_s * ds.speed
+        state[law.S_Z_MEAN] = qpos[pz]
+        step_fn = law.control_step
+        tab, tab_step = table.table, table.step
+        actfrc = model.jnt_actfrcrange
+
+        max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
+        n_max = int(max_time / dt) + 2
+        buf = _Buffers.allocate(n_max, model)
+        events = GaitEvents()
+        fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + qpos[pz])
+        device_torque = np.zeros(2)
+        coupled = device is not None and getattr(device, "coupled", False)
+        dof_damping = model.dof_damping
+        base_damp = (float(dof_damping[dank_r]), float(dof_damping[dank_l]))
+        stance2 = np.zeros(2, dtype=bool)
+        if coupled:
+            # the two ankles' angles and velocities as strided views of MuJoCo's state: the
+            # device reads them in place (no copies per step); base damping as Python floats
+            if ank_l <= ank_r or dank_l <= dank_r:
+                raise AssertionError("walker joints: the left ankle must follow the right one")
+            ang2 = qpos[ank_r:ank_l + 1:ank_l - ank_r]
+            vel2 = qvel[dank_r:dank_l + 1:dank_l - dank_r]
+            base_r, base_l = base_damp
+        if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
+            raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
+                             f"MuJoCo timestep {dt}; allowed: equal")
+        phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
+        swing = state[law.S_SWING:law.S_SWING + 2]
+        ev = state[law.S_EVENT:law.S_EVENT + 2]
+        right_strides = 0
+        k = 0
+        done = [False]
+        acted = [False]
+        a_r = a_l = f_r = f_l = 0.0
+
+        def step(action=None):
+            nonlocal right_strides, k, device_torque, a_r, a_l, f_r, f_l
+            if done[0]:
+                raise RuntimeError("Walk.step: the walk is over (fell, its strides done or its "
+                                   "time up); allowed: reset() (no device) or a new Walk")
+            t = data.time
+            step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
+            codes = (int(ev[0]), int(ev[1]))
+            if ev[0] or ev[1]:
+                for s in (0, 1):
+                    code = ev[s]
+                    if code == 1.0:
+                        events.heel_strikes_s[s].append(t)
+                        right_strides += s == 0
+                    elif code == 2.0:
+                        events.toe_offs_s[s].append(t)
+                    elif code == 3.0:
+                        events.swing_toe_contacts.append((t, s))
+                if right_strides > strides:
+                    done[0] = True
+                    return codes
+            if coupled:
+                # Hydraulic device: end-of-step torque = force − D·q̇_{n+1}, D integrated
+                # implicitly by MuJoCo (afo_mj.circuits.stepper).
+                # (scalars as Python floats: cheaper than numpy scalars, the same IEEE arithmetic)
+                stance2[0] = swing[0] < 0.5
+                stance2[1] = swing[1] < 0.5
+                force2, extra2 = device.begin_step(t, ang2, vel2, stance2)
+                f_r, f_l = force2.tolist()
+                d_r, d_l = extra2.tolist()
+                qfrc_applied[dank_r] = f_r
+                qfrc_applied[dank_l] = f_l
+                dof_damping[dank_r] = base_r + d_r
+                dof_damping[dank_l] = base_l + d_l
+                if adapt:
+                    # the wearer anticipates the torque at the present ankle velocity
+                    v_r, v_l = vel2.tolist()
+                    ctrl[ff_ank_r] -= adapt * (f_r - d_r * v_r)
+                    ctrl[ff_ank_l] -= adapt * (f_l - d_l * v_l)
+            elif device is not None:
+                device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
+                                                 phases.copy(), swing < 0.5)
+                # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
+                # outside the muscles' strength limit. The wearer lowers their own ankle effort by
+                # `assistance_adaptation` of it (the muscles' limit still applies to what is left).
+                qfrc_applied[dank_r], qfrc_applied[dank_l] = device_torque
+                if adapt:
+                    ctrl[ff_ank_r] -= adapt * device_torque[0]
+                    ctrl[ff_ank_l] -= adapt * device_torque[1]
+
+            if action is not None or acted[0]:
+                # an external ankle torque per side (N·m, + dorsiflexion) beside the device's
+                a_r, a_l = (0.0, 0.0) if action is None else (float(action[0]), float(action[1]))
+                if coupled:
+                    qfrc_applied[dank_r] = f_r + a_r
+                    qfrc_applied[dank_l] = f_l + a_l
+                elif device is not None:
+                    qfrc_applied[dank_r] = device_torque[0] + a_r
+                    qfrc_applied[dank_l] = device_torque[1] + a_l
+                else:
+                    qfrc_applied[dank_r] = a_r
+                    qfrc_applied[dank_l] = a_l
+                acted[0] = action is not None
+
+            mujoco.mj_step(model, data)
+            if coupled:
+                device_torque = device.end_step(vel2)        # vel2 views the new q̇
+
+            # --- record the raw state -------------------------------------------------------------
+            buf.time[k] = data.time
+            buf.qpos[k] = qpos
+            buf.qvel[k] = qvel
+            buf.qfrc_actuator[k] = data.qfrc_actuator
+            buf.actuator_force[k] = data.actuator_force
+            buf.sensors[k] = sens
+            buf.contact_z[k] = gxpos[contact_geoms, 2]
+            buf.phase[k] = phases
+            buf.device[k] = device_torque
+            if acted[0]:
+                buf.device[k, 0] += a_r
+                buf.device[k, 1] += a_l
+            k += 1
+            check = qpos.sum() + qvel.sum()
+            if not math.isfinite(check):
+                done[0] = True
+                raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
+                                        f"(qpos={qpos.tolist()}, qvel={qvel.tolist()})")
+            if qpos[pz] < fall_dz or abs(qpos[pt]) > FALL_TILT_RAD:
+                events.fall_time_s = float(data.time)
+                done[0] = True
+            elif k >= n_max:
+                done[0] = True
+            return codes
+
+        self._step = step
+        self._done = done
+        self.phys, self.model, self.data = phys, model, data
+        self.walker, self.strides, self.n_max = walker, strides, n_max
+        self.events = events
+        self.device = device
+        self.coupled = coupled
+        self._steps = lambda: k
+        self._state, self._buf = state, buf
+        self._loop = (state, tab, tab_step, const, index, actfrc, contact_geoms, fall_dz,
+                      step_fn, (ank_r, ank_l, dank_r, dank_l, ff_ank_r, ff_ank_l), base_damp,
+                      adapt)
+        self._radius, self._dt = radius, dt
+        self._stepped = False
+
+    # -- stepping --------------------------------------------------------------------------
+    def step(self, action=None) -> tuple[int, int]:
+        """One step (class docstring); returns the step's event code per side."""
+        self._stepped = True
+        return self._step(action)
+
+    @property
+    def done(self) -> bool:
+        return self._done[0]
+
+    @property
+    def steps(self) -> int:
+        """Steps recorded so far."""
+        return self._steps()
+
+    # -- named accessors (views of MuJoCo's state are copied) ------------------------------
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def joint_angles_rad(self) -> np.ndarray:
+        """(2, 3) [right, left][hip, knee, ankle] (+ flexion, + dorsiflexion)."""
+        return self.data.qpos[self.phys.leg_qpos].copy()
+
+    @property
+    def joint_velocities_rad_s(self) -> np.ndarray:
+        return self.data.qvel[self.phys.leg_dof].copy()
+
+    @property
+    def phase(self) -> np.ndarray:
+        """(2,) the controller's gait-phase estimate per leg, 0 … 1 from heel strike."""
+        return self._state[law.S_PHASE:law.S_PHASE + 2].copy()
+
+    @property
+    def stance(self) -> np.ndarray:
+        """(2,) bool: the foot is on the ground (the controller's foot switch)."""
+        return self._state[law.S_SWING:law.S_SWING + 2] < 0.5
+
+    @property
+    def grf_n(self) -> np.ndarray:
+        """(2, 2) ground reaction force per foot [forward, up] (N)."""
+        s = self.data.sensordata
+        adr = self.phys.foot_force_adr
+        return -np.stack([s[adr], s[adr + 2]], axis=1)
+
+    @property
+    def pelvis_speed_m_s(self) -> float:
+        return float(self.data.qvel[self.phys.pelvis_dof[0]])
+
+    @property
+    def fallen(self) -> bool:
+        return self.events.fall_time_s is not None
+
+    def record(self) -> GaitRecord:
+        """The record of the steps so far."""
+        return _assemble(self._buf, self.steps, self.phys, self.walker, self.events,
+                         self._radius, self._dt)
+
+    # -- the whole walk ----------------------------------------------------------------------
+    def run(self, loop: str = "auto", label: str = "") -> GaitRecord:
+        """Step to the end (compiled or in Python, :func:`run_walk`) with progress; returns
+        :meth:`record`."""
+        if loop not in ("auto", "compiled", "python"):
+            raise ValueError(f"loop = {loop!r}; allowed: 'auto', 'compiled', 'python'")
+        if self._stepped:
+            raise RuntimeError("Walk.run: already stepped; allowed: run() on a fresh Walk")
+        device, coupled = self.device, self.coupled
+        native = None
+        if loop != "python" and coupled and hasattr(device, "native_coupling"):
+            native = device.native_coupling()
+        compiled = loop != "python" and (device is None or native is not None)
+        if loop == "compiled" and not compiled:
+            raise ValueError("loop = 'compiled' needs no device or a coupled device with "
+                             "compiled entry points (native_coupling); a device whose torque "
+                             "is a Python callback runs in the Python loop; allowed: 'auto', "
+                             "'python'")
+        (state, tab, tab_step, const, index, actfrc, contact_geoms, fall_dz, step_fn, addr,
+         base_damp, adapt) = self._loop
+        data, model, n_max = self.data, self.model, self.n_max
+        T = float(self._args[2])
+        rep = progress.reporter()
+        # the compiled controller: compiled (first run) or loaded from numba's cache now, with
+        # a stage line, rather than silently inside the first step
+        progress.compile_stage(step_fn, (data.time, data.qpos, data.qvel, data.sensordata,
+                                         data.geom_xpos, state, tab, tab_step, const, index,
+                                         data.ctrl, actfrc),
+                               "the walking controller", "~2 s")
+        if rep.active:
+            expected_s = min((self.strides + 1) * T, n_max * self._dt)
+            task = rep.task(f"simulating {self.strides} strides"
+                            + (f" ({label})" if label else ""), expected_s, "s simulated",
+                            fmt=lambda v: f"{v:.1f}")
+            report_every = max(int(round(PROGRESS_EVERY_S / self._dt)), 1)
+        else:
+            task, report_every = None, n_max + 1
+        self._stepped = True
+        try:
+            if compiled:
+                dev_args = None
+                if native is not None:
+                    dev_args = (native, device, addr, base_damp, adapt,
+                                float(device.timestep_s))
+                k = _compiled_loop(model, data, self._buf, self.events, state, tab, tab_step,
+                                   const, index, actfrc, contact_geoms, self.strides, fall_dz,
+                                   n_max, task, report_every, dev_args)
+                self._steps = lambda: k
+                self._done[0] = True
+            else:
+                step = self._step
+                next_report = report_every
+                while not self._done[0]:
+                    step(None)
+                    if self._steps() >= next_report:
+                        task.update(min(data.time, task.total))
+                        next_report += report_every
+        except WalkNumericsError:
+            if task is not None:
+                task.abort()
+            raise
+        if task is not None:
+            ev = self.events
+            el = progress.fmt_duration(task.elapsed())
+            task.close(f"{task.label}: {data.time:.1f} s simulated in {el}"
+                       + (f" (fell at t = {ev.fall_time_s:.2f} s)"
+                          if ev.fall_time_s is not None else ""))
+        return self.record()
+
+
 def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
              controller: ControllerParams | None = None, worn_masses=(),
              device: "AnkleDevice | CoupledAnkleDevice | None" = None,
@@ -286,244 +707,9 @@ def run_walk(walker: WalkerParams, reference, cycle_time_s: float, strides: int,
     """
     if loop not in ("auto", "compiled", "python"):
         raise ValueError(f"loop = {loop!r}; allowed: 'auto', 'compiled', 'python'")
-    c = controller or ControllerParams()
-    m_body = walker.body_mass_kg
-    ds = DynamicScale.of(m_body, walker.height_m)
-    kp = np.array([c.hip_kp_nm_per_rad, c.knee_kp_nm_per_rad, c.ankle_kp_nm_per_rad]) * ds.torque
-    kv = (np.array([c.hip_kv_nm_s_per_rad, c.knee_kv_nm_s_per_rad, c.ankle_kv_nm_s_per_rad])
-          * ds.rotational_damping)
-    root = build_walker(walker, worn_masses, kp=dict(zip(("hip", "knee", "ankle"), kp.tolist())),
-                        kv=dict(zip(("hip", "knee", "ankle"), kv.tolist())))
-    phys = WalkerPhysics(root)
-    model, data = phys.model, phys.data
-    seg = scale_body(walker.body_mass_kg, walker.height_m)
-    table = ReferenceTable(reference, seg.thigh.length_m, seg.shank.length_m)
-    T = float(cycle_time_s)
-    dt = model.opt.timestep
-    weight = phys.body_mass_kg * GRAVITY_M_S2
+    return Walk(walker, reference, cycle_time_s, strides, controller, worn_masses, device,
+                max_time_s).run(loop, label)
 
-    # --- initial state: reference posture at right heel strike ------------------------------
-    phase = np.array([0.0, 0.5])
-    a0, r0, _ = table.angles_rates_moments(phase)
-    data.qpos[phys.leg_qpos] = a0
-    data.qvel[phys.leg_dof] = r0 / T
-    data.qvel[phys.pelvis_dof[0]] = c.initial_speed_m_s * ds.speed
-    mujoco.mj_kinematics(model, data)
-    data.qpos[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.001
-    mujoco.mj_forward(model, data)
-
-    # --- constants of the loop ----------------------------------------------------------------
-    lead_over_T = np.where(kp > 0, kv / np.maximum(kp, 1e-12), 0.0) / T
-    lead_hip = float(lead_over_T[0] * T)
-    # Reference moments per kg are for a 1.75 m body; a dynamically similar walker of another
-    # stature needs them × λ (moment / (m·g·L) is invariant).
-    ff = np.array([c.hip_feedforward, c.knee_feedforward, c.ankle_feedforward]) * m_body * ds.length
-    trunk_kp = c.trunk_kp_nm_per_rad * ds.torque
-    trunk_kd = c.trunk_kd_nm_s_per_rad * ds.rotational_damping
-    alpha_track = c.stance_hip_tracking
-    cv = c.swing_hip_velocity_gain_rad_s_per_m / ds.speed
-    clear_m = c.swing_clearance_m * ds.length
-    clear_gain = c.swing_clearance_gain_rad_per_m / ds.length
-    on_n, off_n = c.contact_on_fraction * weight, c.contact_off_fraction * weight
-    hs_phase = c.min_swing_phase_for_heel_strike
-    alpha = dt / (c.speed_filter_time_s * ds.time)
-    warmup_s = max(c.warmup_cycles * T, 1e-9)
-    extra_gain = c.warmup_gain - 1.0
-    res_tx = c.residual_tx_damping_n_s_per_m * ds.linear_damping
-    res_tz = c.residual_tz_stiffness_n_per_m * ds.linear_stiffness
-    res_tzd = c.residual_tz_damping_n_s_per_m * ds.linear_damping
-    res_tk = c.residual_tilt_stiffness_nm_per_rad * ds.torque
-    res_tkd = c.residual_tilt_damping_nm_s_per_rad * ds.rotational_damping
-    # No-slip speed of the reference posture at this cadence: the scale of the trunk lean
-    # (a P law toward it; the walker is never pushed toward it by a residual).
-    v_ref = table.geometric_stride_m / T
-    lean_gain, lean_max = c.trunk_lean_gain_rad_s_per_m / ds.speed, c.max_trunk_lean_rad
-    ahead_norm = 1.0 / table.mean_ahead_rate
-    pf_w_max = walker.plantarflexor_max_velocity_rad_s / ds.time
-    hill_a = walker.hill_curvature
-    pf_iso = phys.ankle_torque_limits_nm[:, 0].copy()      # negative: plantarflexion
-
-    ctrl, qpos, qvel, qfrc_applied = data.ctrl, data.qpos, data.qvel, data.qfrc_applied
-    sens, gxpos = data.sensordata, data.geom_xpos
-    if phys.touch_adr.ravel().tolist() != [0, 1, 2, 3]:
-        raise AssertionError("walker sensors: the four touch sensors must come first")
-    (ank_r, ank_l) = phys.leg_qpos[:, 2].tolist()
-    (dank_r, dank_l) = phys.leg_dof[:, 2].tolist()
-    pz, pt = int(phys.pelvis_qpos[1]), int(phys.pelvis_qpos[2])
-    contact_geoms = phys.contact_geoms.ravel()
-    radius = phys.contact_radius_m
-
-    const = np.zeros(law.N_CONST)
-    const[[law.C_DT, law.C_INV_T, law.C_ON_N, law.C_OFF_N, law.C_HS_PHASE, law.C_CHATTER_S,
-           law.C_ALPHA, law.C_V_REF, law.C_LEAN_GAIN, law.C_LEAN_MAX, law.C_AHEAD_NORM, law.C_CV,
-           law.C_CLEAR_M, law.C_CLEAR_GAIN, law.C_RADIUS, law.C_TRACK, law.C_LEAD_HIP,
-           law.C_TRUNK_KP, law.C_TRUNK_KD, law.C_EXTRA_GAIN, law.C_WARMUP_S, law.C_RES_TX,
-           law.C_RES_TZ, law.C_RES_TZD, law.C_RES_TK, law.C_RES_TKD, law.C_PF_W_MAX,
-           law.C_HILL_A, law.C_TABLE_N]] = [
-        dt, 1.0 / T, on_n, off_n, hs_phase, TOE_OFF_CHATTER_S, alpha, v_ref, lean_gain,
-        lean_max, ahead_norm, cv, clear_m, clear_gain, radius, alpha_track, lead_hip, trunk_kp,
-        trunk_kd, extra_gain, warmup_s, res_tx, res_tz, res_tzd, res_tk, res_tkd, pf_w_max,
-        hill_a, table.n]
-    const[law.C_PF_ISO:law.C_PF_ISO + 2] = pf_iso
-    const[law.C_LEAD:law.C_LEAD + 3] = lead_over_T
-    const[law.C_FF:law.C_FF + 3] = ff
-    const[law.C_SPEED_ADAPT] = c.foot_placement_speed_adaptation
-    index = np.zeros(law.N_INDEX, dtype=np.int64)
-    index[law.I_TOUCH:law.I_TOUCH + 4] = phys.touch_adr.ravel()
-    index[law.I_HIP_Q:law.I_HIP_Q + 2] = phys.leg_qpos[:, 0]
-    index[law.I_HIP_V:law.I_HIP_V + 2] = phys.leg_dof[:, 0]
-    index[law.I_ANKLE_V:law.I_ANKLE_V + 2] = phys.leg_dof[:, 2]
-    index[[law.I_PX, law.I_PZ, law.I_PT]] = phys.pelvis_qpos
-    index[[law.I_DPX, law.I_DPZ, law.I_DPT]] = phys.pelvis_dof
-    index[law.I_BALL:law.I_BALL + 2] = phys.contact_geoms[:, 1]
-    index[law.I_ANKLE_J:law.I_ANKLE_J + 2] = phys.ankle_joint
-    index[law.I_PD:law.I_PD + 6] = phys.pd_act.ravel()
-    index[law.I_FF:law.I_FF + 6] = phys.ff_act.ravel()
-    index[[law.I_RES_X, law.I_RES_Z, law.I_RES_T]] = phys.residual_act
-    adapt = c.assistance_adaptation
-    ff_ank_r, ff_ank_l = int(phys.ff_act[0, 2]), int(phys.ff_act[1, 2])
-    state = np.zeros(law.N_STATE)
-    state[law.S_PHASE:law.S_PHASE + 2] = (0.0, 0.5)
-    state[law.S_TOE_OFF_T:law.S_TOE_OFF_T + 2] = -1.0
-    state[law.S_V_MEAN] = c.initial_speed_m_s * ds.speed
-    state[law.S_Z_MEAN] = qpos[pz]
-    step_fn = law.control_step
-    tab, tab_step = table.table, table.step
-    actfrc = model.jnt_actfrcrange
-
-    max_time = max_time_s if max_time_s is not None else (strides + 1.5) * T + 1.0
-    n_max = int(max_time / dt) + 2
-    buf = _Buffers.allocate(n_max, model)
-    events = GaitEvents()
-    fall_dz = -(1.0 - FALL_HEIGHT_FRACTION) * (phys.pelvis_height_offset_m + qpos[pz])
-    device_torque = np.zeros(2)
-    coupled = device is not None and getattr(device, "coupled", False)
-    dof_damping = model.dof_damping
-    base_damp = (float(dof_damping[dank_r]), float(dof_damping[dank_l]))
-    stance2 = np.zeros(2, dtype=bool)
-    if coupled:
-        # the two ankles' angles and velocities as strided views of MuJoCo's state: the
-        # device reads them in place (no copies per step); base damping as Python floats
-        if ank_l <= ank_r or dank_l <= dank_r:
-            raise AssertionError("walker joints: the left ankle must follow the right one")
-        ang2 = qpos[ank_r:ank_l + 1:ank_l - ank_r]
-        vel2 = qvel[dank_r:dank_l + 1:dank_l - dank_r]
-        base_r, base_l = base_damp
-    if coupled and abs(getattr(device, "timestep_s", dt) - dt) > 1e-12:
-        raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
-                         f"MuJoCo timestep {dt}; allowed: equal")
-    native = None
-    if loop != "python" and coupled and hasattr(device, "native_coupling"):
-        native = device.native_coupling()
-    compiled = loop != "python" and (device is None or native is not None)
-    if loop == "compiled" and not compiled:
-        raise ValueError("loop = 'compiled' needs no device or a coupled device with compiled "
-                         "entry points (native_coupling); a device whose torque is a Python "
-                         "callback runs in the Python loop; allowed: 'auto', 'python'")
-    phases = state[law.S_PHASE:law.S_PHASE + 2]          # views into the controller state
-    swing = state[law.S_SWING:law.S_SWING + 2]
-    ev = state[law.S_EVENT:law.S_EVENT + 2]
-    right_strides = 0
-    k = 0
-    rep = progress.reporter()
-    # the compiled controller: compiled (first run) or loaded from numba's cache now, with a
-    # stage line, rather than silently inside the first step
-    progress.compile_stage(step_fn, (data.time, qpos, qvel, sens, gxpos, state, tab, tab_step,
-                                     const, index, ctrl, actfrc),
-                           "the walking controller", "~2 s")
-    if rep.active:
-        expected_s = min((strides + 1) * T, max_time)
-        task = rep.task(f"simulating {strides} strides" + (f" ({label})" if label else ""),
-                        expected_s, "s simulated", fmt=lambda v: f"{v:.1f}")
-        report_every = max(int(round(PROGRESS_EVERY_S / dt)), 1)
-    else:
-        task, report_every = None, n_max + 1
-    next_report = report_every
-    if compiled:
-        dev_args = None
-        if native is not None:
-            dev_args = (native, device, (ank_r, ank_l, dank_r, dank_l, ff_ank_r, ff_ank_l),
-                        base_damp, adapt, float(device.timestep_s))
-        k = _compiled_loop(model, data, buf, events, state, tab, tab_step, const, index,
-                           actfrc, contact_geoms, strides, fall_dz, n_max, task, report_every,
-                           dev_args)
-    while not compiled and k < n_max:
-        t = data.time
-        step_fn(t, qpos, qvel, sens, gxpos, state, tab, tab_step, const, index, ctrl, actfrc)
-        if ev[0] or ev[1]:
-            for s in (0, 1):
-                code = ev[s]
-                if code == 1.0:
-                    events.heel_strikes_s[s].append(t)
-                    right_strides += s == 0
-                elif code == 2.0:
-                    events.toe_offs_s[s].append(t)
-                elif code == 3.0:
-                    events.swing_toe_contacts.append((t, s))
-            if right_strides > strides:
-                break
-        if coupled:
-            # Hydraulic device: end-of-step torque = force − D·q̇_{n+1}, D integrated
-            # implicitly by MuJoCo (afo_mj.circuits.stepper).
-            # (scalars as Python floats: cheaper than numpy scalars, the same IEEE arithmetic)
-            stance2[0] = swing[0] < 0.5
-            stance2[1] = swing[1] < 0.5
-            force2, extra2 = device.begin_step(t, ang2, vel2, stance2)
-            f_r, f_l = force2.tolist()
-            d_r, d_l = extra2.tolist()
-            qfrc_applied[dank_r] = f_r
-            qfrc_applied[dank_l] = f_l
-            dof_damping[dank_r] = base_r + d_r
-            dof_damping[dank_l] = base_l + d_l
-            if adapt:
-                # the wearer anticipates the torque at the present ankle velocity
-                v_r, v_l = vel2.tolist()
-                ctrl[ff_ank_r] -= adapt * (f_r - d_r * v_r)
-                ctrl[ff_ank_l] -= adapt * (f_l - d_l * v_l)
-        elif device is not None:
-            device_torque = device.torque_nm(t, qpos[[ank_r, ank_l]], qvel[[dank_r, dank_l]],
-                                             phases.copy(), swing < 0.5)
-            # The orthosis acts on the ankle beside the muscles: as an applied joint torque,
-            # outside the muscles' strength limit. The wearer lowers their own ankle effort by
-            # `assistance_adaptation` of it (the muscles' limit still applies to what is left).
-            qfrc_applied[dank_r], qfrc_applied[dank_l] = device_torque
-            if adapt:
-                ctrl[ff_ank_r] -= adapt * device_torque[0]
-                ctrl[ff_ank_l] -= adapt * device_torque[1]
-
-        mujoco.mj_step(model, data)
-        if coupled:
-            device_torque = device.end_step(vel2)        # vel2 views the new q̇
-
-        # --- record the raw state -------------------------------------------------------------
-        buf.time[k] = data.time
-        buf.qpos[k] = qpos
-        buf.qvel[k] = qvel
-        buf.qfrc_actuator[k] = data.qfrc_actuator
-        buf.actuator_force[k] = data.actuator_force
-        buf.sensors[k] = sens
-        buf.contact_z[k] = gxpos[contact_geoms, 2]
-        buf.phase[k] = phases
-        buf.device[k] = device_torque
-        k += 1
-        if k >= next_report:
-            task.update(min(data.time, task.total))
-            next_report += report_every
-        check = qpos.sum() + qvel.sum()
-        if not math.isfinite(check):
-            if task is not None:
-                task.abort()
-            raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
-                                    f"(qpos={qpos.tolist()}, qvel={qvel.tolist()})")
-        if qpos[pz] < fall_dz or abs(qpos[pt]) > FALL_TILT_RAD:
-            events.fall_time_s = float(data.time)
-            break
-    if task is not None:
-        el = progress.fmt_duration(task.elapsed())
-        task.close(f"{task.label}: {data.time:.1f} s simulated in {el}"
-                   + (f" (fell at t = {events.fall_time_s:.2f} s)"
-                      if events.fall_time_s is not None else ""))
-    return _assemble(buf, k, phys, walker, events, radius, dt)
 
 
 def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, tab_step, const,
