@@ -1,0 +1,179 @@
+"""A gymnasium environment over the steppable walk: learn or tune an ankle assistance
+controller without editing the walk loop.
+
+:class:`AnkleAssistEnv` (registered as ``afo_mj/AnkleAssist-v0``; vector form through
+``gymnasium.make_vec``) steps a :class:`afo_mj.gait.walk.Walk` of a walking scenario at a
+chosen control rate (the action is held over the MuJoCo steps of one control period):
+
+* **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
+  N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device) or the torque
+  command of the scenario's HAFO (``mode="hafo"``: the command goes through its pump, hoses
+  and cylinders, which deliver what they can; its worn masses are on the body);
+* **observation** (:data:`OBSERVATION_NAMES`): joint angles and velocities of both legs, the
+  controller's phase estimate and stance flags, both feet's ground reaction forces per body
+  weight, the pelvis speed, and the torque delivered at each ankle in the last step;
+* **reward**: ``reward_fn(env)`` if given, else :func:`default_reward`, per control step:
+  ``− w_track × mean squared angle error (rad², against the scenario's reference at each leg's
+  phase) − w_effort × Σ (human ankle moment / (m g L))² − w_energy × P / (m g v)`` (the
+  first two at the end of the control step; ``L`` = 0.53 × stature, ``v`` the pelvis speed,
+  at least 0.3 m/s) with ``P`` the mean over the control step of the device's electrical
+  power (HAFO: battery current × bus voltage, drawn only) or of the action's positive
+  mechanical power (ideal); the terms of the last step are in :attr:`AnkleAssistEnv.last`;
+* **termination** on a fall, **truncation** when the scenario's strides are done.
+
+Example::
+
+    import gymnasium as gym
+    import afo_mj.experiments.walk_env  # registers the id
+    env = gym.make("afo_mj/AnkleAssist-v0", scenario="scenarios/walk_healthy.toml")
+    obs, info = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from afo_mj.gait.walk import Walk
+
+__all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID"]
+
+ENV_ID = "afo_mj/AnkleAssist-v0"
+OBSERVATION_NAMES = tuple(
+    [f"{s}_{j}_angle_rad" for s in ("right", "left") for j in ("hip", "knee", "ankle")]
+    + [f"{s}_{j}_velocity_rad_s" for s in ("right", "left") for j in ("hip", "knee", "ankle")]
+    + ["right_phase", "left_phase", "right_stance", "left_stance"]
+    + [f"{s}_grf_{c}_per_body_weight" for s in ("right", "left") for c in ("x", "z")]
+    + ["pelvis_speed_m_s", "right_ankle_device_torque_nm", "left_ankle_device_torque_nm"])
+GRAVITY_M_S2 = 9.81
+
+
+def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float = 1.0,
+                   w_energy: float = 0.1) -> float:
+    """Tracking, effort and energy of the last control step (module docstring)."""
+    return -(w_track * env.last["track_rad2"] + w_effort * env.last["effort"]
+             + w_energy * env.last["energy"])
+
+
+class AnkleAssistEnv(gym.Env):
+    """The assistance environment (module docstring). ``scenario``: a walking scenario file
+    (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
+    says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
+    must divide its period); ``overrides``: ``--set``-style scenario overrides."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, scenario="scenarios/walk_healthy.toml", mode: str = "torque",
+                 control_rate_hz: float = 100.0, max_torque_nm: float = 60.0,
+                 reward_fn=None, overrides=(), hafo_preset: str = "hafo_gait"):
+        from afo_mj.scenarios.walk_scenario import load_scenario
+        if mode not in ("torque", "hafo"):
+            raise ValueError(f"mode = {mode!r}; allowed: 'torque', 'hafo'")
+        if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
+            raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
+        self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
+        self.reference = self.scenario.load_reference()
+        self.cycle_time_s = self.scenario.cycle_time_s(self.reference)
+        dt = self.scenario.walker.timestep_s
+        sub = (1.0 / control_rate_hz) / dt if control_rate_hz > 0 else math.nan
+        if not (math.isfinite(sub) and sub >= 1 and abs(sub - round(sub)) < 1e-9):
+            raise ValueError(f"control_rate_hz = {control_rate_hz!r}; allowed: a rate whose "
+                             f"period is a whole number of {dt * 1e3:g} ms MuJoCo steps")
+        self.substeps = int(round(sub))
+        self.mode, self.max_torque_nm, self.hafo_preset = mode, float(max_torque_nm), hafo_preset
+        self.reward_fn = reward_fn or default_reward
+        self.action_space = gym.spaces.Box(-self.max_torque_nm, self.max_torque_nm, (2,),
+                                           np.float64)
+        # bounds: angles ±π, velocities ±100 rad/s, phase and stance 0…1, forces ±20 body
+        # weights, speed ±20 m/s, device torques ±1000 N·m
+        hi = np.array([math.pi] * 6 + [100.0] * 6 + [1.0] * 4 + [20.0] * 4 + [20.0]
+                      + [1000.0] * 2)
+        lo = -hi
+        lo[12:16] = 0.0
+        self.observation_space = gym.spaces.Box(lo, hi, dtype=np.float64)
+        self.walk: Walk | None = None
+        self.device = None
+        self._command = np.zeros(2)
+        self.last: dict = {}
+
+    # -- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        sc = self.scenario
+        self._command[:] = 0.0
+        worn, self.device = (), None
+        if self.mode == "hafo":
+            from afo_mj.devices.hafo import HafoDevice, hafo_params
+            cmd, calls = self._command, [0]
+
+            def torque_fn(t, th, thd):
+                # the device asks once per worn side, in order (right, left), every step
+                v = cmd[calls[0] % 2]
+                calls[0] += 1
+                return v
+            self.device = HafoDevice(hafo_params(preset=self.hafo_preset),
+                                     sides=("right", "left"), timestep_s=sc.walker.timestep_s,
+                                     torque_fn=torque_fn)
+            worn = tuple(self.device.worn_masses())
+        self.walk = Walk(sc.walker, self.reference, self.cycle_time_s, sc.strides,
+                         sc.controller_params(), worn_masses=worn, device=self.device)
+        self.last = {"track_rad2": 0.0, "effort": 0.0, "energy": 0.0}
+        return self._observation(), {"time_s": 0.0}
+
+    def step(self, action):
+        if self.walk is None:
+            raise RuntimeError("AnkleAssistEnv.step before reset()")
+        a = np.clip(np.asarray(action, float).reshape(2), -self.max_torque_nm,
+                    self.max_torque_nm)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action = {action!r}; allowed: two finite torques (N·m)")
+        w = self.walk
+        mg = w.phys.body_mass_kg * GRAVITY_M_S2
+        leg = self.scenario.walker.height_m * 0.53            # leg length ~ 0.53 stature
+        v_ref = max(w.pelvis_speed_m_s, 0.3)
+        energy = 0.0
+        n = 0
+        for _ in range(self.substeps):
+            if w.done:
+                break
+            if self.mode == "hafo":
+                self._command[:] = a
+                w.step()
+            else:
+                w.step(a)
+            n += 1
+            if self.device is not None:
+                d = self.device
+                energy += max(float(np.sum(d.W[:, d.k.W_I_BAT] * d.W[:, d.k.W_U + d.k.U_VBUS])),
+                              0.0)
+            else:
+                energy += float(np.sum(np.maximum(a * w.joint_velocities_rad_s[:, 2], 0.0)))
+        # tracking and effort at the end of the control step; energy its mean power
+        ph = w.phase
+        ref = np.stack([self.reference.angles_rad(ph[s]) for s in range(2)])
+        track = float(np.mean((w.joint_angles_rad - ref) ** 2))
+        tau_h = w._buf.qfrc_actuator[w.steps - 1][w.phys.leg_dof[:, 2]] if w.steps else 0.0
+        effort = float(np.sum((tau_h / (mg * leg)) ** 2))
+        self.last = {"track_rad2": track, "effort": effort,
+                     "energy": energy / max(n, 1) / (mg * v_ref)}
+        reward = float(self.reward_fn(self))
+        terminated = w.fallen
+        truncated = w.done and not terminated
+        info = {"time_s": w.time_s, "fell": terminated, **self.last}
+        return self._observation(), reward, terminated, truncated, info
+
+    def _observation(self) -> np.ndarray:
+        w = self.walk
+        mg = w.phys.body_mass_kg * GRAVITY_M_S2
+        dev = (w._buf.device[w.steps - 1] if w.steps else np.zeros(2))
+        return np.concatenate([w.joint_angles_rad.ravel(), w.joint_velocities_rad_s.ravel(),
+                               w.phase, w.stance.astype(float), (w.grf_n / mg).ravel(),
+                               [w.pelvis_speed_m_s], dev])
+
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point=AnkleAssistEnv)
