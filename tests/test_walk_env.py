@@ -106,3 +106,16 @@ def test_bad_settings_are_named():
     env.reset()
     with pytest.raises(ValueError, match="two finite torques"):
         env.step(np.array([np.nan, 0.0]))
+
+
+@pytest.mark.slow
+def test_tuning_example_beats_the_generic_profile():
+    """examples/tune_assistance_env.py with 3 generations: the tuned profile's objective is
+    below the generic one's, and re-evaluating the tuned profile gives its objective again
+    (the episodes are deterministic). Measured with 8 generations: 3.776 -> 2.647 (-30 %)."""
+    import sys
+    sys.path.insert(0, str(ROOT / "examples"))
+    import tune_assistance_env as ex
+    out = ex.main(3)
+    assert out["tuned_objective"] < out["generic_objective"] < 1e3
+    assert ex.objective(np.array(out["tuned"])) == out["tuned_objective"]
