@@ -47,8 +47,17 @@ def _write_trial(tmp_path, t0, t1, right_hs, *, knee_sign=-1, offset_after=None,
             "ankle_angle_r": ar[:, 2], "hip_flexion_l": al[:, 0],
             "knee_angle_l": knee_sign * al[:, 1], "ankle_angle_l": al[:, 2]}
     _storage(tmp_path / f"{name}_ik.sto", cols, "inDegrees=yes")
+    mr, ml = WINTER.moments_nm_per_kg(pr) * 75.0, WINTER.moments_nm_per_kg(pl) * 75.0
+    ids = {"time": t}
+    for sfx, m in (("r", mr), ("l", ml)):
+        ids[f"hip_flexion_{sfx}_moment"] = m[:, 0]
+        ids[f"knee_angle_{sfx}_moment"] = knee_sign * m[:, 1]
+        ids[f"ankle_angle_{sfx}_moment"] = m[:, 2]
+    _storage(tmp_path / f"{name}_id.sto", ids, "inDegrees=no")
     grf = {"time": t, "ground_force_vy": _grf(pr, rng, noise_n),
-           "1_ground_force_vy": _grf(pl, rng, noise_n)}
+           "1_ground_force_vy": _grf(pl, rng, noise_n),
+           "ground_force_vx": 0.1 * _grf(pr, rng, noise_n),
+           "1_ground_force_vx": 0.1 * _grf(pl, rng, noise_n)}
     _storage(tmp_path / f"{name}_grf.mot", grf, "inDegrees=yes")
     return tmp_path / f"{name}_ik.sto", tmp_path / f"{name}_grf.mot"
 
@@ -205,3 +214,36 @@ def test_scenario_reference_from_a_trial(tmp_path):
         parse_scenario(text.replace("trial_grf.mot", "nope.mot"), base_dir=tmp_path)
     with pytest.raises(ScenarioError, match="given without gait.reference_path"):
         parse_scenario('[gait]\nreference_grf_path = "trial_grf.mot"\n', base_dir=tmp_path)
+
+
+def test_moments_and_forces_of_the_trial(tmp_path):
+    """With the ID file and the body mass the trial's mean cycle has the moments it was built
+    from (knee sign as the angles'), and each foot's forces per kg."""
+    ik, grf = _write_trial(tmp_path, 0.0, 5.0 * T, -0.16 * T)
+    trial = load_measured_trial(ik, grf, id_path=tmp_path / "trial_id.sto", body_mass_kg=75.0)
+    ref = trial.reference
+    ph = np.linspace(0, 0.99, 100)
+    err = np.abs(ref.moments_nm_per_kg(ph) - WINTER.moments_nm_per_kg(ph))
+    assert err.max() < 0.05                                   # N·m/kg
+    want = 800.0 * np.sqrt(np.sin(np.pi * 0.3 / STANCE)) / 75.0
+    assert ref.grf_n_per_kg(np.array([0.3]))[0, 1] == pytest.approx(want, rel=0.02)
+    assert ref.grf_n_per_kg(np.array([0.3]))[0, 0] == pytest.approx(0.1 * want, rel=0.05)
+    with pytest.raises(ReferenceGaitError, match="moments need body_mass_kg"):
+        load_measured_trial(ik, grf, id_path=tmp_path / "trial_id.sto")
+
+
+def test_a_run_scored_against_a_measured_trial(tmp_path):
+    """A walk scenario whose reference is a trial (angles, ID moments, forces) runs and is
+    analysed against the trial's mean cycle by the same metrics as against a normative table
+    (its moments and forces included)."""
+    from afo_mj.app.run import run_scenario
+    _write_trial(tmp_path, 0.0, 5.0 * T, -0.16 * T)
+    sc = tmp_path / "vs_trial.toml"
+    sc.write_text('[gait]\nreference_path = "trial_ik.sto"\nreference_grf_path = '
+                  '"trial_grf.mot"\nreference_id_path = "trial_id.sto"\nstrides = 4\n'
+                  'analyse_strides = [2, 4]\n')
+    res = run_scenario(sc)
+    s = res.summary
+    assert s["reference"]["source"] == "trial"
+    assert s["ankle_moment_rms_error_nm_per_kg"]["mean"] < 0.5
+    assert s["knee_angle_rms_error_deg"]["mean"] < 15.0

@@ -250,15 +250,19 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
                         in_degrees: bool | None = None, knee_flexion_sign="auto",
                         jump_tolerance_rad: float = math.radians(5.0),
                         on_n: float = 50.0, off_n: float = 20.0,
-                        speed_m_s: float | None = None) -> MeasuredTrial:
+                        speed_m_s: float | None = None, id_path=None,
+                        body_mass_kg: float | None = None) -> MeasuredTrial:
     """Cut a measured trial into cycles (module docstring).
 
     ``coords_path``: OpenSim coordinates (``hip_flexion_r/l``, ``knee_angle_r/l``,
     ``ankle_angle_r/l``; units from the header's ``inDegrees`` unless ``in_degrees``; knee
     sign as :func:`~afo_mj.gait.reference.load_opensim_storage` decides it). Events from
     ``grf_path`` (a ground-reaction ``.mot``, :func:`grf_columns`) or given as ``events``.
-    Raises :class:`~afo_mj.gait.reference.ReferenceGaitError` naming the file when the trial
-    holds no usable cycle and none can be composed."""
+    With ``id_path`` (OpenSim inverse dynamics, ``<coordinate>_moment`` in N·m, the knee's
+    with the same sign rule) and ``body_mass_kg``, the cycles' joint moments per kg come too;
+    with ``grf_path`` and ``body_mass_kg`` each foot's ground reaction force per kg (forward
+    ``…vx``, vertical ``…vy``). Raises :class:`~afo_mj.gait.reference.ReferenceGaitError`
+    naming the file when the trial holds no usable cycle and none can be composed."""
     origin = str(coords_path)
     header, labels, data = read_opensim_storage(coords_path)
     notes = []
@@ -283,6 +287,22 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
                      f"{'Rajagopal2015' if knee_flexion_sign > 0 else 'gait2392'} convention)")
     for side in SIDES:
         legs[side]["knee_angle_rad"] = legs[side]["knee_angle_rad"] * knee_flexion_sign
+    extra = {side: {} for side in SIDES}        # moments and forces per kg, not closure-checked
+    if (id_path is not None or grf_path is not None) and body_mass_kg is not None:
+        if not (math.isfinite(body_mass_kg) and body_mass_kg > 0):
+            raise ReferenceGaitError(f"{origin}: body_mass_kg = {body_mass_kg!r}; allowed: > 0")
+    if id_path is not None:
+        if body_mass_kg is None:
+            raise ReferenceGaitError(f"{id_path}: moments need body_mass_kg (N·m → N·m/kg)")
+        _, ilabels, idata = read_opensim_storage(id_path)
+        it = _column(ilabels, idata, "time", str(id_path))
+        for side in SIDES:
+            for ch, col in _leg_mapping(side).items():
+                m = _column(ilabels, idata, col + "_moment", str(id_path))
+                sign = knee_flexion_sign if ch == "knee_angle_rad" else 1
+                extra[side][ch.replace("angle_rad", "moment_nm_per_kg")] = np.interp(
+                    t, it, sign * m / body_mass_kg)
+        notes.append(f"moments from {Path(id_path).name} per {body_mass_kg:g} kg")
     if events is None:
         if grf_path is None:
             raise ReferenceGaitError(f"{origin}: no events: pass grf_path (a ground-reaction "
@@ -294,6 +314,12 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
                   for side in SIDES}
         events = events_from_grf(t, forces, on_n, off_n)
         notes.append(f"events from {Path(grf_path).name}: {events.method}, columns {cols}")
+        if body_mass_kg is not None:
+            for side in SIDES:
+                fx = cols[side][:-1] + "x"                   # …force…vy → …force…vx
+                extra[side]["grf_x_n_per_kg"] = np.interp(
+                    t, gt, _column(glabels, gdata, fx, str(grf_path))) / body_mass_kg
+                extra[side]["grf_z_n_per_kg"] = forces[side] / body_mass_kg
     else:
         notes.append(f"events given: {events.method}")
     cycles, refused = {}, {}
@@ -307,9 +333,10 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
         for side in SIDES:
             for a, b in cycles[side]:
                 samples.append({ch: np.interp(a + phase * (b - a), t, v)
-                                for ch, v in legs[side].items()})
-        mean = {ch: np.mean([s[ch] for s in samples], axis=0) for ch in ANGLE_CHANNELS}
-        sd = ({ch: np.std([s[ch] for s in samples], axis=0, ddof=1) for ch in ANGLE_CHANNELS}
+                                for ch, v in {**legs[side], **extra[side]}.items()})
+        chans = list(samples[0])
+        mean = {ch: np.mean([s[ch] for s in samples], axis=0) for ch in chans}
+        sd = ({ch: np.std([s[ch] for s in samples], axis=0, ddof=1) for ch in chans}
               if len(samples) > 1 else None)
         period = float(np.mean([b - a for side in SIDES for a, b in cycles[side]]))
     else:

@@ -33,7 +33,8 @@ Schema (every section and key optional except where said; unknown keys are error
     reference_grf_path = "grf.mot"   # with an OpenSim reference_path: it is a trial (any
                                      # start, many cycles); the reference is the mean of its
                                      # complete cycles, events from these forces
-                                     # (afo_mj.gait.measured_trial)
+                                     # (afo_mj.gait.measured_trial); with reference_id_path
+                                     # its moments, and its forces per kg, come too
     cadence_steps_per_min = 105.3    # 30..200; default: the reference's own cadence
     strides = 10                     # right-leg cycles to simulate, 1..1000
     analyse_strides = [4, 10]        # first, last stride analysed (1-based, inclusive)
@@ -283,7 +284,8 @@ def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None =
     from afo_mj.gait import reference as ref
     if grf_path is not None:
         from afo_mj.gait.measured_trial import load_measured_trial
-        return load_measured_trial(path, grf_path).reference
+        return load_measured_trial(path, grf_path, id_path=id_path,
+                                   body_mass_kg=body_mass_kg).reference
     if path.suffix.lower() in (".sto", ".mot"):
         return ref.load_opensim_storage(path, body_mass_kg=body_mass_kg, id_path=id_path)
     return ref.load_reference_csv(path, body_mass_kg=body_mass_kg)
@@ -602,11 +604,9 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
             grf_path = Path(raw_grf)
             if not grf_path.is_absolute() and base_dir is not None:
                 grf_path = base_dir / grf_path
-            if p.suffix.lower() not in (".sto", ".mot") or not grf_path.is_file() \
-                    or id_path is not None:
+            if p.suffix.lower() not in (".sto", ".mot") or not grf_path.is_file():
                 raise ctx.fail("gait.reference_grf_path", raw_grf,
-                               "needs an OpenSim gait.reference_path, no reference_id_path "
-                               "and an existing file",
+                               "needs an OpenSim gait.reference_path and an existing file",
                                "an existing .mot beside an OpenSim .sto/.mot trial")
         from afo_mj.gait.reference import ReferenceGaitError
         try:
