@@ -91,3 +91,22 @@ def test_impairment_fractions_are_the_muscles_force_factors():
     np.testing.assert_array_equal(direct.record.qpos, res.record.qpos[:n])
     healthy = run_muscle_walk(None, params, 1.0)
     assert not np.array_equal(healthy.record.qpos, direct.record.qpos)
+
+
+def test_recording_of_a_muscle_walk_has_the_muscles(tmp_path):
+    """[output] record = true on the muscle model: the rerun recording carries each muscle's
+    activation, force and metabolic rate per side and the whole-body net rate, with the
+    run's samples (read back from the file)."""
+    from afo_mj.app.run import run_scenario
+    from afo_mj.outputs.recording import read_recording_index
+    out = tmp_path / "res"
+    res = run_scenario(ROOT / "scenarios" / "walk_muscle_healthy.toml", out_dir=out,
+                       figures=False, overrides=["gait.strides=2", "gait.analyse_strides=[1, 2]",
+                                                 "output.record=true"])
+    idx = read_recording_index(out / "recording.rrd")
+    n = len(res.record.time_s[::2])                    # 500 Hz signals of a 1 ms walk
+    for key in ("signals/muscle_activation/soleus/right/walk",
+                "signals/muscle_force_n/tibialis_anterior/left/walk",
+                "signals/metabolic_w_per_kg/umberger/walk"):
+        assert idx[key]["rows"] == n, key
+    assert idx["signals/muscle_force_n/vasti/right/walk"]["unit"] == "N"

@@ -227,7 +227,11 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
     except (WalkNumericsError, FloatingPointError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
-    runs = [RecordedRun("walk", record)]
+    extra = {}
+    if muscle_walk is not None:
+        from afo_mj.metrics.muscle_metrics import muscle_signals
+        extra = muscle_signals(muscle_walk)
+    runs = [RecordedRun("walk", record, extra_signals=extra)]
     try:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
     except GaitAnalysisError as exc:

@@ -19,7 +19,7 @@ import numpy as np
 
 from afo_mj.metrics.muscle_timing import PERRY_ON_PCT, cycle_average, timing_agreement
 
-__all__ = ["muscle_summary", "muscle_cycle_table"]
+__all__ = ["muscle_summary", "muscle_cycle_table", "muscle_signals"]
 
 
 def _window(walk, first_hs_s: float, last_hs_s: float):
@@ -76,3 +76,25 @@ def muscle_cycle_table(walk, heel_strikes_s, n: int = 100) -> tuple[list[str], n
             cols.append(cycle_average(arr[:, 0, i], r.time_s, heel_strikes_s, n))
             header.append(f"{name}.{label}")
     return header, np.column_stack(cols)
+
+
+def muscle_signals(walk) -> dict:
+    """Per-sample signals of a muscle walk for a recording: ``{path: (values, unit, label)}``
+    with each side's and muscle's activation, tendon force and Umberger metabolic rate, and
+    the whole body's net metabolic rate by both models (W/kg)."""
+    from afo_mj.human.metabolics import basal_rate_w
+    m = walk.record.body_mass_kg
+    out = {}
+    for s, side in enumerate(("right", "left")):
+        for i, name in enumerate(walk.muscles):
+            out[f"muscle_activation/{name}/{side}"] = (walk.activation[:, s, i], "1",
+                                                       f"{name} activation {side}")
+            out[f"muscle_force_n/{name}/{side}"] = (walk.force_n[:, s, i], "N",
+                                                    f"{name} force {side}")
+            out[f"muscle_metabolic_w/{name}/{side}"] = (walk.metabolic_umberger_w[:, s, i],
+                                                        "W", f"{name} metabolic {side}")
+    basal = basal_rate_w(m)
+    for model in ("umberger", "bhargava"):
+        out[f"metabolic_w_per_kg/{model}"] = ((walk.metabolic_rate_w(model) - basal) / m,
+                                              "W/kg", f"net metabolic rate ({model})")
+    return out

@@ -107,6 +107,9 @@ class RecordedRun:
     name: str
     record: object                      # afo_mj.gait.record.GaitRecord
     device: object | None = None        # HafoDevice / ValveAfoDevice, or None
+    #: more per-sample signals of the run: ``{entity path under signals/: (values (n,),
+    #: unit, label)}`` (e.g. a muscle walk's activations and metabolic rates)
+    extra_signals: dict = dataclasses.field(default_factory=dict)
 
 
 # -- helpers ------------------------------------------------------------------------------------
@@ -552,6 +555,10 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
             ext = _log_body(w, run, lane, t_step)
             x_lo, x_hi = min(x_lo, ext["x_min"]), max(x_hi, ext["x_max"])
             _log_gait_signals(w, run, i, s_step)
+            t_sig = run.record.time_s[::s_step]
+            for key, (values, unit, label) in run.extra_signals.items():
+                w.scalars(f"signals/{key}/{run.name}", t_sig, np.asarray(values)[::s_step],
+                          unit, f"{label} ({run.name})", _run_colour(i))
             _log_device_signals(w, run, i, s_step)
             _log_events(w, run)
         last = runs[-1]
