@@ -260,7 +260,7 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
     summary = {"scenario": scenario.as_dict(), **analysis.summary}
     muscle_files = None
     if muscle_walk is not None:
-        summary["muscle"], muscle_files = _muscle_outputs(muscle_walk, analysis)
+        summary["muscle"], muscle_files = _muscle_outputs(muscle_walk, analysis, figures)
     try:
         if scenario.band_references:
             from afo_mj.gait.reference import load_normative
@@ -304,10 +304,12 @@ def _simulate_muscle_walk(scenario):
                            max_force_scale=scale or None)
 
 
-def _muscle_outputs(walk, analysis):
+def _muscle_outputs(walk, analysis, figures: bool = True):
     """The summary's ``muscle`` block over the analysed strides and a writer of
-    ``muscles_cycle.csv`` (:func:`afo_mj.metrics.muscle_metrics.muscle_cycle_table`)."""
+    ``muscles_cycle.csv`` (:func:`afo_mj.metrics.muscle_metrics.muscle_cycle_table`) and,
+    with ``figures``, ``muscles_cycle.png`` (:mod:`afo_mj.outputs.muscle_figures`)."""
     from afo_mj.metrics.muscle_metrics import muscle_cycle_table, muscle_summary
+    from afo_mj.metrics.muscle_timing import PERRY_ON_PCT
     t0, t1 = analysis.summary["analysed_span_s"]
     block = muscle_summary(walk, t0, t1)
     hs = [h for h in walk.record.events.heel_strikes_s[0] if t0 - 1e-9 <= h <= t1 + 1e-9]
@@ -316,6 +318,13 @@ def _muscle_outputs(walk, analysis):
     def write(tmp: Path) -> None:
         np.savetxt(tmp / "muscles_cycle.csv", rows, delimiter=",", header=",".join(header),
                    comments="", fmt="%.6g")
+        if figures:
+            from afo_mj.outputs.muscle_figures import plot_muscle_cycle
+            plot_muscle_cycle(tmp / "muscles_cycle.png", header, rows, list(walk.muscles),
+                              PERRY_ON_PCT, f"muscle walk: net metabolic rate "
+                              f"{block['net_metabolic_umberger_w_per_kg']:.2f} W/kg (Umberger "
+                              f"2010), {block['net_metabolic_bhargava_w_per_kg']:.2f} "
+                              "(Bhargava 2004)")
     return block, write
 
 

@@ -67,12 +67,16 @@ def muscle_summary(walk, first_hs_s: float, last_hs_s: float) -> dict:
 
 def muscle_cycle_table(walk, heel_strikes_s, n: int = 100) -> tuple[list[str], np.ndarray]:
     """``(header, rows)``: phase (%) then, per muscle of the right leg, the stride-mean
-    excitation, activation, tendon force (N) and Umberger metabolic rate (W) on ``n`` points."""
+    excitation, activation, tendon force (N), fibre power (W, ``F × (−v_CE)``: + while the
+    fibres shorten, the force being the tendon's, which the CE carries in series) and Umberger
+    metabolic rate (W) on ``n`` points."""
     r = walk.record
     cols, header = [100.0 * np.arange(n) / n], ["phase_pct"]
+    power = -walk.force_n * walk.ce_velocity_m_s
     for i, name in enumerate(walk.muscles):
         for label, arr in (("excitation", walk.excitation), ("activation", walk.activation),
-                           ("force_n", walk.force_n), ("metabolic_w", walk.metabolic_umberger_w)):
+                           ("force_n", walk.force_n), ("power_w", power),
+                           ("metabolic_w", walk.metabolic_umberger_w)):
             cols.append(cycle_average(arr[:, 0, i], r.time_s, heel_strikes_s, n))
             header.append(f"{name}.{label}")
     return header, np.column_stack(cols)
