@@ -131,7 +131,7 @@ def test_cli_optimize_gait(tmp_path, capsys):
     assert not (tmp_path / "weak").exists()
 
 
-SHIPPED = ["1.0", "1.25", "1.5"]
+SHIPPED = ["1.0", "1.25", "1.5", "child"]
 
 
 @pytest.mark.slow
@@ -149,15 +149,18 @@ def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
         f"reflex_params_{speed}.json"
     doc = json.loads(path.read_text())
     params = load_reflex_set(path)
+    from afo_mj.human.walker import WalkerParams
+    walker = WalkerParams(**doc["walker"])
     duration = max(22.0, 3.0 + 21.5 * doc["quality"]["stride_s"])
-    walk = mw.run_muscle_walk(params=params, duration_s=duration)
+    walk = mw.run_muscle_walk(walker, params=params, duration_s=duration)
     r = walk.record
     assert r.events.fall_time_s is None
     assert len(r.events.heel_strikes_s[0]) >= 21
     q = gait_quality(walk, 3.0)
-    assert abs(q["speed_m_s"] - float(speed)) < 0.15, q
+    target = doc["objective"]["target_speed_m_s"]
+    assert abs(q["speed_m_s"] - target) < 0.15, q
     assert walk.cost_of_transport(3.0, duration) > 0
-    obj = GaitObjective(**{k: v for k, v in doc["objective"].items()})
+    obj = GaitObjective(**{k: v for k, v in doc["objective"].items()}, walker=walker)
     cost, info = gait_cost(params, obj)
     assert cost == doc["cost"]
 
