@@ -247,3 +247,21 @@ def test_a_run_scored_against_a_measured_trial(tmp_path):
     assert s["reference"]["source"] == "trial"
     assert s["ankle_moment_rms_error_nm_per_kg"]["mean"] < 0.5
     assert s["knee_angle_rms_error_deg"]["mean"] < 15.0
+
+
+def test_ground_reaction_forces_from_csv(tmp_path):
+    """The same trial with its forces in a CSV (time, right/left …force…vy columns) gives
+    the same events as the .mot."""
+    ik, grf = _write_trial(tmp_path, 0.0, 4.0 * T, 0.1)
+    from afo_mj.gait.reference import read_opensim_storage
+    _, labels, data = read_opensim_storage(grf)
+    csv = tmp_path / "grf.csv"
+    rename = {"ground_force_vy": "R_force_vy", "1_ground_force_vy": "L_force_vy"}
+    keep = [i for i, lab in enumerate(labels) if lab == "time" or lab in rename]
+    head = ",".join(rename.get(labels[i], labels[i]) for i in keep)
+    np.savetxt(csv, data[:, keep], delimiter=",", header=head, comments="", fmt="%.8f")
+    a = load_measured_trial(ik, grf)
+    b = load_measured_trial(ik, csv)
+    for side in ("right", "left"):
+        np.testing.assert_allclose(a.events.heel_strikes_s[side], b.events.heel_strikes_s[side],
+                                   atol=1e-9)

@@ -79,10 +79,16 @@ def test_hafo_mode_delivers_through_the_hydraulics():
     assert dev is not None and dev.mass_total_kg > 3.0
     # the commanded torque reached the device, and it delivered a plantarflexion torque
     assert np.all(dev.W[0, dev.k.W_CMD] == -15.0)
-    assert obs[-2] < -5.0
+    assert obs[we.OBSERVATION_NAMES.index("right_ankle_device_torque_nm")] < -5.0
     assert info["energy"] > 0.0 and np.isfinite(r)
     led = dev.ledger(0)
     assert abs(led["balance_error_rel"]) < 1e-9 and led["input_j"] > 0.0
+    # the device's states follow the named observation entries
+    names = env.observation_names
+    assert len(obs) == len(names) == len(we.OBSERVATION_NAMES) + dev.Y.size
+    i = names.index("right_device.chamber_a")
+    assert obs[i] == dev.Y[0, dev.cc.index("chamber_a")]
+    assert env.observation_space.contains(obs)
 
 
 def test_vector_form():

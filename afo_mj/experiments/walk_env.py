@@ -11,7 +11,9 @@ chosen control rate (the action is held over the MuJoCo steps of one control per
   and cylinders, which deliver what they can; its worn masses are on the body);
 * **observation** (:data:`OBSERVATION_NAMES`): joint angles and velocities of both legs, the
   controller's phase estimate and stance flags, both feet's ground reaction forces per body
-  weight, the pelvis speed, and the torque delivered at each ankle in the last step;
+  weight, the pelvis speed, and the torque delivered at each ankle in the last step; in
+  ``mode="hafo"`` then the device's state per side (line and chamber pressures, shaft speed,
+  motor current: :attr:`AnkleAssistEnv.observation_names`);
 * **reward**: ``reward_fn(env)`` if given, else :func:`default_reward`, per control step:
   ``− w_track × mean squared angle error (rad², against the scenario's reference at each leg's
   phase) − w_effort × Σ (human ankle moment / (m g L))² − w_energy × P / (m g v)`` (the
@@ -90,8 +92,9 @@ class AnkleAssistEnv(gym.Env):
                                            np.float64)
         # bounds: angles ±π, velocities ±100 rad/s, phase and stance 0…1, forces ±20 body
         # weights, speed ±20 m/s, device torques ±1000 N·m
+        n_dev = len(self.observation_names) - len(OBSERVATION_NAMES)
         hi = np.array([math.pi] * 6 + [100.0] * 6 + [1.0] * 4 + [20.0] * 4 + [20.0]
-                      + [1000.0] * 2)
+                      + [1000.0] * 2 + [1e9] * n_dev)
         lo = -hi
         lo[12:16] = 0.0
         self.observation_space = gym.spaces.Box(lo, hi, dtype=np.float64)
@@ -166,13 +169,27 @@ class AnkleAssistEnv(gym.Env):
         info = {"time_s": w.time_s, "fell": terminated, **self.last}
         return self._observation(), reward, terminated, truncated, info
 
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        """The observation's entries: :data:`OBSERVATION_NAMES`, then in ``mode="hafo"``
+        each side's circuit states (pressures in Pa, shaft speed, motor current; the
+        circuit's state names)."""
+        if self.mode != "hafo":
+            return OBSERVATION_NAMES
+        from afo_mj.devices.hafo import HafoDevice, hafo_params
+        names = HafoDevice(hafo_params(preset=self.hafo_preset)).cc.state_names
+        return OBSERVATION_NAMES + tuple(f"{side}_device.{n}" for side in ("right", "left")
+                                         for n in names)
+
     def _observation(self) -> np.ndarray:
         w = self.walk
         mg = w.phys.body_mass_kg * GRAVITY_M_S2
         dev = (w._buf.device[w.steps - 1] if w.steps else np.zeros(2))
-        return np.concatenate([w.joint_angles_rad.ravel(), w.joint_velocities_rad_s.ravel(),
-                               w.phase, w.stance.astype(float), (w.grf_n / mg).ravel(),
-                               [w.pelvis_speed_m_s], dev])
+        parts = [w.joint_angles_rad.ravel(), w.joint_velocities_rad_s.ravel(), w.phase,
+                 w.stance.astype(float), (w.grf_n / mg).ravel(), [w.pelvis_speed_m_s], dev]
+        if self.device is not None:
+            parts.append(self.device.Y.ravel())
+        return np.concatenate(parts)
 
 
 if ENV_ID not in gym.registry:

@@ -257,7 +257,8 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
     ``coords_path``: OpenSim coordinates (``hip_flexion_r/l``, ``knee_angle_r/l``,
     ``ankle_angle_r/l``; units from the header's ``inDegrees`` unless ``in_degrees``; knee
     sign as :func:`~afo_mj.gait.reference.load_opensim_storage` decides it). Events from
-    ``grf_path`` (a ground-reaction ``.mot``, :func:`grf_columns`) or given as ``events``.
+    ``grf_path`` (a ground-reaction ``.mot``, or a CSV with a ``time`` column and the same
+    column names; :func:`grf_columns`) or given as ``events``.
     With ``id_path`` (OpenSim inverse dynamics, ``<coordinate>_moment`` in N·m, the knee's
     with the same sign rule) and ``body_mass_kg``, the cycles' joint moments per kg come too;
     with ``grf_path`` and ``body_mass_kg`` each foot's ground reaction force per kg (forward
@@ -307,7 +308,11 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
         if grf_path is None:
             raise ReferenceGaitError(f"{origin}: no events: pass grf_path (a ground-reaction "
                                      ".mot) or events (events_from_grf / events_from_markers)")
-        _, glabels, gdata = read_opensim_storage(grf_path)
+        if Path(grf_path).suffix.lower() == ".csv":
+            from afo_mj.gait.reference import read_delimited
+            glabels, gdata = read_delimited(Path(grf_path), None, str(grf_path))
+        else:
+            _, glabels, gdata = read_opensim_storage(grf_path)
         cols = dict(grf_columns_by_side) if grf_columns_by_side else grf_columns(glabels)
         gt = _column(glabels, gdata, "time", str(grf_path))
         forces = {side: np.interp(t, gt, _column(glabels, gdata, cols[side], str(grf_path)))

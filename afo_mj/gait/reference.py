@@ -392,7 +392,7 @@ def _convert(channel: str, spec: ColumnSpec, raw: np.ndarray, *, default_angle_u
     return v * spec.sign if signed else np.abs(v)
 
 
-def _read_delimited(path: Path, delimiter: str | None, origin: str) -> tuple[list[str], np.ndarray]:
+def read_delimited(path: Path, delimiter: str | None, origin: str) -> tuple[list[str], np.ndarray]:
     """Header + float matrix from a CSV (``#`` lines skipped). Empty cells become NaN."""
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -472,7 +472,7 @@ def load_reference_csv(path, mapping: Mapping[str, Any] | None = None, *,
     origin = str(p)
     if angle_unit not in _UNIT_FACTORS["angle"]:
         raise ReferenceGaitError(f"{origin}: angle_unit={angle_unit!r}; allowed rad, deg")
-    header, data = _read_delimited(p, delimiter, origin)
+    header, data = read_delimited(p, delimiter, origin)
     cols = {h: data[:, i] for i, h in enumerate(header)}
     if mapping is None:
         specs = {}
@@ -727,5 +727,5 @@ __all__ = [
     "ANGLE_CHANNELS", "CHANNELS", "ColumnSpec", "DEFAULT_CSV_MAPPING", "DEFAULT_OPENSIM_MAPPING",
     "GRF_CHANNELS", "MOMENT_CHANNELS", "NORMATIVE_SOURCES", "POWER_CHANNELS", "ReferenceGait",
     "ReferenceGaitError", "load_normative", "load_opensim_storage", "load_reference_csv",
-    "read_opensim_storage",
+    "read_delimited", "read_opensim_storage",
 ]
