@@ -9,8 +9,10 @@ Run::
 
 ``DIR/<kind>/reflex_params.json`` are the adapted sets (``afo-mj optimize-gait --assistance
 KIND --start NAIVE --out DIR/KIND``; ``DIR/none`` is the control: the same generations
-without a device). ``--weak F`` adds the rows of a walker whose soleus and gastrocnemius have
-``F`` of their maximum force. Prints markdown tables and, last, a JSON line.
+without a device). ``--weak F`` adds the naive rows of a walker whose soleus and
+gastrocnemius have ``F`` of their maximum force; ``--weak-adapted DIR`` the rows of sets
+optimised with that weakness (``--plantarflexor-strength F``). Changes are against the
+table's first (``none``) row. Prints markdown tables and, last, a JSON line.
 """
 
 from __future__ import annotations
@@ -34,15 +36,18 @@ def _fmt(v, f=".2f"):
 
 def rows_table(rows, title):
     head = ("| condition | walks | speed m/s | net metabolic W/kg (Umberger) | change | "
-            "Bhargava W/kg | ankle muscle +work J/stride | device net work J/stride | "
-            "peak ankle power W/kg |")
-    out = [f"**{title}**", "", head, "|" + "---|" * 9]
+            "net COT J/(kg m) | change | Bhargava W/kg | ankle muscle +work J/stride | "
+            "device net work J/stride | peak ankle power W/kg |")
+    out = [f"**{title}**", "", head, "|" + "---|" * 11]
     for r in rows:
         walks = "yes" if r["fell_s"] is None else f"falls at {r['fell_s']:.1f} s"
         ch = r.get("metabolic_change_pct")
+        cc = r.get("cot_change_pct")
         out.append(f"| {r['label']} | {walks} | {_fmt(r.get('speed_m_s'))} | "
                    f"{_fmt(r.get('net_metabolic_w_per_kg'))} | "
                    f"{'–' if ch is None else f'{ch:+.1f} %'} | "
+                   f"{_fmt(r.get('net_cost_of_transport_j_per_kg_m'))} | "
+                   f"{'–' if cc is None else f'{cc:+.1f} %'} | "
                    f"{_fmt(r.get('net_metabolic_bhargava_w_per_kg'))} | "
                    f"{_fmt(r.get('ankle_muscle_positive_work_j_per_stride'), '.1f')} | "
                    f"{_fmt(r.get('ankle_device_net_work_j_per_stride'), '.1f')} | "
@@ -50,21 +55,31 @@ def rows_table(rows, title):
     return "\n".join(out)
 
 
+def _changes(rows):
+    base = rows[0] if rows and rows[0]["kind"] == "none" and rows[0]["fell_s"] is None else None
+    for r in rows:
+        if base and r["fell_s"] is None and "net_metabolic_w_per_kg" in r:
+            r["metabolic_change_pct"] = 100.0 * (r["net_metabolic_w_per_kg"]
+                                                 / base["net_metabolic_w_per_kg"] - 1.0)
+            r["cot_change_pct"] = 100.0 * (r["net_cost_of_transport_j_per_kg_m"]
+                                           / base["net_cost_of_transport_j_per_kg_m"] - 1.0)
+    return rows
+
+
 def adapted_rows(directory: Path, duration_s: float):
+    """Each ``directory/<kind>/reflex_params.json`` walked with its condition (and the
+    weakness its optimisation had)."""
     rows = []
     for kind in KINDS:
         f = directory / kind / "reflex_params.json"
         if not f.is_file():
             continue
         a = Assistance(kind)
-        walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s)
+        scale = json.loads(f.read_text()).get("max_force_scale") or None
+        walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s,
+                                    max_force_scale=scale)
         rows.append(dict(assistance_summary(walk, 3.0, dev), label=a.label, kind=kind))
-    base = rows[0] if rows and rows[0]["kind"] == "none" else None
-    for r in rows:
-        if base and base["fell_s"] is None and r["fell_s"] is None:
-            r["metabolic_change_pct"] = 100.0 * (r["net_metabolic_w_per_kg"]
-                                                 / base["net_metabolic_w_per_kg"] - 1.0)
-    return rows
+    return _changes(rows)
 
 
 def main(argv=None):
@@ -72,23 +87,28 @@ def main(argv=None):
     ap.add_argument("--naive", required=True, help="the naive wearer's reflex_params.json")
     ap.add_argument("--adapted", default=None, help="folder of adapted sets, one per kind")
     ap.add_argument("--weak", type=float, default=None, help="plantarflexor force factor")
+    ap.add_argument("--weak-adapted", default=None,
+                    help="folder of sets adapted to a weakness (and device), one per kind")
     ap.add_argument("--duration", type=float, default=20.0, help="walk seconds")
     args = ap.parse_args(argv)
     params = load_reflex_set(args.naive)
-    result = {"naive": assistance_comparison(params, duration_s=args.duration)}
+    result = {"naive": _changes(assistance_comparison(params, duration_s=args.duration))}
     print(rows_table(result["naive"], f"Naive wearer ({Path(args.naive).name})"))
     if args.weak is not None:
         scale = {"soleus": args.weak, "gastrocnemius": args.weak}
         conds = [Assistance("none"), Assistance("zhang"), Assistance("hafo")]
-        weak = assistance_comparison(params, conds, duration_s=args.duration,
-                                     max_force_scale=scale)
-        result["weak"] = weak
+        result["weak_naive"] = _changes(assistance_comparison(
+            params, conds, duration_s=args.duration, max_force_scale=scale))
         print()
-        print(rows_table(weak, f"Plantarflexors at {args.weak:g} of their maximum force, naive"))
-    if args.adapted:
-        result["adapted"] = adapted_rows(Path(args.adapted), args.duration)
-        print()
-        print(rows_table(result["adapted"], "Adapted wearer (re-optimised with each condition)"))
+        print(rows_table(result["weak_naive"],
+                         f"Plantarflexors at {args.weak:g} of their maximum force, naive"))
+    for key, title in (("adapted", "Adapted wearer (re-optimised with each condition)"),
+                       ("weak_adapted", "Weak plantarflexors, adapted")):
+        folder = getattr(args, key)
+        if folder:
+            result[key] = adapted_rows(Path(folder), args.duration)
+            print()
+            print(rows_table(result[key], title))
     for rows in result.values():
         for r in rows:
             r.pop("device_ledger", None)
