@@ -204,3 +204,29 @@ def test_weak_objective_walks_the_weak_walker():
     assert walk.record.events.fall_time_s is not None and info["fell_s"] == t
     plain, _ = gait_cost(p, GaitObjective(duration_s=3.0, settle_s=1.0))
     assert cost != plain
+
+
+def test_emg_timing_term_of_the_objective():
+    """GaitObjective.emg_weight adds 10 × weight × Σ (1 − agreement) of the right soleus and
+    tibialis anterior against Perry's timing, the agreement computed here from the walk's
+    excitations with the metrics module."""
+    from pathlib import Path
+
+    from afo_mj.metrics.muscle_timing import PERRY_ON_PCT, cycle_average, timing_agreement
+    from afo_mj.studies.gait_optimization import GaitObjective, gait_cost, load_reflex_set
+    path = Path(__file__).resolve().parents[1] / "afo_mj" / "data" / "reflex_params_1.25.json"
+    p = load_reflex_set(path)
+    plain, _ = gait_cost(p, GaitObjective())
+    cost, info = gait_cost(p, GaitObjective(emg_weight=0.5))
+    walk = mw.run_muscle_walk(None, p, 12.0)
+    r = walk.record
+    miss = 0.0
+    for name in ("soleus", "tibialis_anterior"):
+        avg = cycle_average(walk.excitation[:, 0, rl.MUSCLES.index(name)], r.time_s,
+                            r.events.heel_strikes_s[0], after_s=3.0)
+        a = timing_agreement(avg, PERRY_ON_PCT[name])["agreement"]
+        assert info["emg_agreement"][name] == a
+        miss += 1.0 - a
+    assert cost == pytest.approx(plain + 0.5 * 10.0 * miss, rel=1e-12)
+    with pytest.raises(ValueError, match="emg_weight = -1"):
+        GaitObjective(emg_weight=-1.0)

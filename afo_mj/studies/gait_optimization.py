@@ -19,7 +19,8 @@ scored), lower is better, in stages so that any walk that stands beats any fall:
 * a walk with fewer than 3 scored strides: 900;
 * else ``w_v |v − v_target| + mean angle RMS vs the reference (°, hip, knee, ankle) +
   w_e × net metabolic cost of transport (J/(kg m), Umberger 2010) + 50 if the mean stride
-  is under 0.8 s`` (short, shuffling steps are a known local optimum).
+  is under 0.8 s`` (short, shuffling steps are a known local optimum), and with
+  ``emg_weight`` the soleus and tibialis anterior timing term (:class:`GaitObjective`).
 
 Resumable: after every generation the optimiser's whole state (``es.pickle_dumps()``) and the
 best set so far are written atomically to the output folder; run again with the same folder
@@ -99,13 +100,18 @@ class GaitObjective:
     #: adds ``variant_fall_penalty + 10 × (duration − time walked)``
     variants: tuple = ()
     variant_fall_penalty: float = 50.0
+    #: weight of the EMG timing term: ``emg_weight × 10 × Σ (1 − agreement)`` over the right
+    #: soleus and tibialis anterior against Perry & Burnfield's on/off timing
+    #: (:mod:`afo_mj.metrics.muscle_timing`); 0 leaves it out
+    emg_weight: float = 0.0
     #: ``((muscle, factor), …)``: maximum isometric forces scaled (a weakness the wearer
     #: has; :func:`afo_mj.gait.muscle_walk.muscle_table_scaled`)
     max_force_scale: tuple = ()
 
     def __post_init__(self):
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
-                         ("speed_weight", 0.0), ("effort_weight", 0.0), ("min_stride_s", 0.0)):
+                         ("speed_weight", 0.0), ("effort_weight", 0.0), ("min_stride_s", 0.0),
+                         ("emg_weight", 0.0)):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= lo):
                 raise ValueError(f"GaitObjective.{name} = {v!r}; allowed: finite >= {lo}")
@@ -173,6 +179,10 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
     cost = (objective.speed_weight * abs(q["speed_m_s"] - objective.target_speed_m_s) + rms
             + objective.effort_weight * (cot if math.isfinite(cot) else 100.0)
             + (50.0 if q["stride_s"] < objective.min_stride_s else 0.0))
+    if objective.emg_weight:
+        agree = _emg_agreement(walk, objective.settle_s)
+        cost += objective.emg_weight * 10.0 * sum(1.0 - a for a in agree.values())
+        q = dict(q, emg_agreement=agree)
     if objective.variants:
         falls = {}
         for v in objective.variants:
@@ -190,6 +200,19 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
                 cost += objective.variant_fall_penalty + 10.0 * (objective.duration_s - fell)
         q = dict(q, variant_falls_s=falls)
     return cost, q
+
+
+def _emg_agreement(walk, settle_s: float) -> dict:
+    """Right soleus and tibialis anterior on/off agreement with Perry's EMG timing."""
+    from afo_mj.gait import reflex_law as rl_
+    from afo_mj.metrics.muscle_timing import PERRY_ON_PCT, cycle_average, timing_agreement
+    r = walk.record
+    out = {}
+    for name in ("soleus", "tibialis_anterior"):
+        avg = cycle_average(walk.excitation[:, 0, rl_.MUSCLES.index(name)], r.time_s,
+                            r.events.heel_strikes_s[0], after_s=settle_s)
+        out[name] = timing_agreement(avg, PERRY_ON_PCT[name])["agreement"]
+    return out
 
 
 def _evaluate(packed):
