@@ -211,3 +211,28 @@ def test_muscles_scale_with_stature_by_geometric_similarity():
     walk = run_muscle_walk(WalkerParams(body_mass_kg=25.0, height_m=1.2, timestep_s=5e-4),
                            None, 0.05)
     assert np.all(np.isfinite(walk.force_n)) and walk.record.sample_period_s == 5e-4
+
+
+def test_ramp_scales_the_ideal_torque_by_the_strides_measured(params):
+    """ramp_strides = 4: the torque is the unramped profile × (strides measured so far)/4,
+    full from the fourth measured stride on."""
+    from afo_mj.control import assistance as asst
+    a0 = ma.Assistance("zhang", zhang_peak_nm_per_kg=0.2)
+    a4 = ma.Assistance("zhang", zhang_peak_nm_per_kg=0.2, ramp_strides=4)
+    t0, t4 = ma._IdealTorque(a0, 75.0), ma._IdealTorque(a4, 75.0)
+    rng = np.random.default_rng(3)
+    t = 0.0
+    seen = set()
+    for k in range(6000):
+        t = k * 1e-3
+        stance = np.array([(t % 1.1) < 0.65, ((t + 0.55) % 1.1) < 0.65])
+        ang, vel = rng.normal(0, 0.1, 2), rng.normal(0, 1, 2)
+        full = t0(t, ang, vel, stance).copy()
+        ramped = t4(t, ang, vel, stance).copy()
+        n = t4.phase[0, asst.PH_N]
+        np.testing.assert_allclose(ramped[0], full[0] * min(1.0, n / 4), rtol=1e-12)
+        if full[0] != 0.0:
+            seen.add(int(n))
+    assert {1, 2, 3, 4} <= seen
+    with pytest.raises(ValueError, match="ramp_strides = -1"):
+        ma.Assistance("zhang", ramp_strides=-1)

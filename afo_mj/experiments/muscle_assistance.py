@@ -54,7 +54,8 @@ SIDE_INDEX = {"right": 0, "left": 1}
 @dataclasses.dataclass(frozen=True)
 class Assistance:
     """One assistance condition (module docstring). ``sides``: the assisted ankles of the
-    ideal conditions (the HAFO is worn on the right).
+    ideal conditions (the HAFO is worn on the right); ``ramp_strides``: the ideal torque's
+    linear ramp-on over the first strides the phase estimator has measured.
 
     Defaults: Zhang peak 0.5 N·m/kg (a moderate torque chosen here, about a third of the
     1.6 N·m/kg biological ankle moment peak); spring 180 N·m/rad engaged at 10 % of the
@@ -71,6 +72,9 @@ class Assistance:
     spring_release_phase: float = 0.62
     hafo_peak_torque_nm: float = 40.0
     hafo_preset: str = "hafo_gait"
+    #: ideal conditions: the torque rises linearly over this many strides of the phase
+    #: estimator (as devices ramp assistance on), 0 = at once
+    ramp_strides: int = 0
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -81,6 +85,10 @@ class Assistance:
             raise ValueError(f"assistance.sides = {list(self.sides)!r}; allowed: a non-empty "
                              "subset of ['right', 'left']")
         object.__setattr__(self, "sides", sides)
+        if isinstance(self.ramp_strides, bool) or not isinstance(self.ramp_strides, int) \
+                or not 0 <= self.ramp_strides <= 100:
+            raise ValueError(f"assistance.ramp_strides = {self.ramp_strides!r}; allowed: an "
+                             "integer 0 … 100")
         for name, lo, hi in (("zhang_peak_nm_per_kg", 0.0, 3.0),
                              ("spring_nm_per_rad", 0.0, 2000.0),
                              ("spring_engage_phase", 0.0, 0.5),
@@ -118,6 +126,7 @@ class _IdealTorque:
         #: per side: the clutch's engagement angle (rad), NaN while open; engaged this stance
         self.theta_engaged = np.full(2, np.nan)
         self.used = np.zeros(2, bool)
+        self.ramp = a.ramp_strides
         self.out = np.zeros(2)
 
     def __call__(self, t, angle2, velocity2, stance2):
@@ -125,8 +134,10 @@ class _IdealTorque:
         out[:] = 0.0
         for s in self.sides:
             ph = asst.phase_update(self.phase[s], t, bool(stance2[s]), 0.4, 3.0)
+            gain = (1.0 if self.ramp == 0 else
+                    min(1.0, self.phase[s, asst.PH_N] / self.ramp))
             if not self.spring:
-                out[s] = asst.table_lookup(self.table, ph)
+                out[s] = gain * asst.table_lookup(self.table, ph)
                 continue
             if not stance2[s] or ph < 0.0 or ph > self.release_phase:
                 # swing (or no stride estimate yet, or past the release): the clutch is open
@@ -139,7 +150,7 @@ class _IdealTorque:
                 self.theta_engaged[s] = angle2[s]          # engages slack, at foot flat
                 self.used[s] = True
             if not math.isnan(self.theta_engaged[s]):
-                out[s] = -self.k * max(angle2[s] - self.theta_engaged[s], 0.0)
+                out[s] = -gain * self.k * max(angle2[s] - self.theta_engaged[s], 0.0)
         return out
 
 
