@@ -231,3 +231,13 @@ def test_emg_timing_term_of_the_objective():
     assert cost == pytest.approx(plain + 0.5 * 10.0 * miss, rel=1e-12)
     with pytest.raises(ValueError, match="emg_weight = -1"):
         GaitObjective(emg_weight=-1.0)
+
+
+def test_a_diverging_walk_raises_at_its_time():
+    """An absurd ankle torque from 0.2 s makes MuJoCo reset its state (a bad acceleration):
+    the walk raises naming the time it diverged, not the time after MuJoCo's reset, and is
+    never read as a fall (the optimiser once took such a reset for a 125 m 'walk')."""
+    def device_torque(t, angle2, velocity2, stance2):
+        return np.array([1e30 if t > 0.2 else 0.0, 0.0])
+    with pytest.raises(FloatingPointError, match=r"diverged at t = 0\.20\d\d s"):
+        mw.run_muscle_walk(None, None, 1.0, device_torque=device_torque)

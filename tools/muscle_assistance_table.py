@@ -40,7 +40,8 @@ def rows_table(rows, title):
             "device net work J/stride | peak ankle power W/kg |")
     out = [f"**{title}**", "", head, "|" + "---|" * 11]
     for r in rows:
-        walks = "yes" if r["fell_s"] is None else f"falls at {r['fell_s']:.1f} s"
+        walks = ("yes" if r["fell_s"] is None else
+                 f"{'diverges' if r.get('diverged') else 'falls'} at {r['fell_s']:.1f} s")
         ch = r.get("metabolic_change_pct")
         cc = r.get("cot_change_pct")
         out.append(f"| {r['label']} | {walks} | {_fmt(r.get('speed_m_s'))} | "
@@ -76,8 +77,13 @@ def adapted_rows(directory: Path, duration_s: float):
             continue
         a = Assistance(kind)
         scale = json.loads(f.read_text()).get("max_force_scale") or None
-        walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s,
-                                    max_force_scale=scale)
+        try:
+            walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s,
+                                        max_force_scale=scale)
+        except FloatingPointError as exc:         # a diverged walk is reported, not hidden
+            t = float(str(exc).split("t = ")[1].split(" ")[0]) if "t = " in str(exc) else 0.0
+            rows.append({"label": a.label, "kind": kind, "fell_s": t, "diverged": True})
+            continue
         rows.append(dict(assistance_summary(walk, 3.0, dev), label=a.label, kind=kind))
     return _changes(rows)
 

@@ -235,6 +235,11 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
             d.qfrc_applied[dank] = force2
             m.dof_damping[dank] = base_damping + extra2
         mujoco.mj_step(m, d)
+        if d.time < t:
+            # MuJoCo met a huge or non-finite acceleration or control (a diverging muscle
+            # state) and reset the state, time included
+            raise FloatingPointError(f"muscle walk: the simulation diverged at t = {t:.4f} s "
+                                     "(MuJoCo reset its state)")
         if device is not None:
             buf["dev"][k] = device.end_step(d.qvel[dank])
         buf["time"][k] = d.time
