@@ -69,6 +69,12 @@ def _dependency_digest() -> str:
 #: finiteness checks report, instead of a zero test before every division: 0.8 µs of the
 #: HAFO's ~8 µs per coupled gait step, measured by replaying a recorded gait).
 JIT_DECORATOR = '@numba.njit(cache=True, error_model="numpy")'
+#: the decorator of every generated function that allocates nothing and returns no array: the
+#: same, compiled without numba's reference counting (``_nrt=False``). Their arrays are views
+#: of buffers their caller holds, so the counts guard nothing, and each view made or passed
+#: cost an out-of-line atomic increment and decrement: measured on the HAFO's coupled gait
+#: step (replayed from numba, 2 cores), 3.9 µs/step with counting, 2.4 µs without.
+HOT_DECORATOR = JIT_DECORATOR[:-1] + ", _nrt=False)"
 
 
 def cache_dir() -> Path:
@@ -548,7 +554,7 @@ def generate(circuit: Circuit):
     floor_lines.append("return clipped")
 
     def fn(name, args, lines):
-        out = [JIT_DECORATOR, f"def {name}({args}):"]
+        out = [HOT_DECORATOR, f"def {name}({args}):"]
         for ln in lines or ["pass"]:
             out += ["    " + s for s in ln.split("\n")]
         return "\n".join(out)
@@ -609,7 +615,7 @@ def generate(circuit: Circuit):
     src.append(fn("clip_floor", "y, P", floor_lines))
     for f in stepper.TEMPLATE:
         deco = (JIT_DECORATOR[:-1] + ', inline="always")' if f in stepper.INLINE
-                else JIT_DECORATOR)
+                else HOT_DECORATOR)
         src += ["", "", deco, inspect.getsource(f).rstrip()]
     text = "\n".join(src) + "\n"
     layout = dict(n_w=n_w, n_scratch=n_scratch, s_width=s_width, srate_names=srate_names,

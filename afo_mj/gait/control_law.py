@@ -14,7 +14,6 @@ Event codes written to ``state[S_EVENT + side]``: 0 none, 1 heel strike, 2 toe o
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 # --- state slots --------------------------------------------------------------------------------
 S_PHASE = 0          # 2: gait phase per leg
@@ -49,7 +48,13 @@ N_STATE = 12
 _ANGLE, _RATE, _MOMENT, _AHEAD_RATE = 0, 3, 6, 10
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, inline="always")
+def _row(table, table_step, i, f, c):
+    """Column ``c`` of the reference table at row ``i`` plus fraction ``f`` (linear)."""
+    return table[i, c] + f * table_step[i, c]
+
+
+@numba.njit(cache=True, fastmath=False, _nrt=False)
 def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const, index,
                  ctrl, actfrcrange):  # pragma: no cover - compiled; exercised by the walk tests
     """Advance the controller by one step at time ``t`` and write ``ctrl`` and the ankle's
@@ -57,12 +62,18 @@ def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const
     n = int(const[C_TABLE_N])
     dt = const[C_DT]
     # --- gait events from foot load (touch sensors: heel + ball) -------------------------------
-    loads = np.empty(2)
+    # (no arrays are allocated here: scalars per side, the reference rows read on demand and
+    # the targets and torques kept in ctrl, as this runs every step)
+    load0 = 0.0
+    load1 = 0.0
     for s in range(2):
-        loads[s] = sens[index[I_TOUCH + 2 * s]] + sens[index[I_TOUCH + 2 * s + 1]]
+        load = sens[index[I_TOUCH + 2 * s]] + sens[index[I_TOUCH + 2 * s + 1]]
+        if s == 0:
+            load0 = load
+        else:
+            load1 = load
         state[S_EVENT + s] = 0.0
         ph = state[S_PHASE + s] + dt * const[C_INV_T]
-        load = loads[s]
         if state[S_SWING + s] > 0.5:
             if load > const[C_ON_N] and ph > const[C_HS_PHASE]:
                 state[S_SWING + s] = 0.0
@@ -85,19 +96,21 @@ def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const
         state[S_PHASE + s] = ph
 
     # --- reference rows at each leg's phase (linear interpolation) ------------------------------
-    rows = np.empty((2, table.shape[1]))
+    x = min(max(state[S_PHASE], 0.0), 1.0) * n
+    i0 = min(int(x), n - 1)
+    f0 = x - i0
+    x = min(max(state[S_PHASE + 1], 0.0), 1.0) * n
+    i1 = min(int(x), n - 1)
+    f1 = x - i1
     for s in range(2):
-        x = min(max(state[S_PHASE + s], 0.0), 1.0) * n
-        i = min(int(x), n - 1)
-        f = x - i
-        for c in range(table.shape[1]):
-            rows[s, c] = table[i, c] + f * table_step[i, c]
-    target = np.empty((2, 3))
-    torque = np.empty((2, 3))
-    for s in range(2):
+        i = i0 if s == 0 else i1
+        f = f0 if s == 0 else f1
         for j in range(3):
-            target[s, j] = rows[s, _ANGLE + j] + const[C_LEAD + j] * rows[s, _RATE + j]
-            torque[s, j] = const[C_FF + j] * rows[s, _MOMENT + j]
+            ctrl[index[I_PD + 3 * s + j]] = (
+                _row(table, table_step, i, f, _ANGLE + j)
+                + const[C_LEAD + j] * _row(table, table_step, i, f, _RATE + j))
+            ctrl[index[I_FF + 3 * s + j]] = const[C_FF + j] * _row(table, table_step, i, f,
+                                                                    _MOMENT + j)
 
     vx = qvel[index[I_DPX]]
     v_mean = state[S_V_MEAN]
@@ -115,30 +128,31 @@ def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const
         if state[S_SWING + s] < 0.5:
             continue
         v_level = const[C_SPEED_ADAPT] * v_mean + (1.0 - const[C_SPEED_ADAPT]) * const[C_V_REF]
-        v_target = v_level * rows[1 - s, _AHEAD_RATE] * const[C_AHEAD_NORM]
-        target[s, 0] += const[C_CV] * (vx - v_target)
+        ahead = (_row(table, table_step, i1, f1, _AHEAD_RATE) if s == 0
+                 else _row(table, table_step, i0, f0, _AHEAD_RATE))
+        v_target = v_level * ahead * const[C_AHEAD_NORM]
+        ctrl[index[I_PD + 3 * s]] += const[C_CV] * (vx - v_target)
         ph = state[S_PHASE + s]
         if const[C_CLEAR_GAIN] != 0.0 and 0.6 < ph < 0.9:
             deficit = const[C_CLEAR_M] - (geom_xpos[index[I_BALL + s], 2] - const[C_RADIUS])
             if deficit > 0.0:
-                target[s, 1] += const[C_CLEAR_GAIN] * deficit
-                target[s, 0] += 0.5 * const[C_CLEAR_GAIN] * deficit
+                ctrl[index[I_PD + 3 * s + 1]] += const[C_CLEAR_GAIN] * deficit
+                ctrl[index[I_PD + 3 * s]] += 0.5 * const[C_CLEAR_GAIN] * deficit
 
     # --- stance legs: trunk through the stance hip(s), by load share ----------------------------
     st0 = state[S_SWING] < 0.5
     st1 = state[S_SWING + 1] < 0.5
     if st0 or st1:
-        l0 = loads[0] if st0 else 0.0
-        l1 = loads[1] if st1 else 0.0
+        l0 = load0 if st0 else 0.0
+        l1 = load1 if st1 else 0.0
         total = l0 + l1
-        share = np.empty(2)
         if total > 0.0:
-            share[0] = l0 / total
-            share[1] = l1 / total
+            share0 = l0 / total
+            share1 = l1 / total
         else:
             n_st = (1.0 if st0 else 0.0) + (1.0 if st1 else 0.0)
-            share[0] = (1.0 if st0 else 0.0) / n_st
-            share[1] = (1.0 if st1 else 0.0) / n_st
+            share0 = (1.0 if st0 else 0.0) / n_st
+            share1 = (1.0 if st1 else 0.0) / n_st
         tau_trunk = -const[C_TRUNK_KP] * tilt - const[C_TRUNK_KD] * tilt_rate
         a = const[C_TRACK]
         for s in range(2):
@@ -147,14 +161,10 @@ def control_step(t, qpos, qvel, sens, geom_xpos, state, table, table_step, const
             if a < 1.0:
                 upright = (qpos[index[I_HIP_Q + s]] - tilt
                            + const[C_LEAD_HIP] * (qvel[index[I_HIP_V + s]] - tilt_rate))
-                target[s, 0] = a * target[s, 0] + (1.0 - a) * upright
-                torque[s, 0] *= a
-            torque[s, 0] += share[s] * tau_trunk
+                ctrl[index[I_PD + 3 * s]] = a * ctrl[index[I_PD + 3 * s]] + (1.0 - a) * upright
+                ctrl[index[I_FF + 3 * s]] *= a
+            ctrl[index[I_FF + 3 * s]] += (share0 if s == 0 else share1) * tau_trunk
 
-    for s in range(2):
-        for j in range(3):
-            ctrl[index[I_PD + 3 * s + j]] = target[s, j]
-            ctrl[index[I_FF + 3 * s + j]] = torque[s, j]
     g = 1.0 + const[C_EXTRA_GAIN] * max(0.0, 1.0 - t / const[C_WARMUP_S])
     ctrl[index[I_RES_X]] = -const[C_RES_TX] * g * (vx - v_mean)
     ctrl[index[I_RES_Z]] = (-const[C_RES_TZ] * g * (z - z_mean)

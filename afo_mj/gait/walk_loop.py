@@ -103,7 +103,7 @@ def _call_end(typingctx, fn, p_velocity, p_buf, p_meta, p_log, n_log, n_fields, 
     return sig, codegen
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, _nrt=False)
 def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_step, const,
                index, ctrl, actfrc, qfrc_actuator, actuator_force, contact_geoms,
                b_time, b_qpos, b_qvel, b_qfrc, b_act, b_sens, b_cz, b_phase,
