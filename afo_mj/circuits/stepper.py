@@ -34,12 +34,14 @@ Wanner, *Solving ODEs II*, IV.7), as stiff solvers keep theirs (CVODE refreshes 
 steps or on slow Newton convergence; Hindmarsh et al. 2005, ACM TOMS 31:363). Each step still
 evaluates ``f`` and ``∂f/∂θ̇`` fresh, so only the state coupling ages. The matrix is rebuilt
 when it has served ``JAC_MAX_AGE`` steps, when the controller's actuated inputs moved by more
-than ``JAC_INPUT_REL`` of their size since it was built (a valve switching), when the step's
-Newton correction needed a fresh Jacobian (its chord iterations contracted less than tenfold)
-or sub-steps, and when the torque MuJoCo integrated missed the step's end torque by more than
-``JAC_COUPLE_REL`` of the torque's size. The end state is the same converged backward-Euler
-step either way (within ``NEWTON_TOL``); what the reuse changes is the prediction, i.e. the
-torque and damping handed to MuJoCo, by the coupling error these rules bound.
+than ``JAC_INPUT_REL`` of their size since it was built (a valve switching), when the step
+needed sub-steps, and when the torque MuJoCo integrated missed the step's end torque by more
+than ``JAC_COUPLE_REL`` of the torque's size. Where the step's Newton correction made a fresh
+Jacobian (its chord iterations contracted less than tenfold), that one, factored, replaces the
+kept matrix and ``∂τ/∂y`` (``jacobian_builds`` counts only the prediction's own builds). The
+end state is the same converged backward-Euler step either way (within ``NEWTON_TOL``); what
+the reuse changes is the prediction, i.e. the torque and damping handed to MuJoCo, by the
+coupling error these rules bound.
 
 The backward-Euler residual is written with ``rhs_step(y, y_old, …)``: the same right-hand side
 with each node's oil compliance the mean of ``1/B`` over ``[p_old, p]``
@@ -140,11 +142,12 @@ def scratch_views(S):
 
 
 def jacobian(y, yo, theta, theta_dot, h, U, P, S, M):
-    """``M = I − h ∂f/∂y`` at ``(y, θ̇)`` by forward differences, ``f`` the step's right-hand
-    side from ``yo`` (:func:`rhs_step`)."""
+    """``M = I − h ∂f/∂y`` and ``∂τ/∂y`` (scratch row 11) at ``(y, θ̇)`` by forward
+    differences, ``f`` the step's right-hand side from ``yo`` (:func:`rhs_step`), whose value
+    and power flows at ``y`` the caller has left in scratch rows 1–2 (Newton evaluates them
+    there just before)."""
     (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mc,
      R) = scratch_views(S)
-    rhs_step(y, yo, theta, theta_dot, U, P, f0, F0)
     for j in range(N_Y):
         for k in range(N_Y):
             yp[k] = y[k]
@@ -152,8 +155,9 @@ def jacobian(y, yo, theta, theta_dot, h, U, P, S, M):
         yp[j] = y[j] + d
         rhs_step(yp, yo, theta, theta_dot, U, P, fp, Fp)
         for k in range(N_Y):
-            M[k, j] = -h * (fp[k] - f0[k]) / d
+            M[k, j] = -h * (fp[k] - f1[k]) / d
         M[j, j] += 1.0
+        dtau[j] = (Fp[F_TAU] - F1[F_TAU]) / d
 
 
 def linearise(y, P, W, S):
@@ -213,16 +217,20 @@ def linearise(y, P, W, S):
 
 
 def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
-    """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place); the
-    first iterations reuse the prediction's matrix while they contract tenfold (chord), then
-    fresh Jacobians (and the kept prediction matrix is marked for rebuilding); a diverging or
+    """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place).
+    Iterations are chords: they reuse a factored matrix while they contract tenfold, first the
+    prediction's (``first_matrix``), then a fresh Jacobian made at the iterate where one
+    contracted less (simplified Newton; Hairer & Wanner, *Solving ODEs II*, IV.8); where that
+    one contracts less too, a fresh Jacobian every iteration (full Newton). A diverging or
     cycling iteration halves its last step (damped Newton).
     Leaves ``f`` and the power flows at the solution in scratch rows 1–2."""
     (f1, F1, yo_, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mcopy,
      R) = scratch_views(S)
     rv = R[:, :1]
     err_prev = 1e300
-    chord = first_matrix
+    kept = first_matrix
+    own = False
+    full = False
     for it in range(24):
         rhs_step(y, yold, theta, theta_dot, U, P, f1, F1)
         err = 0.0
@@ -239,17 +247,36 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
                 step[k] *= 0.5
                 y[k] = ybest[k] + step[k]
             continue
-        if chord and it > 0 and err > 0.1 * err_prev:
-            chord = False
+        if it > 0 and err > 0.1 * err_prev:
+            if kept:
+                kept = False
+            elif own:
+                full = True
+        fresh = not kept and (not own or full)
         err_prev = err
         W[W_NEWTON_ITERS] += 1.0
-        if chord:
-            lu_solve(Mcopy, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
-        else:
-            # the prediction matrix did not serve: the next step rebuilds it
-            S[0, 1] = 0.0
+        if fresh:
+            # the matrix in use did not serve: a Jacobian at this iterate (after a fresh one
+            # that did not serve either, at every iterate: full Newton). In the step's own
+            # solve it also replaces the kept prediction matrix (the next steps predict with
+            # it); in a sub-step the next step rebuilds that one.
+            kept = False
+            own = True
             jacobian(y, yold, theta, theta_dot, h, U, P, S, Mw)
             lu_factor(Mw, S[14 + 3 * N_Y, :N_Y], N_Y)
+            if first_matrix:
+                for k in range(N_Y):
+                    S[13 + 3 * N_Y, k] = S[14 + 3 * N_Y, k]
+                    for j in range(N_Y):
+                        Mcopy[k, j] = Mw[k, j]
+                for k in range(N_U):
+                    S[15 + 3 * N_Y, k] = U[k]
+                S[0, 1] = 1.0
+            else:
+                S[0, 1] = 0.0
+        if kept:
+            lu_solve(Mcopy, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
+        else:
             lu_solve(Mw, S[14 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         for k in range(N_Y):
             ybest[k] = y[k]
