@@ -233,6 +233,34 @@ def test_emg_timing_term_of_the_objective():
         GaitObjective(emg_weight=-1.0)
 
 
+def test_tracking_weight_scales_the_angle_term():
+    """GaitObjective.tracking_weight multiplies the mean angle RMS against Winter: doubling it
+    adds the mean of the hip, knee and ankle RMS, recomputed here by resampling the walk's
+    right-leg strides on the reference's phase by hand."""
+    from pathlib import Path
+
+    from afo_mj.gait.reference import load_normative
+    from afo_mj.studies.gait_optimization import GaitObjective, gait_cost, load_reflex_set
+    path = Path(__file__).resolve().parents[1] / "afo_mj" / "data" / "reflex_params_1.25.json"
+    p = load_reflex_set(path)
+    one, _ = gait_cost(p, GaitObjective(duration_s=6.0, settle_s=2.0))
+    two, _ = gait_cost(p, GaitObjective(duration_s=6.0, settle_s=2.0, tracking_weight=2.0))
+    r = mw.run_muscle_walk(None, p, 6.0).record
+    phase = np.arange(50) / 50.0
+    target = load_normative("winter", "normal").angles_rad(phase)
+    hs = [t for t in r.events.heel_strikes_s[0] if t > 2.0]
+    rms = []
+    for a, b in zip(hs[:-1], hs[1:]):
+        ph = (r.time_s - a) / (b - a)
+        sel = (ph >= 0.0) & (ph < 1.0)
+        ang = np.column_stack([np.interp(phase, ph[sel], r.joint_angle_rad[sel, 0, j])
+                               for j in range(3)])
+        rms.append(np.sqrt(np.mean((ang - target) ** 2, axis=0)))
+    assert two - one == pytest.approx(np.degrees(np.mean(rms)), rel=1e-9)
+    with pytest.raises(ValueError, match="tracking_weight = -1"):
+        GaitObjective(tracking_weight=-1.0)
+
+
 def test_a_diverging_walk_raises_at_its_time():
     """An absurd ankle torque from 0.2 s makes MuJoCo reset its state (a bad acceleration):
     the walk raises naming the time it diverged, not the time after MuJoCo's reset, and is

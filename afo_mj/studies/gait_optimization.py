@@ -17,7 +17,7 @@ scored), lower is better, in stages so that any walk that stands beats any fall:
 * a diverged simulation (MuJoCo's bad-control/acceleration warnings, non-finite states):
   2000;
 * a walk with fewer than 3 scored strides: 900;
-* else ``w_v |v − v_target| + mean angle RMS vs the reference (°, hip, knee, ankle) +
+* else ``w_v |v − v_target| + w_t × mean angle RMS vs the reference (°, hip, knee, ankle) +
   w_e × net metabolic cost of transport (J/(kg m), Umberger 2010) + 50 if the mean stride
   is under 0.8 s`` (short, shuffling steps are a known local optimum), and with
   ``emg_weight`` the soleus and tibialis anterior timing term (:class:`GaitObjective`).
@@ -91,6 +91,8 @@ class GaitObjective:
     settle_s: float = 3.0
     speed_weight: float = 20.0
     effort_weight: float = 1.0
+    #: weight of the mean angle RMS (°) against the reference kinematics
+    tracking_weight: float = 1.0
     min_stride_s: float = 0.8
     walker: WalkerParams = dataclasses.field(default_factory=WalkerParams)
     #: the device worn while walking (:mod:`afo_mj.experiments.muscle_assistance`): the
@@ -111,6 +113,7 @@ class GaitObjective:
     def __post_init__(self):
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
                          ("speed_weight", 0.0), ("effort_weight", 0.0), ("min_stride_s", 0.0),
+                         ("tracking_weight", 0.0),
                          ("emg_weight", 0.0)):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= lo):
@@ -176,7 +179,8 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
         return 900.0, {"distance_m": dist, "strides": 0}
     rms = float(np.mean(list(q["angle_rms_deg"].values())))
     cot = q["net_cost_of_transport_j_per_kg_m"]
-    cost = (objective.speed_weight * abs(q["speed_m_s"] - objective.target_speed_m_s) + rms
+    cost = (objective.speed_weight * abs(q["speed_m_s"] - objective.target_speed_m_s)
+            + objective.tracking_weight * rms
             + objective.effort_weight * (cot if math.isfinite(cot) else 100.0)
             + (50.0 if q["stride_s"] < objective.min_stride_s else 0.0))
     if objective.emg_weight:
