@@ -21,13 +21,13 @@ from afo_mj.human.metabolics import BASAL_W_PER_KG
 
 @pytest.fixture(scope="module")
 def geyer_walk():
-    """Geyer & Herr's published gains on this skeleton: a few steps, then a fall."""
-    return mw.run_muscle_walk(duration_s=3.0)
+    """Geyer & Herr's published gains on this skeleton: a few steps, then a fall (at 4.9 s)."""
+    return mw.run_muscle_walk(duration_s=8.0)
 
 
 def test_fall_is_reported(geyer_walk):
     r = geyer_walk.record
-    assert r.events.fall_time_s is not None and r.events.fall_time_s < 3.0
+    assert r.events.fall_time_s is not None and r.events.fall_time_s < 8.0
     assert r.time_s[-1] == pytest.approx(r.events.fall_time_s)
     assert len(r.events.heel_strikes_s[0]) >= 1 and len(r.events.toe_offs_s[1]) >= 1
 
@@ -197,13 +197,13 @@ def test_weak_objective_walks_the_weak_walker():
     those muscles weakened."""
     from afo_mj.studies.gait_optimization import GaitObjective, gait_cost
     weak = (("soleus", 0.6), ("gastrocnemius", 0.6))
-    obj = GaitObjective(duration_s=3.0, settle_s=1.0, max_force_scale=weak)
+    obj = GaitObjective(duration_s=8.0, settle_s=1.0, max_force_scale=weak)
     p = mw.reflex_params()
     cost, info = gait_cost(p, obj)
-    walk = mw.run_muscle_walk(None, p, 3.0, max_force_scale=dict(weak))
+    walk = mw.run_muscle_walk(None, p, 8.0, max_force_scale=dict(weak))
     t = float(walk.record.time_s[-1])
     assert walk.record.events.fall_time_s is not None and info["fell_s"] == t
-    plain, _ = gait_cost(p, GaitObjective(duration_s=3.0, settle_s=1.0))
+    plain, _ = gait_cost(p, GaitObjective(duration_s=8.0, settle_s=1.0))
     assert cost != plain
 
 
@@ -259,6 +259,35 @@ def test_tracking_weight_scales_the_angle_term():
     assert two - one == pytest.approx(np.degrees(np.mean(rms)), rel=1e-9)
     with pytest.raises(ValueError, match="tracking_weight = -1"):
         GaitObjective(tracking_weight=-1.0)
+
+
+def test_swing_vasti_take_their_own_stimulation():
+    """In swing (from 50 ms after a toe off to 20 ms before the next heel strike, clear of the
+    20 ms stance-detection window) the vasti's excitation is ``s0_vasti_swing`` exactly, not
+    the stance pre-stimulation ``s0_vasti``; Geyer & Herr's default leaves them at the floor."""
+    from pathlib import Path
+
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    path = Path(__file__).resolve().parents[1] / "afo_mj" / "data" / "reflex_params_1.25.json"
+    base = load_reflex_set(path)
+    vas = rl.MUSCLES.index("vasti")
+    assert rl.DEFAULTS["s0_vasti_swing"] == 0.01
+    for value in (0.01, 0.2):
+        p = base.copy()
+        p[rl.PARAM_NAMES.index("s0_vasti_swing")] = value
+        walk = mw.run_muscle_walk(None, p, 3.0)
+        r = walk.record
+        n_swing = 0
+        for s in range(2):
+            for to in r.events.toe_offs_s[s]:
+                later = [t for t in r.events.heel_strikes_s[s] if t > to]
+                if not later:
+                    continue
+                sel = (r.time_s > to + 0.05) & (r.time_s < later[0] - 0.02)
+                assert np.all(walk.excitation[sel, s, vas] == value)
+                n_swing += int(sel.sum())
+        assert n_swing > 200
+        assert p[rl.PARAM_NAMES.index("s0_vasti")] != value
 
 
 def test_a_diverging_walk_raises_at_its_time():

@@ -21,8 +21,8 @@ mechanics produces human walking dynamics and muscle activities", IEEE TNSRE 18 
    support the trailing leg adds ``ΔS`` to HFL, takes it from GLU, and inhibits VAS by
    ``k_bw`` × the other leg's load;
    swing — HFL: ``k_lean (θ_TO − θ_ref)`` plus length feedback beyond ``l_off,HFL`` less
-   HAM length beyond ``l_off,HAM``; HAM, GLU: force feedback; TA: length feedback; SOL, GAS,
-   VAS: their pre-stimulation;
+   HAM length beyond ``l_off,HAM``; HAM, GLU: force feedback; TA: length feedback; SOL, GAS:
+   their pre-stimulation; VAS: ``s0_vasti_swing`` (Geyer & Herr: the floor, 0.01);
 4. advances every activation (exact first-order step) and CE length (backward Euler,
    :func:`afo_mj.human.muscle.mtu_step`) and takes the tendon force;
 5. sums the joint torques ``s r(φ) F`` of every path, adds Geyer's soft joint limits (knee
@@ -76,13 +76,18 @@ DEFAULTS = {
     "k_lean": 2.0 / 100.0 * 180.0 / math.pi, "g_hip_flexors": 0.5, "loff_hip_flexors": 0.65,
     "g_hamstrings_hip_flexors": 4.0, "loff_hamstrings": 0.85, "s0_hamstrings": 0.01,
     "g_hamstrings": 0.65, "s0_gluteals": 0.01, "g_gluteals": 0.5,
+    # the vasti's stimulation in swing: Geyer & Herr's VAS pre-stimulation is a stance term
+    # (so in Geijtenbeek's rendition of the controller in SCONE), leaving the swing vasti at
+    # the floor; the sets shipped before it was a parameter held s0_vasti through swing, and
+    # carry that value
+    "s0_vasti_swing": 0.01,
 }
 PARAM_NAMES = tuple(DEFAULTS)
 N_P = len(PARAM_NAMES)
 (P_S0_SOL, P_G_SOL, P_S0_TA, P_G_TA, P_LOFF_TA, P_G_SOLTA, P_S0_GAS, P_G_GAS, P_S0_VAS,
  P_G_VAS, P_K_PHI, P_PHI_OFF, P_S0_GG, P_KP, P_KD, P_THETA_REF, P_DS, P_K_BW, P_S0_HFL,
  P_K_LEAN, P_G_HFL, P_LOFF_HFL, P_G_HAMHFL, P_LOFF_HAM, P_S0_HAM, P_G_HAM, P_S0_GLU,
- P_G_GLU) = range(N_P)
+ P_G_GLU, P_S0_VAS_SWING) = range(N_P)
 
 # state X offsets (14 = 2 legs × 7 muscles)
 X_ACT, X_LCE, X_F, X_U, X_VCE = 0, 14, 28, 42, 56
@@ -231,7 +236,7 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
         else:
             S[SOL] = P[P_S0_SOL]
             S[GAS] = P[P_S0_GAS]
-            S[VAS] = P[P_S0_VAS]
+            S[VAS] = P[P_S0_VAS_SWING]
             S[TA] = P[P_S0_TA] + P[P_G_TA] * max(L[TA] - P[P_LOFF_TA], 0.0)
             S[HFL] = (P[P_S0_HFL] + P[P_K_LEAN] * (X[X_THETA_TO + s] - P[P_THETA_REF])
                       + P[P_G_HFL] * max(L[HFL] - P[P_LOFF_HFL], 0.0)

@@ -5,7 +5,7 @@ Search space: the logarithm of each reflex parameter's factor on Geyer & Herr's 
 (:data:`afo_mj.gait.reflex_law.DEFAULTS`), so every parameter keeps its sign and the search
 starts at their published controller (or at a given set, warm start). Optimiser: CMA-ES
 (Hansen & Ostermeier 2001, Evol. Comput. 9:159; the ``cma`` package), initial step 0.2, its
-default population for 28 parameters (or ``popsize``), fixed seed: the same command gives
+default population for 29 parameters (or ``popsize``), fixed seed: the same command gives
 the same result. A generation's walks run in parallel (:func:`afo_mj.experiments.batch.
 run_batch`).
 
