@@ -54,7 +54,7 @@ def test_ideal_zhang_torque_follows_the_profile_on_the_estimated_phase(params):
     hs = np.asarray(r.events.heel_strikes_s[0])
     assert len(hs) >= 3
     checked = 0
-    for k in range(0, len(r.time_s), 37):
+    for k in range(0, len(r.time_s), 7):
         t = r.time_s[k] - r.sample_period_s            # the torque was set at the step start
         past = hs[hs <= t + 1e-9]
         strides = np.diff(past)
@@ -63,9 +63,24 @@ def test_ideal_zhang_torque_follows_the_profile_on_the_estimated_phase(params):
             assert tau[k, 0] == 0.0
             continue
         ph = min((t - past[-1]) / strides.mean(), 1.0)
-        assert tau[k, 0] == pytest.approx(_zhang_by_hand(ph, peak), abs=0.02 * peak)
+        # only while the foot switch reads stance (the last event at or before t a heel
+        # strike): none in swing
+        offs = [x for x in r.events.toe_offs_s[0] if x <= t + 1e-9]
+        stance = not offs or offs[-1] < past[-1]
+        want = _zhang_by_hand(ph, peak) if stance else 0.0
+        assert tau[k, 0] == pytest.approx(want, abs=0.02 * peak)
         checked += 1
     assert checked > 30
+    # the gate by itself: strides of 1 s measured, then at 40 % of a stride the torque is the
+    # profile's with the foot on the ground and none with it off (an early toe off)
+    ideal = ma._IdealTorque(ma.Assistance("zhang", zhang_peak_nm_per_kg=0.3), 75.0)
+    zero2 = np.zeros(2)
+    for t in np.arange(0.0, 2.4, 0.01):
+        ideal(t, zero2, zero2, np.array([(t % 1.0) < 0.6, False]))
+    on = ideal(2.4, zero2, zero2, np.array([True, False]))[0]
+    assert on == pytest.approx(_zhang_by_hand(0.4, 0.3 * 75.0), abs=0.01 * 0.3 * 75.0)
+    assert on < -0.3 * 0.3 * 75.0
+    assert ideal(2.41, zero2, zero2, np.array([False, False]))[0] == 0.0
 
 
 def test_clutched_spring_engages_slack_and_resists_dorsiflexion_only_in_stance(params):

@@ -10,7 +10,8 @@ the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller 
 * ``zhang`` — an ideal ankle torque following the profile of Zhang et al. (2017, *Science*
   356:1280; :func:`afo_mj.control.assistance.zhang_profile`, published timing: peak at
   52.9 %, rise 26.2 %, fall 9.8 % of the stride) against the gait phase estimated from each
-  foot's stance (:func:`afo_mj.control.assistance.phase_update`), massless;
+  foot's stance (:func:`afo_mj.control.assistance.phase_update`), only while that foot is in
+  stance, massless;
 * ``clutched_spring`` — an ideal, massless clutched spring in parallel with the calf, as in
   Collins, Wiggin & Sawicki (2015, *Nature* 522:212): the clutch engages once per stance,
   at ``spring_engage_phase`` of the stride (foot flat), with the spring slack at the ankle
@@ -137,7 +138,10 @@ class _IdealTorque:
             gain = (1.0 if self.ramp == 0 else
                     min(1.0, self.phase[s, asst.PH_N] / self.ramp))
             if not self.spring:
-                out[s] = gain * asst.table_lookup(self.table, ph)
+                # on the estimated phase, and only while the foot switch reads stance: a
+                # device gates its push-off torque with it, as an estimate that lags a short
+                # stride would otherwise push a swinging foot
+                out[s] = gain * asst.table_lookup(self.table, ph) if stance2[s] else 0.0
                 continue
             if not stance2[s] or ph < 0.0 or ph > self.release_phase:
                 # swing (or no stride estimate yet, or past the release): the clutch is open
