@@ -36,7 +36,9 @@ evaluates ``f`` and ``∂f/∂θ̇`` fresh, so only the state coupling ages. The
 when it has served ``JAC_MAX_AGE`` steps, when the controller's actuated inputs moved by more
 than ``JAC_INPUT_REL`` of their size since it was built (a valve switching), when the step
 needed sub-steps, and when the torque MuJoCo integrated missed the step's end torque by more
-than ``JAC_COUPLE_REL`` of the torque's size. Where the step's Newton correction made a fresh
+than ``JAC_COUPLE_REL`` of the torque's size with a matrix from an earlier step (a miss with
+one built in the step is the linearisation's own error, which a rebuild would not remove).
+Where the step's Newton correction made a fresh
 Jacobian (its chord iterations contracted less than tenfold), that one, factored, replaces the
 kept matrix and ``∂τ/∂y`` (``jacobian_builds`` counts only the prediction's own builds). The
 end state is the same converged backward-Euler step either way (within ``NEWTON_TOL``); what
@@ -364,7 +366,9 @@ def finish_step(y, P, W, theta_dot_new, S):
     W[W_TAU] = tau
     W[W_TAU_END] = F1[F_TAU]
     W[W_COUPLE_SQ] += (tau - F1[F_TAU]) ** 2
-    if abs(tau - F1[F_TAU]) > JAC_COUPLE_REL * (abs(F1[F_TAU]) + 1.0):
+    if S[0, 1] > 1.0 and abs(tau - F1[F_TAU]) > JAC_COUPLE_REL * (abs(F1[F_TAU]) + 1.0):
+        # the prediction came from an older matrix (not one built or handed over in this
+        # step): rebuild it
         S[0, 1] = 0.0
     W[W_P_MECH] = F1[F_TAU] * theta_dot_new
     return tau
