@@ -92,14 +92,15 @@ def test_shipped_set_phases_the_tibialis_anterior_as_emg(shipped_walk):
 
 @pytest.mark.slow
 def test_emg_optimised_set_phases_soleus_and_tibialis_closer_to_emg():
-    """The set optimised with the EMG timing term (reflex_params_1.25_emg.json): measured
-    soleus on 9-59 % (agreement 0.89), tibialis anterior on 27-114 % (0.69): its offset at
-    the end of loading response as Perry's (112 %), its onset still 29 % early."""
+    """The set optimised with the EMG timing term and the perturbed bodies
+    (reflex_params_1.25_emg.json): measured soleus on 11-57 % (Perry 7-50 %, agreement 0.89),
+    tibialis anterior on 57-111 % (56-112 %, 0.98)."""
     from afo_mj.gait.muscle_walk import run_muscle_walk
     from afo_mj.studies.gait_optimization import load_reflex_set
     walk = run_muscle_walk(None, load_reflex_set(files("afo_mj") / "data" /
                                                  "reflex_params_1.25_emg.json"), 12.0)
     sol = _timing(walk, "soleus")
     ta = _timing(walk, "tibialis_anterior")
-    assert sol["agreement"] >= 0.85 and ta["agreement"] >= 0.65, (sol, ta)
+    assert sol["agreement"] >= 0.85 and ta["agreement"] >= 0.9, (sol, ta)
+    assert abs(ta["intervals"][0]["onset_error_pct"]) <= 5.0, ta
     assert abs(ta["intervals"][0]["offset_error_pct"]) <= 5.0, ta
