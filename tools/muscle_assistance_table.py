@@ -68,15 +68,18 @@ def _changes(rows):
 
 
 def adapted_rows(directory: Path, duration_s: float):
-    """Each ``directory/<kind>/reflex_params.json`` walked with its condition (and the
-    weakness its optimisation had)."""
+    """Each ``directory/<kind>/reflex_params.json`` walked with its condition as recorded in
+    the file (and the weakness its optimisation had)."""
     rows = []
     for kind in KINDS:
         f = directory / kind / "reflex_params.json"
         if not f.is_file():
             continue
-        a = Assistance(kind)
-        scale = json.loads(f.read_text()).get("max_force_scale") or None
+        doc = json.loads(f.read_text())
+        # the condition as the set was optimised with it (its peak, ramp, …)
+        a = Assistance(**{k: (tuple(v) if isinstance(v, list) else v)
+                          for k, v in doc.get("assistance", {"kind": kind}).items()})
+        scale = doc.get("max_force_scale") or None
         try:
             walk, dev = assistance_walk(a, None, load_reflex_set(f), duration_s,
                                         max_force_scale=scale)
