@@ -253,3 +253,15 @@ def test_ramp_scales_the_ideal_torque_by_the_strides_measured(params):
     assert {1, 2, 3, 4} <= seen
     with pytest.raises(ValueError, match="ramp_strides = -1"):
         ma.Assistance("zhang", ramp_strides=-1)
+
+
+def test_a_diverging_condition_is_a_row_of_the_comparison(monkeypatch, params):
+    """A condition whose walk diverges (FloatingPointError from the walk) comes back as a row
+    with its time and the error, so that the other conditions' rows are kept."""
+    def diverge(*args, **kwargs):
+        raise FloatingPointError("muscle walk: the simulation diverged at t = 5.0940 s "
+                                 "(MuJoCo reset its state)")
+    monkeypatch.setattr(ma, "assistance_walk", diverge)
+    row = ma._compare_one((ma.Assistance("zhang"), None, params, 6.0, 3.0, None))
+    assert row["diverged"] is True and row["fell_s"] == 5.094
+    assert "diverged at t = 5.0940 s" in row["error"] and row["strides"] == 0

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 
@@ -248,7 +249,8 @@ def assistance_comparison(params: np.ndarray, conditions=None, walker: WalkerPar
     """Every condition (default: one of each kind) walked by the same reflex set (the naive
     wearer), in parallel; per condition its :func:`assistance_summary` with ``label``, and,
     where both it and the first condition walked, ``metabolic_change_pct``: the change of the
-    net metabolic rate (Umberger) against the first condition."""
+    net metabolic rate (Umberger) against the first condition. A walk that diverges is a row
+    with ``diverged`` true, ``fell_s`` its time and the error."""
     from afo_mj.experiments.batch import run_batch
     conds = list(conditions) if conditions is not None else [Assistance(k) for k in KINDS]
     items = [(a, walker, params, duration_s, settle_s, max_force_scale) for a in conds]
@@ -268,5 +270,12 @@ def assistance_comparison(params: np.ndarray, conditions=None, walker: WalkerPar
 
 def _compare_one(item):
     a, walker, params, duration_s, settle_s, scale = item
-    walk, dev = assistance_walk(a, walker, params, duration_s, max_force_scale=scale)
+    try:
+        walk, dev = assistance_walk(a, walker, params, duration_s, max_force_scale=scale)
+    except FloatingPointError as exc:
+        # a diverged walk is a result of the comparison (reported with its time), not an
+        # error that loses the other conditions
+        m = re.search(r"t = ([0-9.]+)", str(exc))
+        return {"fell_s": float(m.group(1)) if m else 0.0, "diverged": True,
+                "error": str(exc), "strides": 0}
     return assistance_summary(walk, settle_s, dev)
