@@ -293,11 +293,19 @@ def test_shuttle_valve_feeds_the_lower_line_only():
     """Flushing valve: far from the shift band the lower line sees the whole conductance
     from the supply and the higher line none; at equal line pressures each gets half."""
     g, b = 5e-12, 5e4
-    assert L.shuttle_valve_flow_m3_s(1.0e6, 2.0e6, 1.5e6, g, b) == pytest.approx(
-        g * 0.5e6, rel=1e-12)
-    assert abs(L.shuttle_valve_flow_m3_s(2.0e6, 1.0e6, 1.5e6, g, b)) < 1e-12 * g * 0.5e6
-    assert L.shuttle_valve_flow_m3_s(1.2e6, 1.2e6, 1.5e6, g, b) == pytest.approx(
-        0.5 * g * 0.3e6, rel=1e-12)
+
+    def flow(p_line, p_other, p_s):
+        return L.shuttle_valve_flow_m3_s(L.shuttle_valve_share(p_line, p_other, b), p_line,
+                                         p_s, g)
+    assert flow(1.0e6, 2.0e6, 1.5e6) == pytest.approx(g * 0.5e6, rel=1e-12)
+    assert abs(flow(2.0e6, 1.0e6, 1.5e6)) < 1e-12 * g * 0.5e6
+    assert flow(1.2e6, 1.2e6, 1.5e6) == pytest.approx(0.5 * g * 0.3e6, rel=1e-12)
+    # one spool: the two shares add to one, and each is the other's mirror image
+    for dp in (-3e5, -1e4, 0.0, 2e4, 7e5):
+        s_a = L.shuttle_valve_share(1e6, 1e6 + dp, b)
+        s_b = L.shuttle_valve_share(1e6 + dp, 1e6, b)
+        assert s_a + s_b == pytest.approx(1.0, abs=1e-15)
+        assert s_a == pytest.approx(0.5 * (1.0 + math.tanh(dp / b)), rel=1e-15)
 
 def test_poppet_opening_linear_with_rounded_corners():
     start, width, w = 0.1e6, 0.4e6, 0.05
@@ -585,8 +593,8 @@ SAMPLES = {
     "laminar_gap_flow_m3_s": [(1e7, 1e-15, 0.03)],
     "relief_valve_area_m2": [(14.5e6, 14e6, 1e6, 2e-6, 1e-10), (1e6, 14e6, 1e6, 2e-6, 1e-10)],
     "check_valve_flow_m3_s": [(1e5, 1e-9, 0.0, 2e4), (-1e5, 1e-9, 0.0, 2e4)],
-    "shuttle_valve_flow_m3_s": [(1.0e6, 2.0e6, 1.5e6, 5e-12, 5e4),
-                                (2.0e6, 1.0e6, 1.5e6, 5e-12, 5e4)],
+    "shuttle_valve_share": [(1.0e6, 2.0e6, 5e4), (2.0e6, 1.0e6, 5e4)],
+    "shuttle_valve_flow_m3_s": [(1.0, 1.0e6, 1.5e6, 5e-12), (1e-9, 2.0e6, 1.5e6, 5e-12)],
     "pump_flow_m3_s": [(300.0, 1e7, D_REV, 1e-8, 1e-16, 0.03)],
     "pump_friction_torque_nm": [(300.0, 1e7, D_REV, 0.05, 1.8e4, 0.002, 1.0, 0.03),
                                 (-3.0, 0.0, D_REV, 0.05, 1.8e4, 0.002, 1.0, 0.03)],

@@ -348,7 +348,8 @@ class FlushingValveParams(Parameters):
 class FlushingValve(Component):
     """Flushing (shuttle) valve of a closed loop: connects the charge supply ``s`` to
     whichever of the lines ``a``, ``b`` is at the lower pressure
-    (:func:`~afo_mj.hydraulics.laws.shuttle_valve_flow_m3_s`), so the loop is replenished and
+    (:func:`~afo_mj.hydraulics.laws.shuttle_valve_flow_m3_s`, one spool:
+    :func:`~afo_mj.hydraulics.laws.shuttle_valve_share`), so the loop is replenished and
     its low side never cavitates. Loss: ``throttling``."""
 
     kind = "flushing_valve"
@@ -360,9 +361,11 @@ class FlushingValve(Component):
         gc = g.param(self, "conductance", p.conductance_m3_s_pa)
         band = g.param(self, "band", p.shift_band_pa)
         pa, pb, ps = g.p(self, "a"), g.p(self, "b"), g.p(self, "s")
-        qa, qb = g.local(self, "qa"), g.local(self, "qb")
-        g.line(f"{qa} = shuttle_valve_flow_m3_s({pa}, {pb}, {ps}, {gc}, {band})")
-        g.line(f"{qb} = shuttle_valve_flow_m3_s({pb}, {pa}, {ps}, {gc}, {band})")
+        qa, qb, sa = g.local(self, "qa"), g.local(self, "qb"), g.local(self, "sa")
+        # one spool: b's share is what a's leaves (one tanh per evaluation, not two)
+        g.line(f"{sa} = shuttle_valve_share({pa}, {pb}, {band})")
+        g.line(f"{qa} = shuttle_valve_flow_m3_s({sa}, {pa}, {ps}, {gc})")
+        g.line(f"{qb} = shuttle_valve_flow_m3_s(1.0 - {sa}, {pb}, {ps}, {gc})")
         g.flow(self, "a", qa)
         g.flow(self, "b", qb)
         g.flow(self, "s", f"-({qa} + {qb})")

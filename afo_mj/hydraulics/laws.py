@@ -411,19 +411,28 @@ def check_valve_flow_m3_s(dp_pa, conductance_m3_s_pa, cracking_pa, band_pa):
 
 
 @law
-def shuttle_valve_flow_m3_s(p_line_pa, p_other_pa, p_supply_pa, conductance_m3_s_pa,
-                            shift_band_pa):
-    """Flow from a charge supply into one line through a flushing (shuttle) valve that
-    connects the supply to whichever of two lines is at the lower pressure (the charge
-    arrangement of a closed hydrostatic loop; Merritt §7.2, Ivantysyn & Ivantysynova ch. 8):
-    ``Q = G s (p_s − p_line)`` with the spool's share ``s = ½(1 + tanh((p_other − p_line)/b))``
-    (1 when this line is the lower one, 0 when it is the higher; ``b`` the pressure difference
-    over which the spool shifts). The two lines' flows share one conductance ``G``.
+def shuttle_valve_share(p_line_pa, p_other_pa, shift_band_pa):
+    """Share of a flushing (shuttle) valve's opening that connects the charge supply to one
+    of two lines: ``s = ½(1 + tanh((p_other − p_line)/b))``, 1 when this line is the lower
+    one, 0 when it is the higher, ``b`` the pressure difference over which the spool shifts
+    (the charge arrangement of a closed hydrostatic loop; Merritt §7.2, Ivantysyn &
+    Ivantysynova ch. 8). The other line's share is ``1 − s``: the spool opens one side as it
+    closes the other.
 
-    Example: G = 5e-12, b = 5e4, lines at 1.0 and 2.0 MPa, supply 1.5 MPa: the lower line
+    Example: b = 5e4, this line at 1.0 MPa, the other at 2.0 MPa: s = 1 − 2e-9.
+    """
+    return 0.5 * (1.0 + math.tanh((p_other_pa - p_line_pa) / shift_band_pa))
+
+
+@law
+def shuttle_valve_flow_m3_s(share, p_line_pa, p_supply_pa, conductance_m3_s_pa):
+    """Flow from a charge supply into one line through a flushing (shuttle) valve:
+    ``Q = G s (p_s − p_line)`` with ``s`` the line's share of the opening
+    (:func:`shuttle_valve_share`); the two lines' flows share one conductance ``G``.
+
+    Example: G = 5e-12, lines at 1.0 and 2.0 MPa, supply 1.5 MPa, b = 5e4: the lower line
     gets ≈ 2.5e-6 m³/s, the higher ≈ −1.1e-14 m³/s.
     """
-    share = 0.5 * (1.0 + math.tanh((p_other_pa - p_line_pa) / shift_band_pa))
     return conductance_m3_s_pa * share * (p_supply_pa - p_line_pa)
 
 # ---- pump and motor -------------------------------------------------------------------------
