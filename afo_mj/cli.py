@@ -232,11 +232,10 @@ def _optimize(args) -> int:
 
 def _optimize_gait(args) -> int:
     """Exit 0 done (resumable: run again to continue), 2 invalid options."""
+    import inspect
     from afo_mj.app.gait_optimization import optimize_reflex_gait
-    doc = optimize_reflex_gait(args.out, args.speed, args.generations, args.popsize,
-                               args.seed, args.start, args.workers, args.body_mass_kg,
-                               args.height_m, args.assistance, args.robust,
-                               args.plantarflexor_strength)
+    names = set(inspect.signature(optimize_reflex_gait).parameters) - {"out"}
+    doc = optimize_reflex_gait(args.out, **{k: v for k, v in vars(args).items() if k in names})
     _print(console.gait_optimization_lines(doc, args.out))
     return 0
 

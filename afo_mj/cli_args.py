@@ -140,8 +140,21 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                         "(CMA-ES) for steady walking at a speed with little effort; resumable")
     og.add_argument("--out", required=True, help="directory for reflex_params.json and the "
                     "optimiser's state (run again to continue)")
-    og.add_argument("--speed", type=float, default=1.25, help="target speed, m/s")
+    og.add_argument("--speed", dest="speed_m_s", type=float, default=1.25,
+                    help="target speed, m/s")
     og.add_argument("--generations", type=int, default=60, help="CMA-ES generations in all")
+    og.add_argument("--duration", dest="duration_s", type=float, default=12.0,
+                    help="seconds each evaluation walks (the first 3 not scored)")
+    og.add_argument("--sigma0", type=float, default=0.2,
+                    help="CMA-ES initial step on the log of each parameter (default 0.2)")
+    og.add_argument("--tracking-weight", type=float, default=1.0,
+                    help="weight of the mean angle RMS against Winter, per degree")
+    og.add_argument("--tracking-max-weight", type=float, default=0.0,
+                    help="weight of the worst joint's angle RMS, per degree")
+    og.add_argument("--effort-weight", type=float, default=1.0,
+                    help="weight of the net cost of transport (Umberger), per J/(kg m)")
+    og.add_argument("--emg-weight", type=float, default=0.0,
+                    help="weight of the soleus and tibialis anterior EMG timing term")
     og.add_argument("--popsize", type=int, default=16, help="walks per generation")
     og.add_argument("--seed", type=int, default=1, help="CMA-ES seed (same seed, same result)")
     og.add_argument("--start", default=None, help="reflex_params.json to start from")

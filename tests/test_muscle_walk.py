@@ -58,6 +58,64 @@ def test_joint_moments_are_the_muscles_path_torques(geyer_walk):
                                         abs=1e-9)
 
 
+def _path_torques(force_sm, hip, knee, ankle):
+    """Each joint's muscle torque from one leg's tendon forces and its angles (Geyer's path
+    geometry: arm ``r0 cos(φ − φ_max)``, constant at the hip, sign ``s``)."""
+    phi = {"hip": math.pi - hip, "knee": math.pi - knee, "ankle": math.pi / 2 - ankle}
+    tau = {"hip": 0.0, "knee": 0.0, "ankle": 0.0}
+    for m, name in enumerate(rl.MUSCLES):
+        for jp in mu.GEYER_HERR_2010[name][1]:
+            const = jp.phi_max_rad is None
+            r_arm = jp.r0_m if const else jp.r0_m * math.cos(phi[jp.joint] - jp.phi_max_rad)
+            tau[jp.joint] += jp.sign * r_arm * force_sm[m]
+    return tau
+
+
+def test_soft_limits_follow_geyers_law_with_the_damping_implicit():
+    """A swinging right foot pushed into its dorsiflexion limit (8 N·m in swing) and the
+    knees at their hyperextension limit: wherever a step began beyond a limit, the joint
+    moment is the muscles' path torque plus Geyer's soft limit ``k Δφ (1 − φ̇_in/v)`` with
+    the step's start penetration and its end velocity (the damping integrated implicitly by
+    MuJoCo), and zero limit torque where the joint left the limit faster than ``v`` at the
+    step's start; the walk stays finite."""
+    from pathlib import Path
+
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    p = load_reflex_set(Path(__file__).resolve().parents[1] / "afo_mj" / "data" /
+                        "reflex_params_1.25.json")
+
+    def push(t, ang, vel, stance):
+        return np.array([0.0 if stance[0] else 8.0, 0.0])
+
+    walk = mw.run_muscle_walk(None, p, 4.0, device_torque=push)
+    r = walk.record
+    ang, vel = r.joint_angle_rad, r.joint_velocity_rad_s
+    k_lim, v_lim = rl.SOFT_LIMIT_NM_PER_RAD, rl.SOFT_LIMIT_SPEED_RAD_S
+    hits = {"knee": 0, "ankle": 0}
+    for k in range(1, len(r.time_s)):
+        for s in range(2):
+            hip, knee, ankle = ang[k - 1, s]
+            path = _path_torques(walk.force_n[k, s], hip, knee, ankle)
+            want = dict(path)
+            if knee < rl.KNEE_LIMIT_RAD:
+                hits["knee"] += 1
+                pen = rl.KNEE_LIMIT_RAD - knee
+                if vel[k - 1, s, 1] < v_lim:
+                    want["knee"] += k_lim * pen * (1.0 - vel[k, s, 1] / v_lim)
+            if ankle > rl.ANKLE_LIMITS_RAD[1]:
+                hits["ankle"] += 1
+                pen = ankle - rl.ANKLE_LIMITS_RAD[1]
+                if vel[k - 1, s, 2] > -v_lim:
+                    want["ankle"] -= k_lim * pen * (1.0 + vel[k, s, 2] / v_lim)
+            if want == path:
+                continue
+            got = r.joint_moment_nm[k, s]
+            assert got == pytest.approx([want["hip"], want["knee"], want["ankle"]], rel=1e-9,
+                                        abs=1e-9), (k, s)
+    assert hits["knee"] > 50 and hits["ankle"] > 50, hits
+    assert np.all(np.isfinite(r.qpos))
+
+
 def test_metabolic_rates_respect_the_models(geyer_walk):
     """Bhargava: heat ≥ 1 W per kg of muscle and work ≥ 0, so each muscle's rate ≥ its mass
     in W; Umberger counts negative work but never lets the total fall below 0."""
@@ -129,6 +187,20 @@ def test_cli_optimize_gait(tmp_path, capsys):
                  "--plantarflexor-strength", "1.5"]) == 2
     assert "--plantarflexor-strength = 1.5; allowed: 0.05 to 1" in capsys.readouterr().err
     assert not (tmp_path / "weak").exists()
+    assert main(["optimize-gait", "--out", str(tmp_path / "w"), "--emg-weight", "-1"]) == 2
+    assert "--emg-weight = -1.0; allowed: >= 0" in capsys.readouterr().err
+    # the objective's weights and the initial step reach the optimisation's record
+    assert main(["optimize-gait", "--out", str(tmp_path / "ok"), "--generations", "1",
+                 "--popsize", "4", "--workers", "1", "--quiet", "--sigma0", "0.05",
+                 "--tracking-weight", "2", "--tracking-max-weight", "1.5",
+                 "--effort-weight", "0.5", "--emg-weight", "1", "--duration", "6"]) == 0
+    doc = json.loads((tmp_path / "ok" / "reflex_params.json").read_text())
+    assert doc["optimizer"]["sigma0"] == 0.05
+    assert {k: doc["objective"][k] for k in ("tracking_weight", "tracking_max_weight",
+                                             "effort_weight", "emg_weight",
+                                             "duration_s")} == {
+        "tracking_weight": 2.0, "tracking_max_weight": 1.5, "effort_weight": 0.5,
+        "emg_weight": 1.0, "duration_s": 6.0}
 
 
 SHIPPED = ["1.0", "1.25", "1.5", "child"]
@@ -166,11 +238,11 @@ def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["1.25_robust", "1.25_emg"])
+@pytest.mark.parametrize("name", ["1.25_emg"])
 def test_robust_set_walks_twenty_strides_under_every_perturbation(name):
-    """Issue 22's robustness: the shipped robust 1.25 m/s sets walk 22 s (≥ 20 right strides)
+    """Issue 22's robustness: the shipped robust 1.25 m/s set walks 22 s (≥ 20 right strides)
     with body mass −15 % and +15 %, 1 kg at the right ankle, and the HAFO's worn masses, and
-    still reproduce their recorded robust cost exactly."""
+    still reproduces its recorded robust cost exactly."""
     from pathlib import Path
 
     from afo_mj.human.walker import WalkerParams
@@ -233,7 +305,7 @@ def test_emg_timing_term_of_the_objective():
         GaitObjective(emg_weight=-1.0)
 
 
-def test_tracking_weight_scales_the_angle_term():
+def test_tracking_weights_scale_the_angle_terms():
     """GaitObjective.tracking_weight multiplies the mean angle RMS against Winter: doubling it
     adds the mean of the hip, knee and ankle RMS, recomputed here by resampling the walk's
     right-leg strides on the reference's phase by hand."""
@@ -257,14 +329,22 @@ def test_tracking_weight_scales_the_angle_term():
                                for j in range(3)])
         rms.append(np.sqrt(np.mean((ang - target) ** 2, axis=0)))
     assert two - one == pytest.approx(np.degrees(np.mean(rms)), rel=1e-9)
+    worst, _ = gait_cost(p, GaitObjective(duration_s=6.0, settle_s=2.0,
+                                          tracking_max_weight=1.5))
+    # the worst joint: its RMS averaged over the strides, as the table reports it
+    assert worst - one == pytest.approx(1.5 * np.degrees(np.mean(rms, axis=0)).max(),
+                                        rel=1e-9)
     with pytest.raises(ValueError, match="tracking_weight = -1"):
         GaitObjective(tracking_weight=-1.0)
+    with pytest.raises(ValueError, match="tracking_max_weight = -1"):
+        GaitObjective(tracking_max_weight=-1.0)
 
 
 def test_swing_vasti_take_their_own_stimulation():
     """In swing (from 50 ms after a toe off to 20 ms before the next heel strike, clear of the
-    20 ms stance-detection window) the vasti's excitation is ``s0_vasti_swing`` exactly, not
-    the stance pre-stimulation ``s0_vasti``; Geyer & Herr's default leaves them at the floor."""
+    20 ms stance-detection window) the vasti's excitation is ``s0_vasti_swing`` exactly (the
+    shipped set's, and the floor with Geyer & Herr's gains), not the stance pre-stimulation
+    ``s0_vasti``."""
     from pathlib import Path
 
     from afo_mj.studies.gait_optimization import load_reflex_set
@@ -274,10 +354,10 @@ def test_swing_vasti_take_their_own_stimulation():
     assert rl.DEFAULTS["s0_vasti_swing"] == 0.01
     own = base[rl.PARAM_NAMES.index("s0_vasti_swing")]
     assert own != 0.01
-    for value in (own, 0.01):
-        p = base.copy()
-        p[rl.PARAM_NAMES.index("s0_vasti_swing")] = value
-        walk = mw.run_muscle_walk(None, p, 6.0)
+    # the shipped set, and Geyer & Herr's published gains (the floor; a few strides)
+    for p in (base, mw.reflex_params()):
+        value = p[rl.PARAM_NAMES.index("s0_vasti_swing")]
+        walk = mw.run_muscle_walk(None, p, 4.5)
         r = walk.record
         n_swing = 0
         for s in range(2):

@@ -5,11 +5,12 @@ when given, by the adapted wearer (a set re-optimised with each condition worn).
 Run::
 
     .venv/bin/python tools/muscle_assistance_table.py \\
-        --naive afo_mj/data/reflex_params_1.25_robust.json [--adapted DIR] [--weak 0.5]
+        --naive afo_mj/data/reflex_params_1.25_emg.json [--adapted DIR] [--weak 0.5]
 
 ``DIR/<kind>/reflex_params.json`` are the adapted sets (``afo-mj optimize-gait --assistance
 KIND --start NAIVE --out DIR/KIND``; ``DIR/none`` is the control: the same generations
-without a device). ``--weak F`` adds the naive rows of a walker whose soleus and
+without a device), or ``DIR/<kind>.json`` as shipped in ``afo_mj/data/adapted`` and
+``afo_mj/data/adapted_weak``. ``--weak F`` adds the naive rows of a walker whose soleus and
 gastrocnemius have ``F`` of their maximum force; ``--weak-adapted DIR`` the rows of sets
 optimised with that weakness (``--plantarflexor-strength F``). Changes are against the
 table's first (``none``) row. Prints markdown tables and, last, a JSON line.
@@ -36,12 +37,16 @@ def _fmt(v, f=".2f"):
 
 def rows_table(rows, title):
     head = ("| condition | walks | speed m/s | net metabolic W/kg (Umberger) | change | "
-            "net COT J/(kg m) | change | Bhargava W/kg | ankle muscle +work J/stride | "
-            "device net work J/stride | peak ankle power W/kg |")
-    out = [f"**{title}**", "", head, "|" + "---|" * 11]
+            "net COT J/(kg m) | change | Bhargava W/kg | Bhargava COT J/(kg m) | "
+            "ankle muscle +work J/stride | "
+            "device net work J/stride | push-off peak (stride mean) W/kg |")
+    out = [f"**{title}**", "", head, "|" + "---|" * 12]
     for r in rows:
         walks = ("yes" if r["fell_s"] is None else
                  f"{'diverges' if r.get('diverged') else 'falls'} at {r['fell_s']:.1f} s")
+        if r["fell_s"] is not None:
+            # a walk that fell has no steady rates: its strides before the fall are not one
+            r = {k: r[k] for k in ("label", "fell_s")}
         ch = r.get("metabolic_change_pct")
         cc = r.get("cot_change_pct")
         out.append(f"| {r['label']} | {walks} | {_fmt(r.get('speed_m_s'))} | "
@@ -50,6 +55,7 @@ def rows_table(rows, title):
                    f"{_fmt(r.get('net_cost_of_transport_j_per_kg_m'))} | "
                    f"{'–' if cc is None else f'{cc:+.1f} %'} | "
                    f"{_fmt(r.get('net_metabolic_bhargava_w_per_kg'))} | "
+                   f"{_fmt(r.get('net_cost_of_transport_bhargava_j_per_kg_m'))} | "
                    f"{_fmt(r.get('ankle_muscle_positive_work_j_per_stride'), '.1f')} | "
                    f"{_fmt(r.get('ankle_device_net_work_j_per_stride'), '.1f')} | "
                    f"{_fmt(r.get('ankle_peak_power_w_per_kg'))} |")
@@ -68,11 +74,14 @@ def _changes(rows):
 
 
 def adapted_rows(directory: Path, duration_s: float):
-    """Each ``directory/<kind>/reflex_params.json`` walked with its condition as recorded in
-    the file (and the weakness its optimisation had)."""
+    """Each ``directory/<kind>/reflex_params.json`` (an optimisation's folder) or
+    ``directory/<kind>.json`` (the shipped sets, ``afo_mj/data/adapted``) walked with its
+    condition as recorded in the file (and the weakness its optimisation had)."""
     rows = []
     for kind in KINDS:
         f = directory / kind / "reflex_params.json"
+        if not f.is_file():
+            f = directory / f"{kind}.json"
         if not f.is_file():
             continue
         doc = json.loads(f.read_text())
@@ -91,6 +100,36 @@ def adapted_rows(directory: Path, duration_s: float):
     return _changes(rows)
 
 
+def pooled_rows(directory: Path, duration_s: float):
+    """The adapted wearer with the search's own spread taken out: for each condition, every
+    adapted set in ``directory`` is walked with it and scored by the objective the sets were
+    optimised with (that condition in place of its own); the wearer is the set that scores
+    best. The control (``none``) is so the best of all the sets walked with no device: a
+    person keeps the best gait known to them."""
+    from afo_mj.studies.gait_optimization import GaitObjective, gait_cost
+    sets = {}
+    for kind in KINDS:
+        f = directory / kind / "reflex_params.json"
+        if not f.is_file():
+            f = directory / f"{kind}.json"
+        if f.is_file():
+            sets[kind] = (json.loads(f.read_text()), load_reflex_set(f))
+    rows = []
+    for kind, (doc, _) in sets.items():
+        a = Assistance(**{k: (tuple(v) if isinstance(v, list) else v)
+                          for k, v in doc.get("assistance", {"kind": kind}).items()})
+        best = None
+        for src, (sdoc, params) in sets.items():
+            obj = {k: v for k, v in sdoc["objective"].items()}
+            cost, _ = gait_cost(params, GaitObjective(**obj, assistance=a))
+            if best is None or cost < best[0]:
+                best = (cost, src, params)
+        walk, dev = assistance_walk(a, None, best[2], duration_s)
+        rows.append(dict(assistance_summary(walk, 3.0, dev), label=f"{a.label} (set {best[1]})",
+                         kind=kind))
+    return _changes(rows)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--naive", required=True, help="the naive wearer's reflex_params.json")
@@ -99,6 +138,8 @@ def main(argv=None):
     ap.add_argument("--weak-adapted", default=None,
                     help="folder of sets adapted to a weakness (and device), one per kind")
     ap.add_argument("--duration", type=float, default=20.0, help="walk seconds")
+    ap.add_argument("--pooled", action="store_true",
+                    help="also each condition's best adapted set (pooled_rows)")
     args = ap.parse_args(argv)
     params = load_reflex_set(args.naive)
     result = {"naive": _changes(assistance_comparison(params, duration_s=args.duration))}
@@ -111,6 +152,11 @@ def main(argv=None):
         print()
         print(rows_table(result["weak_naive"],
                          f"Plantarflexors at {args.weak:g} of their maximum force, naive"))
+    if args.adapted and args.pooled:
+        result["adapted_pooled"] = pooled_rows(Path(args.adapted), args.duration)
+        print()
+        print(rows_table(result["adapted_pooled"], "Adapted wearer, the best of the adapted "
+                         "sets for each condition"))
     for key, title in (("adapted", "Adapted wearer (re-optimised with each condition)"),
                        ("weak_adapted", "Weak plantarflexors, adapted")):
         folder = getattr(args, key)

@@ -21,13 +21,17 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
                          popsize: int = 16, seed: int = 1, start: str | None = None,
                          workers: int | None = None, body_mass_kg: float = 75.0,
                          height_m: float = 1.75, assistance: str = "none",
-                         robust: bool = False, plantarflexor_strength: float = 1.0) -> dict:
+                         robust: bool = False, plantarflexor_strength: float = 1.0,
+                         sigma0: float = 0.2, tracking_weight: float = 1.0,
+                         tracking_max_weight: float = 0.0, effort_weight: float = 1.0,
+                         emg_weight: float = 0.0, duration_s: float = 12.0) -> dict:
     """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
     content. ``assistance``: the condition worn while walking
     (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults); ``robust``: the
     perturbed walkers of :func:`~afo_mj.studies.gait_optimization.robustness_variants` must
     walk too; ``plantarflexor_strength``: the wearer's soleus and gastrocnemius maximum force
-    as a fraction (a weakness, 0.05 … 1)."""
+    as a fraction (a weakness, 0.05 … 1); ``sigma0`` CMA-ES's initial step; the weights and
+    ``duration_s`` those of :class:`~afo_mj.studies.gait_optimization.GaitObjective`."""
     from afo_mj import progress
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.human.walker import WalkerParams
@@ -40,7 +44,14 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
               ("--popsize", popsize, popsize >= 4, ">= 4"),
               ("--workers", workers, workers is None or workers >= 1, ">= 1"),
               ("--plantarflexor-strength", plantarflexor_strength,
-               0.05 <= plantarflexor_strength <= 1.0, "0.05 to 1"))
+               0.05 <= plantarflexor_strength <= 1.0, "0.05 to 1"),
+              ("--sigma0", sigma0, 0.0 < sigma0 <= 2.0, "(0, 2]"),
+              ("--tracking-weight", tracking_weight, tracking_weight >= 0.0, ">= 0"),
+              ("--tracking-max-weight", tracking_max_weight, tracking_max_weight >= 0.0,
+               ">= 0"),
+              ("--effort-weight", effort_weight, effort_weight >= 0.0, ">= 0"),
+              ("--emg-weight", emg_weight, emg_weight >= 0.0, ">= 0"),
+              ("--duration", duration_s, 5.0 <= duration_s <= 120.0, "5 to 120 s"))
     for name, value, ok, allowed in checks:
         if not ok or (isinstance(value, float) and not math.isfinite(value)):
             raise InvalidInput(f"{name} = {value!r}; allowed: {allowed}")
@@ -64,7 +75,10 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
     except ValueError as exc:
         raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")) from None
     objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker,
-                              assistance=device,
+                              assistance=device, tracking_weight=float(tracking_weight),
+                              tracking_max_weight=float(tracking_max_weight),
+                              effort_weight=float(effort_weight), emg_weight=float(emg_weight),
+                              duration_s=float(duration_s),
                               variants=robustness_variants() if robust else (),
                               max_force_scale=(() if plantarflexor_strength == 1.0 else
                                                (("soleus", float(plantarflexor_strength)),
@@ -79,7 +93,8 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
             task.update(gen)
     try:
         doc = optimize_gait(Path(out), objective, generations=generations, popsize=popsize,
-                            seed=seed, start=start_set, workers=workers, progress=tick)
+                            seed=seed, start=start_set, workers=workers,
+                            sigma0=float(sigma0), progress=tick)
     except ValueError as exc:
         if task is not None:
             task.abort()

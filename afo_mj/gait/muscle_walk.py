@@ -34,7 +34,7 @@ from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
 
 __all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_scaled",
-           "run_muscle_walk"]
+           "run_muscle_walk", "MUSCLE_SOLE_PITCH_RAD"]
 
 GRAVITY_M_S2 = 9.81
 #: the stature Geyer & Herr's muscle lengths are for (m)
@@ -42,6 +42,12 @@ REFERENCE_HEIGHT_M = 1.75
 #: fall: hip below this drop from its start (m, for a 1.75 m walker) or trunk beyond 1 rad
 FALL_DROP_M = 0.25
 FALL_TILT_RAD = 1.0
+#: the muscle walker's heel–ball line at a 0 ankle angle: level, so that a flat foot under a
+#: vertical shank reads 0 as in Winter's data (anatomical neutral). The torque walker pitches
+#: it 6° toe-up (``WalkerParams.sole_pitch_rad``) so that its tracking controller loads the
+#: heel at Winter's neutral; under the reflex controller that pitch put flat-foot stance at
+#: −6° and was a third of the ankle's RMS against Winter.
+MUSCLE_SOLE_PITCH_RAD = 0.0
 
 
 def reflex_params(overrides: dict | None = None) -> np.ndarray:
@@ -59,9 +65,11 @@ def reflex_params(overrides: dict | None = None) -> np.ndarray:
 
 
 def build_muscle_walker(walker: WalkerParams, worn_masses=()) -> WalkerPhysics:
-    """The walker with zero PD gains, hinge limits on, and torque motors unclamped (the
-    strength parameters at their upper bounds: the muscles limit themselves)."""
-    w = dataclasses.replace(walker, hip_knee_strength_nm_per_kg=6.0,
+    """The walker with zero PD gains, hinge limits on, torque motors unclamped (the
+    strength parameters at their upper bounds: the muscles limit themselves) and the sole
+    level at the neutral ankle (:data:`MUSCLE_SOLE_PITCH_RAD`)."""
+    w = dataclasses.replace(walker, sole_pitch_rad=MUSCLE_SOLE_PITCH_RAD,
+                            hip_knee_strength_nm_per_kg=6.0,
                             plantarflexor_strength_nm_per_kg=5.0,
                             dorsiflexor_strength_nm_per_kg=3.0,
                             plantarflexor_strength_fraction=1.0,
@@ -208,9 +216,15 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
     pt_q, pt_v = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
     contact = phys.contact_geoms.ravel()
     dank = phys.leg_dof[:, 2]
-    base_damping = m.dof_damping[dank].copy()
+    # knee and ankle dofs [side][knee, ankle]: the soft limits' damping joins their own
+    dlim = phys.leg_dof[:, 1:3].copy()
+    base_limit = m.dof_damping[dlim].copy()
+    base_damping = base_limit[:, 1].copy()
     k = 0
     tau = X[rl.X_TAU:rl.X_TAU + 6]
+    c_lim = X[rl.X_LIMIT_DAMP:rl.X_LIMIT_DAMP + 6].reshape(2, 3)[:, 1:3]
+    tau_rec = np.zeros((2, 3))
+    lim_was = False
     while k < n_max:
         t = d.time
         rl.reflex_step(t, h, q, d.qvel, d.sensordata, lq, lv, phys.touch_adr, pt_q, pt_v, P, T,
@@ -223,6 +237,12 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
                 events.toe_offs_s[s].append(t)
         ctrl[ff[0, 0]], ctrl[ff[0, 1]], ctrl[ff[0, 2]] = tau[0], tau[1], tau[2]
         ctrl[ff[1, 0]], ctrl[ff[1, 1]], ctrl[ff[1, 2]] = tau[3], tau[4], tau[5]
+        # the soft limits' damping, integrated implicitly by MuJoCo (reflex_law, step 5);
+        # written only while a limit is (or was, the step before) engaged
+        lim_now = bool(c_lim.any())
+        if lim_now or lim_was:
+            m.dof_damping[dlim] = base_limit + c_lim
+        lim_was = lim_now
         if device_torque is not None:
             dev = np.asarray(device_torque(t, q[lq[:, 2]], d.qvel[dank],
                                            X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5), float)
@@ -233,7 +253,7 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
             force2, extra2 = device.begin_step(t, q[lq[:, 2]], d.qvel[dank],
                                                X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5)
             d.qfrc_applied[dank] = force2
-            m.dof_damping[dank] = base_damping + extra2
+            m.dof_damping[dank] = base_damping + c_lim[:, 1] + extra2
         mujoco.mj_step(m, d)
         if d.time < t:
             # MuJoCo met a huge or non-finite acceleration or control (a diverging muscle
@@ -253,7 +273,13 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
         buf["v"][k] = X[rl.X_VCE:rl.X_VCE + 14].reshape(2, 7)
         buf["eu"][k] = X[rl.X_EDOT_U:rl.X_EDOT_U + 14].reshape(2, 7)
         buf["eb"][k] = X[rl.X_EDOT_B:rl.X_EDOT_B + 14].reshape(2, 7)
-        buf["tau"][k] = tau.reshape(2, 3)
+        # the joint moment: the motors' and the limits' damping at the step's end velocity
+        if lim_now:
+            tau_rec[:] = tau.reshape(2, 3)
+            tau_rec[:, 1:3] -= c_lim * d.qvel[dlim]
+            buf["tau"][k] = tau_rec
+        else:
+            buf["tau"][k] = tau.reshape(2, 3)
         k += 1
         if not np.isfinite(q).all() or not np.isfinite(X).all():
             raise FloatingPointError(f"muscle walk: non-finite state at t = {d.time:.4f} s")

@@ -26,8 +26,15 @@ mechanics produces human walking dynamics and muscle activities", IEEE TNSRE 18 
 4. advances every activation (exact first-order step) and CE length (backward Euler,
    :func:`afo_mj.human.muscle.mtu_step`) and takes the tendon force;
 5. sums the joint torques ``s r(φ) F`` of every path, adds Geyer's soft joint limits (knee
-   beyond 5° of hyperextension, ankle outside −40…+20°: 0.3 N·m/deg, damped toward a
-   1°/s penetration speed) and writes them to the joint torque motors;
+   beyond 5° of hyperextension, ankle outside −40…+20°: ``τ = k Δφ (1 − φ̇_in/v)``,
+   0.3 N·m/deg, damped toward a ``v`` = 1°/s penetration speed) and writes them to the joint
+   torque motors. The limit's damping ``c = k Δφ/v`` grows with the penetration; applied
+   explicitly it made the swinging foot (~0.01 kg m² about the ankle) unstable at a 1 ms
+   step beyond ~1° (``c h/I > 2``). So the motor takes the spring part ``k Δφ`` and the
+   damping goes to MuJoCo as joint damping (``X_LIMIT_DAMP``), which its implicit integrator
+   applies at the step's end velocity: ``τ = k Δφ − c φ̇_{n+1}`` (Geyer's law with the
+   velocity of the step's end; the clip of ``1 − φ̇_in/v`` at zero, a limit that only
+   pushes, is decided at the step's start);
 6. computes each muscle's metabolic rate by Umberger (2010) and Bhargava et al. (2004)
    (:mod:`afo_mj.human.metabolics`).
 
@@ -94,7 +101,8 @@ X_ACT, X_LCE, X_F, X_U, X_VCE = 0, 14, 28, 42, 56
 X_EDOT_U, X_EDOT_B, X_TAU = 70, 84, 98                     # X_TAU: 2 × 3
 X_STANCE, X_TOUCHDOWN_T, X_THETA_TO, X_EVENT, X_SWITCH_T = 104, 106, 108, 110, 112
 X_RING_POS = 114
-N_X = 115
+X_LIMIT_DAMP = 115                                          # 2 × 3: soft-limit damping
+N_X = 121
 #: ring buffer: per leg 17 columns (force/F_max ×7, l_CE/l_opt ×7, φ_k, φ̇_k, load/mg), then
 #: trunk lean and its rate
 RING_LEN = 64
@@ -164,7 +172,9 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
                 P, T, X, ring, mg):  # pragma: no cover - compiled; exercised by the tests
     """One control step at time ``t`` (step ``h``): reads MuJoCo's state, advances the
     muscles, leaves the joint torques (N·m, walker sign, ``X[X_TAU:X_TAU+6]`` as [side][hip,
-    knee, ankle]), the events, and the metabolic rates in ``X``."""
+    knee, ankle]), the soft limits' joint damping (N·m·s/rad, ``X[X_LIMIT_DAMP:+6]``, same
+    layout: the caller adds it to MuJoCo's ``dof_damping``), the events, and the metabolic
+    rates in ``X``."""
     pos = int(X[X_RING_POS])
     theta = qpos[pelvis_tilt_q]
     omega = qvel[pelvis_tilt_v]
@@ -285,19 +295,27 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
                     tau1 += tq
                 else:
                     tau2 += tq
-        # --- soft joint limits (Geyer's model) --------------------------------------------
+        # --- soft joint limits (Geyer's model; damping implicit, step 5 above) -----------
+        c_knee = 0.0
+        c_ankle = 0.0
         thk = qpos[leg_q[s, 1]]
-        if thk < KNEE_LIMIT_RAD:
-            tau1 += SOFT_LIMIT_NM_PER_RAD * (KNEE_LIMIT_RAD - thk) * max(
-                1.0 - qvel[leg_v[s, 1]] / SOFT_LIMIT_SPEED_RAD_S, 0.0)
+        if thk < KNEE_LIMIT_RAD and qvel[leg_v[s, 1]] < SOFT_LIMIT_SPEED_RAD_S:
+            pen = KNEE_LIMIT_RAD - thk
+            tau1 += SOFT_LIMIT_NM_PER_RAD * pen
+            c_knee = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
         tha = qpos[leg_q[s, 2]]
         wa = qvel[leg_v[s, 2]]
-        if tha > ANKLE_LIMITS_RAD[1]:
-            tau2 -= SOFT_LIMIT_NM_PER_RAD * (tha - ANKLE_LIMITS_RAD[1]) * max(
-                1.0 + wa / SOFT_LIMIT_SPEED_RAD_S, 0.0)
-        elif tha < ANKLE_LIMITS_RAD[0]:
-            tau2 += SOFT_LIMIT_NM_PER_RAD * (ANKLE_LIMITS_RAD[0] - tha) * max(
-                1.0 - wa / SOFT_LIMIT_SPEED_RAD_S, 0.0)
+        if tha > ANKLE_LIMITS_RAD[1] and wa > -SOFT_LIMIT_SPEED_RAD_S:
+            pen = tha - ANKLE_LIMITS_RAD[1]
+            tau2 -= SOFT_LIMIT_NM_PER_RAD * pen
+            c_ankle = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
+        elif tha < ANKLE_LIMITS_RAD[0] and wa < SOFT_LIMIT_SPEED_RAD_S:
+            pen = ANKLE_LIMITS_RAD[0] - tha
+            tau2 += SOFT_LIMIT_NM_PER_RAD * pen
+            c_ankle = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
+        X[X_LIMIT_DAMP + 3 * s] = 0.0
+        X[X_LIMIT_DAMP + 3 * s + 1] = c_knee
+        X[X_LIMIT_DAMP + 3 * s + 2] = c_ankle
         X[X_TAU + 3 * s] = tau0
         X[X_TAU + 3 * s + 1] = tau1
         X[X_TAU + 3 * s + 2] = tau2

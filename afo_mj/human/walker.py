@@ -67,7 +67,8 @@ class WalkerParams(Parameters):
     height_m: float = param(1.75, unit="m", lo=0.8, hi=2.2, doc="stature")
     sole_pitch_rad: float = param(math.radians(6.0), unit="rad", lo=-0.3, hi=0.3,
                                   doc="heel-to-ball line pitched toe-up in the foot frame at 0 "
-                                      "ankle angle")
+                                      "ankle angle (torque walker; the muscle walker's is "
+                                      "level)")
     contact_radius_fraction: float = param(0.012, unit="1", lo=0.002, hi=0.03,
                                            doc="contact sphere radius / stature")
     ball_fraction: float = param(0.73, unit="1", lo=0.5, hi=1.0,

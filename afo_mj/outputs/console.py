@@ -60,10 +60,12 @@ def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -
     mus = s.get("muscle")
     if mus:
         cot = mus["net_cost_of_transport_umberger_j_per_kg_m"]
+        cot_b = mus["net_cost_of_transport_bhargava_j_per_kg_m"]
         lines.append(f"  muscles: net metabolic rate {mus['net_metabolic_umberger_w_per_kg']:.2f} "
                      f"W/kg (Umberger 2010), {mus['net_metabolic_bhargava_w_per_kg']:.2f} "
                      f"(Bhargava 2004); net cost of transport "
-                     f"{'-' if cot is None else f'{cot:.2f}'} J/(kg m)")
+                     f"{'-' if cot is None else f'{cot:.2f}'}, "
+                     f"{'-' if cot_b is None else f'{cot_b:.2f}'} J/(kg m)")
         if mus["emg_timing_right"]:
             lines.append("  EMG timing agreement with Perry (fraction of the cycle): " + ", ".join(
                 f"{k} {v['agreement']:.2f}" for k, v in mus["emg_timing_right"].items()))
