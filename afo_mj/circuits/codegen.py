@@ -33,6 +33,7 @@ import numpy as np
 
 from afo_mj.circuits import stepper
 from afo_mj.circuits.circuit import Circuit
+from afo_mj.circuits.jacobian_columns import column_function
 from afo_mj.circuits.components import BUS, HYDRAULIC, JOINT, SHAFT, CircuitError, gated
 from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
@@ -516,8 +517,8 @@ def generate(circuit: Circuit):
     off += max(len(g.probes), 1)
     n_w = off
     n_u = len(U_NAMES) + len(g.inputs)
-    s_width = max(n_y, n_f, n_u, 2)
-    n_scratch = 16 + 3 * n_y
+    s_width = max(n_y + 1, n_f, n_u, 2)
+    n_scratch = stepper.scratch_rows(n_y)
 
     # begin / close / controller / floor
     begin = [f"W[W_U + U_MU] = dynamic_viscosity_pa_s(W[W_TEMP_K], {wb}, {wc}, {rho0}, "
@@ -593,6 +594,7 @@ def generate(circuit: Circuit):
     for k, v in consts.items():
         src.append(f"{k} = {v}")
     src.append(f"NEWTON_TOL = {stepper.NEWTON_TOL!r}")
+    src.append(f"NEWTON_TOL_STEP_S = {stepper.NEWTON_TOL_STEP_S!r}")
     src.append(f"MIN_SUBSTEP_FRACTION = {stepper.MIN_SUBSTEP_FRACTION!r}")
     for name in ("JAC_MAX_AGE", "JAC_INPUT_REL", "JAC_COUPLE_REL"):
         src.append(f"{name} = {getattr(stepper, name)!r}")
@@ -602,6 +604,8 @@ def generate(circuit: Circuit):
     src.append(fn("rhs_step", "y, yo, th, thd, U, P, dy, F", body))
     src.append("")
     src.append(fn("rhs", "y, th, thd, U, P, dy, F", ["rhs_step(y, y, th, thd, U, P, dy, F)"]))
+    src.append("")
+    src.append(column_function(body, n_y, HOT_DECORATOR))
     src.append("")
     src.append(fn("controller", "y, th, thd, cmd, h, P, W",
                   ["U = W[W_U:W_U + N_U]"]
