@@ -596,7 +596,8 @@ def generate(circuit: Circuit):
     src.append(f"NEWTON_TOL = {stepper.NEWTON_TOL!r}")
     src.append(f"NEWTON_TOL_STEP_S = {stepper.NEWTON_TOL_STEP_S!r}")
     src.append(f"MIN_SUBSTEP_FRACTION = {stepper.MIN_SUBSTEP_FRACTION!r}")
-    for name in ("JAC_MAX_AGE", "JAC_INPUT_REL", "JAC_COUPLE_REL"):
+    for name in ("JAC_MAX_AGE", "JAC_INPUT_REL", "JAC_COUPLE_REL", "NEWTON_CONTRACT",
+                 "BROYDEN_MAX"):
         src.append(f"{name} = {getattr(stepper, name)!r}")
     src.append("Y_TYP = np.array([" + ", ".join(repr(float(s["typ"])) for s in g.states)
                + "])")

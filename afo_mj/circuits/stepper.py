@@ -73,6 +73,11 @@ from __future__ import annotations
 #: 1e-9 cost the HAFO's gait step half a Newton iteration more (3.5 against 3.0 a step).
 NEWTON_TOL = 1e-8
 NEWTON_TOL_STEP_S = 1e-3
+#: A Newton iteration whose residual fell less than to this fraction of the last one's gives
+#: up the matrix in use (the kept one for a fresh Jacobian; a fresh one for full Newton).
+NEWTON_CONTRACT = 0.3
+#: Secant corrections a Newton solve keeps on top of its factored matrix (Broyden).
+BROYDEN_MAX = 6
 #: Smallest sub-step, as a fraction of the MuJoCo step, before a step is accepted unconverged.
 MIN_SUBSTEP_FRACTION = 1.0 / 1024.0
 #: Steps a prediction matrix serves before it is rebuilt (module docstring).
@@ -154,7 +159,7 @@ def scratch_views(S):
 
 def scratch_rows(n_y: int) -> int:
     """Rows of one side's scratch array for ``n_y`` states (the layout above)."""
-    return 18 + 4 * n_y
+    return 20 + 4 * n_y + 2 * BROYDEN_MAX
 
 
 def column_views(S):
@@ -162,6 +167,15 @@ def column_views(S):
     ``(dy, τ)`` per state (``N_Y`` rows), at the moved joint motion, and the perturbations."""
     n = N_Y
     return (S[16 + 3 * n:16 + 4 * n, :n + 1], S[16 + 4 * n, :n + 1], S[17 + 4 * n, :n])
+
+
+def broyden_views(S):
+    """Newton's secant corrections in one side's scratch array: ``(Bu, Bw, r, r_prev)``,
+    ``BROYDEN_MAX`` rows each of ``u`` and ``w`` and the current and last residuals."""
+    n = N_Y
+    b = 18 + 4 * n
+    return (S[b:b + BROYDEN_MAX, :n], S[b + BROYDEN_MAX:b + 2 * BROYDEN_MAX, :n],
+            S[b + 2 * BROYDEN_MAX, :n], S[b + 2 * BROYDEN_MAX + 1, :n])
 
 
 def jacobian(y, yo, theta, theta_dot, h, U, P, S, M):
@@ -247,26 +261,36 @@ def linearise(y, P, W, S):
 
 def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place).
-    Iterations are chords: they reuse a factored matrix while they contract tenfold, first the
-    prediction's (``first_matrix``), then a fresh Jacobian made at the iterate where one
-    contracted less (simplified Newton; Hairer & Wanner, *Solving ODEs II*, IV.8); where that
-    one contracts less too, a fresh Jacobian every iteration (full Newton). A diverging or
-    cycling iteration halves its last step (damped Newton).
+    Iterations reuse a factored matrix while each cuts the residual to ``NEWTON_CONTRACT`` of
+    the last, first the prediction's (``first_matrix``), then a fresh Jacobian made at the
+    iterate where one contracted less (simplified Newton; Hairer & Wanner, *Solving ODEs II*,
+    IV.8); where that one contracts less too, a fresh Jacobian every iteration (full Newton).
+    Each iteration after the first also corrects the matrix's inverse by Broyden's second
+    update (Broyden 1965, Math. Comp. 19:577; the form that needs the inverse only, kept as up
+    to ``BROYDEN_MAX`` rank-one terms ``u wᵀ``, the residual change weighted by the states'
+    scales), so that a kept matrix that has aged still converges superlinearly: on the HAFO's
+    gait 3.75 residual evaluations a step instead of 4.0 with half the fresh Jacobians (0.13
+    against 0.24 a step). A diverging or cycling iteration halves its last step (damped
+    Newton) and drops the corrections.
     Leaves ``f`` and the power flows at the solution in scratch rows 1–2."""
     (f1, F1, yo_, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mcopy,
      R) = scratch_views(S)
     rv = R[:, :1]
+    Bu, Bw, rcur, rprev = broyden_views(S)
     tol = NEWTON_TOL * h / NEWTON_TOL_STEP_S
     err_prev = 1e300
     kept = first_matrix
     own = False
     full = False
+    nb = 0                      # secant corrections stored for the matrix in use
+    have_prev = False           # the previous iteration's residual is in rprev
     for it in range(24):
         rhs_step(y, yold, theta, theta_dot, U, P, f1, F1)
         err = 0.0
         for k in range(N_Y):
             r_ = y[k] - yold[k] - h * f1[k]
             rv[k, 0] = -r_
+            rcur[k] = r_
             e = abs(r_) / Y_TYP[k]
             if e > err:
                 err = e
@@ -276,8 +300,10 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
             for k in range(N_Y):
                 step[k] *= 0.5
                 y[k] = ybest[k] + step[k]
+            nb = 0
+            have_prev = False
             continue
-        if it > 0 and err > 0.1 * err_prev:
+        if it > 0 and err > NEWTON_CONTRACT * err_prev:
             if kept:
                 kept = False
             elif own:
@@ -292,6 +318,8 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
             # it); in a sub-step the next step rebuilds that one.
             kept = False
             own = True
+            nb = 0
+            have_prev = False
             jacobian(y, yold, theta, theta_dot, h, U, P, S, Mw)
             lu_factor(Mw, S[14 + 3 * N_Y, :N_Y], N_Y)
             if first_matrix:
@@ -308,10 +336,39 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
             lu_solve(Mcopy, S[13 + 3 * N_Y, :N_Y], rv, N_Y, 1)
         else:
             lu_solve(Mw, S[14 + 3 * N_Y, :N_Y], rv, N_Y, 1)
+        # the step -H r with H the matrix's inverse and its secant corrections u w^T
+        for k in range(N_Y):
+            step[k] = rv[k, 0]
+        for i in range(nb):
+            c = 0.0
+            for k in range(N_Y):
+                c += Bw[i, k] * rcur[k]
+            for k in range(N_Y):
+                step[k] -= Bu[i, k] * c
+        if have_prev and nb < BROYDEN_MAX:
+            # Broyden's second ("bad") update, in the states' scales: the new inverse maps
+            # the last residual change onto the last step; its correction is u = the step
+            # just computed, w = D^2 dr / (dr^T D^2 dr) (module docstring)
+            den = 0.0
+            for k in range(N_Y):
+                dr = rcur[k] - rprev[k]
+                den += dr * dr / (Y_TYP[k] * Y_TYP[k])
+            if den > 0.0:
+                c = 0.0
+                for k in range(N_Y):
+                    dr = rcur[k] - rprev[k]
+                    Bw[nb, k] = dr / (Y_TYP[k] * Y_TYP[k] * den)
+                    Bu[nb, k] = step[k]
+                    c += Bw[nb, k] * rcur[k]
+                nb += 1
+                for k in range(N_Y):
+                    step[k] *= 1.0 - c
+        for k in range(N_Y):
+            rprev[k] = rcur[k]
+        have_prev = True
         for k in range(N_Y):
             ybest[k] = y[k]
-            step[k] = rv[k, 0]
-            y[k] += rv[k, 0]
+            y[k] += step[k]
         for k in range(N_Y):
             if not math.isfinite(y[k]):
                 return False
@@ -716,8 +773,9 @@ def write_log_row(row, t, y, W, S, phase, theta_dot):
 
 #: template functions that return views: compiled inline into their callers (a compiled call
 #: that returns a tuple of arrays reference-counts each of them, ~0.3 µs per call)
-INLINE = (scratch_views, column_views, device_views)
+INLINE = (scratch_views, column_views, broyden_views, device_views)
 #: the template functions, in the order the generated module defines them
-TEMPLATE = (lu_factor, lu_solve, scratch_views, column_views, jacobian, linearise, newton,
-            close_substep, finish_step, hold_inputs, couple, begin_step, finish_all, device_views,
+TEMPLATE = (lu_factor, lu_solve, scratch_views, column_views, broyden_views, jacobian,
+            linearise, newton, close_substep, finish_step, hold_inputs, couple, begin_step,
+            finish_all, device_views,
             run_load, run_imposed, write_log_row, device_couple, device_begin, device_end)
