@@ -61,7 +61,7 @@ def test_columns_equal_full_evaluations_bit_for_bit(name):
         dy, F = np.zeros(n), np.zeros(width)
         C, T = np.zeros((n, n + 1)), np.zeros(n + 1)
         th2, thd2 = th + 1e-3 * (thd + 0.1), thd + 0.1
-        k.rhs_columns(y, yo, th, thd, th2, thd2, U, P, dy, F, D, C, T, True, True)
+        k.rhs_columns(y, yo, th, thd, th2, thd2, U, P, dy, F, D, C, T, 1.0, 1.0)
         ref, Fr = np.zeros(n), np.zeros(width)
         k.rhs_step(y, yo, th, thd, U, P, ref, Fr)
         assert np.array_equal(dy, ref) and F[k.F_TAU] == Fr[k.F_TAU]

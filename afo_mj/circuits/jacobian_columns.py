@@ -11,11 +11,11 @@ compliance of the other nodes. This module turns a circuit's straight-line right
 
 * evaluates the lines that ``dy`` and the joint torque ``F[F_TAU]`` depend on (the base point:
   the power flows, probes and monitors are left out) into ``dy`` and ``F[F_TAU]``;
-* with ``cols``, for each state ``j`` re-evaluates, with ``y[j] + D[j]``, only the lines that
-  depend on ``y[j]`` (into renamed locals) and writes the perturbed ``dy`` and torque into row
-  ``j`` of ``C`` (``C[j, N_Y]`` the torque);
-* with ``thcol``, does the same for the joint angle and velocity moved to ``(th2, thd2)`` into
-  ``T`` (``T[N_Y]`` the torque).
+* with ``cols`` non-zero, for each state ``j`` re-evaluates, with ``y[j] + D[j]``, only the
+  lines that depend on ``y[j]`` (into renamed locals) and writes the perturbed ``dy`` and
+  torque into row ``j`` of ``C`` (``C[j, N_Y]`` the torque);
+* with ``thcol`` non-zero, does the same for the joint angle and velocity moved to
+  ``(th2, thd2)`` into ``T`` (``T[N_Y]`` the torque).
 
 Every value is computed by the same expression, in the same order, on the same operands as a
 full evaluation at the perturbed point would compute it; the lines not re-evaluated would
@@ -140,7 +140,10 @@ def _perturbed(lines, keep, seeds: dict, suffix: str) -> tuple[list[str], dict]:
 
 def column_function(body: list[str], n_y: int, decorator: str) -> str:
     """Source of ``rhs_columns(y, yo, th, thd, th2, thd2, U, P, dy, F, D, C, T, cols, thcol)``
-    for the right-hand side ``body`` (module docstring)."""
+    for the right-hand side ``body`` (module docstring). ``cols`` and ``thcol`` are floats
+    (non-zero: compute): numba compiles a function once per literal argument, and literal
+    ``True``/``False`` at the stepper's call sites compiled this, its largest function, twice
+    (6 s of a circuit's first compilation)."""
     lines = _parse(body)
     keep = _needed(lines, n_y)
     src = [decorator,
@@ -156,14 +159,14 @@ def column_function(body: list[str], n_y: int, decorator: str) -> str:
             src.append(f"{ind * 2}{row}{k}] = {names.get(key, key)}")
         src.append(f"{ind * 2}{row}{n_y}] = {names.get(_TORQUE, _TORQUE)}")
 
-    src.append(ind + "if cols:")
+    src.append(ind + "if cols != 0.0:")
     for j in range(n_y):
         yq = f"yq{j}"
         src.append(f"{ind * 2}{yq} = y[{j}] + D[{j}]")
         emitted, names = _perturbed(lines, keep, {f"y[{j}]": yq}, f"c{j}")
         src += [ind * 2 + e for e in emitted]
         outputs(names, f"C[{j}, ")
-    src.append(ind + "if thcol:")
+    src.append(ind + "if thcol != 0.0:")
     emitted, names = _perturbed(lines, keep, {"th": "th2", "thd": "thd2"}, "t")
     src += [ind * 2 + e for e in emitted] or [ind * 2 + "pass"]
     outputs(names, "T[")

@@ -190,8 +190,7 @@ def jacobian(y, yo, theta, theta_dot, h, U, P, S, M):
     C, T, D = column_views(S)
     for j in range(N_Y):
         D[j] = 1e-7 * max(abs(y[j]), Y_TYP[j])
-    rhs_columns(y, yo, theta, theta_dot, theta, theta_dot, U, P, fp, Fp, D, C, T, True,
-                False)
+    rhs_columns(y, yo, theta, theta_dot, theta, theta_dot, U, P, fp, Fp, D, C, T, 1.0, 0.0)
     for j in range(N_Y):
         d = D[j]
         for k in range(N_Y):
@@ -226,7 +225,7 @@ def linearise(y, P, W, S):
             D[j] = 1e-7 * max(abs(y[j]), Y_TYP[j])
     dv = 1e-7 * max(abs(thd), 1.0)
     rhs_columns(y, y, theta + h * thd, thd, theta + h * (thd + dv), thd + dv, U, P, f0, F0,
-                D, C, T, build, True)
+                D, C, T, 1.0 if build else 0.0, 1.0)
     tau0 = F0[F_TAU]
     if not build:
         S[0, 1] = age + 1.0
@@ -262,8 +261,8 @@ def linearise(y, P, W, S):
 def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     """Solve ``y − y_old − h f(y, θ̇) = 0`` by Newton from the guess in ``y`` (in place).
     Iterations reuse a factored matrix while each cuts the residual to ``NEWTON_CONTRACT`` of
-    the last, first the prediction's (``first_matrix``), then a fresh Jacobian made at the
-    iterate where one contracted less (simplified Newton; Hairer & Wanner, *Solving ODEs II*,
+    the last, first the prediction's (``first_matrix`` non-zero), then a fresh Jacobian made at
+    the iterate where one contracted less (simplified Newton; Hairer & Wanner, *Solving ODEs II*,
     IV.8); where that one contracts less too, a fresh Jacobian every iteration (full Newton).
     Each iteration after the first also corrects the matrix's inverse by Broyden's second
     update (Broyden 1965, Math. Comp. 19:577; the form that needs the inverse only, kept as up
@@ -271,7 +270,9 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     scales), so that a kept matrix that has aged still converges superlinearly: on the HAFO's
     gait 3.75 residual evaluations a step instead of 4.0 with half the fresh Jacobians (0.13
     against 0.24 a step). A diverging or cycling iteration halves its last step (damped
-    Newton) and drops the corrections.
+    Newton) and drops the corrections. (``first_matrix`` is a float, not a bool: numba
+    compiles a function once per literal argument, and ``True``/``False`` at the two call
+    sites compiled this one, and all it calls, twice.)
     Leaves ``f`` and the power flows at the solution in scratch rows 1–2."""
     (f1, F1, yo_, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, Mw, Mcopy,
      R) = scratch_views(S)
@@ -279,7 +280,7 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     Bu, Bw, rcur, rprev = broyden_views(S)
     tol = NEWTON_TOL * h / NEWTON_TOL_STEP_S
     err_prev = 1e300
-    kept = first_matrix
+    kept = first_matrix != 0.0
     own = False
     full = False
     nb = 0                      # secant corrections stored for the matrix in use
@@ -322,7 +323,7 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
             have_prev = False
             jacobian(y, yold, theta, theta_dot, h, U, P, S, Mw)
             lu_factor(Mw, S[14 + 3 * N_Y, :N_Y], N_Y)
-            if first_matrix:
+            if first_matrix != 0.0:
                 for k in range(N_Y):
                     S[13 + 3 * N_Y, k] = S[14 + 3 * N_Y, k]
                     for j in range(N_Y):
@@ -416,7 +417,7 @@ def finish_step(y, P, W, theta_dot_new, S):
         y[k] += W[W_A + k] + W[W_B + k] * dthd
     tau = W[W_TAU0] + W[W_G] * dthd
     theta_end = theta + h * theta_dot_new
-    if newton(y, yold, h, theta_end, theta_dot_new, U, P, W, S, True):
+    if newton(y, yold, h, theta_end, theta_dot_new, U, P, W, S, 1.0):
         close_substep(y, yold, h, theta_end, theta_dot_new, P, W, S)
     else:
         W[W_SUBSTEPPED] += 1.0
@@ -431,7 +432,7 @@ def finish_step(y, P, W, theta_dot_new, S):
                 yold[k] = y[k]
             thd = thd0 + (pos + frac) * dthd
             th_sub = theta + (pos + frac) * h * thd
-            ok = newton(y, yold, frac * h, th_sub, thd, U, P, W, S, False)
+            ok = newton(y, yold, frac * h, th_sub, thd, U, P, W, S, 0.0)
             if not ok and frac > MIN_SUBSTEP_FRACTION:
                 for k in range(N_Y):
                     y[k] = yold[k]
