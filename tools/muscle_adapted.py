@@ -1,0 +1,101 @@
+"""The adapted wearers of issue 22 by one protocol: a control, then every condition from it.
+
+A wearer adapting to a device minimises effort; here that is a CMA-ES search of the reflex
+parameters with the condition worn (``GaitObjective(duration_s=16, tracking_weight=0.25,
+assistance=…)``: 1.25 m/s, kinematics near Winter's, least net metabolic cost of transport
+by Umberger 2010). A single search per condition from an older set compares the searches as
+much as the conditions: each keeps finding cheaper gaits, whatever is worn. So the searches
+are staged:
+
+1. ``control``: the no-device wearer, searched from ``--start`` (default: the cheapest
+   no-device gait known, ``afo_mj/data/adapted/worn_mass.json`` walked without its masses,
+   4.66 W/kg against the first control's 5.40) at step ``--sigma0``;
+2. every condition in ``--kinds`` (``none`` included: the control searched once more, so
+   that the no-device row has had the same search as the others), searched from the control
+   with the same generations, step, population and seed.
+
+Run::
+
+    .venv/bin/python tools/muscle_adapted.py --out results/adapted2 [--generations 100]
+        [--kinds none worn_mass zhang clutched_spring hafo] [--seeds 1 2]
+
+Every search is resumable in ``OUT/<name>``; ``--ship DIR`` copies each condition's
+``reflex_params.json`` (first seed) to ``DIR/<kind>.json``. Prints one line per search and,
+last, a JSON line. Then ``tools/muscle_assistance_table.py --adapted DIR`` walks the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from afo_mj.experiments.muscle_assistance import KINDS, Assistance  # noqa: E402
+from afo_mj.studies.gait_optimization import GaitObjective, optimize_gait  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[1] / "afo_mj" / "data"
+START = DATA / "adapted" / "worn_mass.json"
+
+
+def objective(kind: str) -> GaitObjective:
+    """The adapted wearer's objective with condition ``kind`` (module docstring); the Zhang
+    torque is ramped on over 3 strides, as devices ramp assistance on."""
+    a = Assistance(kind, ramp_strides=3) if kind == "zhang" else Assistance(kind)
+    return GaitObjective(duration_s=16.0, tracking_weight=0.25, assistance=a)
+
+
+def _search(out: Path, kind: str, start: dict, a, seed: int) -> dict:
+    t0 = time.perf_counter()
+    r = optimize_gait(out, objective(kind), generations=a.generations, popsize=16,
+                      start=start, workers=a.workers, sigma0=a.sigma0, seed=seed)
+    q = r["quality"]
+    rms = q["angle_rms_deg"]
+    print(f"{out.name:22s} {q['speed_m_s']:.2f} m/s, RMS hip/knee/ankle {rms['hip']:.1f}/"
+          f"{rms['knee']:.1f}/{rms['ankle']:.1f} deg, net COT "
+          f"{q['net_cost_of_transport_j_per_kg_m']:.3f} J/(kg m), cost {r['cost']:.3f} "
+          f"({time.perf_counter() - t0:.0f} s)", flush=True)
+    return r
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, help="folder for the searches")
+    ap.add_argument("--start", default=str(START), help="reflex_params.json of the control's "
+                    "start")
+    ap.add_argument("--generations", type=int, default=100)
+    ap.add_argument("--sigma0", type=float, default=0.1)
+    ap.add_argument("--kinds", nargs="+", default=["none", "worn_mass", "zhang",
+                                                   "clutched_spring", "hafo"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1])
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--ship", default=None, help="copy each condition's set (first seed) "
+                    "to DIR/<kind>.json")
+    a = ap.parse_args(argv)
+    for k in a.kinds:
+        if k not in KINDS:
+            raise SystemExit(f"--kinds: {k!r}; allowed: {', '.join(KINDS)}")
+    out = Path(a.out)
+    start = json.loads(Path(a.start).read_text(encoding="utf-8"))["parameters"]
+    control = _search(out / "control", "none", start, a, a.seeds[0])
+    results = {"control": control}
+    for seed in a.seeds:
+        for kind in a.kinds:
+            name = kind if seed == a.seeds[0] else f"{kind}_seed{seed}"
+            results[name] = _search(out / name, kind, control["parameters"], a, seed)
+    if a.ship:
+        ship = Path(a.ship)
+        ship.mkdir(parents=True, exist_ok=True)
+        for kind in a.kinds:
+            shutil.copyfile(out / kind / "reflex_params.json", ship / f"{kind}.json")
+    print(json.dumps({name: {"cost": r["cost"], "quality": r["quality"]}
+                      for name, r in results.items()}))
+    return results
+
+
+if __name__ == "__main__":
+    main()
