@@ -325,6 +325,16 @@ def test_adapted_wearer_meets_each_device_as_it_acts(adapted):
 
 
 @pytest.mark.slow
+def test_adapted_metabolic_rate_falls_with_assistance_and_rises_with_worn_mass(adapted):
+    """Issue 22, the adapted wearers searched by one protocol (``tools/muscle_adapted.py``):
+    the ideal Zhang torque lowers the net metabolic rate (Umberger 2010) against the control,
+    the passive clutched spring lowers it less, and worn mass alone raises it (Zhang et al.
+    2017; Collins et al. 2015; Browning et al. 2007). The sizes are reported in the README."""
+    rate = {k: adapted[k]["net_metabolic_w_per_kg"] for k in ma.KINDS}
+    assert rate["zhang"] < rate["clutched_spring"] < rate["none"] < rate["worn_mass"]
+
+
+@pytest.mark.slow
 def test_weak_plantarflexors_push_off_less_and_the_device_restores_it(adapted):
     """Issue 22: the wearer with half the plantarflexors' force (re-optimised with it, the
     shipped ``afo_mj/data/adapted_weak`` sets) holds the speed it is asked for but pushes off
