@@ -19,9 +19,13 @@ Run::
     .venv/bin/python tools/muscle_adapted.py --out results/adapted2 [--generations 100]
         [--kinds none worn_mass zhang clutched_spring hafo] [--seeds 1 2]
 
-Every search is resumable in ``OUT/<name>``; ``--ship DIR`` copies each condition's
-``reflex_params.json`` (first seed) to ``DIR/<kind>.json``. Prints one line per search and,
-last, a JSON line. Then ``tools/muscle_assistance_table.py --adapted DIR`` walks the table.
+Every search is resumable in ``OUT/<name>`` (``OUT/<kind>_seed<N>`` past the first seed);
+``--ship DIR`` copies each condition's ``reflex_params.json`` (first seed) to
+``DIR/<kind>.json``. Prints one line per search, then (``--walk-s``, default 20 s) every
+condition's set walked with it: the net metabolic rate (Umberger 2010, W/kg) and its change
+against the ``none`` set of the same seed, per seed, so that the spread between searches
+stands beside the effects; last, a JSON line. ``tools/muscle_assistance_table.py --adapted
+DIR`` walks the full table of the shipped sets.
 """
 
 from __future__ import annotations
@@ -35,7 +39,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from afo_mj.experiments.muscle_assistance import KINDS, Assistance  # noqa: E402
+from afo_mj.experiments.muscle_assistance import (KINDS, Assistance,  # noqa: E402
+                                                  assistance_summary, assistance_walk)
+from afo_mj.studies.gait_optimization import load_reflex_set  # noqa: E402
 from afo_mj.studies.gait_optimization import GaitObjective, optimize_gait  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / "afo_mj" / "data"
@@ -62,6 +68,41 @@ def _search(out: Path, kind: str, start: dict, a, seed: int) -> dict:
     return r
 
 
+def spread(out: Path, kinds, seeds, walk_s: float) -> dict:
+    """Each search's set walked ``walk_s`` s with its condition: ``{kind: {seed: (net
+    metabolic W/kg by Umberger, change % against none of that seed or None)}}``; a walk that
+    falls gives ``(None, None)``."""
+    rates = {}
+    for kind in kinds:
+        for seed in seeds:
+            name = kind if seed == seeds[0] else f"{kind}_seed{seed}"
+            walk, dev = assistance_walk(objective(kind).assistance, None,
+                                        load_reflex_set(out / name / "reflex_params.json"),
+                                        walk_s)
+            s = assistance_summary(walk, 3.0, dev)
+            rates.setdefault(kind, {})[seed] = (None if s["fell_s"] is not None
+                                                else s["net_metabolic_w_per_kg"])
+    table = {}
+    for kind in kinds:
+        for seed in seeds:
+            r, base = rates[kind][seed], rates.get("none", {}).get(seed)
+            ch = None if r is None or base is None else 100.0 * (r / base - 1.0)
+            table.setdefault(kind, {})[seed] = (r, ch)
+    return table
+
+
+def print_spread(table: dict, seeds) -> None:
+    print("| condition | " + " | ".join(f"seed {s}: W/kg, change" for s in seeds)
+          + " | mean change |")
+    print("|---|" + "---|" * (len(seeds) + 1))
+    for kind, by_seed in table.items():
+        cells = ["falls" if r is None else f"{r:.2f}, {'–' if c is None else f'{c:+.1f} %'}"
+                 for r, c in by_seed.values()]
+        ch = [c for _, c in by_seed.values() if c is not None]
+        mean = f"{sum(ch) / len(ch):+.1f} %" if len(ch) == len(seeds) else "–"
+        print(f"| {kind} | " + " | ".join(cells) + f" | {mean} |", flush=True)
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="folder for the searches")
@@ -73,6 +114,8 @@ def main(argv=None) -> dict:
                                                    "clutched_spring", "hafo"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--walk-s", type=float, default=20.0, help="length of the walks that "
+                    "compare the sets (s; 0: none)")
     ap.add_argument("--ship", default=None, help="copy each condition's set (first seed) "
                     "to DIR/<kind>.json")
     a = ap.parse_args(argv)
@@ -92,8 +135,13 @@ def main(argv=None) -> dict:
         ship.mkdir(parents=True, exist_ok=True)
         for kind in a.kinds:
             shutil.copyfile(out / kind / "reflex_params.json", ship / f"{kind}.json")
-    print(json.dumps({name: {"cost": r["cost"], "quality": r["quality"]}
-                      for name, r in results.items()}))
+    table = spread(out, a.kinds, a.seeds, a.walk_s) if a.walk_s > 0 else {}
+    if table:
+        print_spread(table, a.seeds)
+    print(json.dumps({"searches": {name: {"cost": r["cost"], "quality": r["quality"]}
+                                   for name, r in results.items()},
+                      "net_metabolic_w_per_kg_and_change_pct": {
+                          k: {str(s): v for s, v in t.items()} for k, t in table.items()}}))
     return results
 
 
