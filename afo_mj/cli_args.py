@@ -164,6 +164,8 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     og.add_argument("--assistance", default="none",
                     choices=("none", "worn_mass", "zhang", "clutched_spring", "hafo"),
                     help="device worn while optimising (the adapted wearer; default none)")
+    og.add_argument("--ramp-strides", type=int, default=0,
+                    help="the ideal torque (zhang) ramps on over this many strides (default 0)")
     og.add_argument("--plantarflexor-strength", type=float, default=1.0,
                     help="soleus and gastrocnemius maximum force as a fraction (weakness)")
     og.add_argument("--robust", action="store_true",

@@ -188,6 +188,10 @@ def test_cli_optimize_gait(tmp_path, capsys):
                  "--plantarflexor-strength", "1.5"]) == 2
     assert "--plantarflexor-strength = 1.5; allowed: 0.05 to 1" in capsys.readouterr().err
     assert not (tmp_path / "weak").exists()
+    assert main(["optimize-gait", "--out", str(tmp_path / "r"), "--assistance", "zhang",
+                 "--ramp-strides", "-1"]) == 2
+    assert "--ramp-strides = -1; allowed: an integer 0 … 100" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
     assert main(["optimize-gait", "--out", str(tmp_path / "w"), "--emg-weight", "-1"]) == 2
     assert "--emg-weight = -1.0; allowed: >= 0" in capsys.readouterr().err
     # the objective's weights and the initial step reach the optimisation's record
@@ -197,6 +201,12 @@ def test_cli_optimize_gait(tmp_path, capsys):
                  "--effort-weight", "0.5", "--emg-weight", "1", "--duration", "6"]) == 0
     doc = json.loads((tmp_path / "ok" / "reflex_params.json").read_text())
     assert doc["optimizer"]["sigma0"] == 0.05
+    # the device worn, with its ramp, reaches the record (the adapted Zhang sets' condition)
+    assert main(["optimize-gait", "--out", str(tmp_path / "z"), "--generations", "1",
+                 "--popsize", "4", "--workers", "1", "--quiet", "--duration", "5",
+                 "--assistance", "zhang", "--ramp-strides", "3"]) == 0
+    zdoc = json.loads((tmp_path / "z" / "reflex_params.json").read_text())
+    assert zdoc["assistance"]["kind"] == "zhang" and zdoc["assistance"]["ramp_strides"] == 3
     assert {k: doc["objective"][k] for k in ("tracking_weight", "tracking_max_weight",
                                              "effort_weight", "emg_weight",
                                              "duration_s")} == {

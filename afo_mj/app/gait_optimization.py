@@ -24,14 +24,16 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
                          robust: bool = False, plantarflexor_strength: float = 1.0,
                          sigma0: float = 0.2, tracking_weight: float = 1.0,
                          tracking_max_weight: float = 0.0, effort_weight: float = 1.0,
-                         emg_weight: float = 0.0, duration_s: float = 12.0) -> dict:
+                         emg_weight: float = 0.0, duration_s: float = 12.0,
+                         ramp_strides: int = 0) -> dict:
     """Run (or continue) the optimisation into ``out``; returns ``reflex_params.json``'s
     content. ``assistance``: the condition worn while walking
     (:data:`afo_mj.experiments.muscle_assistance.KINDS`, its defaults); ``robust``: the
     perturbed walkers of :func:`~afo_mj.studies.gait_optimization.robustness_variants` must
     walk too; ``plantarflexor_strength``: the wearer's soleus and gastrocnemius maximum force
     as a fraction (a weakness, 0.05 … 1); ``sigma0`` CMA-ES's initial step; the weights and
-    ``duration_s`` those of :class:`~afo_mj.studies.gait_optimization.GaitObjective`."""
+    ``duration_s`` those of :class:`~afo_mj.studies.gait_optimization.GaitObjective`;
+    ``ramp_strides``: the ideal torque's ramp-on (``Assistance.ramp_strides``)."""
     from afo_mj import progress
     from afo_mj.hydraulics.params import ParameterError
     from afo_mj.human.walker import WalkerParams
@@ -71,9 +73,10 @@ def optimize_reflex_gait(out, speed_m_s: float = 1.25, generations: int = 60,
         except (OSError, ValueError, KeyError) as exc:
             raise InvalidInput(f"--start {start}: {exc}") from None
     try:
-        device = Assistance(kind=assistance)
+        device = Assistance(kind=assistance, ramp_strides=ramp_strides)
     except ValueError as exc:
-        raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")) from None
+        raise InvalidInput(str(exc).replace("assistance.kind", "--assistance")
+                           .replace("assistance.ramp_strides", "--ramp-strides")) from None
     objective = GaitObjective(target_speed_m_s=float(speed_m_s), walker=walker,
                               assistance=device, tracking_weight=float(tracking_weight),
                               tracking_max_weight=float(tracking_max_weight),
