@@ -172,6 +172,9 @@ def test_optimisation_resumes_where_it_stopped(tmp_path):
     assert a["optimizer"]["generations"] == b["optimizer"]["generations"] == 3
     assert a["parameters"] == b["parameters"] and a["cost"] == b["cost"]
     assert [h["best"] for h in a["history"]] == [h["best"] for h in b["history"]]
+    # a finished search run again changes nothing, its recorded wall time included
+    again = optimize_gait(tmp_path / "a", obj, generations=3, popsize=4, workers=1)
+    assert again == a and a["wall_s"] > 0
     doc = json.loads((tmp_path / "a" / "reflex_params.json").read_text())
     assert set(doc["parameters"]) == set(rl.PARAM_NAMES)
     with pytest.raises(ValueError, match="another objective"):

@@ -248,7 +248,8 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
     holds a state of the same objective. Writes ``out_dir/reflex_params.json`` (the best set
     by name, its cost and gait quality, the objective, generations and evaluations) and
     ``out_dir/cma_state.pkl``; returns the JSON's content. ``start``: a parameter set by name
-    (warm start, e.g. the set optimised without a device)."""
+    (warm start, e.g. the set optimised without a device). ``wall_s`` is the search's wall
+    time over all its runs (a resumed run adds its own; one with nothing left adds none)."""
     import cma
     objective = objective or GaitObjective()
     if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
@@ -265,6 +266,13 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
                              f"({saved.get('objective')}); use another output folder")
         es = pickle.loads(saved["es"])
         best, best_info, history = saved["best"], saved["best_info"], saved["history"]
+        wall_s = saved.get("wall_s")
+        if wall_s is None:        # a state written before the total was kept: its record's
+            try:
+                old = json.loads((out / "reflex_params.json").read_text(encoding="utf-8"))
+                wall_s = float(old.get("wall_s", old.get("wall_s_this_run", 0.0)))
+            except (OSError, ValueError):
+                wall_s = 0.0
     else:
         z0 = np.zeros(rl.N_P)
         if start:
@@ -274,7 +282,8 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
             opts["popsize"] = int(popsize)
         es = cma.CMAEvolutionStrategy(z0, sigma0, opts)
         best, best_info, history = (math.inf, None), {}, []
-    t_start = time.perf_counter()
+        wall_s = 0.0
+    t_start, total_s = time.perf_counter(), wall_s
     while es.countiter < generations and not es.stop():
         Z = es.ask()
         res = run_batch(_evaluate, [(z, base, objective) for z in Z], workers)
@@ -284,12 +293,13 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
         if costs[i] < best[0]:
             best = (float(costs[i]), np.asarray(Z[i]).tolist())
             best_info = res[i].value[1] if res[i].ok else {}
+        total_s = wall_s + time.perf_counter() - t_start
         history.append({"generation": es.countiter, "best": best[0],
                         "generation_best": float(costs[i]),
                         "evaluations": es.countevals})
         _write_atomic(state_file, pickle.dumps({"objective": key, "es": es.pickle_dumps(),
                                                 "best": best, "best_info": best_info,
-                                                "history": history}))
+                                                "history": history, "wall_s": total_s}))
         if progress is not None:
             progress(es.countiter, generations, best[0])
     params = params_from_log(base, best[1])
@@ -310,7 +320,7 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
                          "generations": es.countiter, "evaluations": es.countevals,
                          "popsize": es.popsize},
            "history": history,
-           "wall_s_this_run": time.perf_counter() - t_start}
+           "wall_s": total_s}
     _write_atomic(out / "reflex_params.json", json.dumps(doc, indent=1).encode())
     return doc
 
