@@ -311,8 +311,7 @@ def test_adapted_wearer_meets_each_device_as_it_acts(adapted):
     ``afo_mj/data/adapted`` sets; README): the ideal Zhang torque does positive work on the
     ankle and the adapted muscles hand it more than 40 % of their positive ankle work; the
     clutched spring returns what it stores (no net work over a stride); the driven HAFO's
-    ledger closes with every loss named. The metabolic changes are reported, not asserted:
-    the searches' own spread is as large as the published effects (README)."""
+    ledger closes with every loss named. (The metabolic changes: the next tests.)"""
     none, zhang = adapted["none"], adapted["zhang"]
     assert zhang["ankle_device_net_work_j_per_stride"] > 5.0
     assert (zhang["ankle_muscle_positive_work_j_per_stride"]
@@ -325,13 +324,18 @@ def test_adapted_wearer_meets_each_device_as_it_acts(adapted):
 
 
 @pytest.mark.slow
-def test_adapted_metabolic_rate_falls_with_assistance_and_rises_with_worn_mass(adapted):
-    """Issue 22, the adapted wearers searched by one protocol (``tools/muscle_adapted.py``):
-    the ideal Zhang torque lowers the net metabolic rate (Umberger 2010) against the control,
-    the passive clutched spring lowers it less, and worn mass alone raises it (Zhang et al.
-    2017; Collins et al. 2015; Browning et al. 2007). The sizes are reported in the README."""
-    rate = {k: adapted[k]["net_metabolic_w_per_kg"] for k in ma.KINDS}
-    assert rate["zhang"] < rate["clutched_spring"] < rate["none"] < rate["worn_mass"]
+@pytest.mark.parametrize("seed", [1, 2])
+def test_adapted_metabolic_rate_falls_with_assistance_and_rises_with_worn_mass(adapted, seed):
+    """Issue 22, the adapted wearers searched by one protocol (``tools/muscle_adapted.py``),
+    for each of two search seeds: the ideal Zhang torque lowers the net metabolic rate
+    (Umberger 2010) against that seed's control, the passive clutched spring lowers it less,
+    and worn mass alone raises it (Zhang et al. 2017; Collins et al. 2015; Browning et al.
+    2007). Measured (README): seed 1 -7.7 / -1.8 / +8.1 %, seed 2 -15.6 / -5.5 / +0.3 %."""
+    kinds = ("none", "worn_mass", "zhang", "clutched_spring")
+    s = adapted if seed == 1 else {k: _adapted_summary(ADAPTED, f"{k}_seed{seed}")
+                                   for k in kinds}
+    rate = {k: s[k]["net_metabolic_w_per_kg"] for k in kinds}
+    assert rate["zhang"] < rate["clutched_spring"] < rate["none"] < rate["worn_mass"], rate
 
 
 @pytest.mark.slow

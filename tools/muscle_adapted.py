@@ -20,10 +20,10 @@ Run::
         [--kinds none worn_mass zhang clutched_spring hafo] [--seeds 1 2]
 
 Every search is resumable in ``OUT/<name>`` (``OUT/<kind>_seed<N>`` past the first seed);
-``--ship DIR`` copies each condition's ``reflex_params.json`` (first seed) to
-``DIR/<kind>.json``. Prints one line per search, then (``--walk-s``, default 20 s) every
-condition's set walked with it: the net metabolic rate (Umberger 2010, W/kg) and its change
-against the ``none`` set of the same seed, per seed, so that the spread between searches
+``--ship DIR`` copies each search's ``reflex_params.json`` to ``DIR/<kind>.json`` (first seed)
+and ``DIR/<kind>_seed<N>.json``. Prints one line per search, then (``--walk-s``, default 20 s)
+every condition's set walked with it: the net metabolic rate (Umberger 2010, W/kg) and its
+change against the ``none`` set of the same seed, per seed, so that the spread between searches
 stands beside the effects; last, a JSON line. ``tools/muscle_assistance_table.py --adapted
 DIR`` walks the full table of the shipped sets.
 """
@@ -116,8 +116,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--walk-s", type=float, default=20.0, help="length of the walks that "
                     "compare the sets (s; 0: none)")
-    ap.add_argument("--ship", default=None, help="copy each condition's set (first seed) "
-                    "to DIR/<kind>.json")
+    ap.add_argument("--ship", default=None, help="copy each search's set to "
+                    "DIR/<kind>.json (first seed) and DIR/<kind>_seed<N>.json")
     a = ap.parse_args(argv)
     for k in a.kinds:
         if k not in KINDS:
@@ -133,8 +133,10 @@ def main(argv=None) -> dict:
     if a.ship:
         ship = Path(a.ship)
         ship.mkdir(parents=True, exist_ok=True)
-        for kind in a.kinds:
-            shutil.copyfile(out / kind / "reflex_params.json", ship / f"{kind}.json")
+        for seed in a.seeds:
+            for kind in a.kinds:
+                name = kind if seed == a.seeds[0] else f"{kind}_seed{seed}"
+                shutil.copyfile(out / name / "reflex_params.json", ship / f"{name}.json")
     table = spread(out, a.kinds, a.seeds, a.walk_s) if a.walk_s > 0 else {}
     if table:
         print_spread(table, a.seeds)
