@@ -7,9 +7,10 @@ by Umberger 2010). A single search per condition from an older set compares the 
 much as the conditions: each keeps finding cheaper gaits, whatever is worn. So the searches
 are staged:
 
-1. ``control``: the no-device wearer, searched from ``--start`` (default: the cheapest
-   no-device gait known, ``afo_mj/data/adapted/worn_mass.json`` walked without its masses,
-   4.66 W/kg against the first control's 5.40) at step ``--sigma0``;
+1. ``control``: the no-device wearer, searched from ``--start`` (default
+   ``afo_mj/data/adapted/control_start.json``: the cheapest no-device gait known before this
+   protocol, an earlier search's worn-mass wearer walked without its masses, 4.66 W/kg against
+   the first control's 5.40) at step ``--sigma0``;
 2. every condition in ``--kinds`` (``none`` included: the control searched once more, so
    that the no-device row has had the same search as the others), searched from the control
    with the same generations, step, population and seed.
@@ -45,7 +46,7 @@ from afo_mj.studies.gait_optimization import load_reflex_set  # noqa: E402
 from afo_mj.studies.gait_optimization import GaitObjective, optimize_gait  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / "afo_mj" / "data"
-START = DATA / "adapted" / "worn_mass.json"
+START = DATA / "adapted" / "control_start.json"
 
 
 def objective(kind: str) -> GaitObjective:
