@@ -31,7 +31,7 @@ import numpy as np
 
 from afo_mj.control import assistance as asst
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.scenarios.walk_scenario import ScenarioError
+from afo_mj.scenarios.walk_scenario import ScenarioError, did_you_mean
 
 DEVICE_KEYS = ("preset", "sides", "conditions", "params", "variants")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
@@ -96,12 +96,12 @@ def device_config(scenario) -> DeviceConfig | None:
     def fail(key, value, allowed):
         return ScenarioError(f"{origin}: {key} = {value!r} is not allowed; allowed: {allowed}")
 
-    for k in dev:
-        if k not in DEVICE_KEYS:
-            raise fail(f"device.{k}", dev[k], "keys " + ", ".join(DEVICE_KEYS))
-    for k in ass:
-        if k not in ASSIST_KEYS:
-            raise fail(f"assistance.{k}", ass[k], "keys " + ", ".join(ASSIST_KEYS))
+    for table, doc, keys in (("device", dev, DEVICE_KEYS), ("assistance", ass, ASSIST_KEYS)):
+        for k in doc:
+            if k not in keys:
+                raise ScenarioError(f"{origin}: unknown key '{table}.{k}' (= {doc[k]!r})"
+                                    f"{did_you_mean(k, keys, f'{table}.')}; allowed keys in "
+                                    f"[{table}]: " + ", ".join(keys))
     sides = dev.get("sides", ["right"])
     if (not isinstance(sides, list) or not sides or len(set(sides)) != len(sides)
             or any(s not in ("right", "left") for s in sides)):
