@@ -7,7 +7,6 @@ report nothing; every bad input is refused with a ValueError naming the argument
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -182,24 +181,24 @@ def test_report_per_channel():
     assert rep["torque_nm"]["channel"] == "torque_nm"
 
 
-def test_sixty_features_twenty_thousand_samples_under_a_second():
-    """Library and regression of 20 000 samples × 60 features: under 1 s (best of 2 runs, so a
-    busy machine's hiccup does not fail it)."""
+def test_sixty_features_twenty_thousand_samples_recovers_the_planted_term():
+    """At calibration size (20 000 samples × the 60-feature cap) the planted product term comes
+    back first with its coefficient. How long it takes is measured by
+    ``benchmarks/discrepancy.py`` (target under 1 s), not asserted here."""
     rng = np.random.default_rng(8)
     sig = {f"s{k}": np.sin(2 * np.pi * (0.1 + 0.13 * k) * T + k) + 0.1 * rng.normal(size=N)
            for k in range(10)}
     feats = dd.candidate_features(sig, T)
     assert len(feats) == 60
     product = next(k for k in feats if "·" in k)       # a late family, kept under the cap
-    r = 0.3 * feats[product] + _noise(9)
-    elapsed = []
-    for _ in range(2):
-        t0 = time.perf_counter()
-        res = dd.sparse_discrepancy("c", r, dd.candidate_features(sig, T), TRAIN, TEST, SIGMA)
-        elapsed.append(time.perf_counter() - t0)
-    assert min(elapsed) < 1.0, elapsed
-    assert res["terms"][0].feature == product
+    a, b = product.split("·")
+    assert np.allclose(feats[product], sig[a] * sig[b])
+    r = 0.3 * sig[a] * sig[b] + _noise(9)
+    res = dd.sparse_discrepancy("c", r, feats, TRAIN, TEST, SIGMA)
+    assert res["found"] is True
+    assert res["terms"][0].feature == product, res["expression"]
     assert res["terms"][0].coefficient == pytest.approx(0.3, rel=0.05)
+    _finite_numbers(res)
 
 
 # ---------------------------------------------------------------------------- bad input
