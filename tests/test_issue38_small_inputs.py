@@ -35,3 +35,22 @@ def test_misspelt_device_key_suggests_the_key():
     with pytest.raises(ScenarioError) as info:
         device_config(parse_scenario(sc_text, origin="t.toml"))
     assert "did you mean 'device.conditions'?" in str(info.value)
+
+
+def test_one_stride_says_the_start_up_stride_is_analysed():
+    from afo_mj.scenarios.walk_scenario import strides_overrides
+    sc = parse_scenario('name = "t"\n[gait]\nstrides = 10\nanalyse_strides = [4, 10]\n',
+                        origin="t.toml", overrides=strides_overrides(1))
+    assert sc.analyse_strides == (1, 1)
+    assert any("start-up stride" in n and "gait.analyse_strides" in n for n in sc.notes)
+    sc = parse_scenario('name = "t"\n[gait]\nstrides = 1\n', origin="t.toml")
+    assert sc.analyse_strides == (1, 1)
+    assert any("start-up stride" in n for n in sc.notes)
+
+
+def test_windows_past_the_start_up_stride_carry_no_start_up_note():
+    from afo_mj.scenarios.walk_scenario import strides_overrides
+    for ov in ([], strides_overrides(2), strides_overrides(6)):
+        sc = parse_scenario('name = "t"\n', origin="t.toml", overrides=ov)
+        assert sc.analyse_strides[0] >= 2
+        assert not any("start-up" in n for n in sc.notes)

@@ -664,6 +664,13 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     first, last = raw_an
     if not 1 <= first <= last <= strides:
         raise ctx.fail("gait.analyse_strides", raw_an, "is out of range", allowed_an)
+    if first == 1:
+        notes.append(f"gait.analyse_strides = {[first, last]} includes stride 1, the start-up "
+                     "stride (the walker is launched from its start posture at "
+                     "controller.initial_speed_m_s and settles over the first strides), so "
+                     "the gait metrics mix in the start-up; for steady walking simulate "
+                     "gait.strides >= 2 and analyse from stride 2 on (--strides N analyses "
+                     "strides max(2, N-4)..N)")
 
     bands = []
     allowed_bands = "a list of 'source:condition' strings, e.g. ['schwartz2008:Free']"
