@@ -54,3 +54,23 @@ def test_windows_past_the_start_up_stride_carry_no_start_up_note():
         sc = parse_scenario('name = "t"\n', origin="t.toml", overrides=ov)
         assert sc.analyse_strides[0] >= 2
         assert not any("start-up" in n for n in sc.notes)
+
+
+def test_a_body_outside_the_human_range_is_noted():
+    sc = parse_scenario('name = "t"\n', origin="t.toml",
+                        overrides=["walker.body_mass_kg=10", "walker.height_m=2.2"])
+    bmi = 10.0 / 2.2 ** 2                     # 2.07 kg/m², far below any human's
+    note = [n for n in sc.notes if "body mass index" in n]
+    assert len(note) == 1
+    assert f"{bmi:.1f} kg/m^2" in note[0] and "10 kg" in note[0] and "2.2 m" in note[0]
+    sc = parse_scenario('name = "t"\n', origin="t.toml",
+                        overrides=["walker.body_mass_kg=200", "walker.height_m=1.2"])
+    assert any("body mass index" in n for n in sc.notes)     # 139 kg/m²
+
+
+@pytest.mark.parametrize("walker", ['body_preset = "child_4y"', 'body_preset = "adult_female"',
+                                    "body_mass_kg = 75.0\nheight_m = 1.75",
+                                    "body_mass_kg = 120.0\nheight_m = 1.8"])
+def test_human_bodies_carry_no_body_size_note(walker):
+    sc = parse_scenario(f'name = "t"\n[walker]\n{walker}\n', origin="t.toml")
+    assert not any("body mass index" in n for n in sc.notes)

@@ -121,6 +121,10 @@ _GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 CADENCE_RANGE = (30.0, 200.0)
 STRIDES_RANGE = (1, 1000)
+#: body mass index [kg/m^2] of the bodies the walker stands for: de Leva's (1996) adult
+#: segment fractions scaled by mass and stature, shipped bodies from the CDC 2000 medians
+#: (4-year-olds 15.4) to adults (21.8-22.6); outside it a scenario is noted, not refused
+BMI_RANGE_KG_M2 = (13.0, 40.0)
 
 
 class ScenarioError(ValueError):
@@ -650,6 +654,13 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     strides = ctx.integer("gait.strides", gait.get("strides", 10), *STRIDES_RANGE)
     raw_an = gait.get("analyse_strides", [min(4, strides), strides])
     notes = []
+    bmi = walker.body_mass_kg / walker.height_m ** 2
+    if not BMI_RANGE_KG_M2[0] <= bmi <= BMI_RANGE_KG_M2[1]:
+        notes.append(f"walker: {walker.body_mass_kg:g} kg at {walker.height_m:g} m is a body mass "
+                     f"index of {bmi:.1f} kg/m^2, outside the {BMI_RANGE_KG_M2[0]:g}-"
+                     f"{BMI_RANGE_KG_M2[1]:g} kg/m^2 of the human bodies the segment model "
+                     f"scales (de Leva's proportions by mass and stature): the walk runs, but "
+                     f"its results are not a human's")
     if "gait.strides" in ov_keys and "gait.analyse_strides" not in ov_keys:
         followed = _follow_window(file_window, file_strides, strides)
         if followed is not None and followed != raw_an:
