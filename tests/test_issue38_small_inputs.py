@@ -74,3 +74,83 @@ def test_a_body_outside_the_human_range_is_noted():
 def test_human_bodies_carry_no_body_size_note(walker):
     sc = parse_scenario(f'name = "t"\n[walker]\n{walker}\n', origin="t.toml")
     assert not any("body mass index" in n for n in sc.notes)
+
+
+def _storage(path, cols, header):
+    names = list(cols)
+    lines = [path.name, "version=1", f"nRows={len(cols['time'])}",
+             f"nColumns={len(names)}", header, "endheader", "\t".join(names)]
+    lines += ["\t".join(f"{cols[c][k]:.8f}" for c in names) for k in range(len(cols["time"]))]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _trial(tmp_path, bad_file=None, bad_column=None, bad_row=None, bad_value="nan"):
+    """A 4-stride trial at 100 Hz (Winter's cycle, T = 1.1 s; the left leg half a stride
+    later) as OpenSim IK .sto, ID .sto and GRF .mot; ``bad_value`` written into one cell
+    (data row ``bad_row``, 1-based) of one file."""
+    import numpy as np
+
+    from afo_mj.gait.reference import load_normative
+    w = load_normative("winter", "normal")
+    t = np.arange(0.0, 4.4 + 1e-9, 0.01)
+    pr, pl = np.mod((t + 0.2) / 1.1, 1.0), np.mod((t + 0.2 - 0.55) / 1.1, 1.0)
+    ar, al = np.degrees(w.angles_rad(pr)), np.degrees(w.angles_rad(pl))
+    ik = {"time": t}
+    id_ = {"time": t}
+    for sfx, a, ph in (("r", ar, pr), ("l", al, pl)):
+        ik.update({f"hip_flexion_{sfx}": a[:, 0], f"knee_angle_{sfx}": -a[:, 1],
+                   f"ankle_angle_{sfx}": a[:, 2]})
+        m = w.moments_nm_per_kg(ph) * 75.0
+        id_.update({f"hip_flexion_{sfx}_moment": m[:, 0], f"knee_angle_{sfx}_moment": -m[:, 1],
+                    f"ankle_angle_{sfx}_moment": m[:, 2]})
+
+    def grf(ph):
+        return np.where(ph < 0.6, 800.0 * np.sqrt(np.sin(np.pi * ph / 0.6).clip(0)), 0.0)
+    gr = {"time": t, "ground_force_vy": grf(pr), "1_ground_force_vy": grf(pl),
+          "ground_force_vx": 0.1 * grf(pr), "1_ground_force_vx": 0.1 * grf(pl)}
+    paths = {"ik": tmp_path / "trial_ik.sto", "id": tmp_path / "trial_id.sto",
+             "grf": tmp_path / "trial_grf.mot"}
+    for key, cols, hdr in (("ik", ik, "inDegrees=yes"), ("id", id_, "inDegrees=no"),
+                           ("grf", gr, "inDegrees=yes")):
+        _storage(paths[key], cols, hdr)
+        if key == bad_file:
+            lines = paths[key].read_text().splitlines()
+            labels = lines.index("endheader") + 1
+            fields = lines[labels + bad_row].split("\t")
+            fields[lines[labels].split("\t").index(bad_column)] = bad_value
+            lines[labels + bad_row] = "\t".join(fields)
+            paths[key].write_text("\n".join(lines) + "\n")
+    return paths
+
+
+def test_a_clean_trial_loads(tmp_path):
+    from afo_mj.gait.measured_trial import load_measured_trial
+    p = _trial(tmp_path)
+    trial = load_measured_trial(p["ik"], p["grf"], id_path=p["id"], body_mass_kg=75.0)
+    assert trial.n_cycles >= 4
+
+
+@pytest.mark.parametrize("bad_file, column, row, value", [
+    ("ik", "knee_angle_r", 5, "nan"),        # before the first heel strike: was ignored
+    ("ik", "ankle_angle_l", 200, "nan"),     # inside a cycle
+    ("id", "ankle_angle_r_moment", 3, "inf"),
+    ("grf", "1_ground_force_vy", 120, "nan"),
+])
+def test_a_non_finite_value_in_a_trial_is_refused_naming_file_column_row_and_time(
+        tmp_path, bad_file, column, row, value):
+    from afo_mj.gait.measured_trial import load_measured_trial
+    from afo_mj.gait.reference import ReferenceGaitError
+    p = _trial(tmp_path, bad_file, column, row, value)
+    with pytest.raises(ReferenceGaitError) as info:
+        load_measured_trial(p["ik"], p["grf"], id_path=p["id"], body_mass_kg=75.0)
+    msg = str(info.value)
+    assert str(p[bad_file]) in msg and repr(column) in msg
+    assert f"data row {row} " in msg and f"(time {(row - 1) * 0.01:g} s)" in msg
+
+
+def test_a_nan_in_a_trial_refuses_the_scenario(tmp_path):
+    _trial(tmp_path, "ik", "hip_flexion_r", 2, "nan")
+    text = ('[gait]\nreference_path = "trial_ik.sto"\nreference_grf_path = "trial_grf.mot"\n')
+    with pytest.raises(ScenarioError, match=r"gait.reference_path = 'trial_ik.sto' cannot be "
+                       r"used: .*'hip_flexion_r' has the non-finite value nan at data row 2"):
+        parse_scenario(text, origin="t.toml", base_dir=tmp_path)

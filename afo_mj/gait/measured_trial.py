@@ -238,11 +238,26 @@ def _leg_mapping(side: str) -> dict[str, str]:
 
 
 def _column(labels, data, name, origin):
+    """Column ``name`` of a trial file; a NaN or infinite value in it is refused, naming the
+    file, the column, the data row and its time (every value a trial uses must be finite:
+    a gap would otherwise pass into the cycles' means, or silently drop out between them)."""
     from afo_mj.gait.reference import _find_label
     i = _find_label(labels, name)
     if i is None:
         raise ReferenceGaitError(f"{origin}: column {name!r} not found; labels: {labels}")
-    return data[:, i]
+    col = data[:, i]
+    bad = np.flatnonzero(~np.isfinite(col))
+    if bad.size:
+        k = int(bad[0])
+        ti = _find_label(labels, "time")
+        at = ("" if ti is None or ti == i or not np.isfinite(data[k, ti])
+              else f" (time {data[k, ti]:g} s)")
+        raise ReferenceGaitError(
+            f"{origin}: column {name!r} has the non-finite value {float(col[k])!r} at data row "
+            f"{k + 1}{at}{f' and {bad.size - 1} more rows' if bad.size > 1 else ''}; allowed: "
+            "finite numbers in every column the trial uses (fill or cut the gap before "
+            "loading)")
+    return col
 
 
 def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | None = None,
