@@ -31,7 +31,9 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
 
     A scenario with a ``[device]`` table runs one of its conditions (``condition``, default
     the last listed, the headline: usually ``assist``); a plain walk takes no condition. A
-    bench scenario (``[bench]`` table) has no walk to render. ``fps``, ``width``, ``height``,
+    bench scenario (``[bench]`` table) has no walk to render, nor (until it runs the muscle
+    walker) a ``walker.model = "muscle"`` scenario: it renders the torque-driven walker only.
+    ``fps``, ``width``, ``height``,
     ``max_seconds`` and ``progress`` as for :func:`afo_mj.outputs.video.render_record`,
     checked before the (slow) simulation.
 
@@ -63,12 +65,13 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
     if condition is not None and not isinstance(condition, str):
         raise InvalidRender(f"condition = {condition!r} is not allowed; allowed: a string")
     video.choose_gl()                   # the GL backend, before MuJoCo is imported
+    from afo_mj.gait.walk import Walk, WalkerModelError, check_torque_walker
     try:
         s = load_scenario(p, overrides=tuple(overrides))
-    except ScenarioError as exc:
+        check_torque_walker(s, "afo-mj render")
+    except (ScenarioError, WalkerModelError) as exc:
         raise InvalidRender(str(exc)) from None
     from afo_mj.experiments.device_walk import make_device
-    from afo_mj.gait.walk import run_walk
     from afo_mj.scenarios.device_scenario import device_config
     try:
         cfg = device_config(s)
@@ -93,8 +96,8 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
                make_device(cfg, cond, dt, int(((s.strides + 1.5) * T + 1.0) / dt) + 4))
         sides = () if dev is None else tuple(cfg.sides)
         label = f"{s.name} \u00b7 {cond}"
-    rec = run_walk(s.walker, ref, T, s.strides, s.controller_params(),
-                   worn_masses=dev.worn_masses() if dev is not None else (), device=dev)
+    rec = Walk.from_scenario(s, dev, dev.worn_masses() if dev is not None else (),
+                             entry_point="afo-mj render").run()
     facts = video.render_record(rec, mp4_path, fps=fps, width=width, height=height,
                                 max_seconds=max_seconds, progress=progress,
                                 device_sides=sides, label=label)

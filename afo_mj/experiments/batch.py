@@ -163,14 +163,18 @@ def walk_batch(scenarios: Sequence, workers: int | None = None, *, result: str =
     record is ~5 MB for 10 strides, and sending it back to this process costs more than
     the summary's analysis (``benchmarks/batch.py`` measures both). With ``raise_errors``
     (default) the first failed walk's error is raised (naming its index); otherwise failed
-    walks give their :class:`BatchResult` in their place."""
+    walks give their :class:`BatchResult` in their place. The walks are the torque-driven
+    walker's: a scenario naming another ``walker.model`` raises
+    :class:`~afo_mj.gait.walk.WalkerModelError` before any walk starts."""
     if result not in RESULTS:
         raise ValueError(f"result = {result!r}; allowed: {', '.join(map(repr, RESULTS))}")
+    from afo_mj.gait.walk import check_torque_walker
     scenarios = list(scenarios)
     for i, s in enumerate(scenarios):
         if not hasattr(s, "load_reference") or not hasattr(s, "walker"):
             raise ValueError(f"scenarios[{i}] = {type(s).__name__}; allowed: WalkScenario "
                              f"(afo_mj.scenarios.walk_scenario.load_scenario)")
+        check_torque_walker(s, "walk_batch", index=i)     # before any worker starts
     results = run_batch(_simulate if result == "record" else _simulate_summary, scenarios,
                         workers)
     out = []

@@ -40,7 +40,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from afo_mj.gait.walk import Walk
+from afo_mj.gait.walk import Walk, check_torque_walker
 
 __all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID"]
 
@@ -65,7 +65,9 @@ class AnkleAssistEnv(gym.Env):
     """The assistance environment (module docstring). ``scenario``: a walking scenario file
     (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
     says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
-    must divide its period); ``overrides``: ``--set``-style scenario overrides."""
+    must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
+    the torque-driven one: a scenario with ``walker.model = "muscle"`` raises
+    :class:`~afo_mj.gait.walk.WalkerModelError` here."""
 
     metadata = {"render_modes": []}
 
@@ -78,6 +80,7 @@ class AnkleAssistEnv(gym.Env):
         if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
             raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
         self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
+        check_torque_walker(self.scenario, f"the gymnasium environment {ENV_ID}")
         self.reference = self.scenario.load_reference()
         self.cycle_time_s = self.scenario.cycle_time_s(self.reference)
         dt = self.scenario.walker.timestep_s

@@ -66,7 +66,7 @@ from afo_mj.human.walker import DynamicScale, WalkerParams, WalkerPhysics, build
 from afo_mj.hydraulics.params import Parameters, param
 
 __all__ = ["ControllerParams", "ReferenceTable", "AnkleDevice", "WalkNumericsError",
-           "run_walk", "simulate_walk"]
+           "WalkerModelError", "check_torque_walker", "run_walk", "simulate_walk"]
 
 GRAVITY_M_S2 = 9.81
 #: contacts this soon after toe off are the forefoot's last touches, not scuffs
@@ -81,6 +81,32 @@ PROGRESS_EVERY_S = 0.5
 
 class WalkNumericsError(RuntimeError):
     """The simulation produced a non-finite state (reported with the time it happened)."""
+
+
+class WalkerModelError(ValueError):
+    """A scenario names a walker model (``[walker] model``) that this entry point cannot run:
+    it steps the torque-driven walker only, and would walk that one in the named model's
+    place. The message names the scenario, the model, the entry point and what runs it."""
+
+
+def check_torque_walker(scenario, entry_point: str, index: int | None = None) -> None:
+    """Refuse a scenario whose ``walker_model`` is not ``"torque"`` with one
+    :class:`WalkerModelError` (``entry_point``: what refuses it, e.g. ``"walk_batch"``;
+    ``index``: its place in a list of scenarios). :class:`Walk` and everything built on it
+    step the torque-driven walker only; ``afo-mj run``
+    (:func:`afo_mj.app.run.run_scenario`) runs the muscle walker."""
+    model = getattr(scenario, "walker_model", "torque")
+    if model == "torque":
+        return
+    src = getattr(scenario, "source_path", None)
+    where = str(src) if src is not None else repr(getattr(scenario, "name", "scenario"))
+    at = "" if index is None else f"scenarios[{index}] = "
+    run = f"afo-mj run {src}" if src is not None else "afo-mj run SCENARIO"
+    raise WalkerModelError(
+        f"{at}{where}: walker.model = {model!r} cannot be run by {entry_point}: it steps the "
+        f"torque-driven walker only (afo_mj.gait.walk.Walk) and would walk that one in the "
+        f"{model} walker's place; allowed here: walker.model = 'torque'; a {model} scenario "
+        f"runs with `{run}` (afo_mj.app.run.run_scenario)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -284,6 +310,22 @@ class Walk:
 
     #: event codes :meth:`step` returns per side
     NO_EVENT, HEEL_STRIKE, TOE_OFF, SWING_TOE_CONTACT = 0, 1, 2, 3
+
+    @classmethod
+    def from_scenario(cls, scenario, device: "AnkleDevice | CoupledAnkleDevice | None" = None,
+                      worn_masses=(), max_time_s: float | None = None,
+                      entry_point: str = "Walk.from_scenario") -> "Walk":
+        """The walk of a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario`: its walker,
+        reference, cycle time, strides and controller. ``walker`` (a
+        :class:`~afo_mj.human.walker.WalkerParams`) does not say which model walks, the
+        scenario does: a ``walker.model`` other than ``"torque"`` raises
+        :class:`WalkerModelError` (naming ``entry_point``) instead of walking the torque
+        walker in its place."""
+        check_torque_walker(scenario, entry_point)
+        reference = scenario.load_reference()
+        return cls(scenario.walker, reference, scenario.cycle_time_s(reference),
+                   scenario.strides, scenario.controller_params(), worn_masses, device,
+                   max_time_s)
 
     def __init__(self, walker: WalkerParams, reference, cycle_time_s: float, strides: int,
                  controller: ControllerParams | None = None, worn_masses=(),
@@ -830,8 +872,8 @@ def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
 
 
 def simulate_walk(scenario, device: AnkleDevice | None = None, worn_masses=()) -> GaitRecord:
-    """Run a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` and return its record."""
-    reference = scenario.load_reference()
-    return run_walk(scenario.walker, reference, scenario.cycle_time_s(reference),
-                    scenario.strides, scenario.controller_params(), worn_masses=worn_masses,
-                    device=device)
+    """Run a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` on the torque-driven walker
+    and return its record (as :func:`run_walk`); a scenario naming another walker model
+    raises :class:`WalkerModelError` (``afo-mj run`` runs the muscle walker)."""
+    return Walk.from_scenario(scenario, device, worn_masses,
+                              entry_point="simulate_walk").run("auto", "")

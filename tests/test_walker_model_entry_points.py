@@ -1,0 +1,234 @@
+"""Every entry point that takes a walking scenario either runs the walker model the scenario
+names or refuses it (issue 38 item 1). ``render``, ``simulate_walk``, ``walk_batch``,
+``Walk.from_scenario`` and the gymnasium environment step the torque-driven walker only: on a
+``[walker] model = "muscle"`` scenario they used to walk the torque walker in its place
+(``walk_batch`` on ``walk_muscle_healthy.toml``: cadence 103.7/min against 125.4 from
+``afo-mj run``). Each is run here on ``walk_healthy.toml`` (it runs, a few steps or one stride)
+and on ``walk_muscle_healthy.toml`` (one error naming the model and ``afo-mj run``, nothing
+written, no worker started). ``compare`` needs a ``[device]`` table, which the scenario parser
+refuses on the muscle walker. ``afo-mj run`` (and ``sweep``/``optimize``/studies, whose points
+are ``afo-mj run``) runs the muscle walker: ``tests/test_muscle_scenario.py``.
+
+A census of the package's calls keeps the list honest: a new caller of the torque walk (or of
+a scenario loader outside the listed modules) fails here until it is added to the matrix."""
+
+from __future__ import annotations
+
+import ast
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = {"torque": ROOT / "scenarios" / "walk_healthy.toml",
+             "muscle": ROOT / "scenarios" / "walk_muscle_healthy.toml"}
+SHORT = ["gait.strides=1", "gait.analyse_strides=[1, 1]"]
+#: what every refusal says: the key and value, and the command that runs it
+REFUSAL = r"walker\.model = 'muscle'(.|\n)*afo-mj run"
+
+
+def _load(model: str):
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    return load_scenario(SCENARIOS[model], overrides=SHORT)
+
+
+def _assert_refused(excinfo) -> None:
+    from afo_mj.gait.walk import WalkerModelError
+    assert isinstance(excinfo.value, ValueError)
+    msg = str(excinfo.value)
+    assert "muscle" in msg and "afo-mj run" in msg and "torque" in msg, msg
+    # the scenario file is named
+    assert "walk_muscle_healthy" in msg, msg
+    # the refusal comes from the one check, whatever wraps it
+    chain = [excinfo.value, excinfo.value.__cause__, excinfo.value.__context__]
+    assert isinstance(excinfo.value, WalkerModelError) or "walker.model" in msg, chain
+
+
+# --- simulate_walk ------------------------------------------------------------------------------
+
+def test_simulate_walk_torque_runs():
+    from afo_mj.gait.walk import simulate_walk
+    rec = simulate_walk(_load("torque"))
+    # one right stride plus the start: at least two right heel strikes and no fall
+    assert len(rec.events.heel_strikes_s[0]) >= 2 and rec.events.fall_time_s is None
+    assert np.all(np.isfinite(rec.qpos))
+
+
+def test_simulate_walk_muscle_refused():
+    from afo_mj.gait.walk import WalkerModelError, simulate_walk
+    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
+        simulate_walk(_load("muscle"))
+    _assert_refused(ei)
+    assert "simulate_walk" in str(ei.value)
+
+
+# --- walk_batch ---------------------------------------------------------------------------------
+
+def test_walk_batch_torque_runs():
+    from afo_mj.experiments.batch import walk_batch
+    (rec,) = walk_batch([_load("torque")], workers=1)
+    assert len(rec.events.heel_strikes_s[0]) >= 2
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_walk_batch_muscle_refused_before_any_worker(monkeypatch, workers):
+    from afo_mj.experiments import batch
+    from afo_mj.gait.walk import WalkerModelError
+
+    def no_run(*a, **k):
+        raise AssertionError("a walk was started for a batch that holds a muscle scenario")
+    monkeypatch.setattr(batch, "run_batch", no_run)
+    monkeypatch.setattr(batch, "run_unordered", no_run)
+    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
+        batch.walk_batch([_load("torque"), _load("muscle")], workers=workers)
+    _assert_refused(ei)
+    assert "scenarios[1]" in str(ei.value) and "walk_batch" in str(ei.value)
+
+
+# --- Walk ---------------------------------------------------------------------------------------
+
+def test_walk_from_scenario_torque_steps_as_walk():
+    from afo_mj.gait.walk import Walk
+    sc = _load("torque")
+    ref = sc.load_reference()
+    w = Walk.from_scenario(sc)
+    # the same walk built by hand from the scenario's parts
+    hand = Walk(sc.walker, ref, sc.cycle_time_s(ref), sc.strides, sc.controller_params())
+    for _ in range(20):
+        w.step()
+        hand.step()
+    assert np.array_equal(w.record().qpos, hand.record().qpos)
+    assert not w.done
+
+
+def test_walk_from_scenario_muscle_refused():
+    from afo_mj.gait.walk import Walk, WalkerModelError
+    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
+        Walk.from_scenario(_load("muscle"))
+    _assert_refused(ei)
+
+
+# --- gymnasium environment ----------------------------------------------------------------------
+
+def test_gym_env_torque_steps():
+    from afo_mj.experiments import walk_env as we
+    env = we.AnkleAssistEnv(str(SCENARIOS["torque"]), overrides=SHORT)
+    obs, _ = env.reset(seed=0)
+    for _ in range(3):
+        obs, reward, terminated, truncated, _ = env.step(np.zeros(2))
+    assert np.all(np.isfinite(obs)) and np.isfinite(reward) and not terminated
+
+
+def test_gym_env_muscle_refused_by_constructor_and_gym_make():
+    import gymnasium as gym
+
+    from afo_mj.experiments import walk_env as we
+    from afo_mj.gait.walk import WalkerModelError
+    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
+        we.AnkleAssistEnv(str(SCENARIOS["muscle"]), overrides=SHORT)
+    _assert_refused(ei)
+    with pytest.raises(WalkerModelError, match=REFUSAL):
+        gym.make(we.ENV_ID, scenario=str(SCENARIOS["muscle"]))
+
+
+# --- render (Python and afo-mj render) ----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def gl():
+    """Skip when no offscreen OpenGL context can be created here."""
+    import mujoco
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><geom type='sphere' size='0.1'/></worldbody></mujoco>")
+    try:
+        r = mujoco.Renderer(model, 16, 16)
+    except Exception as exc:  # noqa: BLE001
+        pytest.skip(f"no offscreen OpenGL context (MUJOCO_GL="
+                    f"{os.environ.get('MUJOCO_GL')}): {exc}")
+    r.close()
+
+
+def _render_argv(model: str, out: Path) -> list[str]:
+    argv = ["render", str(SCENARIOS[model]), "--mp4", str(out), "--fps", "10", "--width", "64",
+            "--height", "48", "--max-seconds", "0.3"]
+    for s in SHORT:
+        argv += ["--set", s]
+    return argv
+
+
+def test_render_cli_torque_writes_the_video(gl, tmp_path):
+    from afo_mj import cli
+    out = tmp_path / "walk.mp4"
+    assert cli.main(_render_argv("torque", out)) == 0
+    assert out.is_file() and out.stat().st_size > 0
+
+
+def test_render_muscle_refused(tmp_path, capsys):
+    from afo_mj import cli
+    from afo_mj.app.errors import InvalidInput
+    from afo_mj.app.render import render
+    out = tmp_path / "walk.mp4"
+    with pytest.raises(InvalidInput, match=REFUSAL) as ei:
+        render(SCENARIOS["muscle"], out, overrides=SHORT, fps=10, width=64, height=48)
+    _assert_refused(ei)
+    assert ei.value.exit_code == 2
+    capsys.readouterr()
+    assert cli.main(_render_argv("muscle", out)) == 2
+    err = capsys.readouterr().err
+    assert "walker.model = 'muscle'" in err and "afo-mj run" in err and "nothing written" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- compare: a device on the muscle walker is refused by the scenario parser -------------------
+
+def test_compare_torque_loads_and_muscle_device_refused(tmp_path):
+    from afo_mj.experiments.device_comparison import load_compare_items
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+    items = load_compare_items([str(ROOT / "scenarios" / "gait_assist_hafo.toml")], strides=1)
+    assert items and all(it.scenario.walker_model == "torque" for it in items)
+    p = tmp_path / "walk_muscle_healthy_hafo.toml"
+    shutil.copy(SCENARIOS["muscle"], p)
+    p.write_text(p.read_text() + '\n[device]\npreset = "hafo"\n')
+    with pytest.raises(ScenarioError, match=r"device = .* does not apply to walker.model = "
+                                            r"'muscle'"):
+        load_compare_items([str(p)], strides=1)
+
+
+# --- census: every caller of the torque walk is in the matrix above -----------------------------
+
+#: module -> what it does with a muscle scenario
+TORQUE_WALK_CALLERS = {
+    "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
+    "afo_mj/experiments/batch.py": "walk_batch refuses it before any worker",
+    "afo_mj/experiments/walk_env.py": "the constructor refuses it",
+    "afo_mj/app/render.py": "refuses it (exit 2)",
+    "afo_mj/app/run.py": "afo-mj run: the muscle walk (simulate_walk only on torque)",
+    "afo_mj/experiments/device_walk.py": "device walks: the parser refuses [device] on muscle",
+}
+SCENARIO_LOADERS = {
+    "afo_mj/app/render.py", "afo_mj/app/run.py", "afo_mj/experiments/walk_env.py",
+    "afo_mj/experiments/device_comparison.py",       # compare: [device] only
+    "afo_mj/studies/sweep.py",                       # key check only; points are afo-mj run
+    "afo_mj/design/system_design.py",                # its own device scenario, no walk run
+    "afo_mj/scenarios/walk_scenario.py",
+}
+
+
+def _calls(names) -> set[str]:
+    found = set()
+    for p in sorted((ROOT / "afo_mj").rglob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = f.id if isinstance(f, ast.Name) else getattr(f, "attr", None)
+                if name in names:
+                    found.add(p.relative_to(ROOT).as_posix())
+    return found
+
+
+def test_every_torque_walk_caller_is_listed():
+    assert _calls({"Walk", "run_walk", "simulate_walk", "from_scenario"}) \
+        == set(TORQUE_WALK_CALLERS)
+    assert _calls({"load_scenario", "parse_scenario"}) == SCENARIO_LOADERS
