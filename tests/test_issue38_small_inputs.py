@@ -154,3 +154,81 @@ def test_a_nan_in_a_trial_refuses_the_scenario(tmp_path):
     with pytest.raises(ScenarioError, match=r"gait.reference_path = 'trial_ik.sto' cannot be "
                        r"used: .*'hip_flexion_r' has the non-finite value nan at data row 2"):
         parse_scenario(text, origin="t.toml", base_dir=tmp_path)
+
+
+def _cycle_csv(path, moment_scale=1.0, grf_scale=1.0):
+    """Winter's cycle as a user CSV (percent_cycle, angles in degrees, moments and GRF per
+    kg, the ankle moment and the GRF times the given scales); returns the largest |ankle
+    moment| and |vertical GRF| written."""
+    import numpy as np
+
+    from afo_mj.gait.reference import load_normative
+    w = load_normative("winter", "normal")
+    ph = np.linspace(0.0, 1.0, 51)
+    cols = {"percent_cycle": 100.0 * ph}
+    for j, a in zip(("hip", "knee", "ankle"), np.degrees(w.angles_rad(ph)).T):
+        cols[f"{j}_angle_deg"] = a
+    for j, m in zip(("hip", "knee", "ankle"), w.moments_nm_per_kg(ph).T):
+        cols[f"{j}_moment_nm_per_kg"] = (moment_scale if j == "ankle" else 1.0) * m
+    cols["grf_z_n_per_kg"] = grf_scale * w.grf_n_per_kg(ph)[:, 1]
+    lines = [",".join(cols)] + [",".join(f"{cols[c][k]:.6f}" for c in cols)
+                                for k in range(ph.size)]
+    path.write_text("\n".join(lines) + "\n")
+    return (float(np.abs(np.round(cols["ankle_moment_nm_per_kg"], 6)).max()),
+            float(np.abs(np.round(cols["grf_z_n_per_kg"], 6)).max()))
+
+
+def test_a_per_kg_gait_file_loads(tmp_path):
+    from afo_mj.gait.reference import load_reference_csv
+    _cycle_csv(tmp_path / "gait.csv")
+    ref = load_reference_csv(tmp_path / "gait.csv", body_mass_kg=75.0)
+    assert ref.has("ankle_moment_nm_per_kg") and ref.has("grf_z_n_per_kg")
+
+
+def test_moments_in_newton_metres_are_refused_with_the_column_value_and_limit(tmp_path):
+    from afo_mj.gait.reference import ReferenceGaitError, load_reference_csv
+    peak, _ = _cycle_csv(tmp_path / "gait.csv", moment_scale=75.0)    # N*m of a 75 kg adult
+    assert peak > 100.0
+    with pytest.raises(ReferenceGaitError) as info:
+        load_reference_csv(tmp_path / "gait.csv", body_mass_kg=75.0)
+    msg = str(info.value)
+    assert "'ankle_moment_nm_per_kg'" in msg and f"{peak:.4g}" in msg.replace("-", "")
+    assert "allowed: |value| <= 5 N*m/kg" in msg
+    assert "divide the column by the body mass" in msg and "'unit': 'N*m'" in msg
+    # the same file mapped with its unit declared loads, divided by the body mass
+    from afo_mj.gait.reference import MOMENT_CHANNELS
+    mapping = {f"{j}_angle_rad": {"column": f"{j}_angle_deg", "unit": "deg"}
+               for j in ("hip", "knee", "ankle")}
+    mapping.update({c: c for c in MOMENT_CHANNELS})
+    mapping["ankle_moment_nm_per_kg"] = {"column": "ankle_moment_nm_per_kg", "unit": "N*m"}
+    ref = load_reference_csv(tmp_path / "gait.csv", mapping=mapping, body_mass_kg=75.0)
+    import numpy as np
+    got = np.abs(ref.channel("ankle_moment_nm_per_kg", np.linspace(0, 1, 51))).max()
+    assert got == pytest.approx(peak / 75.0, rel=1e-3)
+
+
+def test_a_scenario_with_moments_in_newton_metres_is_refused(tmp_path):
+    _cycle_csv(tmp_path / "gait.csv", moment_scale=75.0)
+    with pytest.raises(ScenarioError, match=r"gait.reference_path = 'gait.csv' cannot be used: "
+                       r".*'ankle_moment_nm_per_kg'.*allowed: \|value\| <= 5 N\*m/kg"):
+        parse_scenario('[gait]\nreference_path = "gait.csv"\n', origin="t.toml",
+                       base_dir=tmp_path)
+
+
+def test_ground_reaction_forces_in_newtons_are_refused(tmp_path):
+    from afo_mj.gait.reference import ReferenceGaitError, load_reference_csv
+    _, peak = _cycle_csv(tmp_path / "gait.csv", grf_scale=75.0)
+    with pytest.raises(ReferenceGaitError, match=r"'grf_z_n_per_kg'.* peaks at "
+                       + f"{peak:.4g}".replace(".", r"\.") + r" N/kg.*<= 30 N/kg"):
+        load_reference_csv(tmp_path / "gait.csv", body_mass_kg=75.0)
+
+
+def test_trial_moments_divided_by_a_wrong_mass_are_refused(tmp_path):
+    from afo_mj.gait.measured_trial import load_measured_trial
+    from afo_mj.gait.reference import ReferenceGaitError
+    p = _trial(tmp_path)                  # ID moments in N*m of a 75 kg adult
+    with pytest.raises(ReferenceGaitError) as info:
+        load_measured_trial(p["ik"], p["grf"], id_path=p["id"], body_mass_kg=1.0)
+    msg = str(info.value)
+    assert str(p["id"]) in msg and "_moment'" in msg and "<= 5 N*m/kg" in msg
+    assert "body_mass_kg = 1 kg" in msg

@@ -46,12 +46,16 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from afo_mj.gait.reference import (ANGLE_CHANNELS, DEFAULT_OPENSIM_MAPPING, ReferenceGait,
-                                   ReferenceGaitError, read_opensim_storage)
+                                   ReferenceGaitError, check_per_kg_magnitude,
+                                   read_opensim_storage)
 
 __all__ = ["TrialEvents", "MeasuredTrial", "events_from_grf", "events_from_markers",
            "complete_cycles", "load_measured_trial", "grf_columns"]
 
 SIDES = ("right", "left")
+#: how to fix a trial's moment or force beyond a human's per kg (it is divided by this mass)
+_PER_MASS_HINT = ("the trial's N*m and N are divided by body_mass_kg = {m:g} kg: give the "
+                  "subject's mass (a scenario uses walker.body_mass_kg)")
 #: phase points of the cycle averages
 N_PHASE = 101
 
@@ -316,8 +320,10 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
             for ch, col in _leg_mapping(side).items():
                 m = _column(ilabels, idata, col + "_moment", str(id_path))
                 sign = knee_flexion_sign if ch == "knee_angle_rad" else 1
-                extra[side][ch.replace("angle_rad", "moment_nm_per_kg")] = np.interp(
-                    t, it, sign * m / body_mass_kg)
+                mch = ch.replace("angle_rad", "moment_nm_per_kg")
+                check_per_kg_magnitude(mch, m / body_mass_kg, col + "_moment", str(id_path),
+                                       _PER_MASS_HINT.format(m=body_mass_kg))
+                extra[side][mch] = np.interp(t, it, sign * m / body_mass_kg)
         notes.append(f"moments from {Path(id_path).name} per {body_mass_kg:g} kg")
     if events is None:
         if grf_path is None:
@@ -340,6 +346,9 @@ def load_measured_trial(coords_path, grf_path=None, *, events: TrialEvents | Non
                 extra[side]["grf_x_n_per_kg"] = np.interp(
                     t, gt, _column(glabels, gdata, fx, str(grf_path))) / body_mass_kg
                 extra[side]["grf_z_n_per_kg"] = forces[side] / body_mass_kg
+                for ch, col in (("grf_x_n_per_kg", fx), ("grf_z_n_per_kg", cols[side])):
+                    check_per_kg_magnitude(ch, extra[side][ch], col, str(grf_path),
+                                           _PER_MASS_HINT.format(m=body_mass_kg))
     else:
         notes.append(f"events given: {events.method}")
     cycles, refused = {}, {}

@@ -64,6 +64,17 @@ _UNIT_FACTORS: dict[str, dict[str, tuple[float, bool]]] = {
     "grf": {"N/kg": (1.0, False), "N": (1.0, True)},
 }
 
+#: the largest |value| a human's per-kg channel may reach, by kind: (limit, unit, what
+#: walking reaches, the total unit a file in that kind is mistaken for). Walking peaks: ankle
+#: moment about 1.5-1.7 N*m/kg (Winter 1.69), ankle power 3-4 W/kg (Schwartz 2008 VeryFast
+#: 3.7), vertical GRF about 11 N/kg; the limits lie far beyond any human's (sprinting
+#: included), far below what N*m, W or N of a 10-200 kg body give (mistaken totals).
+PER_KG_LIMITS: dict[str, tuple[float, str, str, str]] = {
+    "moment": (5.0, "N*m/kg", "walking peaks about 1.5-1.7 N*m/kg at the ankle", "N*m"),
+    "power": (25.0, "W/kg", "walking peaks about 3-4 W/kg at the ankle", "W"),
+    "grf": (30.0, "N/kg", "walking peaks about 11 N/kg vertically", "N"),
+}
+
 NORMATIVE_SOURCES = {"winter": ("normal",),
                      "schwartz2008": ("VerySlow", "Slow", "Free", "Fast", "VeryFast")}
 
@@ -251,6 +262,28 @@ class ReferenceGait:
         return self._stack(GRF_CHANNELS, phase)
 
 
+def check_per_kg_magnitude(channel: str, values: np.ndarray, column: str, origin: str,
+                           hint: str | None = None) -> None:
+    """Refuse a per-kg channel (moment, power, GRF) whose peak |value| is beyond any
+    human's (:data:`PER_KG_LIMITS`): a column in N*m, W or N taken as per kg. ``hint`` says
+    how to fix it (default: divide by the body mass, or declare the column's unit)."""
+    kind = _kind(channel)
+    if kind not in PER_KG_LIMITS or values.size == 0:
+        return
+    limit, unit, typical, total = PER_KG_LIMITS[kind]
+    k = int(np.argmax(np.abs(values)))
+    peak = float(values[k])
+    if abs(peak) <= limit:
+        return
+    hint = hint or (f"it looks like {total}, not {unit}: divide the column by the body mass "
+                    f"(kg), or load it with its unit declared: mapping {{{channel!r}: "
+                    f"{{'column': {column!r}, 'unit': {total!r}}}}} and body_mass_kg")
+    raise ReferenceGaitError(
+        f"{origin}: column {column!r} ({channel}) peaks at {peak:.4g} {unit} (data row "
+        f"{k + 1}), beyond any human's ({typical}); allowed: |value| <= {limit:g} {unit}; "
+        f"{hint}")
+
+
 def _check_finite(v: np.ndarray, column: str, origin: str) -> None:
     bad = np.flatnonzero(~np.isfinite(v))
     if bad.size:
@@ -389,6 +422,10 @@ def _convert(channel: str, spec: ColumnSpec, raw: np.ndarray, *, default_angle_u
                 f"{origin}: column {spec.column!r} is in {unit} (not per kg); give body_mass_kg "
                 f"> 0 (got {body_mass_kg!r}) or declare a per-kg unit")
         v = v / body_mass_kg
+    check_per_kg_magnitude(channel, v, spec.column, origin,
+                           f"the column's {unit} are divided by body_mass_kg = "
+                           f"{body_mass_kg!r}: give the subject's mass"
+                           if per_mass else None)
     return v * spec.sign if signed else np.abs(v)
 
 
@@ -725,7 +762,8 @@ def load_opensim_storage(path, mapping: Mapping[str, Any] | None = None,
 
 __all__ = [
     "ANGLE_CHANNELS", "CHANNELS", "ColumnSpec", "DEFAULT_CSV_MAPPING", "DEFAULT_OPENSIM_MAPPING",
-    "GRF_CHANNELS", "MOMENT_CHANNELS", "NORMATIVE_SOURCES", "POWER_CHANNELS", "ReferenceGait",
+    "GRF_CHANNELS", "MOMENT_CHANNELS", "NORMATIVE_SOURCES", "PER_KG_LIMITS", "POWER_CHANNELS",
+    "ReferenceGait", "check_per_kg_magnitude",
     "ReferenceGaitError", "load_normative", "load_opensim_storage", "load_reference_csv",
     "read_delimited", "read_opensim_storage",
 ]
