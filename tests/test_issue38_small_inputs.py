@@ -232,3 +232,53 @@ def test_trial_moments_divided_by_a_wrong_mass_are_refused(tmp_path):
     msg = str(info.value)
     assert str(p["id"]) in msg and "_moment'" in msg and "<= 5 N*m/kg" in msg
     assert "body_mass_kg = 1 kg" in msg
+
+
+def test_the_stiffness_study_ranks_every_run(tmp_path):
+    """The shipped stiffness_foot_drop study, made tiny (two stiffnesses, one rest angle,
+    3 strides): each run's headline condition is named after its K (assist_k1, assist_k2.5),
+    and `afo-mj study` ranks every run on its own condition's value."""
+    import contextlib
+    import io
+    import tomllib
+    from pathlib import Path
+
+    import pandas as pd
+
+    from afo_mj import cli
+    root = Path(__file__).resolve().parents[1]
+    shipped = root / "scenarios" / "studies" / "stiffness_foot_drop.toml"
+    doc = tomllib.loads(shipped.read_text(encoding="utf-8"))
+    keys = [p["key"] for p in doc["parameter"]]
+    assert keys == ["assistance.stiffnesses_nm_per_deg", "assistance.rest_angle_deg"]
+    base = (shipped.parent / doc["scenario"]).resolve()
+    study = tmp_path / "tiny.toml"
+    study.write_text(f'name = "{doc["name"]}_tiny"\nscenario = "{base.as_posix()}"\n'
+                     'set = ["gait.strides=3", "gait.analyse_strides=[2, 3]"]\n'
+                     '[design]\nkind = "grid"\n'
+                     f'[[parameter]]\nkey = "{keys[0]}"\nlevels = [[1.0], [2.5]]\n'
+                     f'[[parameter]]\nkey = "{keys[1]}"\nlevels = [0.0]\n'
+                     '[output]\nformat = "csv"\n', encoding="utf-8")
+    out = tmp_path / "sweep"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert cli.main(["sweep", str(study), "--out", str(out), "--workers", "1",
+                         "--quiet"]) == 0
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert cli.main(["study", str(out)]) == 0
+    # independent reference: each row's own condition's column of the results table
+    table = pd.read_csv(out / "results.csv")
+    change = "human_ankle_positive_work_change_j_per_stride"
+    own = {}
+    for _, row in table.iterrows():
+        k = tomllib.loads(f"v = {row['param:' + keys[0]]}")["v"][0]
+        own[row["run_id"]] = row[f"comparison_vs_no_device.assist_k{k:g}.{change}"]
+    assert len(own) == 2 and all(v == v for v in own.values())       # both have a value
+    summary = __import__("json").loads((out / "study" / "summary.json").read_text())
+    assert summary["metric"].endswith(change)
+    ranked = [(r["run_id"], r["value"]) for r in summary["top"]]
+    assert [rid for rid, _ in ranked] == sorted(own, key=own.get)
+    for rid, v in ranked:
+        assert v == pytest.approx(own[rid], rel=1e-12)
+    assert "without a value" not in (out / "study" / "ranking.txt").read_text()
+    assert summary["pareto"] is not None and len(summary["pareto"]["runs"]) >= 1

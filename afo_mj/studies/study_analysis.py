@@ -26,6 +26,12 @@ device, ``comparison_vs_no_device.<cond>.human_ankle_positive_work_change_j_per_
 whose ``device_conditions.<cond>.human.ankle_positive_work_j_per_stride`` equals the top-level
 ``human.ankle_positive_work_j_per_stride``.
 
+A study whose runs name their headline condition differently (a sweep of
+``assistance.stiffnesses_nm_per_deg = [K]`` runs condition ``assist_k<K>``, one name per run)
+gets, for every ``device_conditions.<cond>.*`` and ``comparison_vs_no_device.<cond>.*``
+column, a ``<prefix>.headline.*`` column holding each run's own headline condition's value
+(:func:`add_headline_columns`), so its runs rank, and form a Pareto front, on one metric.
+
 Pareto front (device studies, :func:`pareto_metrics`), both minimised: x = the human ankle
 positive work change vs no device (above; more negative is better) and y =
 ``device_conditions.<cond>.energy_per_stride.electrical_in_j``, the summary's own electrical
@@ -62,7 +68,8 @@ from afo_mj.studies.metric_labels import label_of
 
 __all__ = ["load_results", "ranked_table", "default_metric", "pareto_front", "pareto_metrics",
            "sensitivity", "sensitivity_note", "analyse_study", "metric_columns",
-           "check_metric", "headline_condition", "StudyReportError", "FORMAT",
+           "check_metric", "headline_condition", "add_headline_columns", "HEADLINE",
+           "StudyReportError", "FORMAT",
            "MAXIMISE_HINTS", "REPORT_DIR", "jsonable"]
 
 #: ``summary.json``'s ``"format"``.
@@ -80,6 +87,8 @@ _HUMAN = "human.ankle_positive_work_j_per_stride"
 _EPS = "energy_per_stride.electrical_in_j"
 _WALK_METRICS = ("ankle_angle_rms_error_deg.mean", "gait.ankle_angle_rms_error_deg.mean")
 _PRINT_TOP = 10
+#: the condition name of the per-run headline columns (:func:`add_headline_columns`)
+HEADLINE = "headline"
 
 
 class StudyReportError(ValueError):
@@ -127,7 +136,7 @@ def load_results(out_dir) -> tuple[dict, pd.DataFrame]:
     df["status"] = df["status"].fillna("failed").astype(str)
     if "order" in df.columns:
         df = df.sort_values("order", kind="stable")
-    return study, df.reset_index(drop=True)
+    return study, add_headline_columns(df.reset_index(drop=True))
 
 
 def _ok(df: pd.DataFrame) -> np.ndarray:
@@ -215,6 +224,66 @@ def headline_condition(df: pd.DataFrame) -> str | None:
     if "assist" in non_base:
         return "assist"
     return (non_base or conds)[-1]
+
+
+def _row_headlines(df: pd.DataFrame, conds: list[str]) -> list[str | None]:
+    """Each run's headline condition: of the conditions with a value in its row, the one
+    whose human ankle work equals the top-level one (``assist`` among ties), else the last
+    one that is not ``no_device``; None for a row without any (a failed run)."""
+    work = {c: _values(df, f"{_DC}{c}.human.ankle_positive_work_j_per_stride") for c in conds}
+    present = {c: np.zeros(len(df), bool) for c in conds}
+    for col in df.columns:
+        col = str(col)
+        c = _condition_of(col, _DC, conds)
+        if c is not None:
+            present[c] |= np.isfinite(_values(df, col))
+    top = _values(df, _HUMAN) if _HUMAN in df.columns else np.full(len(df), np.nan)
+    out: list[str | None] = []
+    for i in range(len(df)):
+        have = [c for c in conds if present[c][i]]
+        same = [c for c in have if np.isfinite(top[i]) and np.isfinite(work[c][i])
+                and np.isclose(top[i], work[c][i], rtol=1e-12, atol=0.0)]
+        rest = [c for c in have if c != "no_device"]
+        out.append(("assist" if "assist" in same else same[-1]) if same
+                   else rest[-1] if rest else None)
+    return out
+
+
+def _condition_of(col: str, prefix: str, conds: list[str]) -> str | None:
+    """The condition of column ``<prefix><cond>.<rest>`` (the longest of ``conds`` that
+    fits: names such as ``assist_k2.5`` hold dots), or None."""
+    if not col.startswith(prefix):
+        return None
+    fits = [c for c in conds if col.startswith(f"{prefix}{c}.")]
+    return max(fits, key=len) if fits else None
+
+
+def add_headline_columns(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with ``device_conditions.headline.*`` and ``comparison_vs_no_device.headline.*``
+    columns (each run's value of its own headline condition) when the successful runs'
+    headline conditions differ (module docstring); ``df`` unchanged otherwise."""
+    conds = [c for c in _conditions(df, "human.ankle_positive_work_j_per_stride")
+             if c != HEADLINE]
+    if len(conds) < 2 or any(str(c).startswith((f"{_DC}{HEADLINE}.", f"{_CMP}{HEADLINE}."))
+                             for c in df.columns):
+        return df
+    heads = _row_headlines(df, conds)
+    ok = _ok(df)
+    if len({h for h, good in zip(heads, ok) if good and h is not None}) < 2:
+        return df
+    new: dict[str, np.ndarray] = {}
+    for prefix in (_DC, _CMP):
+        for col in df.columns:
+            col = str(col)
+            c = _condition_of(col, prefix, conds)
+            if c is None:
+                continue
+            name = f"{prefix}{HEADLINE}.{col[len(prefix) + len(c) + 1:]}"
+            if name not in new:
+                new[name] = np.full(len(df), np.nan)
+            rows = np.array([h == c for h in heads])
+            new[name][rows] = _values(df, col)[rows]
+    return pd.concat([df, pd.DataFrame(new, index=df.index)], axis=1)
 
 
 def _has_finite_ok(df: pd.DataFrame, col: str) -> bool:
