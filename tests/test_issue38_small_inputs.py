@@ -282,3 +282,34 @@ def test_the_stiffness_study_ranks_every_run(tmp_path):
         assert v == pytest.approx(own[rid], rel=1e-12)
     assert "without a value" not in (out / "study" / "ranking.txt").read_text()
     assert summary["pareto"] is not None and len(summary["pareto"]["runs"]) >= 1
+
+
+@pytest.mark.parametrize("command, body", [
+    ("sweep", '[[parameter]]\nkey = "walker.height_m"\nlevels = [1.7, 1.8]\n'),
+    ("optimize", '[[parameter]]\nkey = "walker.height_m"\nrange = [1.7, 1.8]\n'
+                 '[optimize]\nmetric = "speed_m_s.mean"\nmethod = "nelder_mead"\nbudget = 2\n'),
+])
+def test_an_unreachable_dask_scheduler_is_refused_with_nothing_written(tmp_path, monkeypatch,
+                                                                     command, body):
+    import contextlib
+    import io
+    from pathlib import Path
+
+    from afo_mj import cli
+    from afo_mj.studies import sweep
+    monkeypatch.setattr(sweep, "SCHEDULER_CONNECT_TIMEOUT_S", 1.0, raising=False)
+    walk = Path(__file__).resolve().parents[1] / "scenarios" / "walk_healthy.toml"
+    study = tmp_path / "s.toml"
+    study.write_text(f'name = "s"\nscenario = "{walk.as_posix()}"\n'
+                     'set = ["gait.strides=2", "gait.analyse_strides=[2, 2]"]\n' + body)
+    out = tmp_path / "out"
+    err, std = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std):
+        rc = cli.main([command, str(study), "--out", str(out), "--scheduler",
+                       "tcp://127.0.0.1:1", "--quiet"])
+    msg = err.getvalue()
+    assert rc == 2, msg
+    assert "Traceback" not in msg and len(msg.strip().splitlines()) == 1
+    assert "tcp://127.0.0.1:1" in msg and "cannot reach the Dask scheduler" in msg
+    assert "allowed:" in msg and std.getvalue() == ""
+    assert not out.exists()

@@ -45,6 +45,18 @@ def _check_workers(workers) -> None:
         raise InvalidInput(f"--workers = {workers}; allowed: >= 1")
 
 
+def _check_scheduler(scheduler) -> None:
+    """An unreachable Dask scheduler refused at once, before anything is printed or written
+    (:func:`afo_mj.studies.sweep.connect_scheduler`: a short connect timeout)."""
+    from afo_mj.studies.sweep import connect_scheduler
+    try:
+        client = connect_scheduler(scheduler)
+    except ValueError as exc:
+        raise InvalidInput(str(exc)) from None
+    if client is not None:
+        client.close()
+
+
 def run_sweep(study_path, out_dir, workers: int | None = None, scheduler: str | None = None,
               fmt: str | None = None, keep_runs: bool = False, progress: bool = True,
               on_start: Callable[[object, list, object], None] | None = None) -> SweepRun:
@@ -60,6 +72,7 @@ def run_sweep(study_path, out_dir, workers: int | None = None, scheduler: str | 
     except StudyError as exc:
         raise InvalidInput(f"invalid study: {exc}") from None
     _check_workers(workers)
+    _check_scheduler(scheduler)
     try:
         sw = Sweep(study, out_dir, workers=workers, scheduler=scheduler, fmt=fmt,
                    keep_runs=keep_runs, progress=progress, runner=run_point)
@@ -86,6 +99,7 @@ def run_optimization(study_path, out_dir, workers: int | None = None,
     from afo_mj.studies.study import StudyError, load_study
     from afo_mj.studies.sweep import SweepInterrupted
     _check_workers(workers)
+    _check_scheduler(scheduler)
     try:
         study = load_study(study_path)
         res = optimize_study(study, out_dir, workers=workers, scheduler=scheduler,

@@ -285,8 +285,11 @@ def _to_unit(p: StudyParameter, v) -> float:
 
 
 def _finite(x) -> float | None:
-    """A finite float, or None (missing, NaN, ±inf, non-numeric)."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
+    """A finite float, or None (missing, NaN, ±inf, non-numeric); a flag (bool, e.g.
+    ``device.end_stop_contact``) is 1.0 or 0.0, so that a constraint ``max = 0`` forbids it."""
+    if isinstance(x, bool):
+        return float(x)
+    if not isinstance(x, (int, float)):
         return None
     x = float(x)
     return x if math.isfinite(x) else None
@@ -649,10 +652,14 @@ def optimize_study(study: Study, out_dir, workers: int | None = None,
     any batch evaluator (points → rows with ``status`` and the metrics), e.g. in tests;
     otherwise ``runner`` runs each point (:func:`afo_mj.app.sweep_point.run_point`).
     Raises :class:`OptimizeError` for an invalid ``[optimize]`` table or a metric no run
-    reports, and :class:`~afo_mj.studies.sweep.SweepInterrupted` on SIGINT/SIGTERM (the
-    result so far is saved with ``state = "interrupted"``)."""
+    reports, ValueError (nothing written) when the Dask ``scheduler`` cannot be reached,
+    and :class:`~afo_mj.studies.sweep.SweepInterrupted` on SIGINT/SIGTERM (the result so
+    far is saved with ``state = "interrupted"``)."""
     origin = str(study.source_path) if study.source_path else study.name
     cfg = parse_optimize(study.optimize, study.parameters, origin)
+    if evaluate is None and scheduler and scheduler != "local":
+        from afo_mj.studies.sweep import connect_scheduler
+        connect_scheduler(scheduler).close()     # unreachable: refused before any file
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     table = None

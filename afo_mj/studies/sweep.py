@@ -43,9 +43,12 @@ from typing import Any, Callable, Iterable, Sequence
 from afo_mj.studies.study import Study, StudyError
 
 __all__ = ["flatten_summary", "check_study_keys", "Sweep", "SweepInterrupted",
-           "read_rows", "write_table", "PARAM_PREFIX"]
+           "read_rows", "write_table", "PARAM_PREFIX", "connect_scheduler",
+           "SCHEDULER_CONNECT_TIMEOUT_S"]
 
 PARAM_PREFIX = "param:"
+#: how long a sweep waits to reach a Dask scheduler before refusing it (s)
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
 _SKIP_TOP = ("scenario", "definitions", "format")
 
 
@@ -293,11 +296,23 @@ class Sweep:
         """Run every point that has no row yet; returns all rows of these points (in point
         order). Raises :class:`SweepInterrupted` on SIGINT/SIGTERM after saving the table,
         and :class:`StudyError` before any run (nothing written) when a key is not accepted by
-        the base scenario (:func:`check_study_keys`, on the first call)."""
+        the base scenario (:func:`check_study_keys`, on the first call) or when the Dask
+        scheduler cannot be reached (ValueError naming its address)."""
         points = list(self.study.points() if points is None else points)
         if not self._keys_checked:          # once per sweep (the optimiser calls run often)
             check_study_keys(self.study, points)
             self._keys_checked = True
+        client = self._connect()            # before anything is written: refused, nothing
+        try:
+            return self._run(points, client)
+        finally:
+            if client is not None:
+                client.close()
+
+    def _connect(self):
+        return connect_scheduler(self.scheduler)
+
+    def _run(self, points, client) -> list[dict]:
         self._prepare()
         ids = [self.study.run_id(p) for p in points]
         # rows of runs lost to the infrastructure (a worker that died, a lost Dask task) are
@@ -326,7 +341,7 @@ class Sweep:
         new_rows = {}
         last_write = time.perf_counter()
         try:
-            for k, row in self._execute(todo):
+            for k, row in self._execute(todo, client):
                 row["order"] = order0 + k
                 _write_json_atomic(self.out_dir / "rows" / f"{row['run_id']}.json", row)
                 new_rows[row["run_id"]] = row
@@ -357,11 +372,11 @@ class Sweep:
         keep = str(self.out_dir / "runs") if self.keep_runs else None
         return (str(self.study.scenario_path), self.study.overrides(p), rid, p, keep)
 
-    def _execute(self, todo) -> Iterable[tuple[int, dict]]:
+    def _execute(self, todo, client=None) -> Iterable[tuple[int, dict]]:
         if not todo:
             return
         if self.scheduler:
-            yield from self._execute_dask(todo)
+            yield from self._execute_dask(todo, client)
         elif self.workers == 1:
             for k, (i, rid, p) in enumerate(todo):
                 yield k, self.runner(*self._args(rid, p))
@@ -379,16 +394,16 @@ class Sweep:
                 exc = res.error
                 yield k, _failed_row(rid, p, f"worker failed: {type(exc).__name__}: {exc}")
 
-    def _execute_dask(self, todo):
+    def _execute_dask(self, todo, client=None):
+        """Runs on the Dask ``client`` (the caller's, left open) or on a local cluster
+        started here (``scheduler = "local"``, closed here)."""
         from distributed import Client, LocalCluster, as_completed
 
-        cluster = None
-        if self.scheduler == "local":
+        cluster = own = None
+        if client is None:
             cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
                                    processes=True, dashboard_address=None)
-            client = Client(cluster)
-        else:
-            client = Client(self.scheduler)
+            client = own = Client(cluster)
         try:
             futs = {}
             for i, rid, p in todo:
@@ -403,9 +418,29 @@ class Sweep:
                     row = _failed_row(rid, p, f"dask task failed: {type(exc).__name__}: {exc}")
                 yield k, row
         finally:
-            client.close()
+            if own is not None:
+                own.close()
             if cluster is not None:
                 cluster.close()
+
+
+def connect_scheduler(address: str | None):
+    """A client of the Dask scheduler at ``address`` (None for no address or ``"local"``:
+    local processes, or a local cluster started by the sweep); ValueError naming the address
+    when it cannot be reached within :data:`SCHEDULER_CONNECT_TIMEOUT_S` (an unreachable
+    scheduler is refused at once, before a sweep writes anything)."""
+    if not address or address == "local":
+        return None
+    from distributed import Client
+    allowed = ("allowed: the address of a running Dask scheduler (e.g. tcp://host:8786, "
+               "printed by `dask scheduler`), 'local' for a Dask cluster on this machine, "
+               "or no --scheduler for local worker processes; nothing written")
+    try:
+        return Client(address, timeout=SCHEDULER_CONNECT_TIMEOUT_S)
+    except (OSError, ValueError, TypeError) as exc:
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler ({why}; "
+                         f"waited up to {SCHEDULER_CONNECT_TIMEOUT_S:g} s); {allowed}") from None
 
 
 def _failed_row(rid, p, error) -> dict:
