@@ -1,21 +1,23 @@
-"""Regenerate the measured tables of README.md from the scenarios that produce them.
+"""Regenerate the measured tables of the documentation from the runs that produce them.
 
-Each measured table (or measured sentence turned table) in README.md sits between
+Each measured table (or measured sentence) of README.md and docs/*.md sits between
 
     <!-- generated:NAME begin -->
     ...
     <!-- generated:NAME end -->
 
-and is rewritten from a fresh in-process run of its scenarios, through the functions the
-``afo-mj`` CLI itself calls (``load_scenario`` → ``simulate_walk`` → ``analyse_gait``,
-``run_device_scenario``, ``run_bench_scenario``, and ``load_compare_items`` →
-``run_comparison`` as ``afo-mj compare`` does); nothing parses CLI output. Under each table a
-line states the command that produced it and the date.
+in the one file its block names (``Block.file``; ``--list`` shows them), and is rewritten from
+a fresh in-process run of its scenarios, through the functions the ``afo-mj`` CLI itself calls
+(``load_scenario`` → ``simulate_walk`` → ``analyse_gait``, ``run_device_scenario``,
+``run_bench_scenario``, ``load_compare_items`` → ``run_comparison`` as ``afo-mj compare`` does,
+``read_requirements`` → ``compute_design`` → ``build_summary`` as ``afo-mj design`` does);
+nothing parses CLI output. Under each table a line states the command that produced it and
+the date.
 
     python tools/readme_tables.py                 # run everything, rewrite every block
     python tools/readme_tables.py --only NAME     # one block (repeatable)
-    python tools/readme_tables.py --check         # exit 1 listing blocks whose text would change
-    python tools/readme_tables.py --list          # block names, the scenarios each runs
+    python tools/readme_tables.py --check         # exit 1 naming the blocks that drifted
+    python tools/readme_tables.py --list          # block names, their files, what each runs
 
 Blocks that share runs share them: the graded plantarflexor-weakness table takes its 100 % and
 50 % rows from the very runs of ``walk_healthy`` and ``walk_weak_plantarflexors`` that the
@@ -23,8 +25,14 @@ scenario table shows (one in-process cache keyed by scenario file and overrides)
 tables cannot disagree. ``--cache DIR`` also keeps each run's JSON-ready result on disk, so
 that ``--only`` calls in separate processes reuse them (delete DIR to rerun).
 
-The date line is not compared by ``--check`` (a block regenerated on another day with the
-same numbers is unchanged), and a rewrite keeps the old date when the numbers did not change.
+**What counts as a change.** A rewrite puts in the fresh text whenever it differs from the
+file's (the date line aside: a block regenerated on another day with the same text keeps its
+old date). ``--check`` compares *at the printed precision*, so that another machine's float
+rounding does not fail it: the words must be identical and every number equal within one unit
+of its last printed digit (a value on a rounding boundary may print either way); numbers in
+exponent notation below 1e-8 in magnitude (energy-balance errors: round-off) are equal to each
+other. A drifted block is listed with the lines that differ. ``tests/test_docs_current.py``
+runs ``--check`` as part of the test suite (marked slow), so CI fails when a table drifts.
 
 Each block has a pure formatting function ``format_NAME(results) -> markdown`` working on
 plain dicts (SI units in the key names, ``None`` for a missing value, shown as "–"), so the
@@ -451,6 +459,213 @@ def format_comparison(results: Mapping) -> str:
     return out
 
 
+def _signed_pct(rel: Any, fmt: str = ".1f") -> str:
+    """A relative difference as "+0.07 %" / "−1.1 %" (or "–")."""
+    if rel is None:
+        return MISSING
+    s = num(rel, fmt, 100.0)
+    return s if s.startswith("−") or s == MISSING else "+" + s
+    # (a value that rounds to zero prints "+0.0 %")
+
+
+#: the mass budget's parts worn at the ankle (as ``design.md`` books them)
+DESIGN_ANKLE_PARTS = ("cylinders", "shank_cuff_struts", "pulley_bearings", "foot_plate")
+# what the prototype's publication gives (docs/design_tool.md compares the design with it)
+HAFO_PROTOTYPE_KG, HAFO_PROTOTYPE_STALL_NM = 3.3, 65.0
+
+
+def format_design_hafo(s: Mapping) -> str:
+    """``afo-mj design scenarios/design/hafo_requirements.toml --verify``: ``s`` = what
+    ``design.json`` holds (``best``, ``predicted_bench``, ``simulated_bench``,
+    ``bench_agreement``, ``mass_check``, ``walk_check``). The prediction against the simulated
+    bench and the mass budget, then the design in one paragraph and its walk check."""
+    pb, sb = s.get("predicted_bench") or {}, s.get("simulated_bench") or {}
+    ag, mc = s.get("bench_agreement") or {}, s.get("mass_check") or {}
+    b = s.get("best") or {}
+    items = sorted(((v.get("difference_kg"), k, v) for k, v in (mc.get("items") or {}).items()
+                    if k in DESIGN_ANKLE_PARTS and v.get("difference_kg") is not None
+                    and abs(v["difference_kg"]) >= 0.003), key=lambda t: -abs(t[0]))
+    why = ", ".join(f"{k.replace('_', ' ')} {num(v.get('design_kg'), '.3f')} vs "
+                    f"{num(v.get('budget_kg'), '.3f')}" for _, k, v in items)
+    rows = [["stall torque", f"{num(pb.get('stall_torque_nm'), '.2f')} N·m",
+             f"{num(sb.get('stall_torque_nm'), '.2f')} N·m "
+             f"({_signed_pct(ag.get('stall_torque_rel'), '.2f')} %)"],
+            ["no-load speed", f"{num(pb.get('no_load_speed_deg_s'), '.1f')} deg/s",
+             f"{num(sb.get('no_load_speed_deg_s'), '.1f')} deg/s "
+             f"({_signed_pct(ag.get('no_load_speed_rel'), '.2f')} %)"],
+            ["mass, one side", f"{num(mc.get('design_total_kg'), '.3f')} kg",
+             f"{num(mc.get('budget_total_kg'), '.3f')} kg, mass budget of the written parameters "
+             f"({_signed_pct(mc.get('total_rel_difference'))} %)"],
+            ["mass at the ankle", f"{num(mc.get('design_ankle_kg'), '.3f')} kg",
+             f"{num(mc.get('budget_ankle_kg'), '.3f')} kg "
+             f"({_signed_pct(mc.get('ankle_rel_difference'))} %"
+             + (f": {why} kg" if why else "") + ")"]]
+    out = table(["figure", "design's prediction",
+                 "simulator (torque–velocity bench; mass budget)"], rows)
+    eff = b.get("efficiency") or {}
+    mass = b.get("mass_kg") or {}
+    total = b.get("total_kg")
+    lighter = None if total is None else HAFO_PROTOTYPE_KG - total
+    out += (
+        f"\n\nThe design: 2 × {num(b.get('cylinder_bore_m'), '.1f', 1e3)} mm cylinders on a "
+        f"{num(b.get('pulley_radius_m'), '.0f', 1e3)} mm pulley (`A_e r` = "
+        f"{num(b.get('torque_per_pressure_m3'), '.2e')} m³), "
+        f"{num(b.get('hose_bore_m'), '.2f', 1e3)} mm hoses, a "
+        f"{num(b.get('pump_displacement_m3_rev'), '.3f', 1e6)} cm³/rev pump (peak speed "
+        f"{num(b.get('peak_pump_speed_rad_s'), '.0f')} rad/s), "
+        f"{str(b.get('oil') or MISSING).replace('ISO_VG', 'ISO VG ')}, a "
+        f"{num(b.get('motor_rated_power_w'), '.0f')} W class motor "
+        f"({num(mass.get('motor'), '.0f', 1e3)} g), a 6S "
+        f"{num(b.get('battery_capacity_ah'), '.2f')} Ah pack "
+        f"({num(mass.get('battery'), '.2f')} kg); system efficiency "
+        f"{num(b.get('system_efficiency'), '.0f', 100.0)} % over the stride (pump "
+        f"{num(eff.get('pump'), '.0f', 100.0)} %, motor {num(eff.get('motor'), '.0f', 100.0)} %, "
+        f"lines {num(eff.get('lines'), '.0f', 100.0)} %, cylinders "
+        f"{num(eff.get('cylinders'), '.0f', 100.0)} %), {num(b.get('heat_w'), '.1f')} W of heat, "
+        f"pack surface {celsius(b.get('surface_temperature_k'))} °C. "
+        f"The published prototype weighs {HAFO_PROTOTYPE_KG:g} kg and stalls at "
+        f"{HAFO_PROTOTYPE_STALL_NM:g} N·m; this design carries the "
+        f"{num((s.get('requirements') or {}).get('peak_torque_nm'), 'g')} N·m target for "
+        f"{num(lighter, '.1f')} kg less.")
+    wc = s.get("walk_check") or {}
+    conds = wc.get("conditions") or {}
+    if conds:
+        out += (
+            f"\n\nWalk check of the written `design_walk.toml` (quasi-static, "
+            f"{wc.get('gait', MISSING)} gait): no-load speed "
+            f"{num(wc.get('no_load_speed_deg_s'), '.1f')} deg/s against the gait's peak "
+            f"plantarflexion velocity {num(wc.get('peak_plantarflexion_velocity_deg_s'), '.1f')}"
+            f" deg/s; the ankle back-drives the pump for "
+            f"{num(wc.get('back_driven_fraction_of_stride'), '.0f', 100.0)} % of the stride; net "
+            "device work " + ", ".join(
+                f"{num((v or {}).get('net_work_j_per_stride'), '.1f')} J/stride {c}"
+                for c, v in conds.items()) + ".")
+    return out
+
+
+def celsius(kelvin: Any) -> str:
+    """A temperature in K shown in °C, one decimal."""
+    return MISSING if kelvin is None else num(float(kelvin) - 273.15, ".1f")
+
+
+def _mpa(pa: Any) -> str:
+    return num(pa, ".1f", 1e-6)
+
+
+def format_design_guidelines(s: Mapping) -> str:
+    """The design-guideline studies and the hose-bore trade-off of the HAFO requirements
+    (``s`` = ``design.json``: ``studies`` with ``pressure``, ``oil`` and ``power`` rows,
+    ``hose_bore_tradeoff``)."""
+    st = s.get("studies") or {}
+    pr = [r for r in st.get("pressure") or [] if r.get("total_kg") is not None]
+    header = ["operating pressure MPa"] + [_mpa(r.get("operating_pressure_pa")) for r in pr]
+    rows = [["total mass kg"] + [num(r.get("total_kg"), ".3f") for r in pr],
+            ["system efficiency %"] + [num(r.get("system_efficiency"), ".1f", 100.0)
+                                       for r in pr],
+            ["hydraulic power density W/kg"] + [num(r.get("hydraulic_power_density_w_kg"),
+                                                    ".0f") for r in pr],
+            ["system energy density Wh/kg"] + [num(r.get("system_energy_density_wh_kg"), ".2f")
+                                               for r in pr]]
+    out = table(header, rows)
+    if len(pr) >= 2:
+        a, z = pr[0], pr[-1]
+        out += (f"\n\nFrom {_mpa(a.get('operating_pressure_pa'))} to "
+                f"{_mpa(z.get('operating_pressure_pa'))} MPa the lightest design goes from "
+                f"{num(a.get('total_kg'), '.3f')} to {num(z.get('total_kg'), '.3f')} kg "
+                f"({_signed_pct((z['total_kg'] - a['total_kg']) / a['total_kg'], '.0f')} %) and "
+                f"its system efficiency from {num(a.get('system_efficiency'), '.1f', 100.0)} to "
+                f"{num(z.get('system_efficiency'), '.1f', 100.0)} %.")
+    oil = st.get("oil") or []
+    if oil:
+        out += ("\n\nPer oil grade (lightest over the pressure sweep): " + ", ".join(
+            f"{str(r.get('oil')).replace('ISO_VG', 'VG ')} {num(r.get('total_kg'), '.3f')} kg"
+            for r in oil) + ".")
+    power = st.get("power") or []
+    if power:
+        def pw(r):
+            head = f"{num(r.get('rated_output_power_w'), '.0f')} W"
+            if not r.get("feasible"):
+                return head + " infeasible (" + ", ".join(
+                    str(x).replace("_", " ") for x in r.get("binding") or ["–"]) + ")"
+            return (f"{head} {num(r.get('total_kg'), '.2f')} kg "
+                    f"({num(r.get('hydraulic_power_density_w_kg'), '.0f')} W/kg)")
+        out += ("\n\nPer rated output power (the corner speed × "
+                + " … ".join(num(r.get("power_factor"), "g")
+                             for r in power[::max(len(power) - 1, 1)])
+                + "): " + ", ".join(pw(r) for r in power) + ".")
+    h = s.get("hose_bore_tradeoff") or {}
+    if h.get("optimum_hose_bore_m") is not None:
+        bores = h.get("hose_bore_m") or []
+        rng = (f"{num(bores[0], '.1f', 1e3)}–{num(bores[-1], '.0f', 1e3)} mm"
+               if bores else MISSING)
+        inside = h.get("interior_optimum") and h.get("feasible_interior_optimum")
+        out += (f"\n\nHose bore trade-off: with the motor held the total mass is lowest at "
+                f"{num(h.get('optimum_hose_bore_m'), '.2f', 1e3)} mm; with each bore's lightest"
+                f" feasible motor, at {num(h.get('feasible_optimum_hose_bore_m'), '.2f', 1e3)} mm"
+                f" ({'both inside' if inside else 'not both inside'} {rng}).")
+    return out
+
+
+ARCHITECTURE_LABELS = {"pump": "pump-controlled",
+                       "digital": "digital (PWM unloading, constant-speed pump)",
+                       "valve": "valve (servo, rail following the load + 1.5 MPa)"}
+#: ledger loss names of a design row → words; the pump's two losses are shown as one
+DESIGN_LOSS_WORDS = {"motor_copper": "motor copper", "pump": "pump",
+                     "servo_throttling": "servo throttling", "switching_valves":
+                     "switching valves", "valve_coils": "coils", "motor_friction":
+                     "motor friction", "pump_mechanical": "pump mechanical"}
+
+
+def _design_losses(losses: Mapping[str, float], n: int = 3) -> str:
+    """The ``n`` largest losses per stride; the pump's mechanical and volumetric losses are
+    one ("pump") unless the circuit's pump runs at constant speed (its mechanical loss then
+    stands alone, as the digital circuit's does)."""
+    merged = dict(losses)
+    if "pump_volumetric" in merged and "switching_valves" not in merged:
+        merged["pump"] = merged.pop("pump_volumetric") + merged.pop("pump_mechanical", 0.0)
+    top = sorted(merged.items(), key=lambda kv: -kv[1])[:n]
+    return ", ".join(f"{DESIGN_LOSS_WORDS.get(k, k.replace('_', ' '))} {num(v, '.1f')}"
+                     for k, v in top)
+
+
+def format_design_architectures(results: Mapping) -> str:
+    """The three circuits sized for one light duty (``results["light"][arch]`` = a design
+    row or ``None``), the HAFO duty's verdict for the valve circuits
+    (``results["hafo"][arch]`` = ``{"feasible", "explanation"}``) and, for comparison, the
+    net efficiencies the simulator measures in gait (``results["simulated"]`` = the
+    comparison's rows)."""
+    rows = []
+    for arch in ("pump", "digital", "valve"):
+        r = (results.get("light") or {}).get(arch)
+        if not r:
+            rows.append([ARCHITECTURE_LABELS[arch], "infeasible", MISSING, MISSING])
+            continue
+        rows.append([ARCHITECTURE_LABELS[arch], num(r.get("total_kg"), ".2f"),
+                     f"{num(r.get('system_efficiency'), '.0f', 100.0)} %",
+                     _design_losses(r.get("losses_j_per_stride") or {}, 4)])
+    out = table(["circuit", "mass kg", "system efficiency", "largest losses J/stride"], rows)
+    light = results.get("light") or {}
+    order = sorted((a for a in light if light[a]),
+                   key=lambda a: -light[a].get("system_efficiency", 0.0))
+    sim = {r.get("label"): r for r in (results.get("simulated") or {}).get("rows") or []}
+    picks = (("pump", "gait_assist_hafo"), ("valve", "gait_assist_valve:pressure_control"),
+             ("digital", "gait_assist_digital"))
+    sim_eff = {a: (sim.get(lbl) or {}).get("efficiency_total") for a, lbl in picks}
+    sim_order = sorted((a for a in sim_eff if sim_eff[a] is not None), key=lambda a: -sim_eff[a])
+    out += ("\n\nDesign model's order of system efficiency: " + " > ".join(order)
+            + ". In gait the simulator measures net efficiency (net ankle work / electrical, "
+            "`afo-mj compare` of `scenarios/gait_assist_{hafo,valve,digital}.toml`): "
+            + ", ".join(f"{a} {sig(sim_eff[a], 100.0)} %" for a in sim_order)
+            + (" (the same order)." if sim_order == order
+               else f" (another order: {' > '.join(sim_order)})."))
+    hafo = results.get("hafo") or {}
+    bad = [(a, v) for a, v in hafo.items() if v and not v.get("feasible")]
+    if bad:
+        out += ("\n\nAt the HAFO requirements: " + "; ".join(
+            f"{a}: {v.get('explanation')}" for a, v in bad) + ".")
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # runs (through the functions the CLI calls)
 # --------------------------------------------------------------------------------------------
@@ -619,6 +834,54 @@ def comparison_result(scenario_paths: tuple[str, ...]) -> dict:
     return _memo("compare:" + " ".join(scenario_paths), run)
 
 
+DESIGN_HAFO = "scenarios/design/hafo_requirements.toml"
+DESIGN_LIGHT = "scenarios/design/valve_requirements.toml"
+
+
+def design_result(requirements_path: str, *, studies: bool = True,
+                  verify: bool = True) -> dict:
+    """``afo-mj design REQUIREMENTS [--verify]`` as the CLI runs it (``read_requirements`` →
+    ``compute_design`` → ``build_summary``), nothing written: what ``design.json`` holds,
+    less the search grid, the ranked designs and the wall times."""
+    def run():
+        from afo_mj.design.system_design import compute_design, read_requirements
+        from afo_mj.outputs.design_report import build_summary, jsonable
+        req, _text = read_requirements(ROOT / requirements_path)
+        d = compute_design(req, studies=studies, verify=verify)
+        out = jsonable(build_summary(d["result"], d["written"], d["study"], d["hose"],
+                                     d["bench"], d["wall_s"]))
+        for k in ("search", "ranked", "assumptions", "device"):
+            out.pop(k, None)
+        return out
+    return _memo(f"design:{requirements_path}:studies={studies}:verify={verify}", run)
+
+
+def design_search_result(requirements_path: str, architecture: str) -> dict:
+    """The design search alone (``size_system``, as ``afo-mj design`` runs it first) of a
+    requirements file with ``requirement.architecture`` set: feasibility, explanation, the
+    best design's row."""
+    def run():
+        from afo_mj.design.system_design import read_requirements, size_system
+        from afo_mj.outputs.design_report import jsonable
+        req, _text = read_requirements(
+            ROOT / requirements_path, [f'requirement.architecture="{architecture}"'])
+        res = size_system(req)
+        return jsonable({"feasible": res.feasible, "explanation": res.explanation,
+                         "best": res.row(0) if res.feasible else None})
+    return _memo(f"design_search:{requirements_path}:{architecture}", run)
+
+
+def collect_design_hafo() -> dict:
+    return design_result(DESIGN_HAFO)
+
+
+def collect_design_architectures() -> dict:
+    light = {a: design_search_result(DESIGN_LIGHT, a)["best"] for a in ("pump", "digital", "valve")}
+    hafo = {a: {k: v for k, v in design_search_result(DESIGN_HAFO, a).items() if k != "best"}
+            for a in ("valve", "digital")}
+    return {"light": light, "hafo": hafo, "simulated": comparison_result(COMPARISON_SCENARIOS)}
+
+
 def collect_scenarios() -> dict:
     return {name: walk_result(f"scenarios/{name}.toml") for name in SCENARIO_ROWS}
 
@@ -678,7 +941,7 @@ class Block:
     collect: Callable[[], Any]      # runs the scenarios → JSON-ready results
     format: Callable[[Any], str]    # pure
     runs: str                       # what it runs, for the stamp line and --list
-    file: str = "README.md"
+    file: str = "README.md"         # the file holding its markers, relative to the root
 
 
 BLOCKS: dict[str, Block] = {b.name: b for b in (
@@ -708,6 +971,16 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
           "scenarios/stiffness_bench.toml, the same run as stiffness_bench"),
     Block("foot_drop", collect_foot_drop, format_foot_drop,
           "scenarios/gait_stiffness_emulation.toml"),
+    Block("design_hafo", collect_design_hafo, format_design_hafo,
+          f"afo-mj design {DESIGN_HAFO} --verify (read_requirements → compute_design → "
+          "build_summary, as the command does)", "docs/design_tool.md"),
+    Block("design_guidelines", collect_design_hafo, format_design_guidelines,
+          f"afo-mj design {DESIGN_HAFO}, the same run as design_hafo (its studies and hose "
+          "bore trade-off)", "docs/design_tool.md"),
+    Block("design_architectures", collect_design_architectures, format_design_architectures,
+          f"the design search of {DESIGN_LIGHT} and {DESIGN_HAFO} with requirement."
+          "architecture = pump / digital / valve; the simulated efficiencies are the "
+          "comparison block's run", "docs/design_tool.md"),
 )}
 
 
@@ -745,6 +1018,60 @@ def _undated(s: str) -> str:
     return STAMP_RE.sub(r"\1 on DATE\2", s).strip()
 
 
+# a number as the formatters print it: optional sign (ASCII or real minus), digits, decimals,
+# exponent; not part of a word or a name ("ISO_VG32", "assist_k4.6", "reflex_params_1.25")
+NUMBER_RE = re.compile(r"(?<![\w.])[−-]?\d+(?:\.\d+)?(?:e[+-]?\d+)?(?![\w])")
+#: numbers in exponent notation at or below this magnitude are round-off (energy-balance
+#: errors): equal to each other whatever their digits
+ROUNDOFF = 1e-8
+
+
+def _value_and_unit(token: str) -> tuple[float, float, bool]:
+    """The printed number, one unit of its last printed digit, whether it has an exponent."""
+    t = token.replace("−", "-")
+    mant, _, exp = t.partition("e")
+    decimals = len(mant.partition(".")[2])
+    unit = 10.0 ** (-decimals) * (10.0 ** int(exp) if exp else 1.0)
+    return float(t), unit, bool(exp)
+
+
+def same_number(a: str, b: str) -> bool:
+    """Two printed numbers equal at the printed precision (module docstring)."""
+    if a == b:
+        return True
+    va, ua, ea = _value_and_unit(a)
+    vb, ub, eb = _value_and_unit(b)
+    if (ea or eb) and abs(va) <= ROUNDOFF and abs(vb) <= ROUNDOFF:
+        return True
+    return abs(va - vb) <= max(ua, ub) * (1.0 + 1e-9)
+
+
+def same_at_printed_precision(old: str, new: str) -> bool:
+    """``old`` and ``new`` (block texts) alike but for numbers within a unit of their last
+    printed digit (and round-off figures): the words between the numbers must be identical."""
+    a, b = _undated(old), _undated(new)
+    if a == b:
+        return True
+    na, nb = NUMBER_RE.findall(a), NUMBER_RE.findall(b)
+    if NUMBER_RE.split(a) != NUMBER_RE.split(b) or len(na) != len(nb):
+        return False
+    return all(same_number(x, y) for x, y in zip(na, nb))
+
+
+def drift_lines(old: str, new: str) -> list[str]:
+    """The lines of two block texts that differ beyond the printed precision, as "- old" /
+    "+ new" pairs (a whole unified diff when the line structure changed)."""
+    a, b = _undated(old).splitlines(), _undated(new).splitlines()
+    if len(a) != len(b):
+        import difflib
+        return [ln for ln in difflib.unified_diff(a, b, "file", "fresh run", lineterm="")]
+    out = []
+    for x, y in zip(a, b):
+        if not same_at_printed_precision(x, y):
+            out += ["- " + x, "+ " + y]
+    return out
+
+
 def replace_block(text: str, name: str, body: str) -> tuple[str, bool]:
     """``text`` with block ``name``'s body replaced; whether its (undated) text changed. An
     unchanged block keeps its old date."""
@@ -762,10 +1089,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", action="append", choices=sorted(BLOCKS), metavar="NAME",
                     help="regenerate this block only (repeatable); names: --list")
     ap.add_argument("--check", action="store_true",
-                    help="write nothing; exit 1 listing the blocks whose text would change")
-    ap.add_argument("--list", action="store_true", help="list the blocks and what each runs")
+                    help="write nothing; exit 1 naming the blocks that differ from a fresh run "
+                         "beyond the printed precision, with the lines that differ")
+    ap.add_argument("--list", action="store_true",
+                    help="list the blocks, the file holding each and what each runs")
     ap.add_argument("--root", type=Path, default=ROOT,
-                    help="directory holding README.md (default: the repository)")
+                    help="directory the blocks' files are relative to (default: the repository)")
     ap.add_argument("--cache", type=Path, default=None,
                     help="keep each run's result as JSON here and reuse it")
     args = ap.parse_args(argv)
@@ -777,15 +1106,18 @@ def main(argv: list[str] | None = None) -> int:
     names = args.only or list(BLOCKS)
     date = _dt.date.today().isoformat()
     texts: dict[Path, str] = {}
-    changed = []
     for name in names:
         path = args.root / BLOCKS[name].file
         if path not in texts:
             texts[path] = path.read_text(encoding="utf-8")
         block_span(texts[path], name)          # fail on missing markers before any run
+    changed, drifted = [], []
     for name in names:
         path = args.root / BLOCKS[name].file
         body = render(name, collect(name), date)
+        i, j = block_span(texts[path], name)
+        if not same_at_printed_precision(texts[path][i:j], body):
+            drifted.append((name, drift_lines(texts[path][i:j], body)))
         texts[path], did = replace_block(texts[path], name, body)
         if did:
             changed.append(name)
@@ -793,9 +1125,13 @@ def main(argv: list[str] | None = None) -> int:
             path.write_text(texts[path], encoding="utf-8")
             print(f"[readme_tables] {name}: rewritten in {path}", file=sys.stderr)
     if args.check:
-        for name in changed:
+        for name, lines in drifted:
             print(f"{name}: would change ({BLOCKS[name].file})")
-        return 1 if changed else 0
+            for ln in lines:
+                print("    " + ln)
+        if drifted:
+            print(f"regenerate: python {TOOL} --only " + " --only ".join(n for n, _ in drifted))
+        return 1 if drifted else 0
     if not changed:
         print("[readme_tables] no block changed", file=sys.stderr)
     return 0
