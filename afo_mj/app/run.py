@@ -8,8 +8,9 @@ writes the results directory atomically. It returns a :class:`WalkRun`, a
 :class:`~afo_mj.app.errors.InvalidInput`, a run that cannot be simulated, analysed or written
 raises :class:`~afo_mj.app.errors.RunFailed` (nothing written in either case).
 
-A walker that falls before a complete stride is an outcome, not a failure: the summary says
-so (``fell``, ``fall_time_s``, ``completed_strides``).
+A walker that falls is an outcome, not a failure, with or without a device and whenever it
+falls: the run is written and the summary says so (``fell``, ``fall_time_s``,
+``completed_strides``; a device run also per condition in ``device_conditions``).
 
 Example::
 
@@ -75,6 +76,11 @@ class DeviceWalkRun:
     @property
     def headline(self) -> str:
         return self.config.conditions[-1]
+
+    @property
+    def fell(self) -> bool:
+        """The headline condition's walker fell (an outcome: the summary says when)."""
+        return bool(self.summary.get("fell"))
 
     def recorded_runs(self) -> list:
         from afo_mj.outputs.recording import RecordedRun
@@ -363,13 +369,27 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
     head = cfg.conditions[-1]
     rec, analysis, dev = results[head]
     block = dsum["device_conditions"][head]
+    scen = {**scenario.as_dict(), "device": dict(scenario.device),
+            "assistance": dict(scenario.assistance)}
     if analysis is None:
-        raise RunFailed(f"{scenario.name}: condition {head!r} has no analysable stride (fell "
-                        f"at {rec.events.fall_time_s}); nothing written")
-    summary = {"scenario": {**scenario.as_dict(), "device": dict(scenario.device),
-                            "assistance": dict(scenario.assistance)},
-               **analysis.summary, "condition": head,
-               "gait": analysis.summary, "human": block["human"], **dsum}
+        ev = rec.events
+        if ev.fall_time_s is None:
+            raise RunFailed(f"{scenario.name}: condition {head!r} has no analysable stride "
+                            f"(strides {scenario.analyse_strides[0]}-"
+                            f"{scenario.analyse_strides[1]} not completed); nothing written")
+        # a fall before an analysable stride is the run's outcome, as for a plain walk
+        gait = {"fell": True, "fall_time_s": ev.fall_time_s,
+                "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
+                "swing_toe_contacts": len(ev.swing_toe_contacts),
+                "duration_s": float(rec.time_s[-1]) if len(rec.time_s) else 0.0,
+                "analysis": f"the walker fell at t = {ev.fall_time_s:.3f} s, before the "
+                            f"analysed strides {scenario.analyse_strides[0]}-"
+                            f"{scenario.analyse_strides[1]} were complete"}
+        cycles = []
+    else:
+        gait, cycles = analysis.summary, analysis.cycles
+    summary = {"scenario": scen, **gait, "condition": head,
+               "gait": gait, "human": block["human"], **dsum}
     if "device" in block:
         summary["device"] = block["device"]
         summary["energy"] = block["energy"]
@@ -383,7 +403,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
                                               np.column_stack([L[k][:, 0] for k in cols]))
         runs = [RecordedRun(c, r, d) for c, (r, _a, d) in results.items()]
         try:
-            out = write_run_outputs(out_dir, summary, analysis.cycles, reference, rec,
+            out = write_run_outputs(out_dir, summary, cycles, reference, rec,
                                     scenario.text, extra_tables=extra,
                                     extra_files=_chain(
                                         _device_files_writer(results, reference, dsum,

@@ -456,7 +456,9 @@ class PulleyCylinders(Component):
     :func:`~afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa` (their continuity solved
     together, :func:`~afo_mj.hydraulics.laws.coupled_node_rate_pa_s`; store
     ``series_spring``). Cable-seal (external) drag-out is refused:
-    the film returns on the in-stroke and the circuit has no ambient node for it."""
+    the film returns on the in-stroke and the circuit has no ambient node for it. Probes:
+    ``piston_position_m``, ``hydraulic_torque_nm`` and ``end_stop_torque_nm`` (the stops'
+    share of the joint torque, ``−r F_stop``; 0 off the stops)."""
 
     kind = "pulley_cylinders"
     ports = {"a": HYDRAULIC, "b": HYDRAULIC, "joint": JOINT}
@@ -540,6 +542,9 @@ class PulleyCylinders(Component):
         g.probe(self, "piston_position_m", f"{x} + series_spring_stretch_m({r}, {n} * {area} "
                 f"* {r}, {comp_s}, {pa} - {pb})")
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
+        # the end stops' share of the joint torque (0 unless a piston is past a stroke end):
+        # what the run's summary reports as stop contact, apart from the torque delivered
+        g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")
 
 
 def _seal_params(g, comp, cy, cyl, rods: int) -> str:
@@ -582,7 +587,8 @@ class SpringReturnCylinder(Component):
     piston ``x = x_0 − r θ`` (plantarflexion extends it), chamber ``V = V_0 + A x``, force on
     the piston ``A p − (F_0 + k x) − F_seal + F_stop`` (rod side vented: one piston seal, one
     rod seal), joint torque ``τ = −r F``. Loss: ``seal_friction``. Stores: ``spring`` and
-    ``end_stops``, booked as the work done on them."""
+    ``end_stops``, booked as the work done on them. Probes: ``piston_position_m`` and
+    ``end_stop_torque_nm`` (the stops' share of the joint torque, ``−r F_stop``)."""
 
     kind = "spring_return_cylinder"
     ports = {"a": HYDRAULIC, "joint": JOINT}
@@ -631,3 +637,4 @@ class SpringReturnCylinder(Component):
         g.store_rate(self, "spring", f"({f0} + {k} * {x}) * {xd}")
         g.store_rate(self, "end_stops", f"-{f_e} * {xd}")
         g.probe(self, "piston_position_m", x)
+        g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")

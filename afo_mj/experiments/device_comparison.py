@@ -113,6 +113,9 @@ import math
 import re
 from pathlib import Path
 
+# the classification is the device summary's (afo_mj.metrics.device_flags), re-exported here
+from afo_mj.metrics.device_flags import (NET_WORK_MIN_FRACTION, NET_WORK_MIN_J_PER_STRIDE,
+                                         mechanical_role)
 from afo_mj.scenarios.walk_scenario import strides_overrides  # re-exported: compare --strides
 
 __all__ = ["CompareError", "CompareItem", "Comparison", "FIXED_COLUMNS", "load_compare_items",
@@ -168,13 +171,6 @@ TAIL_COLUMNS = (
     "efficiency_rank", "efficiency_rank_in_scenario")
 FIXED_COLUMNS = HEAD_COLUMNS + TAIL_COLUMNS
 
-#: An actuator adds at least this net mechanical work to the ankle per stride [J]; below it a
-#: device does not assist measurably (a healthy 75 kg walker's ankle does ~20 J/stride of
-#: positive work, Winter 2009, so 1 J is ~5 %, well below any assistance worth comparing).
-NET_WORK_MIN_J_PER_STRIDE = 1.0
-#: ... and its net work is at least this fraction of its positive output, i.e. it absorbs back
-#: at most half of what it puts out (otherwise it is mostly a damper that also pushes).
-NET_WORK_MIN_FRACTION = 0.5
 
 
 def loss_column(name: str) -> str:
@@ -254,30 +250,6 @@ def _ratio(a, b):
 
 def _mean(entry):
     return _num(entry.get("mean")) if isinstance(entry, dict) else _num(entry)
-
-
-def mechanical_role(net_j: float, positive_j: float) -> tuple[str, str]:
-    """``(role, reason)`` of a device from its net and positive mechanical work on the ankle
-    per stride [J] (the classification of the module docstring): ``("actuator", "")`` when
-    ``net >= NET_WORK_MIN_J_PER_STRIDE`` and ``net >= NET_WORK_MIN_FRACTION × positive``;
-    ``"brake"`` when ``net < 0`` (it takes energy out of the ankle, e.g. a back-driven pump or a
-    damper); ``"near_zero"`` otherwise; the reason says why efficiency and battery runtime are
-    not given. Unknown (non-finite) work gives ``("", reason)``."""
-    net, pos = _num(net_j), _num(positive_j)
-    what = "efficiency_total, battery_runtime_h and the ranks are not given"
-    if not (math.isfinite(net) and math.isfinite(pos)):
-        return "", f"net mechanical work unknown: {what}"
-    work = f"net {net:.2f} J/stride, positive {pos:.2f} J/stride"
-    if net >= NET_WORK_MIN_J_PER_STRIDE and net >= NET_WORK_MIN_FRACTION * pos:
-        return "actuator", ""
-    if net < 0:
-        return "brake", (f"brake: absorbs net work from the ankle ({work}); its low energy "
-                         f"draw is not efficiency: {what}")
-    if net >= NET_WORK_MIN_J_PER_STRIDE:
-        return "near_zero", (f"absorbs back more than {1 - NET_WORK_MIN_FRACTION:.0%} of "
-                             f"what it puts out ({work}): {what}")
-    return "near_zero", (f"net work below {NET_WORK_MIN_J_PER_STRIDE:g} J/stride ({work}): "
-                         f"no measurable assistance: {what}")
 
 
 def comparison_row(item: CompareItem, block: dict, record=None,

@@ -27,14 +27,25 @@ def _per_stride(rec, side: int, first: int, last: int):
 
 
 def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict:
-    """The issue-4 summary block of one condition (gait, human, device, energy)."""
+    """The summary block of one condition: ``fell`` and ``fall_time_s``, ``gait`` (the
+    analysis, None without an analysable stride), ``human`` and ``ankle`` work per analysed
+    stride, and for a worn device ``device`` (torque, work, tracking, masses, pressure, the
+    end-stop contact and the brake / poor-tracking flags of
+    :mod:`afo_mj.metrics.device_flags`), ``energy_per_stride`` and ``energy``. Without a
+    complete analysed stride (a fall) the device's figures cover the whole run instead, and
+    ``device.window`` says so; per-stride figures are then None."""
     side = 0 if cfg.sides[0] == "right" else 1
     first, last = strides
     mask, n = _per_stride(rec, side, first, last)
-    out = {"gait": analysis.summary if analysis is not None else None}
+    fall = rec.events.fall_time_s
+    out = {"fell": fall is not None, "fall_time_s": fall,
+           "gait": analysis.summary if analysis is not None else None}
     if mask is None:
         out["human"] = {"ankle_positive_work_j_per_stride": None}
-        return out
+        if device is None or device.log is None or device.log.n == 0:
+            return out
+        return _device_blocks(out, rec, device, cfg, side, np.ones(len(rec.time_s), bool),
+                              None, [])
     dt = rec.sample_period_s
     w = rec.joint_velocity_rad_s[mask, side, 2]
     p_h = rec.joint_moment_nm[mask, side, 2] * w
@@ -66,13 +77,25 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     }
     if device is None:
         return out
+    return _device_blocks(out, rec, device, cfg, side, mask, n, hs)
+
+
+def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n, hs) -> dict:
+    """The ``device``, ``energy_per_stride`` and ``energy`` blocks of
+    :func:`condition_summary` over the samples ``mask`` spanning ``n`` strides (``n`` None:
+    the whole run, no complete stride; per-stride figures None)."""
+    from afo_mj.metrics.device_flags import (device_flags, end_stop_contact, end_stop_torque,
+                                             mechanical_role, tracking_flag)
+    dt = rec.sample_period_s
     L = device.log.arrays()
     k = 0
     n_log = min(len(L["time_s"]), len(rec.time_s))
     m = mask[:n_log]
     cmd = L["commanded_torque_nm"][:n_log, k][m]
     dlv = L["delivered_torque_nm"][:n_log, k][m]
+    w = rec.joint_velocity_rad_s[mask, side, 2]
     p_d = rec.device_moment_nm[mask, side] * w
+    per = (lambda x: x / n) if n else (lambda x: None)
     led = device_ledger(device, cfg, L, k)
     drawn = led["electrical_drawn_j"]
     mech_pos = float(np.sum(np.clip(L["mechanical_power_w"][:, k], 0, None)) * dt)
@@ -80,11 +103,33 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     mean_power = drawn / duration if duration > 0 else math.nan
     energy_wh = led["battery_energy_wh"]
     runtime_h = (energy_wh / mean_power) if mean_power > 0 and energy_wh else None
+    pos_w = float(np.sum(np.clip(p_d, 0, None)) * dt)
+    neg_w = float(np.sum(np.clip(p_d, None, 0)) * dt)
+    stop = end_stop_torque(L)
+    contact = None
+    peak = float(np.max(np.abs(dlv))) if dlv.size else 0.0
+    if stop is not None:
+        contact = end_stop_contact(stop[:n_log, k][m], dlv, dt, n or 1)
+        if not n:
+            for key in ("contact_time_s_per_stride", "contacts_per_stride",
+                        "impulse_nm_s_per_stride"):
+                contact[key] = None
+        free = contact.pop("delivered_peak_outside_contact_nm")
+        peak_all, peak = peak, (None if math.isnan(free) else free)
+    rmse = float(np.sqrt(np.mean((cmd - dlv) ** 2))) if cmd.size else math.nan
+    cmd_peak = float(np.max(np.abs(cmd))) if cmd.size else 0.0
+    role, _reason = mechanical_role(per(pos_w + neg_w) if n else math.nan,
+                                    per(pos_w) if n else math.nan)
     out["device"] = {
-        "peak_torque_nm": float(np.max(np.abs(dlv))),
-        "torque_tracking_rmse_nm": float(np.sqrt(np.mean((cmd - dlv) ** 2))),
-        "positive_work_j_per_stride": float(np.sum(np.clip(p_d, 0, None)) * dt / n),
-        "negative_work_j_per_stride": float(np.sum(np.clip(p_d, None, 0)) * dt / n),
+        "window": (f"the analysed strides of the {cfg.sides[0]} leg" if n else
+                   "whole run (no complete analysed stride): per-stride figures are None"),
+        "peak_torque_nm": peak,
+        "torque_tracking_rmse_nm": rmse,
+        "commanded_peak_torque_nm": cmd_peak,
+        "positive_work_j_per_stride": per(pos_w),
+        "negative_work_j_per_stride": per(neg_w),
+        "net_work_j_per_stride": per(pos_w + neg_w),
+        "mechanical_role": role,
         "mass_total_kg": getattr(device, "mass_total_kg", None),
         "mass_at_ankle_kg": getattr(device, "mass_at_ankle_kg", None),
         "peak_pressure_mpa": led["peak_pressure_pa"] / 1e6,
@@ -93,6 +138,10 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
         "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
         "newton_unconverged_steps": led["newton_unconverged_steps"],
     }
+    if contact is not None:
+        out["device"]["peak_torque_incl_end_stops_nm"] = peak_all
+        out["device"]["end_stop"] = contact
+    out["device"].update(device_flags(contact, role, tracking_flag(rmse, cmd_peak)))
     # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
     stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
     scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan
@@ -178,7 +227,9 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
 def run_device_scenario(scenario, reference, cfg: DeviceConfig):
     """Run every condition; returns ``(summary, per-condition (record, analysis, device))``."""
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
-    from afo_mj.gait.walk import run_walk
+    from afo_mj.gait.walk import check_torque_walker, run_walk
+    # the device walk is the torque walker's loop: a muscle scenario is refused, not swapped
+    check_torque_walker(scenario, "the device walk (run_device_scenario)")
     T = scenario.cycle_time_s(reference)
     dt = scenario.walker.timestep_s
     results = {}

@@ -284,7 +284,7 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
         if not np.isfinite(q).all() or not np.isfinite(X).all():
             raise FloatingPointError(f"muscle walk: non-finite state at t = {d.time:.4f} s")
         if q[phys.pelvis_qpos[1]] < z0 - drop or abs(q[phys.pelvis_qpos[2]]) > FALL_TILT_RAD:
-            events.fall_time_s = float(d.time)
+            events.fall_time_s = round(float(d.time), 9)   # the sum of steps, not 4.3419999
             break
     bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
            if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]

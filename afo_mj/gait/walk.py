@@ -573,7 +573,7 @@ class Walk:
                 raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
                                         f"(qpos={qpos.tolist()}, qvel={qvel.tolist()})")
             if qpos[pz] < fall_dz or abs(qpos[pt]) > FALL_TILT_RAD:
-                events.fall_time_s = float(data.time)
+                events.fall_time_s = round(float(data.time), 9)   # the sum of steps, not 4.3419999
                 done[0] = True
             elif k >= n_max:
                 done[0] = True
@@ -837,7 +837,7 @@ def _compiled_loop(model, data, buf: _Buffers, events: GaitEvents, state, tab, t
         raise WalkNumericsError(f"non-finite walker state at t = {data.time:.4f} s "
                                 f"(qpos={data.qpos.tolist()}, qvel={data.qvel.tolist()})")
     if code == wl.FELL:
-        events.fall_time_s = float(data.time)
+        events.fall_time_s = round(float(data.time), 9)   # the sum of steps, not 4.3419999
     return k
 
 

@@ -11,7 +11,7 @@ import math
 from typing import Mapping
 
 __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_lines",
-           "device_walk_lines", "bench_lines", "circuit_bench_lines",
+           "device_walk_lines", "device_warnings", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines"]
 
 
@@ -92,16 +92,26 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
         else:
             line += (f"ankle RMS {_f(g['ankle_angle_rms_error_deg'])} deg, speed "
                      f"{_f(g['speed_m_s'])} m/s, human ankle +work "
-                     f"{v['human']['ankle_positive_work_j_per_stride']:.1f} J/stride")
+                     f"{_num(v['human']['ankle_positive_work_j_per_stride'], '.1f')} "
+                     "J/stride")
+            if v.get("fell"):
+                line += f"; FELL at t = {v['fall_time_s']:.3f} s"
         if "device" in v:
             d, e = v["device"], v["energy"]
-            line += (f"; device peak {d['peak_torque_nm']:.1f} N*m, +work "
-                     f"{d['positive_work_j_per_stride']:.1f} / -work "
-                     f"{d['negative_work_j_per_stride']:.1f} J/stride, tracking RMSE "
+            if d.get("positive_work_j_per_stride") is None:
+                work = "whole run, no complete stride"
+            else:
+                work = (f"+work {d['positive_work_j_per_stride']:.1f} / -work "
+                        f"{d['negative_work_j_per_stride']:.1f} J/stride")
+            line += (f"; device peak {_num(d['peak_torque_nm'], '.1f')} N*m"
+                     + (" outside end-stop contact" if d.get("end_stop_contact") else "")
+                     + f", {work}, tracking RMSE "
                      f"{d['torque_tracking_rmse_nm']:.1f} N*m, battery drawn "
                      f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
                      f"balance error {100 * e['balance_error_rel']:.2f} %")
         lines.append(line)
+        if "device" in v:
+            lines += [f"  {'':12s}  {w}" for w in device_warnings(v["device"])]
         if g is None:
             continue
         # the foot-drop and push-off figures (gait: both legs pooled; push-off power: the
@@ -118,11 +128,43 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
                 f"push-off peak power {'-' if po is None else f'{po:.1f}'} W")
         eps = v.get("energy_per_stride")
         if eps is not None:
-            line += (f", device electrical {eps['electrical_in_j']:.1f} J/stride "
+            line += (f", device electrical {_num(eps['electrical_in_j'], '.1f')} J/stride "
                      f"({config.sides[0]} side)")
         lines.append(line)
     lines.append(f"  results: {out}")
     return lines
+
+
+def _num(x, fmt: str) -> str:
+    """``x`` formatted, '-' for None or NaN."""
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:{fmt}}"
+
+
+def device_warnings(d: Mapping) -> list[str]:
+    """The lines that say what a device did besides following its command (the flags of
+    :mod:`afo_mj.metrics.device_flags` in a condition's ``device`` block): end-stop contact,
+    braking, poor tracking; none for a device that did none of these."""
+    out = []
+    es = d.get("end_stop") or {}
+    if d.get("end_stop_contact"):
+        per = es.get("contact_time_s_per_stride")
+        when = (f"{1e3 * per:.0f} ms per stride ({100 * es['contact_fraction']:.1f} % of the "
+                f"time, {es['contacts_per_stride']:.1f} contacts per stride, impulse "
+                f"{es['impulse_nm_s_per_stride']:.2f} N*m*s per stride)" if per is not None
+                else f"{1e3 * es['contact_time_s']:.0f} ms over the run")
+        out.append(f"WARNING END-STOP CONTACT: the pistons hit their stroke ends for {when}; "
+                   f"the stops carried up to {es['peak_torque_nm']:.1f} N*m (whole-joint "
+                   f"peak {_num(d.get('peak_torque_incl_end_stops_nm'), '.1f')} N*m); the "
+                   f"device peak above is outside stop contact")
+    if d.get("brake"):
+        out.append(f"WARNING BRAKE: the device takes net work out of the ankle "
+                   f"({_num(d.get('net_work_j_per_stride'), '.1f')} J/stride): it is "
+                   f"back-driven or damping, not assisting")
+    if d.get("tracking_poor"):
+        out.append(f"WARNING TRACKING: RMS torque error {d['torque_tracking_rmse_nm']:.1f} N*m "
+                   f"against a commanded peak of {d['commanded_peak_torque_nm']:.1f} N*m: the "
+                   f"device did not deliver the assistance its controller asked for")
+    return out
 
 
 def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
