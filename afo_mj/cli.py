@@ -200,7 +200,11 @@ def _sweep(args) -> int:
           f"table: {table}")
     for r in failed[:5]:
         print(f"  failed {r['run_id']}: {r['error']}")
-    print(json.dumps({"runs": len(rows), "failed": len(failed), "table": str(table)}))
+    # falls, end-stop contact, braking, poor tracking: outcomes, each said
+    _print(console.sweep_outcome_lines(rows))
+    flagged = {k: len(v) for k, v in console.sweep_outcome_counts(rows).items()}
+    print(json.dumps({"runs": len(rows), "failed": len(failed), "outcomes": flagged,
+                      "table": str(table)}))
     if rows and len(failed) == len(rows):
         _err("sweep", f"every run failed ({len(rows)} of {len(rows)}), e.g. "
              f"{failed[0]['error']}; see {table}")

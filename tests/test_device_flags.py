@@ -179,3 +179,27 @@ def test_a_fallen_sweep_point_is_ok_with_fell_and_constrainable(tmp_path):
     assert present and v == 1.0
     assert Constraint("device.end_stop_contact", max=0.0).violation(v) > 0
     assert row2["device.end_stop.contact_time_s_per_stride"] > 0.0
+
+
+def test_sweep_says_which_runs_hit_the_stops(tmp_path, capsys):
+    """``afo-mj sweep`` over the stroke: the short-stroke run is counted and named as an
+    end-stop contact (and poor tracking), the full-stroke run is not; both are ok rows."""
+    from pathlib import Path
+
+    from afo_mj import cli
+    root = Path(__file__).resolve().parents[1]
+    study = tmp_path / "stroke.toml"
+    study.write_text(
+        f'name = "stroke"\nscenario = "{(root / HAFO).as_posix()}"\n'
+        f'set = ["gait.strides=5", "gait.analyse_strides=[3, 5]", '
+        f"'device.conditions=[\"assist\"]']\n"
+        '[design]\nkind = "grid"\n[[parameter]]\nkey = "device.params.cylinder.stroke_m"\n'
+        'levels = [0.02, 0.045]\n')
+    rc = cli.main(["sweep", str(study), "--out", str(tmp_path / "o"), "--quiet",
+                   "--workers", "1", "--format", "csv"])
+    text = capsys.readouterr().out
+    assert rc == 0
+    doc = json.loads(text.strip().splitlines()[-1])
+    assert doc["failed"] == 0 and doc["outcomes"].get("end-stop contact") == 1
+    line = [ln for ln in text.splitlines() if ln.startswith("  ") and "end-stop contact" in ln]
+    assert len(line) == 1 and "1 run(s)" in line[0]

@@ -11,7 +11,8 @@ import math
 from typing import Mapping
 
 __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_lines",
-           "device_walk_lines", "device_warnings", "bench_lines", "circuit_bench_lines",
+           "device_walk_lines", "device_warnings", "sweep_outcome_counts",
+           "sweep_outcome_lines", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines"]
 
 
@@ -165,6 +166,30 @@ def device_warnings(d: Mapping) -> list[str]:
                    f"against a commanded peak of {d['commanded_peak_torque_nm']:.1f} N*m: the "
                    f"device did not deliver the assistance its controller asked for")
     return out
+
+
+#: Row columns (flattened summary paths) a sweep counts as outcomes to look at, with labels.
+SWEEP_OUTCOMES = (("fell", "fell"), ("device.end_stop_contact", "end-stop contact"),
+                  ("device.brake", "brake"), ("device.tracking_poor", "poor torque tracking"))
+
+
+def sweep_outcome_counts(rows) -> dict:
+    """``{label: [run_id, ...]}`` of the finished rows whose outcome flag is true (falls,
+    end-stop contact, braking, poor tracking): results, not failures, that a reader of a
+    study must not miss."""
+    out = {}
+    for key, label in SWEEP_OUTCOMES:
+        ids = [r["run_id"] for r in rows if r.get("status") == "ok" and r.get(key) is True]
+        if ids:
+            out[label] = ids
+    return out
+
+
+def sweep_outcome_lines(rows) -> list[str]:
+    """One line per outcome flag that some runs raised: how many and which (first five)."""
+    return [f"  {len(ids)} run(s) with {label}: {', '.join(ids[:5])}"
+            + (" ..." if len(ids) > 5 else "")
+            for label, ids in sweep_outcome_counts(rows).items()]
 
 
 def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
