@@ -203,3 +203,16 @@ def test_sweep_says_which_runs_hit_the_stops(tmp_path, capsys):
     assert doc["failed"] == 0 and doc["outcomes"].get("end-stop contact") == 1
     line = [ln for ln in text.splitlines() if ln.startswith("  ") and "end-stop contact" in ln]
     assert len(line) == 1 and "1 run(s)" in line[0]
+
+
+def test_compare_rows_carry_the_flags_and_say_them(tmp_path):
+    from afo_mj.app.compare import compare
+    from afo_mj.outputs.comparison_report import format_tables
+    res = compare([HAFO], tmp_path / "c", overrides=["device.params.cylinder.stroke_m=0.02",
+                                                     "gait.analyse_strides=[3, 5]"], strides=5)
+    (row,) = res.comparison.rows
+    assert row["end_stop_contact"] is True and row["tracking_poor"] is True
+    assert row["end_stop_contact_time_s_per_stride"] > 0.02
+    assert row["peak_torque_incl_end_stops_nm"] > 100.0 > 60.0 > row["peak_torque_nm"]
+    text = format_tables(res.comparison)
+    assert "END-STOP CONTACT: " in text and "POOR TRACKING: " in text

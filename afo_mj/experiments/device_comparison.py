@@ -50,7 +50,13 @@ by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``af
 
 * ``scenario, variant, label, scenario_file, preset, sides, fell, fall_time_s``: what the row
   is (``fall_time_s`` empty when the walker did not fall).
-* ``torque_tracking_rmse_nm, peak_torque_nm``: commanded against delivered device torque.
+* ``torque_tracking_rmse_nm, peak_torque_nm``: commanded against delivered device torque; the
+  peak is the largest torque delivered outside end-stop contact (``device.peak_torque_nm`` of
+  the run's summary, :mod:`afo_mj.metrics.device_flags`).
+* ``tracking_poor``, ``end_stop_contact``: the summary's flags (RMS error above a quarter of the
+  commanded peak; pistons at their stroke ends), with ``peak_torque_incl_end_stops_nm`` (the
+  whole joint's peak, stops included), ``end_stop_contact_time_s_per_stride`` and
+  ``end_stop_impulse_nm_s_per_stride``; each raised flag is also a line under the tables.
 * ``device_positive_work_j_per_stride``, ``device_negative_work_j_per_stride``: the device's
   work on the ankle over the analysed strides (delivered; the negative part is what it absorbs).
 * ``ankle_positive_work_j_per_stride``, ``ankle_push_off_positive_work_j_per_stride``: the
@@ -155,8 +161,10 @@ class Comparison:
 #: the columns every row has, in table order (losses are inserted after ``efficiency_*``)
 HEAD_COLUMNS = (
     "scenario", "variant", "label", "scenario_file", "preset", "sides", "fell", "fall_time_s",
-    "torque_tracking_rmse_nm", "peak_torque_nm",
-    "device_positive_work_j_per_stride", "device_negative_work_j_per_stride",
+    "torque_tracking_rmse_nm", "tracking_poor", "peak_torque_nm",
+    "peak_torque_incl_end_stops_nm", "end_stop_contact", "end_stop_contact_time_s_per_stride",
+    "end_stop_impulse_nm_s_per_stride", "device_positive_work_j_per_stride",
+    "device_negative_work_j_per_stride",
     "ankle_positive_work_j_per_stride", "ankle_push_off_positive_work_j_per_stride",
     "electrical_j_per_stride", "electrical_regenerated_j_per_stride",
     "electrical_net_j_per_stride", "hydraulic_j_per_stride", "mechanical_j_per_stride",
@@ -286,7 +294,15 @@ def comparison_row(item: CompareItem, block: dict, record=None,
     actuator = role == "actuator"
     row.update({
         "torque_tracking_rmse_nm": _num(dev.get("torque_tracking_rmse_nm")),
+        "tracking_poor": bool(dev.get("tracking_poor")),
         "peak_torque_nm": _num(dev.get("peak_torque_nm")),
+        "peak_torque_incl_end_stops_nm": _num(dev.get("peak_torque_incl_end_stops_nm",
+                                                      dev.get("peak_torque_nm"))),
+        "end_stop_contact": bool(dev.get("end_stop_contact")),
+        "end_stop_contact_time_s_per_stride":
+            _num((dev.get("end_stop") or {}).get("contact_time_s_per_stride")),
+        "end_stop_impulse_nm_s_per_stride":
+            _num((dev.get("end_stop") or {}).get("impulse_nm_s_per_stride")),
         "device_positive_work_j_per_stride": _num(dev.get("positive_work_j_per_stride")),
         "device_negative_work_j_per_stride": _num(dev.get("negative_work_j_per_stride")),
         "ankle_positive_work_j_per_stride": _num(ank.get("positive_work_j_per_stride")),

@@ -118,9 +118,22 @@ def _definitions() -> str:
 
 def caveats(rows) -> list[str]:
     """One line per row that is not an actuator: why its efficiency, battery runtime and ranks
-    are not given (``not_comparable_reason``)."""
-    return [f"NOT COMPARABLE: {r['label']}: {r['not_comparable_reason']}" for r in rows
-            if r.get("not_comparable_reason")]
+    are not given (``not_comparable_reason``); one per row whose pistons hit their end stops
+    or whose torque tracking was poor (:mod:`afo_mj.metrics.device_flags`)."""
+    out = [f"NOT COMPARABLE: {r['label']}: {r['not_comparable_reason']}" for r in rows
+           if r.get("not_comparable_reason")]
+    for r in rows:
+        if r.get("end_stop_contact"):
+            out.append(f"END-STOP CONTACT: {r['label']}: the pistons hit their stroke ends "
+                       f"({1e3 * r['end_stop_contact_time_s_per_stride']:.0f} ms per stride, "
+                       f"impulse {r['end_stop_impulse_nm_s_per_stride']:.2f} N*m*s per stride; "
+                       f"whole-joint peak {r['peak_torque_incl_end_stops_nm']:.1f} N*m, "
+                       f"{r['peak_torque_nm']:.1f} N*m outside contact)")
+        if r.get("tracking_poor"):
+            out.append(f"POOR TRACKING: {r['label']}: RMS torque error "
+                       f"{r['torque_tracking_rmse_nm']:.1f} N*m: it did not deliver the "
+                       "assistance asked for")
+    return out
 
 
 def format_tables(comp) -> str:
