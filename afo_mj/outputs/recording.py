@@ -18,10 +18,12 @@ name, ``<side>`` = ``right`` / ``left``, ``<joint>`` = ``hip`` / ``knee`` / ``an
   primitives (boxes, capsules, ellipsoids, cylinders) in the body frame;
 * ``world/<run>/grf/<side>`` -- ``Arrows3D``: ground-reaction force at the foot's centre of
   pressure (heel/ball spheres weighted by their normal force), 1 m per :data:`GRF_M_PER_N`⁻¹ N;
-* ``world/<run>/body/shank_<r|l>/afo/barrel_<a|b>`` and ``.../afo/oil_<a|b>`` -- the two
-  piston-cable cylinders of a worn orthosis along the shank: the barrel (static) and its oil
-  column, whose length follows the piston (``r θ`` from mid-stroke) and whose colour is the
-  chamber pressure (blue = 0 bar gauge, red = relief cracking pressure).
+* ``world/<run>/body/shank_<r|l>/afo/barrel_<a|b>`` and ``.../afo/oil_<a|b>`` -- the
+  cylinder(s) on the worn ankle along the shank, one per chamber the circuit logs (two for a
+  piston-cable pair, one, ``a``, for a single-acting cylinder): the barrel (static) and its oil
+  column, whose length is the chamber's share of the stroke (the piston's position from the
+  a-end as logged, ``<cylinder>.piston_position_m``) and whose colour is the chamber pressure
+  (blue = 0 bar gauge, red = the highest relief valve's cracking pressure).
 
 Signals (``Scalars``, at ``signal_rate_hz``; each entity carries a static ``unit`` value and
 a series name; display units as the path says)
@@ -38,19 +40,25 @@ a series name; display units as the path says)
 ``signals/ankle_torque_nm/human/<side>/<run>``              human ankle moment [N·m]
 ``signals/ankle_torque_nm/device_commanded/<side>/<run>``   orthosis torque command [N·m]
 ``signals/ankle_torque_nm/device_delivered/<side>/<run>``   orthosis torque delivered [N·m]
-``signals/pressure_bar/<node>/<side>/<run>``                gauge pressure [bar]: ``line_a``,
-                                                            ``line_b`` (pump-controlled) or
-                                                            ``pump``, ``supply`` (valve
-                                                            circuit), ``chamber_a``,
-                                                            ``chamber_b``
-``signals/flow_l_min/<pump|cylinder>/<side>/<run>``         geometric pump flow, piston flow
-                                                            [L/min]
-``signals/piston_position_mm/<side>/<run>``                 piston from mid-stroke, r θ [mm]
+``signals/pressure_bar/<node>/<side>/<run>``                gauge pressure [bar] of every
+                                                            pressure node of the circuit:
+                                                            ``line_a``, ``line_b``,
+                                                            ``chamber_a``, ``chamber_b``
+                                                            (pump-controlled); ``pump``,
+                                                            ``supply``, ``port_a``, ...
+                                                            (valve circuits); a described
+                                                            circuit's own node names
+``signals/flow_l_min/<pump|cylinder>/<side>/<run>``         geometric pump flow D ω / 2π,
+                                                            piston flow A_e r θ̇ [L/min]
+``signals/piston_position_mm/<side>/<run>``                 piston travel r θ from its
+                                                            position at θ = 0 (mid-stroke of
+                                                            a piston-cable pair) [mm]
 ``signals/motor_current_a/<side>/<run>``                    motor current [A]
 ``signals/motor_speed_rpm/<side>/<run>``                    motor speed [rpm]
 ``signals/motor_voltage_v/<side>/<run>``                    motor voltage command [V]
 ``signals/valve/<position|command|unloading>/<side>/<run>`` valve spool position, command
                                                             (or PWM duty), unloading valve [1]
+                                                            (each where the circuit has it)
 ``signals/fluid_temperature_c/<side>/<run>``                oil temperature [°C]
 ``signals/device_power_w/<stage>/<side>/<run>``             power at ``electrical``,
                                                             ``hydraulic``, ``ankle`` [W]
@@ -58,6 +66,11 @@ a series name; display units as the path says)
 ``events/<run>``                                            ``TextLog``: heel strikes, toe
                                                             offs, swing toe contacts, fall
 ==========================================================  =========================
+
+The device signals are those its log holds: a signal is recorded when the log has its column
+(or what follows from it: flows, powers) and left out when the circuit has no such part (a
+valve circuit without an unloading valve has no ``valve/unloading``; a described circuit's
+signals come from its components and node names).
 
 Units: the physics is SI; the recording shows angles in degrees, pressures in bar (gauge),
 flows in L/min and speeds in rpm, each stated in the path and in the entity's ``unit``.
@@ -232,55 +245,165 @@ def _log_normative(w: _Writer, run: RecordedRun, reference, step: int) -> None:
                       f"{joint} normative +1 SD", (150, 150, 150))
 
 
-def _log_device_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
+#: display names of circuit pressure nodes in the recording (the valve circuits' pump outlet and
+#: supply rail); every other node keeps its circuit name (``line_a``, ``chamber_a``, ...)
+_NODE_NAMES = {"pump_out": "pump", "rail": "supply"}
+#: the valve signals and the log columns that may hold them (a preset's name first, then the
+#: generic circuit names): a circuit without that valve has none of them and is not asked for it
+_VALVE_COLUMNS = (("position", ("valve_position", "servo.spool", "release.position"),
+                   "valve position"),
+                  ("command", ("valve_command", "controller.valve_command"), "valve command"),
+                  ("unloading", ("unloading_valve_position", "unloading.position",
+                                 "switching.position"), "unloading valve"))
+
+
+def _column(dev, L: dict, *names: str):
+    """The first of ``names`` the device's log holds (each looked up under the device's renamed
+    column, :attr:`~afo_mj.circuits.device.CircuitDevice.log_names`, then as given), or None."""
+    renamed = getattr(dev, "log_names", None) or {}
+    for name in names:
+        for key in (renamed.get(name, name), name):
+            if key in L:
+                return L[key]
+    return None
+
+
+def _circuit(dev):
+    return getattr(getattr(dev, "cc", None), "circuit", None)
+
+
+def _joint_actuator(dev):
+    """The circuit component on the joint (the cylinder(s) driving the ankle), or None."""
+    c = _circuit(dev)
+    if c is None:
+        return None
+    names = {ref.split(".")[0] for ref in c.nodes.get(c.joint, ())}
+    return c.component(names.pop()) if len(names) == 1 else None
+
+
+def _lever_m(dev) -> float | None:
+    """Piston travel per radian of the joint: the pulley radius or lever arm [m]."""
+    act = _joint_actuator(dev)
+    for obj in (getattr(act, "params", None), getattr(dev, "params", None)):
+        for key in ("pulley_radius_m", "moment_arm_m"):
+            v = getattr(obj, key, None)
+            if isinstance(v, (int, float)) and v > 0:
+                return float(v)
+    return None
+
+
+def _derived(dev, L: dict) -> dict[str, np.ndarray]:
+    """Flows and powers (SI, ``(n, sides)``) that follow from the log: a preset's from
+    :func:`afo_mj.metrics.device_signals.device_signals` (its parameters), a described
+    circuit's from its components: geometric pump flow ``D ω / 2π`` of its pump on the logged
+    shaft speed, the pump's own hydraulic-power probe, piston flow ``n A r θ̇`` of the joint's
+    cylinder(s); electrical power ``V_bus I_bat``, ankle power and the running efficiency
+    from the log's header columns (the same definitions)."""
     from afo_mj.metrics.device_signals import device_signals
+    if getattr(dev, "params", None) is not None:
+        return {k: s.values for k, s in device_signals(dev).items()}
+    from afo_mj.hydraulics.cylinder import Cylinder
+    out: dict[str, np.ndarray] = {}
+    c = _circuit(dev)
+    pumps = [x for x in (c.components if c is not None else ())
+             if x.kind in ("pump", "variable_pump")]
+    if len(pumps) == 1:
+        pump = pumps[0]
+        speed = _column(dev, L, c.port_node.get((pump.name, "shaft"), ""))
+        disp = getattr(pump.params, "displacement_m3_rev", None)
+        if speed is not None and disp is not None:
+            out["pump_flow_m3_s"] = disp * speed / (2.0 * math.pi)
+        hyd = _column(dev, L, f"{pump.name}.hydraulic_power_w")
+        if hyd is not None:
+            out["hydraulic_power_w"] = hyd
+    act, lever = _joint_actuator(dev), _lever_m(dev)
+    cyl = getattr(getattr(act, "params", None), "cylinder", None)
+    vel = L.get("ankle_velocity_rad_s")
+    if cyl is not None and lever is not None and vel is not None:
+        count = float(getattr(act.params, "count", 1.0))
+        out["cylinder_flow_m3_s"] = count * Cylinder(cyl).area_a_m2 * lever * vel
+    if "bus_voltage_v" in L and "battery_current_a" in L and "mechanical_power_w" in L:
+        p_el, p_mech = L["bus_voltage_v"] * L["battery_current_a"], L["mechanical_power_w"]
+        t = L["time_s"][:, 0]
+        dt = np.diff(t, prepend=t[0] if len(t) else 0.0)[:, None]
+        e_in = np.cumsum(np.maximum(p_el, 0.0) * dt, axis=0)
+        e_out = np.cumsum(np.maximum(p_mech, 0.0) * dt, axis=0)
+        out["electrical_power_w"] = p_el
+        out["mechanical_power_w"] = p_mech
+        out["running_efficiency"] = np.where(e_in > 1e-9, e_out / np.where(e_in > 1e-9, e_in,
+                                                                           1.0), 0.0)
+    return out
+
+
+def _device_series(run: RecordedRun) -> list[tuple[str, np.ndarray, str, str]]:
+    """Every device signal the run's device log holds: ``(path under signals/ without side
+    and run, values (n, sides) at the log rows, unit, label)``. A signal is recorded when the
+    log (or what follows from it and the device's parameters) has it, and only then."""
     dev = run.device
     if dev is None or getattr(dev, "log", None) is None or dev.log.n == 0:
-        return
+        return []
     L = dev.log.arrays()
-    sig = device_signals(dev)
-    t = L["time_s"][::step, 0]
-    valve = "pump_pa" in L
-    for k, side in enumerate(dev.sides):
-        s = _SIDES.index(side)
-        col = _run_colour(i, s)
+    cc = getattr(dev, "cc", None)
+    c = _circuit(dev)
+    series: list[tuple[str, np.ndarray, str, str]] = []
 
-        def put(path, values, unit, label):
-            w.scalars(f"signals/{path}/{side}/{run.name}", t, values[::step, k], unit,
-                      f"{label} {side} ({run.name})", col)
+    def add(path, values, unit, label, scale=1.0, offset=0.0):
+        if values is not None:
+            series.append((path, np.asarray(values, dtype=float) * scale + offset, unit, label))
 
-        put("ankle_torque_nm/device_commanded", L["commanded_torque_nm"], "N*m",
-            "device commanded")
-        put("ankle_torque_nm/device_delivered", L["delivered_torque_nm"], "N*m",
-            "device delivered")
-        nodes = (("pump", "pump_pa"), ("supply", "supply_pa")) if valve else \
-            (("line_a", "pressure_a_pa"), ("line_b", "pressure_b_pa"))
-        for node, key in nodes + (("chamber_a", "chamber_a_pa"), ("chamber_b", "chamber_b_pa")):
-            put(f"pressure_bar/{node}", L[key] / 1e5, "bar (gauge)", node)
-        put("flow_l_min/pump", sig["pump_flow_m3_s"].values * _M3_S_TO_L_MIN, "L/min",
-            "pump flow")
-        put("flow_l_min/cylinder", sig["cylinder_flow_m3_s"].values * _M3_S_TO_L_MIN,
-            "L/min", "piston flow")
-        put("motor_current_a", L["motor_current_a"], "A", "motor current")
-        put("motor_speed_rpm", L["motor_speed_rad_s"] * _RAD_S_TO_RPM, "rpm", "motor speed")
-        put("motor_voltage_v", L["motor_command_v"], "V", "motor voltage")
-        if valve:
-            put("valve/position", L["valve_position"], "1", "valve position")
-            put("valve/command", L["valve_command"], "1", "valve command")
-            put("valve/unloading", L["unloading_valve_position"], "1", "unloading valve")
-            angle = L["ankle_angle_rad"]
-        else:
+    add("ankle_torque_nm/device_commanded", L.get("commanded_torque_nm"), "N*m",
+        "device commanded")
+    add("ankle_torque_nm/device_delivered", L.get("delivered_torque_nm"), "N*m",
+        "device delivered")
+    nodes = ([s for s, k in zip(cc.state_names, cc.state_kinds) if k == "pressure"]
+             if cc is not None else ["line_a", "line_b", "pump_out", "rail", "port_a", "port_b",
+                                     "chamber_a", "chamber_b"])
+    for node in nodes:
+        name = _NODE_NAMES.get(node, node)
+        add(f"pressure_bar/{name}", _column(dev, L, node), "bar (gauge)", name, 1e-5)
+    d = _derived(dev, L)
+    add("flow_l_min/pump", d.get("pump_flow_m3_s"), "L/min", "pump flow", _M3_S_TO_L_MIN)
+    add("flow_l_min/cylinder", d.get("cylinder_flow_m3_s"), "L/min", "piston flow",
+        _M3_S_TO_L_MIN)
+    motors = [x for x in (c.components if c is not None else ()) if x.kind == "motor"]
+    motors.sort(key=lambda x: not getattr(x, "actuated", False))     # the actuated one first
+    m = motors[0].name if motors else "motor"
+    shaft = c.port_node.get((m, "shaft"), "shaft") if c is not None else "shaft"
+    add("motor_current_a", _column(dev, L, f"{m}.current_a"), "A", "motor current")
+    add("motor_speed_rpm", _column(dev, L, shaft), "rpm", "motor speed", _RAD_S_TO_RPM)
+    if not motors or getattr(motors[0], "actuated", False):
+        add("motor_voltage_v", _column(dev, L, "actuated_input"), "V", "motor voltage")
+    for key, names, label in _VALVE_COLUMNS:
+        add(f"valve/{key}", _column(dev, L, *names), "1", label)
+    lever = _lever_m(dev)
+    if lever is not None:
+        angle = L.get("ankle_angle_rad")
+        if angle is None:
             rec = run.record
             angle = np.column_stack([np.interp(L["time_s"][:, 0], rec.time_s,
                                                rec.joint_angle_rad[:, _SIDES.index(sd), 2])
                                      for sd in dev.sides])
-        put("piston_position_mm", angle * dev.params.pulley_radius_m * 1e3, "mm",
-            "piston r*theta")
-        put("fluid_temperature_c", L["oil_temperature_k"] - 273.15, "degC", "oil temperature")
-        put("device_power_w/electrical", sig["electrical_power_w"].values, "W", "electrical")
-        put("device_power_w/hydraulic", sig["hydraulic_power_w"].values, "W", "hydraulic")
-        put("device_power_w/ankle", sig["mechanical_power_w"].values, "W", "ankle")
-        put("running_efficiency", sig["running_efficiency"].values, "1", "running efficiency")
+        add("piston_position_mm", angle * lever, "mm", "piston r*theta", 1e3)
+    add("fluid_temperature_c", L.get("oil_temperature_k"), "degC", "oil temperature",
+        offset=-273.15)
+    add("device_power_w/electrical", d.get("electrical_power_w"), "W", "electrical")
+    add("device_power_w/hydraulic", d.get("hydraulic_power_w"), "W", "hydraulic")
+    add("device_power_w/ankle", d.get("mechanical_power_w"), "W", "ankle")
+    add("running_efficiency", d.get("running_efficiency"), "1", "running efficiency")
+    return series
+
+
+def _log_device_signals(w: _Writer, run: RecordedRun, i: int, step: int,
+                        series: list) -> None:
+    if not series:
+        return
+    dev = run.device
+    t = dev.log.arrays()["time_s"][::step, 0]
+    for k, side in enumerate(dev.sides):
+        col = _run_colour(i, _SIDES.index(side))
+        for path, values, unit, label in series:
+            w.scalars(f"signals/{path}/{side}/{run.name}", t, values[::step, k], unit,
+                      f"{label} {side} ({run.name})", col)
 
 
 def _log_events(w: _Writer, run: RecordedRun) -> None:
@@ -403,24 +526,54 @@ def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
     return {"x_min": float(xpos[:, 1:, 0].min()), "x_max": float(xpos[:, 1:, 0].max())}
 
 
+def _orthosis(dev, L: dict) -> dict | None:
+    """What the 3D orthosis is drawn from: the cylinder(s) on the joint (bore, stroke), each
+    chamber's logged pressure and oil column (``a``: the piston's position from the a-end, the
+    log's ``<cylinder>.piston_position_m`` where it has it, else ``x_0 − r θ``; ``b``: the
+    rest of the stroke) and the pressure of full colour (the highest relief valve's cracking
+    pressure). None for a device without a cylinder on the joint or a logged chamber."""
+    from afo_mj.hydraulics.cylinder import Cylinder
+    act, lever, c = _joint_actuator(dev), _lever_m(dev), _circuit(dev)
+    cyl = getattr(getattr(act, "params", None), "cylinder", None)
+    if cyl is None or lever is None or c is None:
+        return None
+    stroke = float(cyl.stroke_m)
+    x = _column(dev, L, f"{act.name}.piston_position_m")
+    if x is None:
+        x0 = float(getattr(act.params, "neutral_position_m", stroke / 2))
+        x = x0 - lever * L["ankle_angle_rad"]
+    chambers = []
+    for name, length in (("a", x), ("b", stroke - x)):
+        node = c.port_node.get((act.name, name))
+        p = _column(dev, L, node) if node is not None else None
+        if p is not None:
+            chambers.append((name, p, length))
+    if not chambers:
+        return None
+    reliefs = [float(r.params.cracking_dp_pa) for r in c.components if r.kind == "relief_valve"]
+    p_max = max(reliefs) if reliefs else max(max(float(np.max(p)) for _n, p, _l in chambers),
+                                             1e5)
+    return {"bore_radius_m": math.sqrt(Cylinder(cyl).area_a_m2 / math.pi),
+            "stroke_m": stroke, "p_max_pa": p_max, "chambers": chambers}
+
+
 def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
              t_body: np.ndarray) -> None:
-    """The worn orthosis's two cylinders along each worn shank (barrel + oil column), at the
-    log rows nearest to the body-transform times ``t_body``."""
-    from afo_mj.hydraulics.cylinder import Cylinder
+    """The worn orthosis's cylinders along each worn shank (barrel + oil column per chamber:
+    two for a double-acting pair, one for a single-acting cylinder), at the log rows nearest
+    to the body-transform times ``t_body``."""
     rr = w.rr
     dev = run.device
-    p = dev.params
-    L = dev.log.arrays()
     if dev.log.n == 0:
         return
+    L = dev.log.arrays()
+    geo = _orthosis(dev, L)
+    if geo is None:
+        return
     t_all = L["time_s"][:, 0]
-    rec = run.record
     rows = np.unique(np.clip(np.searchsorted(t_all, t_body), 0, len(t_all) - 1))
     t = t_all[rows]
-    bore_r = math.sqrt(Cylinder(p.cylinder).area_a_m2 / math.pi)
-    stroke = p.cylinder.stroke_m
-    p_max = p.relief.cracking_dp_pa
+    bore_r, stroke, p_max = geo["bore_radius_m"], geo["stroke_m"], geo["p_max_pa"]
     for k, side in enumerate(dev.sides):
         shank = f"shank_{side[0]}"
         if shank not in body_names:
@@ -436,22 +589,17 @@ def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
         perp = np.cross(np.array([0.0, 1.0, 0.0]), axis)
         perp /= max(np.linalg.norm(perp), 1e-12)
         radius = float(model.geom_size[g, 0])
-        if "ankle_angle_rad" in L:
-            theta = L["ankle_angle_rad"][rows, k]
-        else:
-            theta = np.interp(t, rec.time_s, rec.joint_angle_rad[:, _SIDES.index(side), 2])
-        x = np.clip(p.pulley_radius_m * theta, -stroke / 2, stroke / 2)
         q = _xyzw(gq)
         base = f"{root}/body/{shank}/afo"
-        for c, (name, sign, key) in enumerate((("a", 1.0, "chamber_a_pa"),
-                                                ("b", -1.0, "chamber_b_pa"))):
+        for name, pressure, oil in geo["chambers"]:
+            sign = 1.0 if name == "a" else -1.0
             centre = model.geom_pos[g] + sign * perp * (radius + 1.5 * bore_r + 0.004)
             w.stream.log(f"{base}/barrel_{name}",
                          rr.Cylinders3D(lengths=[stroke], radii=[bore_r * 1.25],
                                         centers=[centre], quaternions=[q],
                                         colors=[(120, 120, 130, 90)], fill_mode="solid"),
                          static=True)
-            length = np.clip(stroke / 2 + sign * x, 0.02 * stroke, stroke)
+            length = np.clip(oil[rows, k], 0.02 * stroke, stroke)
             # oil column from the barrel's lower end up to the piston
             low_end = centre - axis * stroke / 2
             centres = low_end[None, :] + axis[None, :] * (length / 2)[:, None]
@@ -461,7 +609,7 @@ def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
             w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
                                   columns=rr.Cylinders3D.columns(
                                       lengths=length, centers=centres,
-                                      colors=_pressure_colours(L[key][rows, k], p_max)))
+                                      colors=_pressure_colours(pressure[rows, k], p_max)))
             w.index[path] = {"kind": "Cylinders3D", "rows": int(len(t)), "unit": "m"}
 
 
@@ -538,9 +686,10 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
     except OSError as exc:
         raise RecordingError(f"recording path = {str(out)!r}: {exc}") from None
     tmp = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.tmp")
+    # every run's device signals, from what its log holds, before anything is written
+    series = {r.name: _device_series(r) for r in runs}
     has_device = any(r.device is not None for r in runs)
-    has_valve = any(r.device is not None and r.device.log is not None
-                    and "pump_pa" in r.device.log.FIELDS for r in runs)
+    has_valve = any(path.startswith("valve/") for sr in series.values() for path, *_ in sr)
     stream = rr.RecordingStream("afo_mj", recording_id=uuid.uuid4().hex)
     try:
         stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve))
@@ -559,7 +708,7 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
             for key, (values, unit, label) in run.extra_signals.items():
                 w.scalars(f"signals/{key}/{run.name}", t_sig, np.asarray(values)[::s_step],
                           unit, f"{label} ({run.name})", _run_colour(i))
-            _log_device_signals(w, run, i, s_step)
+            _log_device_signals(w, run, i, s_step, series[run.name])
             _log_events(w, run)
         last = runs[-1]
         _log_normative(w, last, reference,

@@ -1,0 +1,148 @@
+"""Recordings of every device: each preset (HAFO and valve families) and each library
+circuit walks a short assisted walk and is recorded; the file is read back with rerun's own
+reader and must hold every device signal the device's log holds, with the log's values
+(issue 38 item 2: valve circuits without an unloading valve crashed with ``KeyError:
+'unloading_valve_position'``; described circuits had no ``params``).
+
+The expected entities are derived here from the log's columns and the circuit's states, not
+from the recording code: a column the log lacks must not be asked for, a column it has must
+be in the file."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rr = pytest.importorskip("rerun")
+
+from afo_mj.circuits.library import LIBRARY  # noqa: E402
+from afo_mj.devices.hafo import PRESETS  # noqa: E402
+from afo_mj.devices.valve_afo import VALVE_PRESETS  # noqa: E402
+from afo_mj.outputs.recording import read_recording_index  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCN = ROOT / "scenarios"
+SHORT = ["gait.strides=2", "gait.analyse_strides=[1, 2]", 'device.conditions=["assist"]']
+SIGNAL_RATE_HZ = 500.0                  # the recording's default scalar rate
+#: the walking scenario each library circuit is worn in (its controller set for walking)
+LIBRARY_SCENARIO = {"lab_bench": "gait_lab_bench.toml",
+                    "pump_accumulator": "gait_pump_accumulator.toml",
+                    "pump_accumulator_gait": "gait_pump_accumulator.toml",
+                    "spring_return": "gait_spring_return.toml",
+                    "spring_return_gait": "gait_spring_return.toml"}
+#: documented display names of two valve-circuit pressure nodes
+NODE_NAMES = {"pump_out": "pump", "rail": "supply"}
+
+CASES = ([pytest.param("gait_assist_hafo.toml", [f"device.preset={p}"], id=f"preset-{p}")
+          for p in PRESETS]
+         + [pytest.param("gait_assist_valve.toml", [f"device.preset={p}", "device.variants={}"],
+                         id=f"preset-{p}") for p in VALVE_PRESETS]
+         + [pytest.param(LIBRARY_SCENARIO.get(lib, "?"), [f'circuit.library="{lib}"'],
+                         id=f"circuit-{lib}") for lib in LIBRARY])
+
+
+def _scalars(path: Path, entity: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time_s, values) of one Scalars entity, read with rerun's reader."""
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    ts, vs = [], []
+    for ch in store.stream():
+        if ch.entity_path.lstrip("/") != entity or ch.is_static:
+            continue
+        rb = ch.to_record_batch()
+        t = rb.column("time").to_numpy()
+        ts.append(t.astype("timedelta64[ns]").astype(np.int64) / 1e9 if t.dtype.kind == "m"
+                  else np.asarray(t, dtype=float))
+        vs.append(np.array([x[0] for x in rb.column("Scalars:scalars").to_pylist()]))
+    order = np.argsort(np.concatenate(ts))
+    return np.concatenate(ts)[order], np.concatenate(vs)[order]
+
+
+def _column(dev, L, generic: str):
+    """The log column of a generic circuit name (a preset renames some), or None."""
+    name = getattr(dev, "log_names", {}).get(generic, generic)
+    return name if name in L else None
+
+
+def test_every_library_circuit_has_a_walking_scenario():
+    assert set(LIBRARY) == set(LIBRARY_SCENARIO)
+
+
+@pytest.mark.parametrize("scenario, overrides", CASES)
+def test_every_device_is_recorded_with_what_its_log_holds(tmp_path, scenario, overrides):
+    from afo_mj.app.run import record_run, run_scenario
+    res = run_scenario(SCN / scenario, overrides=SHORT + overrides, figures=False)
+    rec, _analysis, dev = res.results["assist"]
+    rrd = tmp_path / "dev.rrd"
+    info = record_run(res, rrd)
+    assert info["path"] == str(rrd) and rrd.stat().st_size > 10_000
+    assert [p.name for p in tmp_path.iterdir()] == ["dev.rrd"]       # no temporary left
+    idx = read_recording_index(rrd)
+    L = dev.log.arrays()
+    cc = dev.cc
+    circuit = cc.circuit
+    step = max(1, int(round(1.0 / (SIGNAL_RATE_HZ * rec.sample_period_s))))
+    n = math.ceil(dev.log.n / step)
+
+    def entity(path):
+        return f"signals/{path}/right/assist"
+
+    # what the log holds, independently of the recording code
+    expected = {"ankle_torque_nm/device_commanded": ("commanded_torque_nm", "N*m"),
+                "ankle_torque_nm/device_delivered": ("delivered_torque_nm", "N*m"),
+                "fluid_temperature_c": ("oil_temperature_k", "degC"),
+                "device_power_w/electrical": (None, "W"),
+                "device_power_w/ankle": ("mechanical_power_w", "W"),
+                "running_efficiency": (None, "1"),
+                "piston_position_mm": (None, "mm"),
+                "flow_l_min/cylinder": (None, "L/min")}
+    for label, kind in zip(cc.state_names, cc.state_kinds):
+        if kind == "pressure":
+            expected[f"pressure_bar/{NODE_NAMES.get(label, label)}"] = (
+                _column(dev, L, label), "bar (gauge)")
+    motor = [c.name for c in circuit.components if c.kind == "motor"]
+    pumps = [c.name for c in circuit.components if c.kind in ("pump", "variable_pump")]
+    assert motor and pumps
+    expected["motor_current_a"] = (_column(dev, L, f"{motor[0]}.current_a"), "A")
+    expected["motor_speed_rpm"] = (None, "rpm")
+    expected["motor_voltage_v"] = (_column(dev, L, "actuated_input"), "V")
+    expected["flow_l_min/pump"] = (None, "L/min")
+    expected["device_power_w/hydraulic"] = (None, "W")
+    valve = {"valve/position": ("valve_position", "servo.spool", "release.position"),
+             "valve/command": ("valve_command", "controller.valve_command"),
+             "valve/unloading": ("unloading_valve_position", "unloading.position",
+                                 "switching.position")}
+    for path, names in valve.items():
+        col = next((c for c in (_column(dev, L, g) for g in names) if c is not None), None)
+        if col is not None:
+            expected[path] = (col, "1")
+        else:                       # a valve the circuit lacks is not in the recording
+            assert entity(path) not in idx, path
+    for path, (col, unit) in expected.items():
+        assert entity(path) in idx, f"{path} missing from the recording"
+        e = idx[entity(path)]
+        assert (e["rows"], e["unit"]) == (n, unit), path
+    # the values are the log's own, at the recorded times
+    t_log = L["time_s"][:, 0]
+    for path, (col, unit) in expected.items():
+        if col is None:
+            continue
+        t, v = _scalars(rrd, entity(path))
+        ref = L[col][:, 0]
+        if unit == "bar (gauge)":
+            ref = ref / 1e5
+        elif unit == "degC":
+            ref = ref - 273.15
+        np.testing.assert_allclose(t, t_log[::step], atol=1e-9, err_msg=path)
+        np.testing.assert_allclose(v, ref[::step], rtol=1e-9, atol=1e-9, err_msg=path)
+    # the worn orthosis in 3D: one oil column per cylinder chamber on the joint
+    (cyl,) = [r.split(".")[0] for r in circuit.nodes[circuit.joint]]
+    chambers = [p for p in ("a", "b") if (cyl, p) in circuit.port_node]
+    for c in ("a", "b"):
+        oil = f"world/assist/body/shank_r/afo/oil_{c}"
+        if c in chambers:
+            assert idx[oil]["rows"] > 5 and "Cylinders3D:colors" in idx[oil]["components"]
+        else:
+            assert oil not in idx
