@@ -97,6 +97,34 @@ def test_weakness_and_scenario_tables_agree_where_they_overlap(rt, monkeypatch):
     assert "walk:scenarios/walk_healthy.toml" in calls
 
 
+def test_ideal_assist_table_orders_peaks_and_labels_conditions(rt):
+    res = {"assist": {"walk_healthy": {40.0: _walk(ankle_push_off_positive_work_j_per_kg=0.1381),
+                                       0.0: _walk()},
+                      "walk_weak_plantarflexors": {0.0: _walk(speed_m_s=0.8234),
+                                                   20.0: _walk(fell=True, fall_time_s=5.5,
+                                                               completed_strides=4)}},
+           "worn": {"0.97 kg at the right ankle": _walk(knee_angle_rms_error_deg=4.81)}}
+    rows = _rows(rt.format_ideal_assist(res))
+    assert [r[0] for r in rows] == ["healthy, no device", "healthy, ideal assist 40 N·m",
+                                    "weak (50 %), no device", "weak (50 %), ideal assist 20 N·m",
+                                    "healthy, carrying 0.97 kg at the right ankle"]
+    assert rows[1][1:] == ["0.138", "9.8", "1.06", "2.3 / 2.8 / 2.7"]
+    assert rows[2][3] == "0.82"
+    assert rows[3][1] == "falls in stride 5 (t = 5.50 s)"
+    assert rows[4][4] == "2.3 / 4.8 / 2.7"
+
+
+def test_push_off_assist_is_a_half_sine_over_35_to_62_percent_of_stance(rt):
+    import numpy as np
+    dev = rt.PushOffAssist(40.0)
+    stance = np.array([True, False])
+    peak = dev.torque_nm(0.0, 0, 0, np.array([0.485, 0.485]), stance)
+    assert peak[0] == pytest.approx(-40.0) and peak[1] == 0.0       # swing leg: nothing
+    assert dev.torque_nm(0.0, 0, 0, np.array([0.35 + 0.27 / 6, 0.5]), stance)[0] \
+        == pytest.approx(-20.0)                                      # sin(pi/6) = 1/2
+    assert dev.torque_nm(0.0, 0, 0, np.array([0.30, 0.5]), stance)[0] == 0.0
+
+
 def test_schwartz_table(rt):
     res = {"`walk_schwartz_free` vs Free": {"knee_angle_rad": 0.744, "ankle_angle_rad": 0.79,
                                             "thigh_angle_rad": 0.94, "hip_angle_rad": 0.08},
@@ -297,7 +325,9 @@ def _fake_results(rt, speed=1.0612):
            "comparison": {"rows": [_cmp_row("gait_assist_hafo", 0.4712, 1)]},
            "design_hafo": _design_summary(),
            "design_guidelines": _design_summary(),
-           "design_architectures": {"light": {}, "hafo": {}, "simulated": {"rows": []}}}
+           "design_architectures": {"light": {}, "hafo": {}, "simulated": {"rows": []}},
+           "ideal_assist": {"assist": {"walk_healthy": {0.0: _walk(), 20.0: _walk()}},
+                            "worn": {"x": _walk()}}}
     assert set(res) == set(rt.BLOCKS)
     return res
 

@@ -1,6 +1,7 @@
 """Regenerate the measured tables of the documentation from the runs that produce them.
 
-Each measured table (or measured sentence) of README.md and docs/*.md sits between
+Each measured table (or measured sentence) of the documents (docs/results.md,
+docs/design_tool.md; README.md links to them) sits between
 
     <!-- generated:NAME begin -->
     ...
@@ -62,7 +63,7 @@ TOOL = "tools/readme_tables.py"
 
 def num(x: Any, fmt: str = ".2f", scale: float = 1.0) -> str:
     """``x × scale`` formatted, or "–" for None/NaN; a mean-SD entry (``{"mean": …}``) gives
-    its mean. A negative number gets a real minus sign (−), as the README writes them."""
+    its mean. A negative number gets a real minus sign (−), as the documents write them."""
     if isinstance(x, Mapping):
         x = x.get("mean")
     if x is None:
@@ -194,6 +195,42 @@ def format_plantarflexor_weakness(results: Mapping[float, Mapping]) -> str:
     return table(header, rows)
 
 
+IDEAL_ASSIST_PEAKS_NM = {"walk_healthy": (20.0, 40.0, 60.0),
+                         "walk_weak_plantarflexors": (20.0, 40.0)}
+WORN_MASSES = {"0.97 kg at the right ankle": (("shank_cuff_r", 0.50), ("foot_plate_r", 0.47)),
+               "HAFO-like 3.3 kg (2.33 kg at the waist)": (("waist", 2.33),
+                                                           ("shank_cuff_r", 0.50),
+                                                           ("foot_plate_r", 0.47))}
+
+
+def format_ideal_assist(results: Mapping) -> str:
+    """An ideal push-off assist and carried device mass: ``results["assist"][scenario]
+    [peak_nm]`` (0 = the unassisted run) and ``results["worn"][label]`` = :func:`walk_result`
+    of ``walk_healthy`` / ``walk_weak_plantarflexors``."""
+    header = ["walker, condition", "human push-off work [J/kg]",
+              "push-off peak plantarflexion [deg]", "speed [m/s]",
+              "angle RMS vs Winter hip / knee / ankle [deg]"]
+    names = {"walk_healthy": "healthy", "walk_weak_plantarflexors": "weak (50 %)"}
+
+    def row(label, r):
+        if r is None:
+            return [label] + [MISSING] * 4
+        if r.get("fell"):
+            return [label, fall_text(r), "", "", ""]
+        return [label, num(r.get("ankle_push_off_positive_work_j_per_kg"), ".3f"),
+                num(r.get("push_off_peak_plantarflexion_deg"), ".1f"), num(r.get("speed_m_s")),
+                " / ".join(num(r.get(f"{j}_angle_rms_error_deg"), ".1f")
+                           for j in ("hip", "knee", "ankle"))]
+    rows = []
+    for name, by_peak in (results.get("assist") or {}).items():
+        for peak in sorted(by_peak, key=float):
+            cond = "no device" if float(peak) == 0 else f"ideal assist {float(peak):g} N·m"
+            rows.append(row(f"{names.get(name, name)}, {cond}", by_peak[peak]))
+    for label, r in (results.get("worn") or {}).items():
+        rows.append(row(f"healthy, carrying {label}", r))
+    return table(header, rows)
+
+
 BAND_CHANNELS = (("knee_angle_rad", "knee"), ("ankle_angle_rad", "ankle"),
                  ("thigh_angle_rad", "thigh from vertical"), ("hip_angle_rad", "hip"))
 
@@ -268,7 +305,7 @@ def format_stiffness_bench(results: Mapping) -> str:
     return table(header, rows)
 
 
-# loss names of the ledger → the words the README uses; the rest are summed as "other"
+# loss names of the ledger → the words the tables use; the rest are summed as "other"
 POWER_COLUMNS = (("motor_copper", "motor copper"), ("pump_volumetric", "pump leakage"),
                  ("servo_valve_throttling", "servo valve"), ("driver", "driver"),
                  ("pump_mechanical", "pump mech."))
@@ -390,7 +427,7 @@ def format_hafo_gait(results: Mapping[str, Mapping]) -> str:
     return out
 
 
-# comparison row labels (scenario name, or "name:variant") → the words the README uses
+# comparison row labels (scenario name, or "name:variant") → the words the table uses
 COMPARISON_LABELS = {
     "gait_assist_hafo": "HAFO (`hafo_gait`, pump-controlled)",
     "gait_assist_valve:pressure_control": "valve, pressure control",
@@ -721,18 +758,42 @@ def _gait_result(summary: Mapping | None, events) -> dict:
     return out
 
 
-def walk_result(scenario_path: str, overrides: tuple[str, ...] = ()) -> dict:
+class PushOffAssist:
+    """An ideal orthosis (an ``AnkleDevice`` as in README's *From Python*; the one of
+    ``tests/test_walk.py``): a half-sine plantarflexion torque over 35–62 % of each stance
+    leg's phase, peak ``peak_nm``."""
+
+    def __init__(self, peak_nm: float):
+        self.peak_nm = peak_nm
+
+    def torque_nm(self, t_s, angle_rad, velocity_rad_s, phase, stance):
+        import numpy as np
+        out = np.zeros(2)
+        for s in (0, 1):
+            if stance[s] and 0.35 < phase[s] < 0.62:
+                out[s] = -self.peak_nm * np.sin(np.pi * (phase[s] - 0.35) / 0.27)
+        return out
+
+
+def walk_result(scenario_path: str, overrides: tuple[str, ...] = (), *,
+                assist_peak_nm: float | None = None,
+                worn: tuple[tuple[str, float], ...] = ()) -> dict:
     """One walk as ``afo-mj run`` does it (``load_scenario`` → ``simulate_walk`` →
     ``analyse_gait``, band fractions as the CLI adds them): the means of the table's
-    metrics, the fall, body size and strength fractions."""
+    metrics, the fall, body size and strength fractions. ``assist_peak_nm``: wear the ideal
+    :class:`PushOffAssist`; ``worn``: carry ``(site, kg)`` masses (``simulate_walk``'s
+    ``device`` and ``worn_masses``, as in README's *From Python*)."""
     def run():
         from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait, band_fraction
         from afo_mj.gait.reference import load_normative
         from afo_mj.gait.walk import simulate_walk
         from afo_mj.scenarios.walk_scenario import load_scenario
+        from afo_mj.human.walker import WornMass
         sc = load_scenario(ROOT / scenario_path, overrides=list(overrides))
         reference = sc.load_reference()
-        record = simulate_walk(sc)
+        record = simulate_walk(
+            sc, device=None if assist_peak_nm is None else PushOffAssist(assist_peak_nm),
+            worn_masses=[WornMass(site, kg, f"part{i}") for i, (site, kg) in enumerate(worn)])
         try:
             analysis = analyse_gait(record, reference, sc.analyse_strides)
         except GaitAnalysisError:
@@ -750,7 +811,12 @@ def walk_result(scenario_path: str, overrides: tuple[str, ...] = ()) -> dict:
                     analysis.cycles, load_normative(src, cond)).items()}
                 for src, cond in sc.band_references}
         return out
-    return _memo("walk:" + scenario_path + "".join(" --set " + o for o in overrides), run)
+    key = "walk:" + scenario_path + "".join(" --set " + o for o in overrides)
+    if assist_peak_nm is not None:
+        key += f" assist={assist_peak_nm:g}"
+    if worn:
+        key += " worn=" + ",".join(f"{site}:{kg:g}" for site, kg in worn)
+    return _memo(key, run)
 
 
 def bench_result(scenario_path: str) -> dict:
@@ -899,6 +965,17 @@ def collect_plantarflexor_weakness() -> dict:
     return out
 
 
+def collect_ideal_assist() -> dict:
+    assist = {}
+    for name, peaks in IDEAL_ASSIST_PEAKS_NM.items():
+        path = f"scenarios/{name}.toml"
+        assist[name] = {0.0: walk_result(path)}
+        assist[name].update({p: walk_result(path, assist_peak_nm=p) for p in peaks})
+    worn = {label: walk_result("scenarios/walk_healthy.toml", worn=w)
+            for label, w in WORN_MASSES.items()}
+    return {"assist": assist, "worn": worn}
+
+
 def collect_schwartz_bands() -> dict:
     out = {}
     for name, cond in (("walk_schwartz_free", "Free"), ("walk_schwartz_fast", "Fast")):
@@ -941,7 +1018,7 @@ class Block:
     collect: Callable[[], Any]      # runs the scenarios → JSON-ready results
     format: Callable[[Any], str]    # pure
     runs: str                       # what it runs, for the stamp line and --list
-    file: str = "README.md"         # the file holding its markers, relative to the root
+    file: str = "docs/results.md"   # the file holding its markers, relative to the root
 
 
 BLOCKS: dict[str, Block] = {b.name: b for b in (
@@ -953,6 +1030,11 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
           "scenarios/walk_weak_plantarflexors.toml with impairment.plantarflexor_strength_"
           "fraction = 0.7 / 0.6 / 0.45 / 0.4 / 0.35; 100 % and 50 % are the scenario table's "
           "walk_healthy and walk_weak_plantarflexors runs"),
+    Block("ideal_assist", collect_ideal_assist, format_ideal_assist,
+          "scenarios/walk_healthy.toml and walk_weak_plantarflexors.toml with an ideal "
+          "half-sine push-off torque over 35–62 % of stance (simulate_walk's device) or "
+          "carried masses (worn_masses); the no-device rows are "
+          "the scenario table's runs"),
     Block("schwartz_bands", collect_schwartz_bands, format_schwartz_bands,
           "scenarios/walk_schwartz_free.toml, walk_schwartz_fast.toml"),
     Block("hafo_bench", collect_hafo_bench, format_hafo_bench,
