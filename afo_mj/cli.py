@@ -95,9 +95,7 @@ def _compare(args) -> int:
 def _view(args) -> int:
     """The rerun viewer on the file (``--web``: rerun's web viewer over HTTP); without a
     display and without ``--web``: exit 2 with the ways to see the file."""
-    import subprocess
-
-    from afo_mj.app.viewer import headless_problem, viewer_command
+    from afo_mj.app.viewer import headless_problem, run_viewer, viewer_command
     cmd = viewer_command(args.rrd, web=args.web)
     if args.print_command:
         print(" ".join(cmd))
@@ -109,7 +107,7 @@ def _view(args) -> int:
     if not Path(cmd[0]).exists():
         _err("view", "the rerun viewer executable is missing (pip install rerun-sdk)")
         return 1
-    return subprocess.call(cmd)
+    return run_viewer(cmd)        # the viewer (and rerun's server) dies with afo-mj
 
 
 def _render(args) -> int:

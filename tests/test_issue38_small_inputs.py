@@ -313,3 +313,65 @@ def test_an_unreachable_dask_scheduler_is_refused_with_nothing_written(tmp_path,
     assert "tcp://127.0.0.1:1" in msg and "cannot reach the Dask scheduler" in msg
     assert "allowed:" in msg and std.getvalue() == ""
     assert not out.exists()
+
+
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (absent, or a zombie waiting to be reaped)."""
+    from pathlib import Path
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return True
+    return any(ln.split()[1:2] == ["Z"] for ln in status.splitlines()
+               if ln.startswith("State:"))
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="/proc, signals")
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_view_web_server_dies_with_afo_mj(tmp_path, signame):
+    """`afo-mj view --web` runs `rerun --serve-web`, a wrapper whose own child serves: a
+    signal to afo-mj must end that server too (it used to keep serving at 100 % CPU). A
+    fake `rerun` on PATH stands in for the wrapper and its server (a `sleep`)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    pidfile = tmp_path / "server.pid"
+    fake = bindir / "rerun"
+    fake.write_text(f"#!/bin/sh\nsleep 300 &\necho $! > {pidfile}.tmp\n"
+                    f"mv {pidfile}.tmp {pidfile}\nwait\n")
+    fake.chmod(0o755)
+    rrd = tmp_path / "walk.rrd"
+    rrd.write_bytes(b"")
+    env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}"}
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from afo_mj.cli import main; "
+                             "sys.exit(main())", "view", str(rrd), "--web"], env=env,
+                            cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    server = None
+    try:
+        for _ in range(600):                         # until the fake server has started
+            if pidfile.exists():
+                break
+            assert proc.poll() is None, proc.stderr.read().decode()
+            time.sleep(0.05)
+        server = int(pidfile.read_text())
+        assert not _gone(server)
+        proc.send_signal(getattr(signal, signame))
+        rc = proc.wait(timeout=60)
+        for _ in range(200):                         # the group was signalled; let it end
+            if _gone(server):
+                break
+            time.sleep(0.05)
+        assert _gone(server), "rerun's server outlived afo-mj view"
+        assert rc == 128 + getattr(signal, signame)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        if server is not None and not _gone(server):
+            os.kill(server, signal.SIGKILL)
