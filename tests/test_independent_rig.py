@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import ast
 import math
-import time
 import warnings
 from pathlib import Path
 
@@ -196,11 +195,9 @@ def test_imports_only_the_writer_from_afo_mj():
 @pytest.mark.slow
 def test_default_length_record(tmp_path):
     """A default-length (20 s) record with four effects on writes and loads cleanly."""
-    t0 = time.time()
     path = tmp_path / "rig20.csv"
     R.write_record(path, 20.0, {"stribeck": True, "piston_leakage": True,
                                 "check_cracking": True, "sensor_delay": True}, seed=1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", MeasuredDataWarning)
         load_measured(path)
-    assert time.time() - t0 < 600
