@@ -33,6 +33,9 @@ from .params import Parameters, ParameterError, effect, param
 
 ATMOSPHERIC_PRESSURE_PA = 101_325.0
 WALTHER_A_CST = 0.7
+#: Walther's ``log10(log10(nu + a))`` (nu in cSt) is defined for ``nu + a > 1``: a datasheet
+#: viscosity must exceed ``1 - a`` = 0.3 cSt (thinner than any hydraulic oil)
+WALTHER_MIN_M2_S = (1.0 - WALTHER_A_CST) * 1e-6
 CELSIUS_ZERO_K = 273.15
 
 
@@ -86,11 +89,15 @@ class FluidParams(Parameters):
                                            doc="temperature at which density_kg_m3 holds")
     thermal_expansion_per_k: float = param(7.0e-4, unit="1/K", lo=0.0, hi=2e-3,
                                            doc="volumetric thermal expansion coefficient")
-    viscosity_low_m2_s: float = param(46.0e-6, unit="m^2/s", lo=0.0, hi=1e-2, lo_open=True,
-                                      doc="kinematic viscosity at viscosity_low_temperature_k")
+    viscosity_low_m2_s: float = param(46.0e-6, unit="m^2/s", lo=WALTHER_MIN_M2_S, hi=1e-2,
+                                      lo_open=True,
+                                      doc="kinematic viscosity at viscosity_low_temperature_k "
+                                          "(Walther's law holds above 0.3 cSt)")
     viscosity_low_temperature_k: float = param(313.15, unit="K", lo=200.0, hi=450.0)
-    viscosity_high_m2_s: float = param(6.7e-6, unit="m^2/s", lo=0.0, hi=1e-2, lo_open=True,
-                                       doc="kinematic viscosity at viscosity_high_temperature_k")
+    viscosity_high_m2_s: float = param(6.7e-6, unit="m^2/s", lo=WALTHER_MIN_M2_S, hi=1e-2,
+                                       lo_open=True,
+                                       doc="kinematic viscosity at viscosity_high_temperature_k "
+                                           "(Walther's law holds above 0.3 cSt)")
     viscosity_high_temperature_k: float = param(373.15, unit="K", lo=200.0, hi=450.0)
     liquid_bulk_modulus_pa: float = param(1.5e9, unit="Pa", lo=1e8, hi=5e9,
                                           doc="bulk modulus of the air-free liquid (B_L)")

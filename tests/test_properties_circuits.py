@@ -1,0 +1,363 @@
+"""Property-based tests (hypothesis) of circuit descriptions drawn within their documented
+ranges: every parameter of every component, the controller, the oil, the heat path and the
+circuit options of the shipped descriptions (:data:`afo_mj.circuits.library.LIBRARY`), drawn
+from the ranges the parameter dataclasses declare (:func:`afo_mj.hydraulics.params.param`'s
+``lo``/``hi``/``lo_open``/``hi_open``, read here from the fields' metadata, so the tests follow
+the documented ranges rather than numbers copied into them).
+
+What must hold for every draw:
+
+* the description builds (description and generated code), or it is refused with one
+  :class:`~afo_mj.circuits.components.CircuitError` /
+  :class:`~afo_mj.hydraulics.params.ParameterError` that names a drawn parameter and says
+  what is allowed; never another exception;
+* a built circuit driving a simulated joint load (:meth:`CircuitDevice.run_imposed` with a
+  :class:`JointLoad`, 0.25 s) stays finite, and its energy ledger closes: input = mechanical
+  output + losses + stored change, checked from the ledger's own terms (the sum, not the
+  ledger's ``balance_error_rel``, is recomputed here).
+
+The ledger does not close in three cases found by these draws; each is a bug, pinned by a
+strict xfail test below with its smallest input (the property test does not assert closure on
+a run that shows it, and counts them as hypothesis events):
+
+* the battery asked for more than its matched-load power ``V_oc²/(4R)``;
+* a pressure clipped at the vapour floor (``pressure_floor_steps``);
+* Newton iterations left unconverged (``newton_unconverged_steps``).
+
+End-stop contact reporting is another change's (issue 38 item 3) and is not asserted here.
+
+Every structure compiles once (numba, then cached on disk); parameter changes only change the
+packed parameter row, so the draws do not recompile (checked below).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
+
+from afo_mj.circuits.catalogue import COMPONENT_KINDS, CONTROLLER_KINDS
+from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
+from afo_mj.circuits.codegen import build
+from afo_mj.circuits.components import CircuitError
+from afo_mj.circuits.device import CircuitDevice, JointLoad
+from afo_mj.hydraulics.battery import Battery
+from afo_mj.hydraulics.fluid import ISO_VG32
+from afo_mj.hydraulics.params import ParameterError, Parameters, replace_named
+from afo_mj.scenarios.circuit_scenario import library_spec
+
+#: one description per compiled structure (the ``*_gait`` variants share these structures)
+STRUCTURES = ("lab_bench", "pump_accumulator", "spring_return")
+LEDGER_TOL = 1e-7             # relative to the energy throughput (closing runs: ~1e-10)
+N_STEPS = 250                 # 0.25 s at 1 ms
+SETTINGS = dict(deadline=None, derandomize=True, print_blob=True,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+# ------------------------------------------------------------------------------ drawing
+
+
+def numeric_fields(obj: Parameters, prefix: str = "") -> list[tuple[str, dict, float]]:
+    """``(dotted name, range metadata, value)`` of every numeric parameter of ``obj``,
+    nested sets included, from the ``param(...)`` metadata of its dataclass fields."""
+    out = []
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if isinstance(value, Parameters):
+            out += numeric_fields(value, f"{prefix}{f.name}.")
+        elif f.metadata.get("kind") == "number":
+            out.append((f"{prefix}{f.name}", dict(f.metadata), float(value)))
+    return out
+
+
+def effect_fields(obj: Parameters, prefix: str = "") -> list[str]:
+    """Dotted names of every effect switch (``effect(...)``) of ``obj``."""
+    out = []
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if isinstance(value, Parameters):
+            out += effect_fields(value, f"{prefix}{f.name}.")
+        elif f.metadata.get("kind") == "effect":
+            out.append(f"{prefix}{f.name}")
+    return out
+
+
+def in_range(md: dict, default: float) -> st.SearchStrategy[float]:
+    """A value allowed by ``md`` (``lo``, ``hi``, open ends): anywhere in the range (uniform,
+    and log-uniform where it spans decades), at its closed ends, or within a factor 4 of
+    ``default`` (the shipped design's neighbourhood, where most use is). An open end is
+    approached to within 1e-9 of the range's width, not to the last float: a bore of 5e-324 m
+    is allowed by ``lo = 0, lo_open`` but is no design (what it does is pinned by
+    :func:`test_a_subnormal_seal_cross_section_is_refused_by_name`)."""
+    lo, hi = md["lo"], md["hi"]
+    lo_eff = lo + (hi - lo) * 1e-9 if md["lo_open"] else lo
+    hi_eff = hi - (hi - lo) * 1e-9 if md["hi_open"] else hi
+
+    def clip(x: float) -> float:
+        return min(max(x, lo_eff), hi_eff)
+
+    parts = [st.floats(lo_eff, hi_eff), st.sampled_from([lo_eff, hi_eff])]
+    if lo_eff > 0 and hi_eff / lo_eff > 100.0:
+        parts.append(st.floats(math.log(lo_eff), math.log(hi_eff))
+                     .map(lambda u: clip(math.exp(u))))
+    elif lo_eff == 0 and hi_eff > 0:
+        parts.append(st.floats(math.log(hi_eff * 1e-9), math.log(hi_eff))
+                     .map(lambda u: clip(math.exp(u))))
+    if default > 0:
+        parts.append(st.floats(-math.log(4.0), math.log(4.0))
+                     .map(lambda u: clip(default * math.exp(u))))
+    return st.one_of(parts)
+
+
+def _component_params(kind: str, overrides: dict) -> Parameters:
+    base = COMPONENT_KINDS[kind].params_type()
+    return replace_named(base, overrides) if overrides else base
+
+
+def parameter_table(name: str) -> list[tuple[tuple, str, dict | None, float | None]]:
+    """Everything a description of structure ``name`` may set: ``(where, dotted name,
+    metadata, shipped value)``, ``where`` is ``("components", c)``, ``("controller",)``,
+    ``("fluid",)``, ``("thermal",)`` or ``("options",)``; effect switches have metadata None."""
+    spec = library_spec(name)
+    rows = []
+    for cname, c in spec["components"].items():
+        p = _component_params(c["kind"], c.get("params", {}))
+        rows += [(("components", cname), n, md, v) for n, md, v in numeric_fields(p)]
+        rows += [(("components", cname), n, None, None) for n in effect_fields(p)]
+    ctrl = dict(spec.get("controller", {"kind": "open_loop"}))
+    cp = CONTROLLER_KINDS[ctrl.get("kind", "open_loop")].params_type()
+    cp = replace_named(cp, ctrl.get("params", {})) if ctrl.get("params") else cp
+    rows += [(("controller",), n, md, v) for n, md, v in numeric_fields(cp)]
+    fluid = ISO_VG32.replace(air_fraction=0.001)
+    rows += [(("fluid",), n, md, v) for n, md, v in numeric_fields(fluid)]
+    rows += [(("fluid",), n, None, None) for n in effect_fields(fluid)]
+    rows += [(("thermal",), n, md, v) for n, md, v in numeric_fields(ThermalParams())]
+    opts = replace_named(CircuitOptions(), spec.get("options", {})) \
+        if spec.get("options") else CircuitOptions()
+    rows += [(("options",), n, md, v) for n, md, v in numeric_fields(opts)]
+    return rows
+
+
+TABLES = {name: parameter_table(name) for name in STRUCTURES}
+
+
+@st.composite
+def drawn_description(draw, max_changes: int = 6):
+    """``(structure, description, changes)``: a shipped description with 1 … ``max_changes``
+    of its parameters (or effect switches) drawn within their documented ranges."""
+    name = draw(st.sampled_from(STRUCTURES))
+    table = TABLES[name]
+    picks = draw(st.lists(st.integers(0, len(table) - 1), min_size=1, max_size=max_changes,
+                          unique=True))
+    spec = copy.deepcopy(library_spec(name))
+    changes = {}
+    for i in picks:
+        where, key, md, default = table[i]
+        value = draw(st.booleans() if md is None else in_range(md, default))
+        if where[0] == "components":
+            spec["components"][where[1]].setdefault("params", {})[key] = value
+            changes[f"{where[1]}.{key}"] = value
+        elif where[0] == "controller":
+            spec.setdefault("controller", {"kind": "open_loop"}).setdefault(
+                "params", {})[key] = value
+            changes[f"controller.{key}"] = value
+        else:
+            section = spec.get(where[0])
+            if not isinstance(section, dict):
+                spec[where[0]] = section = {}
+            section[key] = value
+            changes[f"{where[0]}.{key}"] = value
+    return name, spec, changes
+
+
+def build_or_refusal(spec: dict, changes: dict):
+    """The compiled circuit, or None when it is refused with an error that names a drawn
+    parameter and what is allowed (anything else fails the test)."""
+    try:
+        return build(Circuit.from_dict(spec))
+    except (CircuitError, ParameterError) as exc:
+        msg = str(exc)
+        leaves = {k.rsplit(".", 1)[-1] for k in changes}
+        assert any(leaf in msg for leaf in leaves), (
+            f"the refusal does not name a drawn parameter {sorted(changes)}: {msg}")
+        assert "allowed" in msg or "must" in msg, f"the refusal says nothing allowed: {msg}"
+        assert "\n" not in msg.strip() and "Traceback" not in msg, msg
+        return None
+
+
+def drive(cc, amplitude: float) -> tuple[CircuitDevice, dict]:
+    """The circuit on a simulated joint load (0.02 kg m² on 80 N·m/rad and 0.5 N·m·s/rad),
+    commanded by one 4 Hz cycle: a motor voltage (V) for ``open_loop``, a plantarflexion
+    torque (N·m) for a torque controller."""
+    dev = CircuitDevice(cc)
+    t = np.arange(N_STEPS) * 1e-3
+    if cc.circuit.controller.kind == "open_loop":
+        cmd = amplitude * 0.5 * np.sin(2 * np.pi * 4.0 * t)
+    else:
+        cmd = -amplitude * np.sin(np.pi * 4.0 * t) ** 2
+    zero = np.zeros(N_STEPS)
+    log = dev.run_imposed(cmd, zero, zero, load=JointLoad(0.02, 80.0, 0.5))
+    return dev, log
+
+
+def battery_capped(dev: CircuitDevice, log: dict) -> bool:
+    """Did the pack reach its matched-load current ``V_oc/(2R)`` (where
+    :func:`~afo_mj.hydraulics.laws.battery_current_a` caps the power)? ``V_oc`` from the
+    battery model at the run's state of charge."""
+    comps = [c for c in dev.cc.circuit.components if c.kind == "battery"]
+    if not comps:
+        return False
+    p = comps[0].params
+    bat = Battery(p.battery)
+    v_oc = float(np.min(bat.open_circuit_voltage_v(np.array([p.initial_soc]))))
+    i_cap = v_oc / (2.0 * p.battery.internal_resistance_ohm)
+    return bool(np.max(log["battery_current_a"]) >= 0.98 * i_cap)
+
+
+def closing_error(led: dict) -> float:
+    """``(input − output − Σ losses − Σ stored) / throughput`` from the ledger's terms."""
+    resid = (led["input_j"] - led["mechanical_out_j"] - sum(led["losses_j"].values())
+             - sum(led["stored_change_j"].values()))
+    return resid / max(led["energy_throughput_j"], 1e-12)
+
+
+def _assert_finite(tree, where: str = "") -> None:
+    if isinstance(tree, dict):
+        for k, v in tree.items():
+            _assert_finite(v, f"{where}.{k}")
+    elif isinstance(tree, (float, int, np.ndarray)) and not isinstance(tree, bool):
+        assert np.all(np.isfinite(tree)), f"non-finite {where}"
+
+
+# ------------------------------------------------------------------------------ properties
+
+
+def test_the_drawn_ranges_are_the_documented_ones():
+    """The tables the draws use are read from the dataclasses: a range changed in
+    the code is a range changed here (spot checks against the declarations)."""
+    rows = {(w, n): md for w, n, md, _ in TABLES["pump_accumulator"] if md is not None}
+    hose = rows[(("components", "hose_a"), "bore_m")]
+    assert (hose["lo"], hose["hi"], hose["lo_open"]) == (0.0, 0.1, True)
+    bat = rows[(("components", "battery"), "battery.internal_resistance_ohm")]
+    assert (bat["lo"], bat["hi"], bat["lo_open"]) == (0.0, 100.0, True)
+    assert (("options",), "initial_pressure_pa") in rows
+    assert any(w == ("controller",) for w, _ in rows)
+    assert all(len(TABLES[n]) > 80 for n in STRUCTURES)
+
+
+def test_parameter_changes_do_not_recompile():
+    """A drawn parameter set reuses its structure's generated module (the draws below stay
+    within the compiled structures)."""
+    spec = copy.deepcopy(library_spec("spring_return"))
+    spec["components"]["hose"]["params"]["length_m"] = 7.5
+    spec["components"]["cylinder"].setdefault("params", {})["spring_rate_n_m"] = 1.0e5
+    a, b = build(Circuit.from_dict(library_spec("spring_return"))), build(Circuit.from_dict(spec))
+    assert a.source_path == b.source_path
+    assert not np.array_equal(a.P, b.P)
+
+
+@settings(max_examples=150, **SETTINGS)
+@given(drawn_description())
+def test_drawn_descriptions_build_or_are_refused_by_name(drawn):
+    _name, spec, changes = drawn
+    cc = build_or_refusal(spec, changes)
+    event("refused" if cc is None else "built")
+
+
+@settings(max_examples=45, **SETTINGS)
+@given(drawn_description(max_changes=4), st.floats(2.0, 40.0))
+def test_drawn_circuits_stay_finite_and_close_their_ledger(drawn, amplitude):
+    _name, spec, changes = drawn
+    cc = build_or_refusal(spec, changes)
+    if cc is None:
+        event("refused")
+        return
+    dev, log = drive(cc, amplitude)          # a non-finite state raises FloatingPointError
+    for key, values in log.items():
+        assert np.all(np.isfinite(values)), f"{key} not finite for {changes}"
+    led = dev.ledger()
+    _assert_finite(led)
+    known = [name for name, hit in (
+        ("battery at its matched-load power", battery_capped(dev, log)),
+        ("pressure floor", led["pressure_floor_steps"] > 0),
+        ("newton unconverged", led["newton_unconverged_steps"] > 0)) if hit]
+    if known:
+        event("ledger not checked: " + ", ".join(known))       # the xfail tests below
+        return
+    event("ledger checked")
+    err = closing_error(led)
+    assert abs(err) < LEDGER_TOL, (changes, err)
+    assert err == pytest.approx(led["balance_error_rel"], abs=1e-12)
+
+
+# ------------------------------------------------------------------------------ found bugs
+# Each test checks first that its input reaches the case it is about (a RuntimeError, which the
+# xfail does not accept, if not), then asserts the property: only the property may fail.
+
+
+def _ledger_of(name: str, changes: dict, amplitude: float = 15.0) -> tuple[dict, bool]:
+    spec = copy.deepcopy(library_spec(name))
+    for key, value in changes.items():
+        comp, param = key.split(".", 1)
+        spec["components"][comp].setdefault("params", {})[param] = value
+    dev, log = drive(build(Circuit.from_dict(spec)), amplitude)
+    return dev.ledger(), battery_capped(dev, log)
+
+
+def _reaches(condition: bool, what: str) -> None:
+    if not condition:
+        raise RuntimeError(f"the input no longer reaches the case: {what}")
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "bug: a battery asked for more than its matched-load power V_oc^2/(4R) is capped in "
+    "laws.battery_current_a while the bus still delivers the demanded power: the ledger "
+    "creates energy (spring_return, battery.internal_resistance_ohm = 45.9 ohm, allowed "
+    "(0, 100]: balance_error_rel -0.60)"))
+def test_ledger_closes_when_the_battery_reaches_its_matched_load_power():
+    led, capped = _ledger_of("spring_return", {"battery.battery.internal_resistance_ohm": 45.9})
+    _reaches(capped and led["pressure_floor_steps"] == 0
+             and led["newton_unconverged_steps"] == 0, "battery capped, nothing else")
+    assert abs(closing_error(led)) < LEDGER_TOL
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "bug: clip_floor (afo_mj/circuits/stepper.py close_substep) raises a pressure below the "
+    "vapour floor without booking the energy of the volume it creates: the ledger does not "
+    "close (spring_return, motor.torque_constant_nm_a = 8.6 N m/A, allowed (0, 10]: 52 "
+    "clipped steps, balance_error_rel +0.012; a 1.2 mm inlet bore, 203 steps, +0.022)"))
+def test_ledger_closes_when_a_pressure_reaches_the_vapour_floor():
+    led, capped = _ledger_of("spring_return", {"motor.motor.torque_constant_nm_a": 8.6})
+    _reaches(led["pressure_floor_steps"] > 0 and not capped
+             and led["newton_unconverged_steps"] == 0, "floor clipped, nothing else")
+    assert abs(closing_error(led)) < LEDGER_TOL
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "bug: steps whose Newton iteration does not converge are accepted silently: "
+    "spring_return with reservoir tank.pressure_pa = 3.53 MPa (allowed 0 ... 5 MPa) and "
+    "inlet.bore_m = 75.6 mm (allowed (0, 0.1] m) runs without an error, every sub-step "
+    "unconverged and ~4000 floor clips, 131 kJ booked as inlet line loss in 0.4 s and "
+    "balance_error_rel -228; the run takes ~15 s"))
+def test_ledger_closes_when_newton_does_not_converge():
+    led, _ = _ledger_of("spring_return", {"tank.pressure_pa": 3.53e6, "inlet.bore_m": 0.0756})
+    _reaches(led["newton_unconverged_steps"] > 0, "unconverged steps")
+    assert abs(closing_error(led)) < LEDGER_TOL
+
+
+@pytest.mark.xfail(strict=True, raises=ZeroDivisionError, reason=(
+    "bug: an open lower bound at 0 admits subnormal values: "
+    "cylinder.rod_seal.cross_section_m = 5e-324 (allowed > 0) passes the range check and "
+    "afo_mj/hydraulics/seal.py OringSeal divides by its underflowed contact half-width "
+    "(ZeroDivisionError, a traceback) instead of refusing it by name"))
+def test_a_subnormal_seal_cross_section_is_refused_by_name():
+    spec = copy.deepcopy(library_spec("lab_bench"))
+    spec["components"]["cylinder"]["params"]["cylinder.rod_seal.cross_section_m"] = 5e-324
+    with pytest.raises((CircuitError, ParameterError), match="cross_section_m"):
+        build(Circuit.from_dict(spec))
