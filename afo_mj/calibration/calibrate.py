@@ -59,7 +59,7 @@ from afo_mj.calibration.effect_library import (
     described_off, effects_for, lean_setting)
 from afo_mj.calibration.identifiability import select_parameters
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
-from afo_mj.calibration.record_checks import check_record, check_signs
+from afo_mj.calibration.record_checks import check_record, check_signs, declared_charge_pa
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
@@ -221,7 +221,10 @@ class Calibration:
                                    f"{', '.join(self.replay.outputs)})")
         self.skipped_outputs = skipped
         findings = check_record(data.channels, self.replay.params, data.noise,
-                                tuple(data.inputs))
+                                tuple(data.inputs),
+                                charge_pa=declared_charge_pa(getattr(self.replay.cc,
+                                                                     "circuit", None)),
+                                sample_period_s=data.sample_period_s)
         refused = [f.message for f in findings if f.severity == "refuse"]
         if refused:
             raise CalibrationError("; ".join(refused))

@@ -27,6 +27,12 @@ def fmt_stat(entry, fmt: str = ".2f") -> str:
 _f = fmt_stat
 
 
+def _body(scenario) -> str:
+    """The body that ran (the loaded scenario's, ``--set`` overrides included)."""
+    w = scenario.walker
+    return f"walker {w.body_mass_kg:g} kg, {w.height_m:g} m"
+
+
 def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -> list[str]:
     """A walk's summary: strides, fall, angle errors against the reference, ankle kinetics,
     speed, cadence, toe clearance, residual forces."""
@@ -35,8 +41,8 @@ def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -
         return [f"afo_mj walk: {scenario.name}: FELL at t = {s['fall_time_s']:.2f} s after "
                 f"{s['completed_strides']} complete strides; {s.get('analysis', '')}",
                 f"  results: {out}"]
-    lines = [f"afo_mj walk: {scenario.name} ({scenario.description})" if scenario.description
-             else f"afo_mj walk: {scenario.name}",
+    head = f"afo_mj walk: {scenario.name}, {_body(scenario)}"
+    lines = [f"{head} ({scenario.description})" if scenario.description else head,
              f"  simulated {s['duration_s']:.2f} s in {wall_time_s:.1f} s wall; "
              f"{s['completed_strides']} complete right strides; analysed "
              f"{s['n_cycles_used']} cycles (strides {scenario.analyse_strides[0]}-"
@@ -81,8 +87,8 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
                       wall_time_s: float, out) -> list[str]:
     """A walk with an orthosis: one line per condition (gait, human ankle work, the device's
     torque, work, tracking and energy), then the foot-drop and push-off figures."""
-    lines = [f"afo_mj walk with {config.preset} on {', '.join(config.sides)}: {scenario.name} "
-             f"({wall_time_s:.1f} s wall)"]
+    lines = [f"afo_mj walk with {config.preset} on {', '.join(config.sides)}: {scenario.name}, "
+             f"{_body(scenario)} ({wall_time_s:.1f} s wall)"]
     for c, v in device_summary["device_conditions"].items():
         g = v["gait"]
         line = f"  {c:12s}: "

@@ -125,6 +125,9 @@ STRIDES_RANGE = (1, 1000)
 #: segment fractions scaled by mass and stature, shipped bodies from the CDC 2000 medians
 #: (4-year-olds 15.4) to adults (21.8-22.6); outside it a scenario is noted, not refused
 BMI_RANGE_KG_M2 = (13.0, 40.0)
+#: ``--set`` keys that change the walker's body: a file's description stating its mass or
+#: height is then marked as the file's, with the body that runs
+_BODY_OVERRIDE_KEYS = ("walker", "walker.body_mass_kg", "walker.height_m", "walker.body_preset")
 
 
 class ScenarioError(ValueError):
@@ -570,6 +573,11 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     raw_set = walker_tbl.pop("reflex_set", None)
     walker = _walker(ctx, walker_tbl, ctx.table(doc, "impairment"))
     reflex_set = _muscle_model(ctx, doc, model, raw_set, base_dir)
+    body_set = [k for k in ov_keys if k in _BODY_OVERRIDE_KEYS]
+    if description and body_set:
+        # the file's prose was written for the file's body; say which body actually runs
+        description = (f"{description} [the file's description; --set {', '.join(body_set)} "
+                       f"made the walker {walker.body_mass_kg:g} kg, {walker.height_m:g} m]")
 
     gait = ctx.table(doc, "gait")
     ctx.unknown("gait", gait, _GAIT_KEYS)
