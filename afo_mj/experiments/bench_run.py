@@ -59,6 +59,8 @@ def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
                    "supply_pressure_set_pa": bs.params.supply_pressure_set_pa},
         "energy": {"balance_error_rel": worst["energy_balance_error_rel"],
                    "energy_error_max": res["energy_error_max"],
+                   "newton_unconverged_steps": sum(v["newton_unconverged_steps"]
+                                                   for v in res["stiffness"].values()),
                    "note": "balance_error_rel: the largest |ledger residual| / battery energy "
                            "drawn over the sweeps; energy_error_max: the largest |residual| / "
                            "max(|electrical in|, |mechanical out|)"},

@@ -465,6 +465,8 @@ def run_circuit_bench(cc, tests, cfg: CircuitBenchConfig = CircuitBenchConfig())
     summary["energy"] = {"balance_error_rel": worst,
                          "ledger_closed": bool(worst <= LEDGER_TOLERANCE),
                          "tolerance": LEDGER_TOLERANCE,
+                         "newton_unconverged_steps": sum(
+                             v["newton_unconverged_steps"] for v in b.ledgers.values()),
                          "note": "largest |ledger residual| / energy throughput over every "
                                  "bench run (ledger.<run>.balance_error_rel)"}
     return summary, series

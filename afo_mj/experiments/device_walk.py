@@ -141,7 +141,8 @@ def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n
     if contact is not None:
         out["device"]["peak_torque_incl_end_stops_nm"] = peak_all
         out["device"]["end_stop"] = contact
-    out["device"].update(device_flags(contact, role, tracking_flag(rmse, cmd_peak)))
+    out["device"].update(device_flags(contact, role, tracking_flag(rmse, cmd_peak),
+                                      led["newton_unconverged_steps"]))
     # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
     stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
     scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan

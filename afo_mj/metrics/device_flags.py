@@ -1,6 +1,6 @@
 """What an orthosis did to the ankle besides following its command: end-stop contact, net
 braking and poor torque tracking, each a number in the summary and a flag a study can
-constrain on.
+constrain on; and the steps its circuit's solver accepted unconverged.
 
 A device's "peak torque" is only a figure of the device when the torque came from its
 actuator. A piston driven past its stroke end meets a stop (a stiff spring–damper,
@@ -23,6 +23,10 @@ Classification (module constants, SI):
 * **poor tracking**: the torque-tracking RMS error exceeds :data:`TRACKING_POOR_FRACTION` of
   the commanded peak (and :data:`TRACKING_POOR_MIN_NM`): the device did not deliver what its
   controller asked for, so its figures describe another assistance than the one named.
+* **unconverged solver steps** (``newton_unconverged``): the circuit's Newton iteration did not
+  converge in some (sub-)steps even at the smallest sub-step, and they were accepted as they
+  stood (``newton_unconverged_steps`` of the device ledger). Those steps are not the model's
+  backward-Euler steps: the figures of the run, and its energy ledger, are not the model's.
 
 Example::
 
@@ -146,11 +150,15 @@ def tracking_flag(rmse_nm: float, commanded_peak_nm: float) -> bool:
     return e > TRACKING_POOR_MIN_NM and (not math.isfinite(c) or e > TRACKING_POOR_FRACTION * c)
 
 
-def device_flags(contact: dict | None, role: str, tracking_poor: bool) -> dict:
+def device_flags(contact: dict | None, role: str, tracking_poor: bool,
+                 newton_unconverged_steps: int = 0) -> dict:
     """The summary's flags (booleans, so that a study constrains on them as 0/1) and the
-    list of what was flagged (``flags``, for the console and the reader)."""
+    list of what was flagged (``flags``, for the console and the reader).
+    ``newton_unconverged_steps``: the device ledger's count of (sub-)steps accepted with their
+    Newton iteration unconverged."""
     stop = bool(contact and contact["contact_time_s"] > 0.0)
     out = {"end_stop_contact": stop, "brake": role == "brake",
-           "tracking_poor": bool(tracking_poor)}
+           "tracking_poor": bool(tracking_poor),
+           "newton_unconverged": int(newton_unconverged_steps) > 0}
     out["flags"] = [k for k, v in out.items() if v]
     return out
