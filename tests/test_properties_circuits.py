@@ -384,13 +384,16 @@ def test_unconverged_steps_are_flagged_and_said():
     assert sweep_outcome_counts(rows) == {"unconverged solver steps": ["r1"]}
 
 
-@pytest.mark.xfail(strict=True, raises=ZeroDivisionError, reason=(
-    "bug: an open lower bound at 0 admits subnormal values: "
-    "cylinder.rod_seal.cross_section_m = 5e-324 (allowed > 0) passes the range check and "
-    "afo_mj/hydraulics/seal.py OringSeal divides by its underflowed contact half-width "
-    "(ZeroDivisionError, a traceback) instead of refusing it by name"))
 def test_a_subnormal_seal_cross_section_is_refused_by_name():
+    """An open lower bound at 0 admitted subnormal values: a seal cross-section of 5e-324 m
+    passed the range check and the O-ring law divided by its underflowed contact half-width
+    (ZeroDivisionError). A subnormal is refused by name in any range (a negative one too)."""
     spec = copy.deepcopy(library_spec("lab_bench"))
     spec["components"]["cylinder"]["params"]["cylinder.rod_seal.cross_section_m"] = 5e-324
-    with pytest.raises((CircuitError, ParameterError), match="cross_section_m"):
+    with pytest.raises((CircuitError, ParameterError),
+                       match=r"cross_section_m = 5e-324 .*allowed: 0 < cross_section_m"):
         build(Circuit.from_dict(spec))
+    from afo_mj.hydraulics.fluid import FluidParams
+    with pytest.raises(ParameterError, match="air_fraction = 1e-310 .*allowed"):
+        FluidParams(air_fraction=1e-310)
+    assert FluidParams(air_fraction=0.0).air_fraction == 0.0       # zero itself is normal

@@ -4,7 +4,9 @@ Every component keeps its parameters in a frozen dataclass derived from :class:`
 Each numeric field is declared with :func:`param`, which records its SI unit, its physically
 allowed range and a one-line meaning. The range is checked when the object is built, so a bad
 value fails at construction with one :class:`ParameterError` naming the field, the value and
-what is allowed, never as a NaN later in a simulation.
+what is allowed, never as a NaN later in a simulation. A subnormal float (non-zero, smaller in
+magnitude than ``sys.float_info.min``) is refused in any range: an open bound at 0 would
+admit it, and what is computed from it underflows to 0.
 
 Physical effects that a model may or may not include are boolean fields declared with
 :func:`effect` (names end in ``_enabled``). Calibration switches them on and off and fits the
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from typing import Any, Iterator, Mapping
 
 __all__ = [
@@ -94,6 +97,13 @@ class Parameters:
                     raise ParameterError(
                         f"{cls}.{f.name} = {value!r} is out of range; "
                         f"allowed: {_range_text(f.name, md)}")
+                if v != 0.0 and abs(v) < sys.float_info.min:
+                    # a subnormal passes an open bound at 0, but products and powers of it
+                    # underflow to 0 (a seal's contact width, a bore's area)
+                    raise ParameterError(
+                        f"{cls}.{f.name} = {value!r} is a subnormal float (magnitude below "
+                        f"{sys.float_info.min:.3g}, no physical value); "
+                        f"allowed: {_range_text(f.name, md)}, a normal float")
                 object.__setattr__(self, f.name, v)
             elif kind == "effect":
                 if not isinstance(value, bool):
