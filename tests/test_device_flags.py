@@ -216,3 +216,16 @@ def test_compare_rows_carry_the_flags_and_say_them(tmp_path):
     assert row["peak_torque_incl_end_stops_nm"] > 100.0 > 60.0 > row["peak_torque_nm"]
     text = format_tables(res.comparison)
     assert "END-STOP CONTACT: " in text and "POOR TRACKING: " in text
+
+
+def test_compare_says_which_rows_had_unconverged_solver_steps():
+    """A comparison row whose circuit accepted unconverged Newton steps carries the count in
+    its columns and gets a WARNING SOLVER line under the tables naming it; a clean row none."""
+    from afo_mj.experiments.device_comparison import HEAD_COLUMNS
+    from afo_mj.outputs.comparison_report import caveats
+    assert {"newton_unconverged", "newton_unconverged_steps"} <= set(HEAD_COLUMNS)
+    lines = caveats([{"label": "hafo assist", "newton_unconverged": True,
+                      "newton_unconverged_steps": 12},
+                     {"label": "valve assist", "newton_unconverged": False,
+                      "newton_unconverged_steps": 0}])
+    assert len(lines) == 1 and lines[0].startswith("WARNING SOLVER: hafo assist: 12 ")

@@ -57,6 +57,9 @@ by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``af
   commanded peak; pistons at their stroke ends), with ``peak_torque_incl_end_stops_nm`` (the
   whole joint's peak, stops included), ``end_stop_contact_time_s_per_stride`` and
   ``end_stop_impulse_nm_s_per_stride``; each raised flag is also a line under the tables.
+* ``newton_unconverged``, ``newton_unconverged_steps``: the circuit solver accepted steps whose
+  Newton iteration did not converge: the row's figures are not the model's (a line under the
+  tables says so).
 * ``device_positive_work_j_per_stride``, ``device_negative_work_j_per_stride``: the device's
   work on the ankle over the analysed strides (delivered; the negative part is what it absorbs).
 * ``ankle_positive_work_j_per_stride``, ``ankle_push_off_positive_work_j_per_stride``: the
@@ -163,7 +166,8 @@ HEAD_COLUMNS = (
     "scenario", "variant", "label", "scenario_file", "preset", "sides", "fell", "fall_time_s",
     "torque_tracking_rmse_nm", "tracking_poor", "peak_torque_nm",
     "peak_torque_incl_end_stops_nm", "end_stop_contact", "end_stop_contact_time_s_per_stride",
-    "end_stop_impulse_nm_s_per_stride", "device_positive_work_j_per_stride",
+    "end_stop_impulse_nm_s_per_stride", "newton_unconverged", "newton_unconverged_steps",
+    "device_positive_work_j_per_stride",
     "device_negative_work_j_per_stride",
     "ankle_positive_work_j_per_stride", "ankle_push_off_positive_work_j_per_stride",
     "electrical_j_per_stride", "electrical_regenerated_j_per_stride",
@@ -303,6 +307,8 @@ def comparison_row(item: CompareItem, block: dict, record=None,
             _num((dev.get("end_stop") or {}).get("contact_time_s_per_stride")),
         "end_stop_impulse_nm_s_per_stride":
             _num((dev.get("end_stop") or {}).get("impulse_nm_s_per_stride")),
+        "newton_unconverged": bool(dev.get("newton_unconverged")),
+        "newton_unconverged_steps": int(dev.get("newton_unconverged_steps") or 0),
         "device_positive_work_j_per_stride": _num(dev.get("positive_work_j_per_stride")),
         "device_negative_work_j_per_stride": _num(dev.get("negative_work_j_per_stride")),
         "ankle_positive_work_j_per_stride": _num(ank.get("positive_work_j_per_stride")),

@@ -12,6 +12,8 @@ import json
 import math
 from pathlib import Path
 
+from afo_mj.outputs.console import solver_warnings
+
 __all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison",
            "caveats"]
 
@@ -119,7 +121,8 @@ def _definitions() -> str:
 def caveats(rows) -> list[str]:
     """One line per row that is not an actuator: why its efficiency, battery runtime and ranks
     are not given (``not_comparable_reason``); one per row whose pistons hit their end stops
-    or whose torque tracking was poor (:mod:`afo_mj.metrics.device_flags`)."""
+    or whose torque tracking was poor (:mod:`afo_mj.metrics.device_flags`), or whose circuit
+    solver accepted unconverged steps."""
     out = [f"NOT COMPARABLE: {r['label']}: {r['not_comparable_reason']}" for r in rows
            if r.get("not_comparable_reason")]
     for r in rows:
@@ -133,6 +136,8 @@ def caveats(rows) -> list[str]:
             out.append(f"POOR TRACKING: {r['label']}: RMS torque error "
                        f"{r['torque_tracking_rmse_nm']:.1f} N*m: it did not deliver the "
                        "assistance asked for")
+        out += [f"{w.split(':', 1)[0]}: {r['label']}:{w.split(':', 1)[1]}"
+                for w in solver_warnings(r.get("newton_unconverged_steps"))]
     return out
 
 
