@@ -232,8 +232,10 @@ class CircuitDevice:
     # -- ledger ----------------------------------------------------------------------------
     def ledger(self, j: int = 0) -> dict:
         """Energy ledger of worn side ``j`` (J): input, mechanical output, every loss and
-        store by component instance, and the balance residual; with each state's peak over the
-        run (``state_peaks``, from its initial value) and each probe's time integral
+        store by component instance (and ``cavitation``: the void opened where a pressure was
+        clipped at the vapour floor, :mod:`afo_mj.circuits.stepper`), and the balance
+        residual; with each state's peak over the run (``state_peaks``, from its initial
+        value) and each probe's time integral
         (``probe_integrals``: a flow probe's volume, m³)."""
         k, W, cc = self.k, self.W[j], self.cc
         losses = {n: float(W[k.W_E_LOSS + i]) for i, n in enumerate(cc.loss_names)}
@@ -246,6 +248,8 @@ class CircuitDevice:
             stored[f"{label}.{name}"] = float(W[k.W_E_STORE + i])
         for i, n in enumerate(cc.srate_names):
             stored[n] = float(W[k.W_E_SRATE + i])
+        # the void a pressure clipped at the vapour floor opened (stepper module docstring)
+        stored["cavitation"] = float(W[k.W_E_FLOOR])
         e_in = float(W[k.W_E_IN])
         e_out = float(W[k.W_E_MECH])
         resid = e_in - e_out - sum(losses.values()) - sum(stored.values())

@@ -61,6 +61,24 @@ the stores' discrete work ``Σ c_k y_{k,n+1} (y_{k,n+1} − y_{k,n})`` (``c_k`` 
 capacitance over the step, as in ``rhs_step``, its inductance or inertia at ``y_{n+1}``) and the
 work done on the stores that are not states (fixed-pressure reservoirs, springs, end stops),
 booked by the right-point rule. So the balance residual measures only the Newton tolerance.
+
+A step whose solution has a pressure below the vapour floor is accepted with that pressure
+raised to the floor (``clip_floor``): the node gains the volume ``ΔV = c_k r_k`` its flows did
+not bring (``r_k = y_k − y_{k,n} − h f_k(y)``, the backward-Euler residual the clip leaves:
+the cavitation / outgassing void the oil opens when it is drawn below the floor, which the
+node's compliance cannot give). Summing the discrete work over the states,
+``Σ c_k y_k (y_k − y_{k,n}) = h Σ c_k y_k f_k + Σ c_k y_k r_k``, and the right-hand side's
+power balance ``Σ c_k y_k f_k = P_in − P_mech − Σ losses − Σ store rates`` hold for any ``y``;
+so the states' stores book ``Σ c_k y_k r_k`` that no flow supplied (negative at a node below
+the atmosphere: the gauge-referenced oil store falls as the pressure is raised towards it).
+The void holds it: the store ``cavitation`` books ``−Σ c_k y_k r_k`` (``W_E_FLOOR``, the
+ledger's ``stored_change_j["cavitation"]``); at the clipped node ``−y_k c_k r_k =
+(p_atm − p_floor) ΔV``,
+the work done opening the void against the pressure the ledger refers its stores to (the
+atmosphere; positive), plus what the raised pressure changes in the states it couples to
+(a pump's shaft, a piston) in the same step. The void is not a state: it is not closed
+again (the node resumes from the floor with its oil as it was), so this store only grows
+and, as the solver does not clip, is zero on a run that never reaches the floor.
 """
 
 from __future__ import annotations
@@ -378,14 +396,17 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
 
 def close_substep(y, yold, h, theta, theta_dot, P, W, S):
     """Accept the backward-Euler (sub-)step ``y_old → y`` of length ``h`` (power flows at
-    ``y`` in scratch row 2): pressure floor, right-point ledger, then the circuit's own
-    closing (battery, heat, monitors: ``close_extra``)."""
+    ``y`` in scratch row 2): pressure floor (a clip books the energy of the void it opens,
+    ``W_E_FLOOR``: module docstring), right-point ledger, then the circuit's own closing
+    (battery, heat, monitors: ``close_extra``)."""
     f1 = S[1, :N_Y]
     F1 = S[2]
     U = W[W_U:W_U + N_U]
     if clip_floor(y, P):
         W[W_CLIP_STEPS] += 1.0
         rhs_step(y, yold, theta, theta_dot, U, P, f1, F1)
+        for k in range(N_Y):
+            W[W_E_FLOOR] -= F1[F_CAP + k] * y[k] * (y[k] - yold[k] - h * f1[k])
     tau = F1[F_TAU]
     W[W_E_MECH] += h * tau * theta_dot
     for k in range(N_LOSS):

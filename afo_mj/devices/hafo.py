@@ -377,7 +377,9 @@ class HafoDevice(CircuitDevice):
         # the reservoir gives energy when it feeds the lines: its store falls
         "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
         # the cable between pulley and pistons (zero with the rigid cable)
-        "series_spring": ("cylinders.series_spring",)}
+        "series_spring": ("cylinders.series_spring",),
+        # the void opened where a pressure was clipped at the vapour floor (zero without)
+        "cavitation": ("cavitation",)}
     #: the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
     #: input less their losses and the change of their stores (energy balance of that part)
     upstream_losses = ("battery_internal", "driver", "motor_copper", "motor_friction",

@@ -507,7 +507,9 @@ class ValveAfoDevice(HafoDevice):
         "oil": ("oil.pump_out", "oil.rail", "oil.port_a", "oil.port_b", "oil.chamber_a",
                 "oil.chamber_b"),
         "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
-        "series_spring": ("cylinders.series_spring",)}
+        "series_spring": ("cylinders.series_spring",),
+        # the void opened where a pressure was clipped at the vapour floor (zero without)
+        "cavitation": ("cavitation",)}
 
     def __init__(self, params: ValveAnkleParams = VALVE_PRESETS["valve"], sides=("right",),
                  profile=None, impedance=None, timestep_s: float = 1e-3, max_steps: int = 0,
