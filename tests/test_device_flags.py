@@ -55,7 +55,8 @@ def test_flags_follow_their_definitions():
     assert tracking_flag(math.nan, 40.0) is False
     f = device_flags({"contact_time_s": 0.01}, "brake", False)
     assert f == {"end_stop_contact": True, "brake": True, "tracking_poor": False,
-                 "newton_unconverged": False, "flags": ["end_stop_contact", "brake"]}
+                 "newton_unconverged": False, "battery_overload": False,
+                 "flags": ["end_stop_contact", "brake"]}
     assert device_flags(None, "actuator", False)["flags"] == []
 
 

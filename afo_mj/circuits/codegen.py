@@ -45,7 +45,7 @@ U_NAMES = ("CMD", "VBUS", "MU", "RHO", "TEMP")
 W_HEADER = ("CMD", "THETA", "THETA_DOT", "TAU0", "G", "TAU", "TAU_END", "TAU_MEAS", "P_MECH",
             "COUPLE_SQ", "NEWTON_ITERS", "NEWTON_FAIL", "SUBSTEPPED", "SUBSTEPS",
             "CLIP_STEPS", "E_MECH", "E_IN", "E_IN_DRAWN", "E_ABS_FLOW", "HEAT_TO_OIL",
-            "TEMP_K", "SOC", "I_BAT", "P_MAX", "E_FLOOR")
+            "TEMP_K", "SOC", "I_BAT", "P_MAX", "E_FLOOR", "E_OVERLOAD", "OVERLOAD_STEPS")
 F_HEADER = ("TAU", "PBUS", "HEAT")
 TYP = {"pressure": 1e5, "speed": 10.0, "current": 1.0}
 

@@ -97,7 +97,18 @@ class Battery(Component):
     the parameters, :func:`~afo_mj.hydraulics.laws.table_interp`); the bus voltage is held over
     each step at the last step's current; the pack current follows the bus power
     (:func:`~afo_mj.hydraulics.laws.battery_current_a`). Loss: ``internal`` (``R I²``). Input
-    to the ledger: chemical energy ``∫V_oc I dt``."""
+    to the ledger: chemical energy ``∫V_oc I dt``.
+
+    Overload: a pack delivers at most its matched-load power ``V_oc²/(4R)`` (at ``I = V_oc/(2R)``,
+    the terminal voltage ``V_oc/2``). The loads on the bus see the voltage held from the last
+    step, not the pack's terminal equation within the step, so a load can draw more than that
+    (a pack whose resistance is large for its load); the current is then capped at
+    ``V_oc/(2R)`` and the bus power beyond ``V_oc²/(4R)``, which nothing supplies, is booked
+    as the ledger's store ``battery_overload`` (``W_E_OVERLOAD``, negative: energy the model
+    made) and the (sub-)steps are counted (``W_OVERLOAD_STEPS``, the ledger's
+    ``battery_overload_steps``: a device flag and a console warning). Limiting the loads
+    themselves needs the bus voltage solved with the circuit's states, which the held-input
+    step does not do."""
 
     kind = "battery"
     ports = {"bus": BUS}
@@ -120,6 +131,10 @@ class Battery(Component):
         g.begin_line(f"W[W_U + U_VBUS] = max(v_oc - {r} * W[W_I_BAT], 0.0)")
         g.close_line(f"v_oc = {ns} * table_interp(W[W_SOC], {soc_tab}, {v_tab})")
         g.close_line(f"i_bat = battery_current_a(F[F_PBUS], v_oc, {r})")
+        # bus power beyond the matched-load maximum, where the law caps the current
+        g.close_line(f"p_overload = F[F_PBUS] - v_oc * v_oc / (4.0 * {r})")
+        g.close_line("if p_overload > 0.0:\n    W[W_E_OVERLOAD] -= h * p_overload\n"
+                     "    W[W_OVERLOAD_STEPS] += 1.0")
         g.close_line("W[W_I_BAT] = i_bat")
         g.close_line(f"W[W_SOC] -= h * i_bat / {cap}")
         g.close_line("W[W_E_IN] += h * v_oc * i_bat")

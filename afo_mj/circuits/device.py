@@ -233,7 +233,9 @@ class CircuitDevice:
     def ledger(self, j: int = 0) -> dict:
         """Energy ledger of worn side ``j`` (J): input, mechanical output, every loss and
         store by component instance (and ``cavitation``: the void opened where a pressure was
-        clipped at the vapour floor, :mod:`afo_mj.circuits.stepper`), and the balance
+        clipped at the vapour floor, :mod:`afo_mj.circuits.stepper`; ``battery_overload``: the
+        bus energy beyond the battery's matched-load power,
+        :class:`~afo_mj.circuits.components.Battery`), and the balance
         residual; with each state's peak over the run (``state_peaks``, from its initial
         value) and each probe's time integral
         (``probe_integrals``: a flow probe's volume, m³)."""
@@ -250,6 +252,9 @@ class CircuitDevice:
             stored[n] = float(W[k.W_E_SRATE + i])
         # the void a pressure clipped at the vapour floor opened (stepper module docstring)
         stored["cavitation"] = float(W[k.W_E_FLOOR])
+        # bus energy beyond the battery's matched-load power (negative: made by the model;
+        # afo_mj.circuits.components.Battery)
+        stored["battery_overload"] = float(W[k.W_E_OVERLOAD])
         e_in = float(W[k.W_E_IN])
         e_out = float(W[k.W_E_MECH])
         resid = e_in - e_out - sum(losses.values()) - sum(stored.values())
@@ -270,6 +275,7 @@ class CircuitDevice:
                 "newton_unconverged_steps": int(W[k.W_NEWTON_FAIL]),
                 "substepped_steps": int(W[k.W_SUBSTEPPED]),
                 "pressure_floor_steps": int(W[k.W_CLIP_STEPS]),
+                "battery_overload_steps": int(W[k.W_OVERLOAD_STEPS]),
                 "coupling_torque_error_rms_nm": float(np.sqrt(W[k.W_COUPLE_SQ]
                                                               / max(self.steps, 1)))}
 

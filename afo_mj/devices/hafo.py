@@ -379,12 +379,14 @@ class HafoDevice(CircuitDevice):
         # the cable between pulley and pistons (zero with the rigid cable)
         "series_spring": ("cylinders.series_spring",),
         # the void opened where a pressure was clipped at the vapour floor (zero without)
-        "cavitation": ("cavitation",)}
+        "cavitation": ("cavitation",),
+        # the bus energy beyond the battery's matched-load power (zero without; negative)
+        "battery_overload": ("battery_overload",)}
     #: the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
     #: input less their losses and the change of their stores (energy balance of that part)
     upstream_losses = ("battery_internal", "driver", "motor_copper", "motor_friction",
                        "pump_volumetric", "pump_mechanical")
-    upstream_stores = ("inductance", "rotor")
+    upstream_stores = ("inductance", "rotor", "battery_overload")
 
     def __init__(self, params: PumpAnkleParams = HAFO_ACTUATOR, sides=("right",),
                  profile: np.ndarray | None = None, timestep_s: float = 1e-3,

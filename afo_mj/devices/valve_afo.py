@@ -509,7 +509,9 @@ class ValveAfoDevice(HafoDevice):
         "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
         "series_spring": ("cylinders.series_spring",),
         # the void opened where a pressure was clipped at the vapour floor (zero without)
-        "cavitation": ("cavitation",)}
+        "cavitation": ("cavitation",),
+        # the bus energy beyond the battery's matched-load power (zero without; negative)
+        "battery_overload": ("battery_overload",)}
 
     def __init__(self, params: ValveAnkleParams = VALVE_PRESETS["valve"], sides=("right",),
                  profile=None, impedance=None, timestep_s: float = 1e-3, max_steps: int = 0,

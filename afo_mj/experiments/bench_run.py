@@ -61,6 +61,8 @@ def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
                    "energy_error_max": res["energy_error_max"],
                    "newton_unconverged_steps": sum(v["newton_unconverged_steps"]
                                                    for v in res["stiffness"].values()),
+                   "battery_overload_steps": sum(v["battery_overload_steps"]
+                                                 for v in res["stiffness"].values()),
                    "note": "balance_error_rel: the largest |ledger residual| / battery energy "
                            "drawn over the sweeps; energy_error_max: the largest |residual| / "
                            "max(|electrical in|, |mechanical out|)"},

@@ -140,7 +140,8 @@ class _Bench:
                                "input_j": led["input_j"],
                                "mechanical_out_j": led["mechanical_out_j"],
                                "peak_pressure_pa": led["peak_pressure_pa"],
-                               "newton_unconverged_steps": led["newton_unconverged_steps"]}
+                               "newton_unconverged_steps": led["newton_unconverged_steps"],
+                               "battery_overload_steps": led["battery_overload_steps"]}
 
     def load(self, cc, cmd, label, stiffness=None, damping=None, theta0=0.0):
         c = self.cfg
@@ -467,6 +468,8 @@ def run_circuit_bench(cc, tests, cfg: CircuitBenchConfig = CircuitBenchConfig())
                          "tolerance": LEDGER_TOLERANCE,
                          "newton_unconverged_steps": sum(
                              v["newton_unconverged_steps"] for v in b.ledgers.values()),
+                         "battery_overload_steps": sum(
+                             v["battery_overload_steps"] for v in b.ledgers.values()),
                          "note": "largest |ledger residual| / energy throughput over every "
                                  "bench run (ledger.<run>.balance_error_rel)"}
     return summary, series

@@ -60,6 +60,9 @@ by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``af
 * ``newton_unconverged``, ``newton_unconverged_steps``: the circuit solver accepted steps whose
   Newton iteration did not converge: the row's figures are not the model's (a line under the
   tables says so).
+* ``battery_overload``, ``battery_overload_steps``: the circuit's bus drew more than its
+  battery's matched-load power in some steps (the excess booked as energy no part of the model
+  supplied): the row's figures are not a real pack's (a line under the tables says so).
 * ``device_positive_work_j_per_stride``, ``device_negative_work_j_per_stride``: the device's
   work on the ankle over the analysed strides (delivered; the negative part is what it absorbs).
 * ``ankle_positive_work_j_per_stride``, ``ankle_push_off_positive_work_j_per_stride``: the
@@ -167,6 +170,7 @@ HEAD_COLUMNS = (
     "torque_tracking_rmse_nm", "tracking_poor", "peak_torque_nm",
     "peak_torque_incl_end_stops_nm", "end_stop_contact", "end_stop_contact_time_s_per_stride",
     "end_stop_impulse_nm_s_per_stride", "newton_unconverged", "newton_unconverged_steps",
+    "battery_overload", "battery_overload_steps",
     "device_positive_work_j_per_stride",
     "device_negative_work_j_per_stride",
     "ankle_positive_work_j_per_stride", "ankle_push_off_positive_work_j_per_stride",
@@ -309,6 +313,8 @@ def comparison_row(item: CompareItem, block: dict, record=None,
             _num((dev.get("end_stop") or {}).get("impulse_nm_s_per_stride")),
         "newton_unconverged": bool(dev.get("newton_unconverged")),
         "newton_unconverged_steps": int(dev.get("newton_unconverged_steps") or 0),
+        "battery_overload": bool(dev.get("battery_overload")),
+        "battery_overload_steps": int(dev.get("battery_overload_steps") or 0),
         "device_positive_work_j_per_stride": _num(dev.get("positive_work_j_per_stride")),
         "device_negative_work_j_per_stride": _num(dev.get("negative_work_j_per_stride")),
         "ankle_positive_work_j_per_stride": _num(ank.get("positive_work_j_per_stride")),

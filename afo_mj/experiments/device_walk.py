@@ -137,12 +137,14 @@ def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n
         "battery_runtime_h": runtime_h,
         "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
         "newton_unconverged_steps": led["newton_unconverged_steps"],
+        "battery_overload_steps": led["battery_overload_steps"],
     }
     if contact is not None:
         out["device"]["peak_torque_incl_end_stops_nm"] = peak_all
         out["device"]["end_stop"] = contact
     out["device"].update(device_flags(contact, role, tracking_flag(rmse, cmd_peak),
-                                      led["newton_unconverged_steps"]))
+                                      led["newton_unconverged_steps"],
+                                      led["battery_overload_steps"]))
     # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
     stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
     scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan

@@ -124,6 +124,7 @@ def run_stiffness_sweep(params, stiffness_nm_per_rad: float,
         "energy_balance_error_rel": led["balance_error_rel"],
         "energy_error": energy_error(led),
         "newton_unconverged_steps": led["newton_unconverged_steps"],
+        "battery_overload_steps": led["battery_overload_steps"],
     }
     series = {"time_s": rec.time_s, "angle_rad": theta, "torque_nm": tau,
               "commanded_torque_nm": cmd, "supply_pa": log["supply_pa"],

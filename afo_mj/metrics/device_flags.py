@@ -1,6 +1,7 @@
 """What an orthosis did to the ankle besides following its command: end-stop contact, net
 braking and poor torque tracking, each a number in the summary and a flag a study can
-constrain on; and the steps its circuit's solver accepted unconverged.
+constrain on; and the steps its circuit's solver accepted unconverged or its battery could
+not supply.
 
 A device's "peak torque" is only a figure of the device when the torque came from its
 actuator. A piston driven past its stroke end meets a stop (a stiff spring–damper,
@@ -27,6 +28,11 @@ Classification (module constants, SI):
   converge in some (sub-)steps even at the smallest sub-step, and they were accepted as they
   stood (``newton_unconverged_steps`` of the device ledger). Those steps are not the model's
   backward-Euler steps: the figures of the run, and its energy ledger, are not the model's.
+* **battery overload** (``battery_overload``): in some (sub-)steps the bus drew more than the
+  battery's matched-load power ``V_oc²/(4R)``, the most a pack of that internal resistance can
+  deliver (``battery_overload_steps`` of the device ledger; the excess is booked as its store
+  ``battery_overload``, energy no part of the model supplied,
+  :class:`afo_mj.circuits.components.Battery`): the run's figures are not a real pack's.
 
 Example::
 
@@ -151,14 +157,16 @@ def tracking_flag(rmse_nm: float, commanded_peak_nm: float) -> bool:
 
 
 def device_flags(contact: dict | None, role: str, tracking_poor: bool,
-                 newton_unconverged_steps: int = 0) -> dict:
+                 newton_unconverged_steps: int = 0, battery_overload_steps: int = 0) -> dict:
     """The summary's flags (booleans, so that a study constrains on them as 0/1) and the
     list of what was flagged (``flags``, for the console and the reader).
     ``newton_unconverged_steps``: the device ledger's count of (sub-)steps accepted with their
-    Newton iteration unconverged."""
+    Newton iteration unconverged; ``battery_overload_steps``: its count of (sub-)steps whose
+    bus power exceeded the battery's matched-load power."""
     stop = bool(contact and contact["contact_time_s"] > 0.0)
     out = {"end_stop_contact": stop, "brake": role == "brake",
            "tracking_poor": bool(tracking_poor),
-           "newton_unconverged": int(newton_unconverged_steps) > 0}
+           "newton_unconverged": int(newton_unconverged_steps) > 0,
+           "battery_overload": int(battery_overload_steps) > 0}
     out["flags"] = [k for k, v in out.items() if v]
     return out

@@ -12,7 +12,7 @@ import json
 import math
 from pathlib import Path
 
-from afo_mj.outputs.console import solver_warnings
+from afo_mj.outputs.console import battery_warnings, solver_warnings
 
 __all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison",
            "caveats"]
@@ -121,8 +121,9 @@ def _definitions() -> str:
 def caveats(rows) -> list[str]:
     """One line per row that is not an actuator: why its efficiency, battery runtime and ranks
     are not given (``not_comparable_reason``); one per row whose pistons hit their end stops
-    or whose torque tracking was poor (:mod:`afo_mj.metrics.device_flags`), or whose circuit
-    solver accepted unconverged steps."""
+    or whose torque tracking was poor (:mod:`afo_mj.metrics.device_flags`), whose circuit
+    solver accepted unconverged steps, or whose bus drew more than its battery's matched-load
+    power."""
     out = [f"NOT COMPARABLE: {r['label']}: {r['not_comparable_reason']}" for r in rows
            if r.get("not_comparable_reason")]
     for r in rows:
@@ -137,7 +138,8 @@ def caveats(rows) -> list[str]:
                        f"{r['torque_tracking_rmse_nm']:.1f} N*m: it did not deliver the "
                        "assistance asked for")
         out += [f"{w.split(':', 1)[0]}: {r['label']}:{w.split(':', 1)[1]}"
-                for w in solver_warnings(r.get("newton_unconverged_steps"))]
+                for w in solver_warnings(r.get("newton_unconverged_steps"))
+                + battery_warnings(r.get("battery_overload_steps"))]
     return out
 
 

@@ -150,8 +150,8 @@ def _num(x, fmt: str) -> str:
 def device_warnings(d: Mapping) -> list[str]:
     """The lines that say what a device did besides following its command (the flags of
     :mod:`afo_mj.metrics.device_flags` in a condition's ``device`` block): end-stop contact,
-    braking, poor tracking, unconverged solver steps; none for a device that did none of
-    these."""
+    braking, poor tracking, unconverged solver steps, battery overload; none for a device that
+    did none of these."""
     out = []
     es = d.get("end_stop") or {}
     if d.get("end_stop_contact"):
@@ -172,7 +172,8 @@ def device_warnings(d: Mapping) -> list[str]:
         out.append(f"WARNING TRACKING: RMS torque error {d['torque_tracking_rmse_nm']:.1f} N*m "
                    f"against a commanded peak of {d['commanded_peak_torque_nm']:.1f} N*m: the "
                    f"device did not deliver the assistance its controller asked for")
-    return out + solver_warnings(d.get("newton_unconverged_steps"))
+    return (out + solver_warnings(d.get("newton_unconverged_steps"))
+            + battery_warnings(d.get("battery_overload_steps")))
 
 
 def solver_warnings(newton_unconverged_steps) -> list[str]:
@@ -186,16 +187,30 @@ def solver_warnings(newton_unconverged_steps) -> list[str]:
             f"this run are not the model's (a parameter outside what the solver handles?)"]
 
 
+def battery_warnings(battery_overload_steps) -> list[str]:
+    """The line that says a circuit's bus drew more than its battery's matched-load power
+    ``V_oc²/(4R)`` (the ledger's ``battery_overload_steps``); none when it never did."""
+    n = int(battery_overload_steps or 0)
+    if n <= 0:
+        return []
+    return [f"WARNING BATTERY: {n} circuit (sub-)step(s) drew more bus power than the "
+            f"battery's matched-load power V_oc^2/(4R), the most the pack can deliver: the "
+            f"excess is booked as the ledger's store battery_overload (energy no part of the "
+            f"model supplied); this run's figures are not a real pack's (internal resistance "
+            f"too high for the load?)"]
+
+
 #: Row columns (flattened summary paths) a sweep counts as outcomes to look at, with labels.
 SWEEP_OUTCOMES = (("fell", "fell"), ("device.end_stop_contact", "end-stop contact"),
                   ("device.brake", "brake"), ("device.tracking_poor", "poor torque tracking"),
-                  ("device.newton_unconverged", "unconverged solver steps"))
+                  ("device.newton_unconverged", "unconverged solver steps"),
+                  ("device.battery_overload", "battery past its matched-load power"))
 
 
 def sweep_outcome_counts(rows) -> dict:
     """``{label: [run_id, ...]}`` of the finished rows whose outcome flag is true (falls,
-    end-stop contact, braking, poor tracking, unconverged solver steps): results, not
-    failures, that a reader of a study must not miss."""
+    end-stop contact, braking, poor tracking, unconverged solver steps, battery overload):
+    results, not failures, that a reader of a study must not miss."""
     out = {}
     for key, label in SWEEP_OUTCOMES:
         ids = [r["run_id"] for r in rows if r.get("status") == "ok" and r.get(key) is True]
@@ -222,7 +237,8 @@ def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
         lines.append(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy "
                      f"balance error {100 * summary['energy']['balance_error_rel']:.2e} %")
         lines += [f"  {w}" for w in
-                  solver_warnings(summary["energy"].get("newton_unconverged_steps"))]
+                  solver_warnings(summary["energy"].get("newton_unconverged_steps"))
+                  + battery_warnings(summary["energy"].get("battery_overload_steps"))]
         lines.append(f"  results: {out}")
         return lines
     b, pub = summary["bench"], summary["published"]
@@ -269,7 +285,8 @@ def circuit_bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> lis
                  f"{len(summary['ledger'])} runs ("
                  f"{'closed' if e['ledger_closed'] else 'NOT closed'} within "
                  f"{e['tolerance']:g})")
-    lines += [f"  {w}" for w in solver_warnings(e.get("newton_unconverged_steps"))]
+    lines += [f"  {w}" for w in solver_warnings(e.get("newton_unconverged_steps"))
+              + battery_warnings(e.get("battery_overload_steps"))]
     lines.append(f"  results: {out}")
     return lines
 
