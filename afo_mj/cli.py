@@ -3,8 +3,8 @@
 
 Exit codes: 0 done (a fall, an infeasible design's report or a verdict are outcomes); 1 the
 run could not be simulated, analysed or written (nothing written), or every sweep run failed;
-2 invalid input (nothing written); 130 an interrupted sweep or optimisation (run again to
-resume).
+2 invalid input (nothing written); 130 interrupted (one line on stderr; run, render, compare
+write nothing; a sweep or optimisation keeps its finished runs: run it again to resume).
 """
 
 from __future__ import annotations
@@ -49,9 +49,9 @@ def _demo(args) -> int:
 
 
 def _run(args) -> int:
-    from afo_mj.app.run import BenchRun, DeviceWalkRun, record_run, run_scenario
-    res = run_scenario(args.scenario, args.set or (), args.strides, out_dir=args.out,
-                       on_note=_notes("run"))
+    from afo_mj.app.run import BenchRun, DeviceWalkRun, run_recorded
+    res, info = run_recorded(args.scenario, args.rrd, args.set or (), args.strides,
+                             out_dir=args.out, on_note=_notes("run"))
     if isinstance(res, BenchRun):
         _print(console.bench_lines(res.bench, res.summary, res.wall_time_s, res.out_dir))
     elif isinstance(res, DeviceWalkRun):
@@ -60,14 +60,12 @@ def _run(args) -> int:
     else:
         _print(console.walk_lines(res.scenario, res.reference, res.summary, res.wall_time_s,
                                   res.out_dir))
-    if args.rrd:
-        info = record_run(res, args.rrd)
-        if info is None:
-            _err("run", "--rrd is not written for a circuit bench (no time-domain recording "
-                 "of its protocols yet)")
-        else:
-            print(f"  recording: {info['path']} ({len(info['entities'])} entities; open with "
-                  f"`afo-mj view {info['path']}`)")
+    if args.rrd and info is None:
+        _err("run", "--rrd is not written for a circuit bench (no time-domain recording of "
+             "its protocols yet)")
+    elif info is not None:
+        print(f"  recording: {info['path']} ({len(info['entities'])} entities; open with "
+              f"`afo-mj view {info['path']}`)")
     return 0
 
 
@@ -83,9 +81,6 @@ def _compare(args) -> int:
           f"stride ({comp.wall_time_s:.1f} s wall)")
     print(format_tables(comp))
     print(f"  results: {res.out_dir}")
-    if res.recording_error:
-        _err("compare", f"recording not written: {res.recording_error}")
-        return 1
     if res.recording:
         print(f"  recording: {res.recording['path']} ({len(comp.rows)} devices side by side; "
               f"open with `afo-mj view {res.recording['path']}`)")
@@ -272,6 +267,8 @@ def _version() -> str:
         return __version__
 
 
+_ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
+
 _COMMANDS = ("demo", "run", "view", "render", "compare", "calibrate", "make_bench_record",
              "sweep", "study", "optimize", "optimize_gait", "design", "build_models")
 
@@ -292,6 +289,10 @@ def main(argv: list[str] | None = None) -> int:
         except AppError as exc:
             _err(args.command, str(exc))
             return exc.exit_code
+        except KeyboardInterrupt:         # Ctrl-C: one line, no traceback
+            what = "; nothing written" if args.command in _ATOMIC else ""
+            _err(args.command, f"interrupted (SIGINT){what}")
+            return 130
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
 :func:`compare` loads the device scenarios (and their variants), runs each one's assist
 condition and the shared no-device baseline (:mod:`afo_mj.experiments.device_comparison`),
 writes the comparison directory and, with ``rrd_path``, a rerun recording of every device side
-by side. Bad input raises :class:`~afo_mj.app.errors.InvalidInput`, a failed run
-:class:`~afo_mj.app.errors.RunFailed` (nothing written).
+by side (the two written together or not at all; ``--out`` and ``--rrd`` are checked before
+anything runs). Bad input raises :class:`~afo_mj.app.errors.InvalidInput`, a failed run or
+recording :class:`~afo_mj.app.errors.RunFailed` (nothing written).
 """
 
 from __future__ import annotations
@@ -25,12 +26,11 @@ __all__ = ["ComparisonRun", "compare"]
 @dataclasses.dataclass(frozen=True)
 class ComparisonRun:
     """The comparison (:class:`afo_mj.experiments.device_comparison.Comparison`), where it was
-    written, and the recording's info (``path``, ``entities``) or why it was not written."""
+    written, and the recording's info (``path``, ``entities``; None without ``rrd_path``)."""
 
     comparison: Any
     out_dir: Path
     recording: dict | None = None
-    recording_error: str | None = None
 
 
 def compare(scenario_paths: Sequence[str], out_dir, overrides: Sequence[str] = (),
@@ -51,6 +51,9 @@ def compare(scenario_paths: Sequence[str], out_dir, overrides: Sequence[str] = (
         check_result_dir(out_dir)
     except ResultDirError as exc:
         raise InvalidInput(f"{exc}; nothing written") from None
+    if rrd_path:
+        from afo_mj.app.run import check_rrd_path
+        check_rrd_path(rrd_path, out_dir)
     try:
         items = load_compare_items(scenario_paths, overrides=overrides, strides=strides)
     except (ScenarioError, CompareError) as exc:
@@ -67,17 +70,26 @@ def compare(scenario_paths: Sequence[str], out_dir, overrides: Sequence[str] = (
                      "strides": strides},
             "python": platform.python_version(), "numpy": np.__version__,
             "mujoco": mujoco.__version__, "platform": platform.platform()}
-    try:
-        out = write_comparison(out_dir, comp, info)
-    except (ResultDirError, OSError, ValueError) as exc:
-        raise RunFailed(f"{exc}; nothing written") from None
-    if not kept:
+    if not rrd_path:
+        try:
+            out = write_comparison(out_dir, comp, info)
+        except (ResultDirError, OSError, ValueError) as exc:
+            raise RunFailed(f"{exc}; nothing written") from None
         return ComparisonRun(comp, out)
-    from afo_mj.outputs.recording import RecordedRun, RecordingError, write_recording
+    from afo_mj.outputs.recording import (RecordedRun, RecordingError, write_recording,
+                                          write_results_with_recording)
     runs = [RecordedRun(re.sub(r"[^A-Za-z0-9_]+", "_", label).strip("_") or f"run{i}",
                         rec, dev) for i, (label, rec, dev) in enumerate(kept)]
+
+    def record(file: Path) -> dict:
+        try:
+            return write_recording(file, runs, items[0].reference, title="afo_mj compare")
+        except (RecordingError, OSError) as exc:
+            raise RunFailed(f"recording not written: {exc}; nothing written") from None
+
     try:
-        rec_info = write_recording(rrd_path, runs, items[0].reference, title="afo_mj compare")
-    except (RecordingError, OSError) as exc:
-        return ComparisonRun(comp, out, recording_error=str(exc))
-    return ComparisonRun(comp, out, recording=rec_info)
+        rec_info = write_results_with_recording(
+            out_dir, rrd_path, lambda stage: write_comparison(stage, comp, info), record)
+    except (ResultDirError, OSError, ValueError) as exc:
+        raise RunFailed(f"{exc}; nothing written") from None
+    return ComparisonRun(comp, Path(out_dir), recording=rec_info)

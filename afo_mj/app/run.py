@@ -3,7 +3,8 @@
 :func:`run_scenario` is what ``afo-mj run`` does and what a sweep runs for each point: it
 loads and checks the scenario (and the results directory, before anything is simulated),
 simulates, analyses, composes the ``summary.json`` document and, when ``out_dir`` is given,
-writes the results directory atomically. It returns a :class:`WalkRun`, a
+writes the results directory atomically (:func:`run_recorded`: with a ``--rrd`` recording,
+which may lie inside it, in the same atomic write). It returns a :class:`WalkRun`, a
 :class:`DeviceWalkRun` or a :class:`BenchRun`; bad input raises
 :class:`~afo_mj.app.errors.InvalidInput`, a run that cannot be simulated, analysed or written
 raises :class:`~afo_mj.app.errors.RunFailed` (nothing written in either case).
@@ -33,7 +34,7 @@ import numpy as np
 from afo_mj.app.errors import InvalidInput, RunFailed
 
 __all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "run_bench", "record_run",
-           "run_info", "write_rrd"]
+           "run_recorded", "check_rrd_path", "run_info", "write_rrd"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,14 +175,16 @@ def _read_text(path) -> str:
 
 def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None,
                  out_dir=None, figures: bool = True,
-                 on_note: Callable[[str], None] | None = None
+                 on_note: Callable[[str], None] | None = None, *, recording=None
                  ) -> WalkRun | DeviceWalkRun | BenchRun:
     """Load, check, run and (with ``out_dir``) write the scenario file ``path``.
 
     ``overrides``: ``--set`` style ``"dotted.key=value"`` strings; ``strides``: the number
     of strides to simulate (the analysed window follows, ``run --strides``); ``figures``:
     False writes the numbers only; ``on_note``: called with each note the scenario carries
-    (e.g. a substituted reference) before the simulation starts.
+    (e.g. a substituted reference) before the simulation starts; ``recording``: a
+    :class:`~afo_mj.outputs.recording.RecordingTarget` written with the results (see
+    :func:`run_recorded`, which checks it and commits it).
     """
     from afo_mj.outputs.result_dir import ResultDirError, check_result_dir
     from afo_mj.scenarios.bench_scenario import is_bench_document
@@ -200,7 +203,7 @@ def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None
         if strides is not None:
             raise InvalidInput(f"--strides: {path} is a bench scenario (no strides); allowed: "
                                f"--strides on walking scenarios only")
-        return run_bench(path, overrides, out_dir, figures)
+        return run_bench(path, overrides, out_dir, figures, recording=recording)
     ov = (strides_overrides(strides) if strides is not None else []) + list(overrides)
     try:
         scenario = load_scenario(path, overrides=ov)
@@ -212,11 +215,11 @@ def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None
         if on_note is not None:
             on_note(note)
     if cfg is not None:
-        return _run_device(scenario, reference, cfg, out_dir, figures)
-    return _run_walk(scenario, reference, out_dir, figures)
+        return _run_device(scenario, reference, cfg, out_dir, figures, recording)
+    return _run_walk(scenario, reference, out_dir, figures, recording)
 
 
-def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
+def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> WalkRun:
     from afo_mj.gait.walk import WalkNumericsError, simulate_walk
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
@@ -238,6 +241,7 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
         from afo_mj.metrics.muscle_metrics import muscle_signals
         extra = muscle_signals(muscle_walk)
     runs = [RecordedRun("walk", record, extra_signals=extra)]
+    rrd = _rrd_writer(recording, lambda f: write_rrd(f, scenario, runs, reference))
     try:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
     except GaitAnalysisError as exc:
@@ -258,7 +262,8 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
                                         extra_files=_chain(_run_info_writer(wall),
                                                            _recording_writer(scenario, runs,
                                                                              reference),
-                                                           _opensim_writer(scenario, runs)),
+                                                           _opensim_writer(scenario, runs),
+                                                           rrd),
                                         figures=figures)
             except ReportError as exc2:
                 raise RunFailed(f"{scenario.name}: {exc2}") from None
@@ -280,7 +285,8 @@ def _run_walk(scenario, reference, out_dir, figures: bool) -> WalkRun:
                                     scenario.text, extra_files=_chain(
                                         _run_info_writer(wall),
                                         _recording_writer(scenario, runs, reference),
-                                        _opensim_writer(scenario, runs), muscle_files),
+                                        _opensim_writer(scenario, runs), muscle_files,
+                                        rrd),
                                     figures=figures)
     except (GaitAnalysisError, ReportError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}") from None
@@ -353,7 +359,8 @@ def _device_files_writer(results, reference, dsum, name, wall_s, figures: bool):
     return write
 
 
-def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkRun:
+def _run_device(scenario, reference, cfg, out_dir, figures: bool,
+                recording=None) -> DeviceWalkRun:
     """A walking scenario with an orthosis: every condition, the headline one written out."""
     from afo_mj.experiments.device_walk import run_device_scenario
     from afo_mj.gait.walk import WalkNumericsError
@@ -409,7 +416,9 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
                                         _device_files_writer(results, reference, dsum,
                                                              scenario.name, wall, figures),
                                         _recording_writer(scenario, runs, reference),
-                                        _opensim_writer(scenario, runs)),
+                                        _opensim_writer(scenario, runs),
+                                        _rrd_writer(recording, lambda f: write_rrd(
+                                            f, scenario, runs, reference))),
                                     figures=figures)
         except ReportError as exc:
             raise RunFailed(f"{scenario.name}: {exc}") from None
@@ -417,7 +426,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool) -> DeviceWalkR
 
 
 def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
-              figures: bool = True) -> BenchRun:
+              figures: bool = True, *, recording=None) -> BenchRun:
     """Run the bench scenario ``path``: the device on the ankle test stand (HAFO bench,
     stiffness rig) or a circuit's bench protocols; with ``out_dir``, write ``summary.json``,
     ``scenario.toml``, ``run_info.json`` and (``figures``) the bench figures. A walking
@@ -463,8 +472,11 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
         from afo_mj.outputs.bench_figures import plot_bench_series
         plot_bench_series(bs.bench_kind, series, tmp, bs.name)
 
+    from afo_mj.outputs.recording import write_bench_recording
+    rrd = _rrd_writer(recording, lambda f: None if bs.bench_kind == "circuit" else
+                      write_bench_recording(f, series, title=bs.name))
     try:
-        out = write_atomically(out_dir, writer)
+        out = write_atomically(out_dir, _chain(writer, rrd))
     except (ResultDirError, ValueError) as exc:
         raise RunFailed(f"{bs.name}: {exc}") from None
     return BenchRun(bs, summary, series, wall, out)
@@ -485,3 +497,70 @@ def record_run(res: WalkRun | DeviceWalkRun | BenchRun, path) -> dict | None:
         return write_rrd(path, res.scenario, res.recorded_runs(), res.reference)
     except (RecordingError, OSError) as exc:
         raise RunFailed(f"recording not written: {exc}") from None
+
+
+def check_rrd_path(rrd_path, out_dir=None) -> Path:
+    """Raise :class:`~afo_mj.app.errors.InvalidInput` unless ``rrd_path`` can take the
+    ``--rrd`` recording (see :func:`afo_mj.outputs.recording.check_recording_path`); called
+    before anything is simulated."""
+    from afo_mj.outputs.recording import RecordingError, check_recording_path
+    try:
+        return check_recording_path(rrd_path, out_dir)
+    except RecordingError as exc:
+        raise InvalidInput(f"{exc}; nothing written") from None
+
+
+def run_recorded(path, rrd_path, overrides: Sequence[str] = (), strides: int | None = None,
+                 out_dir=None, figures: bool = True,
+                 on_note: Callable[[str], None] | None = None):
+    """:func:`run_scenario` and its rerun recording at ``rrd_path`` (``afo-mj run --rrd``);
+    returns ``(run, recording info or None)`` (None: no ``rrd_path``, or a circuit bench, see
+    :func:`record_run`).
+
+    ``--out`` and ``--rrd`` are checked before anything is simulated. With ``out_dir`` the
+    recording is written as part of the results directory's atomic write
+    (:class:`afo_mj.outputs.recording.RecordingTarget`): a recording that fails leaves no
+    results, an interrupted run leaves nothing, and a recording inside ``out_dir`` is listed
+    in the directory's manifest, so the same command can run again.
+    """
+    from afo_mj.outputs.recording import RecordingTarget
+    from afo_mj.outputs.result_dir import ResultDirError, check_result_dir
+    if not rrd_path:
+        return run_scenario(path, overrides, strides, out_dir, figures, on_note), None
+    if out_dir is not None:
+        try:
+            check_result_dir(out_dir)
+        except ResultDirError as exc:
+            raise InvalidInput(f"{exc}; nothing written") from None
+    check_rrd_path(rrd_path, out_dir)
+    if out_dir is None:
+        res = run_scenario(path, overrides, strides, None, figures, on_note)
+        return res, record_run(res, rrd_path)       # the recording is written atomically
+    target = RecordingTarget(rrd_path, out_dir)
+    try:
+        res = run_scenario(path, overrides, strides, out_dir, figures, on_note,
+                           recording=target)
+        try:
+            info = target.commit()
+        except OSError as exc:
+            raise RunFailed(f"recording not written: {exc} (the results are in "
+                            f"{res.out_dir})") from None
+    except BaseException:
+        target.discard()
+        raise
+    return res, info
+
+
+def _rrd_writer(target, record):
+    """The ``--rrd`` recording as a results-directory writer (None without ``target``):
+    ``record(file)`` writes it; a failure raises RunFailed (the results are not written)."""
+    if target is None:
+        return None
+
+    def rec(file: Path):
+        from afo_mj.outputs.recording import RecordingError
+        try:
+            return record(file)
+        except (RecordingError, OSError) as exc:
+            raise RunFailed(f"recording not written: {exc}; nothing written") from None
+    return target.writer(rec)

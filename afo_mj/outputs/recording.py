@@ -88,7 +88,8 @@ from typing import Sequence
 import numpy as np
 
 __all__ = ["RecordedRun", "RecordingError", "write_recording", "write_bench_recording",
-           "read_recording_index",
+           "read_recording_index", "check_recording_path", "RecordingTarget",
+           "write_results_with_recording",
            "GRF_M_PER_N", "SIGNAL_RATE_HZ", "TRANSFORM_RATE_HZ"]
 
 #: default sample rate of the scalar signals (every k-th simulation step) [Hz]
@@ -814,6 +815,161 @@ def write_bench_recording(path, series: dict, title: str = "afo_mj bench") -> di
         tmp.unlink(missing_ok=True)
         raise
     return {"path": str(out), "entities": w.index}
+
+
+#: the first bytes of a rerun recording file
+_RRD_MAGIC = b"RRF"
+
+
+def _missing_dirs(path: Path) -> list[Path]:
+    """The folders above ``path`` that do not exist yet, nearest first."""
+    out = []
+    for d in path.parents:
+        if d.exists():
+            break
+        out.append(d)
+    return out
+
+
+def check_recording_path(path, out_dir=None) -> Path:
+    """Raise :class:`RecordingError` unless ``path`` can take a recording, before any work: a
+    name ending in ``.rrd``; not a directory, nor an existing file other than a rerun
+    recording (which it replaces); its folder an existing writable directory or one that can
+    be made in one; not the results directory ``out_dir`` itself (inside it is allowed: the
+    recording is then written with the results). Returns the path."""
+    p = Path(path)
+    what = f"--rrd {str(p)!r}"
+    if p.is_dir():
+        raise RecordingError(f"{what} is a directory; allowed: a file name ending in .rrd")
+    if p.suffix != ".rrd":
+        raise RecordingError(f"{what} does not end in .rrd; allowed: a file name ending in "
+                             f".rrd")
+    if p.exists():
+        try:
+            with open(p, "rb") as f:
+                head = f.read(len(_RRD_MAGIC))
+        except OSError as exc:
+            raise RecordingError(f"{what}: {exc.strerror or exc}") from None
+        if head and head != _RRD_MAGIC:
+            raise RecordingError(f"{what} exists and is not a rerun recording; allowed: a new "
+                                 f"file or a recording to replace")
+    missing = _missing_dirs(p.absolute())
+    base = (missing[-1] if missing else p.absolute()).parent
+    if not base.is_dir():
+        raise RecordingError(f"{what}: {str(base)!r} is not a directory; allowed: a file in "
+                             f"an existing writable directory (or one that can be made)")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise RecordingError(f"{what}: directory {str(base)!r} is not writable")
+    if out_dir is not None and p.resolve() == Path(out_dir).resolve():
+        raise RecordingError(f"{what} is the results directory --out; allowed: a file "
+                             f"inside it or elsewhere")
+    return p
+
+
+class RecordingTarget:
+    """Where a ``--rrd`` recording goes, written as part of a results directory's atomic write
+    (:func:`afo_mj.outputs.result_dir.write_atomically`).
+
+    Inside ``out_dir`` the recording is one of the results: :meth:`writer` writes it into the
+    directory being filled, so it is listed in the manifest and the same command can run
+    again. Elsewhere it goes to a temporary file beside ``path`` while the results are written,
+    renamed by :meth:`commit` once they are in place. :meth:`discard` removes what an
+    unfinished write left: the temporary file and the folders (above ``out_dir`` or the
+    recording) that did not exist when the target was made, if empty.
+    """
+
+    def __init__(self, path, out_dir):
+        self.path = Path(path)
+        out, rec = Path(out_dir).resolve(), self.path.resolve()
+        self._rel = rec.relative_to(out) if rec != out and rec.is_relative_to(out) else None
+        made = _missing_dirs(out) + ([] if self._rel else _missing_dirs(rec))
+        self._made = sorted(set(made), key=lambda d: len(d.parts), reverse=True)  # deepest first
+        self._tmp: Path | None = None
+        self.info: dict | None = None
+
+    def writer(self, record):
+        """A results-directory writer (``writer(tmp_dir)``) that calls ``record(file)`` to write
+        the recording (its info, ``path`` and ``entities``, or None: no recording)."""
+        def write(tmp_dir: Path) -> None:
+            if self._rel is not None:
+                dest = Path(tmp_dir) / self._rel
+                dest.parent.mkdir(parents=True, exist_ok=True)
+            else:
+                self.path.absolute().parent.mkdir(parents=True, exist_ok=True)
+                dest = self._tmp = self.path.absolute().with_name(
+                    f".{self.path.name}.{uuid.uuid4().hex[:8]}.part.rrd")
+            info = record(dest)
+            self.info = None if info is None else {**info, "path": str(self.path)}
+            if info is None and self._rel is not None:
+                for d in self._rel.parents:          # no empty folder among the results
+                    if d.name:
+                        try:
+                            (Path(tmp_dir) / d).rmdir()
+                        except OSError:
+                            break
+        return write
+
+    def commit(self) -> dict | None:
+        """After the results are in place: the recording at its path; returns its info (None:
+        no recording was written, and no folder is left for it)."""
+        if self.info is None:
+            self.discard()
+        elif self._tmp is not None:
+            os.replace(self._tmp, self.path)
+            self._tmp = None
+        return self.info
+
+    def discard(self) -> None:
+        """Remove the temporary recording and the folders made for this write, if empty."""
+        if self._tmp is not None:
+            self._tmp.unlink(missing_ok=True)
+            self._tmp = None
+        for d in self._made:
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+
+
+def write_results_with_recording(out_dir, rrd_path, write_results, record) -> dict | None:
+    """A results directory and its recording, written together or not at all, for a results
+    writer that cannot take more files (``write_results(path)`` writes the whole results
+    directory at a new ``path``, e.g. :func:`afo_mj.outputs.comparison_report.write_comparison`).
+
+    The results are written to a staging directory beside ``out_dir``, then moved, together
+    with the recording that ``record(file)`` writes (see :class:`RecordingTarget`), into
+    ``out_dir`` by one atomic swap. Anything that fails (an exception, Ctrl-C) leaves nothing
+    behind: no staging directory, temporary file or folder made by this call. Returns the
+    recording's info (``path``, ``entities``) or None (``record`` wrote none).
+    """
+    import shutil
+    import tempfile
+
+    from afo_mj.outputs.result_dir import MANIFEST, check_result_dir, write_atomically
+    out = check_result_dir(out_dir)
+    target = RecordingTarget(rrd_path, out)
+    stage = None
+    try:
+        out.absolute().parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.stage-", dir=out.absolute().parent))
+        write_results(stage / "results")
+        put_recording = target.writer(record)
+
+        def writer(tmp: Path) -> None:
+            for entry in (stage / "results").iterdir():
+                if entry.name != MANIFEST:
+                    os.replace(entry, tmp / entry.name)
+            put_recording(tmp)
+
+        write_atomically(out, writer)
+        info = target.commit()
+    except BaseException:
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        target.discard()                     # the folders made, the staging one removed
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+    return info
 
 
 def read_recording_index(path) -> dict[str, dict]:
