@@ -212,15 +212,16 @@ def test_view_command(tmp_path, walk_recording, capsys):
 def test_view_without_display_offers_the_web_viewer(tmp_path, monkeypatch, capsys):
     """Issue 19 item 14: with no display, ``afo-mj view`` opens nothing and exits 2 with the
     web viewer (``--web``: ``rerun --serve-web``) and the copy-to-a-display command."""
-    import subprocess
     import sys
+
+    import afo_mj.app.viewer as viewer
     rrd = tmp_path / "walk.rrd"
     rrd.write_bytes(b"not opened")            # nothing may read it: the viewer is mocked
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(sys, "platform", "linux")
     calls = []
-    monkeypatch.setattr(subprocess, "call", lambda cmd, *a, **k: calls.append(cmd) or 0)
+    monkeypatch.setattr(viewer, "run_viewer", lambda cmd, *a, **k: calls.append(cmd) or 0)
     assert main(["view", str(rrd)]) == 2
     err = capsys.readouterr().err
     assert calls == [], "a window was opened"
