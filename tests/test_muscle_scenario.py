@@ -36,12 +36,23 @@ def test_shipped_sets_and_default():
     (BASE.format(extra='reflex_set = "2.0"'), r"walker.reflex_set = '2.0' is neither a shipped"),
     (BASE.format(extra="") + "[controller]\nkp_hip_nm_per_rad = 100.0\n",
      r"controller = .* does not apply to walker.model = 'muscle'"),
-    (BASE.format(extra="") + '[device]\npreset = "hafo"\n',
-     r"device = .* does not apply to walker.model = 'muscle'"),
 ])
 def test_bad_muscle_scenarios_are_named(text, match):
     with pytest.raises(ScenarioError, match=match):
         parse_scenario(text)
+
+
+def test_a_device_is_worn_by_the_muscle_walker():
+    """[device] and [assistance] on walker.model = "muscle" parse (issue 39: any device on
+    any walker); the adapted wearers are shipped sets by name."""
+    from afo_mj.scenarios.device_scenario import device_config
+    sc = parse_scenario(BASE.format(extra='reflex_set = "adapted/hafo"')
+                        + '[device]\npreset = "hafo_gait"\n'
+                        + '[assistance]\npeak_torque_nm = 30.0\n')
+    assert sc.walker_model == "muscle" and sc.reflex_set == muscle_reflex_sets()["adapted/hafo"]
+    cfg = device_config(sc)
+    assert cfg.preset == "hafo_gait" and tuple(cfg.conditions) == ("no_device", "transparent",
+                                                                   "assist")
 
 
 def test_reflex_set_path_relative_to_the_file(tmp_path):

@@ -236,11 +236,7 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
     except (WalkNumericsError, FloatingPointError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
-    extra = {}
-    if muscle_walk is not None:
-        from afo_mj.metrics.muscle_metrics import muscle_signals
-        extra = muscle_signals(muscle_walk)
-    runs = [RecordedRun("walk", record, extra_signals=extra)]
+    runs = [RecordedRun("walk", record, extra_signals=_muscle_signals(muscle_walk))]
     rrd = _rrd_writer(recording, lambda f: write_rrd(f, scenario, runs, reference))
     try:
         analysis = analyse_gait(record, reference, scenario.analyse_strides)
@@ -294,26 +290,22 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
 
 
 def _simulate_muscle_walk(scenario):
-    """The muscle-driven walk of a ``walker.model = "muscle"`` scenario: its reflex set, for
-    ``gait.strides`` right strides of the set's recorded stride time (plus two and 1 s), the
-    ``[impairment]`` strength fractions as the muscles' maximum-force factors (plantarflexor:
-    soleus and gastrocnemius; dorsiflexor: tibialis anterior)."""
-    from afo_mj.gait.muscle_walk import run_muscle_walk
-    from afo_mj.studies.gait_optimization import load_reflex_set
+    """The muscle-driven walk of a ``walker.model = "muscle"`` scenario
+    (:func:`afo_mj.experiments.muscle_scenario.walk_muscle_scenario`); an unreadable reflex
+    set is invalid input."""
+    from afo_mj.experiments.muscle_scenario import MuscleScenarioError, walk_muscle_scenario
     try:
-        params = load_reflex_set(scenario.reflex_set)
-        doc = json.loads(Path(scenario.reflex_set).read_text())
-    except (OSError, ValueError, KeyError) as exc:
-        raise InvalidInput(f"walker.reflex_set = {str(scenario.reflex_set)!r}: {exc}") from None
-    stride = float((doc.get("quality") or {}).get("stride_s") or 1.2)
-    w = scenario.walker
-    scale = {}
-    for names, f in ((("soleus", "gastrocnemius"), w.plantarflexor_strength_fraction),
-                     (("tibialis_anterior",), w.dorsiflexor_strength_fraction)):
-        if f != 1.0:
-            scale.update({n: max(float(f), 0.01) for n in names})
-    return run_muscle_walk(w, params, 1.0 + (scenario.strides + 2) * stride,
-                           max_force_scale=scale or None)
+        return walk_muscle_scenario(scenario)
+    except MuscleScenarioError as exc:
+        raise InvalidInput(str(exc)) from None
+
+
+def _muscle_signals(walk) -> dict:
+    """A muscle walk's signals for its recording (none for the torque walker)."""
+    if walk is None:
+        return {}
+    from afo_mj.metrics.muscle_metrics import muscle_signals
+    return muscle_signals(walk)
 
 
 def _muscle_outputs(walk, analysis, figures: bool = True):
@@ -363,13 +355,17 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                 recording=None) -> DeviceWalkRun:
     """A walking scenario with an orthosis: every condition, the headline one written out."""
     from afo_mj.experiments.device_walk import run_device_scenario
+    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.outputs.recording import RecordedRun
 
     t0 = time.perf_counter()
+    walks = {}                      # each condition's muscle walk (muscle walker only)
     try:
-        dsum, results = run_device_scenario(scenario, reference, cfg)
+        dsum, results = run_device_scenario(scenario, reference, cfg, muscle_walks=walks)
+    except MuscleScenarioError as exc:
+        raise InvalidInput(str(exc)) from None
     except (WalkNumericsError, FloatingPointError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
@@ -400,6 +396,10 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
     if "device" in block:
         summary["device"] = block["device"]
         summary["energy"] = block["energy"]
+    muscle_files = None
+    if head in walks and analysis is not None:
+        # the wearer's effort in the headline condition: the muscle block and its files
+        summary["muscle"], muscle_files = _muscle_outputs(walks[head], analysis, figures)
     out = None
     if out_dir is not None:
         extra = {}
@@ -408,13 +408,15 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
             cols = list(L)
             extra["device_timeseries.csv"] = (",".join(cols),
                                               np.column_stack([L[k][:, 0] for k in cols]))
-        runs = [RecordedRun(c, r, d) for c, (r, _a, d) in results.items()]
+        runs = [RecordedRun(c, r, d, extra_signals=_muscle_signals(walks.get(c)))
+                for c, (r, _a, d) in results.items()]
         try:
             out = write_run_outputs(out_dir, summary, cycles, reference, rec,
                                     scenario.text, extra_tables=extra,
                                     extra_files=_chain(
                                         _device_files_writer(results, reference, dsum,
                                                              scenario.name, wall, figures),
+                                        muscle_files,
                                         _recording_writer(scenario, runs, reference),
                                         _opensim_writer(scenario, runs),
                                         _rrd_writer(recording, lambda f: write_rrd(

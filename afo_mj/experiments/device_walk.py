@@ -227,32 +227,74 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
     return HafoDevice(cfg.params, **kw)
 
 
-def run_device_scenario(scenario, reference, cfg: DeviceConfig):
-    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``."""
+def _walk_torque(scenario, reference, dev, worn, label):
+    """One condition on the torque-driven tracking walker: ``(record, None)``."""
+    from afo_mj.gait.walk import run_walk
+    rec = run_walk(scenario.walker, reference, scenario.cycle_time_s(reference),
+                   scenario.strides, scenario.controller_params(), worn_masses=worn,
+                   device=dev, label=label)
+    return rec, None
+
+
+def _walk_muscle(scenario, reference, dev, worn, label):
+    """One condition on the muscle-driven reflex walker: ``(record, MuscleWalk)``."""
+    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
+    walk = walk_muscle_scenario(scenario, device=dev, worn_masses=worn)
+    return walk.record, walk
+
+
+def _torque_duration_s(scenario, reference) -> float:
+    return (scenario.strides + 1.5) * scenario.cycle_time_s(reference) + 1.0
+
+
+def _muscle_duration_s(scenario, reference) -> float:
+    from afo_mj.experiments.muscle_scenario import muscle_walk_duration_s
+    return muscle_walk_duration_s(scenario)
+
+
+#: How each walker model (``walker.model``) walks one condition of a device scenario:
+#: ``(walk(scenario, reference, device, worn_masses, label) -> (record, muscle walk or None),
+#: duration(scenario, reference) -> the longest the walk lasts, s)``.
+WALKERS = {"torque": (_walk_torque, _torque_duration_s),
+           "muscle": (_walk_muscle, _muscle_duration_s)}
+
+
+def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=None):
+    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``.
+
+    The walker is the scenario's (``walker.model``, :data:`WALKERS`). On the muscle walker
+    each condition's block gains ``muscle`` (net metabolic rate and cost of transport by
+    Umberger 2010 and Bhargava 2004, per muscle: :func:`afo_mj.metrics.muscle_metrics.
+    muscle_summary` over the analysed strides) and ``comparison_vs_no_device`` the change of
+    the net metabolic rate; ``muscle_walks`` (a dict), when given, receives each condition's
+    :class:`~afo_mj.gait.muscle_walk.MuscleWalk`."""
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
-    from afo_mj.gait.walk import check_torque_walker, run_walk
-    # the device walk is the torque walker's loop: a muscle scenario is refused, not swapped
-    check_torque_walker(scenario, "the device walk (run_device_scenario)")
-    T = scenario.cycle_time_s(reference)
+    model = getattr(scenario, "walker_model", "torque")
+    if model not in WALKERS:
+        raise ValueError(f"walker.model = {model!r}; allowed: {', '.join(map(repr, WALKERS))}")
+    walk_fn, duration_fn = WALKERS[model]
     dt = scenario.walker.timestep_s
-    results = {}
+    results, walks = {}, {}
     n = len(cfg.conditions)
     for i, cond in enumerate(cfg.conditions, 1):
         dev = None
         worn = ()
         if cond != "no_device":
-            steps = int(((scenario.strides + 1.5) * T + 1.0) / dt) + 4
+            steps = int(duration_fn(scenario, reference) / dt) + 4
             dev = make_device(cfg, cond, dt, steps)
             # a circuit description has no worn-mass layout (its parts' masses are metadata)
             worn = dev.worn_masses() if hasattr(dev, "worn_masses") else ()
-        rec = run_walk(scenario.walker, reference, T, scenario.strides,
-                       scenario.controller_params(), worn_masses=worn, device=dev,
-                       label=f"condition {i}/{n}: {cond}" if n > 1 else cond)
+        rec, walk = walk_fn(scenario, reference, dev, worn,
+                            f"condition {i}/{n}: {cond}" if n > 1 else cond)
         try:
             analysis = analyse_gait(rec, reference, scenario.analyse_strides)
         except GaitAnalysisError:
             analysis = None
         results[cond] = (rec, analysis, dev)
+        if walk is not None:
+            walks[cond] = walk
+            if muscle_walks is not None:
+                muscle_walks[cond] = walk
     conds = {c: condition_summary(r, a, d, cfg, scenario.analyse_strides)
              for c, (r, a, d) in results.items()}
     summary = {"device_conditions": conds, "device_preset": cfg.preset,
@@ -261,12 +303,41 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig):
         summary["circuit"] = {"name": cfg.circuit.circuit.name,
                               "controller": cfg.circuit.circuit.controller.kind,
                               "description": cfg.circuit_spec}
+    for c, walk in walks.items():
+        conds[c]["muscle"] = _muscle_block(walk, results[c][1])
     if "no_device" in conds:
         base = conds["no_device"]["human"]["ankle_positive_work_j_per_stride"]
         summary["comparison_vs_no_device"] = {
             c: {"human_ankle_positive_work_change_j_per_stride":
                 (v["human"]["ankle_positive_work_j_per_stride"] - base)
                 if base is not None and v["human"]["ankle_positive_work_j_per_stride"]
-                is not None else None}
+                is not None else None,
+                **_metabolic_change(conds["no_device"].get("muscle"), v.get("muscle"))}
             for c, v in conds.items() if c != "no_device"}
     return summary, results
+
+
+def _muscle_block(walk, analysis) -> dict | None:
+    """The condition's ``muscle`` block over its analysed strides (None without them)."""
+    if analysis is None:
+        return None
+    from afo_mj.metrics.muscle_metrics import muscle_summary
+    t0, t1 = analysis.summary["analysed_span_s"]
+    return muscle_summary(walk, t0, t1)
+
+
+def _metabolic_change(base: dict | None, cond: dict | None) -> dict:
+    """The wearer's net metabolic rate with the device minus without it, W/kg and % of the
+    rate without it, by both models (nothing on the torque walker, None where a condition
+    has no analysed stride)."""
+    if base is None and cond is None:
+        return {}
+    out = {}
+    for model in ("umberger", "bhargava"):
+        key = f"net_metabolic_{model}_w_per_kg"
+        b = None if base is None else base.get(key)
+        v = None if cond is None else cond.get(key)
+        ok = b is not None and v is not None
+        out[f"net_metabolic_{model}_change_w_per_kg"] = (v - b) if ok else None
+        out[f"net_metabolic_{model}_change_pct"] = (100.0 * (v - b) / b) if ok and b else None
+    return out

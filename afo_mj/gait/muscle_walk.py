@@ -34,7 +34,7 @@ from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
 
 __all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_scaled",
-           "run_muscle_walk", "MUSCLE_SOLE_PITCH_RAD"]
+           "run_muscle_walk", "load_reflex_set", "MUSCLE_SOLE_PITCH_RAD"]
 
 GRAVITY_M_S2 = 9.81
 #: the stature Geyer & Herr's muscle lengths are for (m)
@@ -62,6 +62,19 @@ def reflex_params(overrides: dict | None = None) -> np.ndarray:
             raise ValueError(f"reflex parameter {k} = {v!r}; allowed: a finite number")
         p[k] = float(v)
     return np.array([p[n] for n in rl.PARAM_NAMES])
+
+
+def load_reflex_set(path) -> np.ndarray:
+    """The parameter vector of a ``reflex_params.json`` (``afo-mj optimize-gait``'s file: by
+    name; missing names keep Geyer & Herr's values). A file of another format raises
+    ValueError naming it."""
+    import json
+    from pathlib import Path
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("format") != "afo_mj reflex parameters v1":
+        raise ValueError(f"{path}: format {doc.get('format')!r}; allowed: "
+                         "'afo_mj reflex parameters v1'")
+    return reflex_params(doc["parameters"])
 
 
 def build_muscle_walker(walker: WalkerParams, worn_masses=()) -> WalkerPhysics:

@@ -117,6 +117,8 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
                      f"{e['electrical_in_j']:.0f} J, regen {e['electrical_regenerated_j']:.0f} J, "
                      f"balance error {100 * e['balance_error_rel']:.2f} %")
         lines.append(line)
+        lines += [f"  {'':12s}  {w}" for w in metabolic_lines(
+            v.get("muscle"), device_summary.get("comparison_vs_no_device", {}).get(c))]
         if "device" in v:
             lines += [f"  {'':12s}  {w}" for w in device_warnings(v["device"])]
         if g is None:
@@ -145,6 +147,22 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
 def _num(x, fmt: str) -> str:
     """``x`` formatted, '-' for None or NaN."""
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:{fmt}}"
+
+
+def metabolic_lines(muscle: Mapping | None, change: Mapping | None) -> list[str]:
+    """The wearer's effort in one condition of a device walk on the muscle walker: net
+    metabolic rate by both models and its change against the no-device condition (none on
+    the torque walker, which has no effort model)."""
+    if not muscle:
+        return []
+    line = (f"wearer's net metabolic rate {muscle['net_metabolic_umberger_w_per_kg']:.2f} W/kg "
+            f"(Umberger 2010), {muscle['net_metabolic_bhargava_w_per_kg']:.2f} W/kg "
+            "(Bhargava 2004)")
+    pct = (change or {}).get("net_metabolic_umberger_change_pct")
+    if pct is not None:
+        line += (f"; vs no device {pct:+.1f} % (Umberger), "
+                 f"{change['net_metabolic_bhargava_change_pct']:+.1f} % (Bhargava)")
+    return [line]
 
 
 def device_warnings(d: Mapping) -> list[str]:

@@ -17,8 +17,9 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # "muscle": 14 Hill-type muscles under a reflex controller
                                      # (afo_mj.gait.muscle_walk); the reference then only scores
                                      # the walk, [impairment] strength fractions scale the
-                                     # muscles' maximum forces, [controller] and [device] do
-                                     # not apply
+                                     # muscles' maximum forces, [controller] does not apply;
+                                     # [device], [circuit] and [assistance] are worn as on
+                                     # the torque walker
     reflex_set = "1.25"              # muscle model: a shipped set (MUSCLE_REFLEX_SETS) or a
                                      # reflex_params.json path (afo-mj optimize-gait), relative
                                      # to the file
@@ -416,18 +417,25 @@ WALKER_MODELS = ("torque", "muscle")
 
 
 def muscle_reflex_sets() -> dict[str, Path]:
-    """The shipped reflex parameter sets of the muscle walker by name (``"1.25"`` is
-    ``afo_mj/data/reflex_params_1.25.json``)."""
+    """The shipped reflex parameter sets of the muscle walker by name: ``"1.25"`` is
+    ``afo_mj/data/reflex_params_1.25.json``; the wearers re-optimised with a device worn
+    (``tools/muscle_adapted.py``, docs/muscle_walker.md) are ``"adapted/<condition>"`` (e.g.
+    ``"adapted/hafo"``, ``"adapted/zhang_seed2"``) and ``"adapted_weak/<condition>"`` for the
+    wearer with weak plantarflexors."""
     from importlib.resources import files
     data = Path(str(files("afo_mj") / "data"))
-    return {p.stem.removeprefix("reflex_params_"): p
+    sets = {p.stem.removeprefix("reflex_params_"): p
             for p in sorted(data.glob("reflex_params_*.json"))}
+    for folder in ("adapted", "adapted_weak"):
+        sets.update({f"{folder}/{p.stem}": p for p in sorted((data / folder).glob("*.json"))})
+    return sets
 
 
 def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -> Path | None:
     """``walker.model`` and ``walker.reflex_set``: the reflex file of a muscle walker (None
     for the torque model); the muscle model refuses the torque walker's ``[controller]`` and
-    the orthosis tables."""
+    nothing else: an orthosis (``[device]``, ``[circuit]``, ``[assistance]``) is worn by
+    either walker."""
     model = ctx.string("walker.model", model, " | ".join(repr(m) for m in WALKER_MODELS))
     if model not in WALKER_MODELS:
         raise ctx.fail("walker.model", model, "is not a walker model",
@@ -437,12 +445,11 @@ def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -
             raise ctx.fail("walker.reflex_set", raw_set, "is given for the torque model",
                            "walker.reflex_set with walker.model = 'muscle'")
         return None
-    for table in ("controller", "device", "circuit", "assistance"):
-        if ctx.table(doc, table):
-            raise ctx.fail(table, dict(ctx.table(doc, table)),
-                           "does not apply to walker.model = 'muscle'",
-                           f"no [{table}] table (assistance on the muscle walker: "
-                           "afo_mj.experiments.muscle_assistance)")
+    if ctx.table(doc, "controller"):
+        raise ctx.fail("controller", dict(ctx.table(doc, "controller")),
+                       "does not apply to walker.model = 'muscle' (it sets the torque "
+                       "walker's tracking controller; the muscle walker's reflexes are "
+                       "walker.reflex_set)", "no [controller] table")
     shipped = muscle_reflex_sets()
     raw = ctx.string("walker.reflex_set", "1.25" if raw_set is None else raw_set,
                      "a shipped set (" + ", ".join(shipped) + ") or a reflex_params.json path")

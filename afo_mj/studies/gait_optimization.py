@@ -43,7 +43,7 @@ import numpy as np
 from afo_mj.experiments.batch import run_batch
 from afo_mj.experiments.muscle_assistance import Assistance, assistance_walk
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.muscle_walk import MUSCLE_SOLE_PITCH_RAD, reflex_params
+from afo_mj.gait.muscle_walk import MUSCLE_SOLE_PITCH_RAD, load_reflex_set, reflex_params
 from afo_mj.gait.reference import load_normative
 from afo_mj.human.walker import WalkerParams
 
@@ -323,13 +323,3 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
            "wall_s": total_s}
     _write_atomic(out / "reflex_params.json", json.dumps(doc, indent=1).encode())
     return doc
-
-
-def load_reflex_set(path) -> np.ndarray:
-    """The parameter vector of a ``reflex_params.json`` (by name; missing names keep Geyer &
-    Herr's values)."""
-    doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    if doc.get("format") != "afo_mj reflex parameters v1":
-        raise ValueError(f"{path}: format {doc.get('format')!r}; allowed: "
-                         "'afo_mj reflex parameters v1'")
-    return reflex_params(doc["parameters"])

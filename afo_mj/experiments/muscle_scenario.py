@@ -1,0 +1,77 @@
+"""A ``walker.model = "muscle"`` scenario walked by the muscle-driven walker
+(:func:`afo_mj.gait.muscle_walk.run_muscle_walk`), with or without an orthosis: the one place
+that turns such a scenario into the walk's arguments, for ``afo-mj run`` of a plain muscle
+scenario and for every condition of a device scenario on the muscle walker
+(:func:`afo_mj.experiments.device_walk.run_device_scenario`).
+
+What the scenario sets:
+
+* ``walker.reflex_set``: the reflex parameters (a shipped set or an ``afo-mj optimize-gait``
+  file, :func:`afo_mj.gait.muscle_walk.load_reflex_set`);
+* ``gait.strides``: the walk lasts ``1 s + (strides + 2) ×`` the set's recorded stride time
+  (``quality.stride_s`` of the file, 1.2 s without one), so that the requested right strides
+  complete with a margin;
+* ``[walker]`` body: mass, stature (muscles scaled by geometric similarity,
+  :func:`afo_mj.gait.muscle_walk.muscle_table_scaled`);
+* ``[impairment]`` strength fractions: the muscles' maximum-force factors (plantarflexor:
+  soleus and gastrocnemius; dorsiflexor: tibialis anterior), floored at 0.01.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+__all__ = ["MuscleScenarioError", "muscle_walk_duration_s", "muscle_force_scale",
+           "walk_muscle_scenario"]
+
+#: the stride time assumed for a reflex file that records none (s)
+DEFAULT_STRIDE_S = 1.2
+
+
+class MuscleScenarioError(ValueError):
+    """The scenario's reflex set cannot be read (the message names ``walker.reflex_set``)."""
+
+
+def _reflex_set(scenario):
+    """``(parameter vector, file document)`` of the scenario's reflex set."""
+    from afo_mj.gait.muscle_walk import load_reflex_set
+    try:
+        params = load_reflex_set(scenario.reflex_set)
+        doc = json.loads(Path(scenario.reflex_set).read_text(encoding="utf-8"))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise MuscleScenarioError(f"walker.reflex_set = {str(scenario.reflex_set)!r}: "
+                                  f"{exc}") from None
+    return params, doc
+
+
+def muscle_walk_duration_s(scenario) -> float:
+    """How long the scenario's muscle walk lasts (s): 1 s plus ``gait.strides + 2`` of its
+    reflex set's recorded stride time."""
+    _params, doc = _reflex_set(scenario)
+    stride = float((doc.get("quality") or {}).get("stride_s") or DEFAULT_STRIDE_S)
+    return 1.0 + (scenario.strides + 2) * stride
+
+
+def muscle_force_scale(walker) -> dict | None:
+    """The ``[impairment]`` strength fractions of ``walker`` as the muscles' maximum-force
+    factors (None when all are 1)."""
+    scale = {}
+    for names, f in ((("soleus", "gastrocnemius"), walker.plantarflexor_strength_fraction),
+                     (("tibialis_anterior",), walker.dorsiflexor_strength_fraction)):
+        if f != 1.0:
+            scale.update({n: max(float(f), 0.01) for n in names})
+    return scale or None
+
+
+def walk_muscle_scenario(scenario, device=None, worn_masses=()):
+    """The muscle walk of ``scenario`` (a :class:`~afo_mj.gait.muscle_walk.MuscleWalk`),
+    wearing ``device`` (a coupled orthosis stepped with MuJoCo, e.g. a
+    :class:`~afo_mj.circuits.device.CircuitDevice`; its foot switch is the reflex
+    controller's stance) and ``worn_masses`` when given."""
+    from afo_mj.gait.muscle_walk import run_muscle_walk
+    params, _doc = _reflex_set(scenario)
+    w = scenario.walker
+    return run_muscle_walk(w, params, muscle_walk_duration_s(scenario),
+                           worn_masses=worn_masses, device=device,
+                           max_force_scale=muscle_force_scale(w))
