@@ -1,13 +1,11 @@
-"""Every entry point that takes a walking scenario either runs the walker model the scenario
-names or refuses it (issue 38 item 1). ``render``, ``simulate_walk``, ``walk_batch``,
-``Walk.from_scenario`` and the gymnasium environment step the torque-driven walker only: on a
-``[walker] model = "muscle"`` scenario they used to walk the torque walker in its place
-(``walk_batch`` on ``walk_muscle_healthy.toml``: cadence 103.7/min against 125.4 from
-``afo-mj run``). Each is run here on ``walk_healthy.toml`` (it runs, a few steps or one stride)
-and on ``walk_muscle_healthy.toml`` (one error naming the model and ``afo-mj run``, nothing
-written, no worker started). ``compare`` needs a ``[device]`` table, which the scenario parser
-refuses on the muscle walker. ``afo-mj run`` (and ``sweep``/``optimize``/studies, whose points
-are ``afo-mj run``) runs the muscle walker: ``tests/test_muscle_scenario.py``.
+"""Every entry point that takes a walking scenario either walks the walker model the scenario
+names or refuses it (issue 38 item 1, issue 39 item 2). ``afo-mj run``, device walks,
+``compare``, ``walk_batch`` and ``render`` walk the scenario's own walker (through
+:data:`afo_mj.experiments.device_walk.WALKERS`): on ``walk_muscle_healthy.toml`` their cadence
+and speed are ``afo-mj run``'s (125/min), not the torque walker's (104/min), which
+``walk_batch`` and ``render`` used to walk in its place. ``simulate_walk``,
+``Walk.from_scenario`` and the gymnasium environment step the torque walker interactively and
+still refuse a muscle scenario (one error naming the model and ``afo-mj run``).
 
 A census of the package's calls keeps the list honest: a new caller of the torque walk (or of
 a scenario loader outside the listed modules) fails here until it is added to the matrix."""
@@ -73,19 +71,51 @@ def test_walk_batch_torque_runs():
     assert len(rec.events.heel_strikes_s[0]) >= 2
 
 
-@pytest.mark.parametrize("workers", [1, 2])
-def test_walk_batch_muscle_refused_before_any_worker(monkeypatch, workers):
+@pytest.fixture(scope="module")
+def muscle_run():
+    """``afo-mj run``'s walk of the muscle scenario (the reference the other entry points
+    must reproduce): its summary."""
+    from afo_mj.app.run import run_scenario
+    return run_scenario(SCENARIOS["muscle"], overrides=SHORT2).summary
+
+
+#: two analysed strides, so that cadence and speed are measured
+SHORT2 = ["gait.strides=3", "gait.analyse_strides=[2, 3]"]
+
+
+def _gait(record, scenario) -> dict:
+    from afo_mj.metrics.gait_metrics import analyse_gait
+    return analyse_gait(record, scenario.load_reference(), scenario.analyse_strides).summary
+
+
+def test_walk_batch_walks_the_muscle_walker(muscle_run):
+    """walk_batch on a muscle scenario walks the muscle walker: its cadence and speed are
+    afo-mj run's (125/min), not the torque walker's (104/min)."""
+    from afo_mj.experiments.batch import walk_batch
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(SCENARIOS["muscle"], overrides=SHORT2)
+    (rec,) = walk_batch([sc], workers=1)
+    g = _gait(rec, sc)
+    for key in ("cadence_steps_per_min", "speed_m_s"):
+        assert g[key]["mean"] == muscle_run[key]["mean"], key
+    torque = load_scenario(SCENARIOS["torque"], overrides=SHORT2)
+    (trec,) = walk_batch([torque], workers=1)
+    assert abs(_gait(trec, torque)["cadence_steps_per_min"]["mean"]
+               - g["cadence_steps_per_min"]["mean"]) > 10.0
+
+
+def test_walk_batch_refuses_an_unknown_walker_model_before_any_worker(monkeypatch):
+    import dataclasses
+
     from afo_mj.experiments import batch
-    from afo_mj.gait.walk import WalkerModelError
 
     def no_run(*a, **k):
-        raise AssertionError("a walk was started for a batch that holds a muscle scenario")
+        raise AssertionError("a walk was started for a batch with an unknown walker model")
     monkeypatch.setattr(batch, "run_batch", no_run)
-    monkeypatch.setattr(batch, "run_unordered", no_run)
-    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
-        batch.walk_batch([_load("torque"), _load("muscle")], workers=workers)
-    _assert_refused(ei)
-    assert "scenarios[1]" in str(ei.value) and "walk_batch" in str(ei.value)
+    bad = dataclasses.replace(_load("torque"), walker_model="hill")
+    with pytest.raises(ValueError, match=r"scenarios\[1\]: walker.model = 'hill'; allowed: "
+                                         r"'torque', 'muscle'"):
+        batch.walk_batch([_load("torque"), bad], workers=1)
 
 
 # --- Walk ---------------------------------------------------------------------------------------
@@ -165,20 +195,28 @@ def test_render_cli_torque_writes_the_video(gl, tmp_path):
     assert out.is_file() and out.stat().st_size > 0
 
 
-def test_render_muscle_refused(tmp_path, capsys):
+def test_render_walks_the_muscle_walker(tmp_path, monkeypatch, muscle_run):
+    """afo-mj render of a muscle scenario renders the muscle walker's walk: the record it
+    draws has afo-mj run's cadence and speed."""
     from afo_mj import cli
-    from afo_mj.app.errors import InvalidInput
-    from afo_mj.app.render import render
-    out = tmp_path / "walk.mp4"
-    with pytest.raises(InvalidInput, match=REFUSAL) as ei:
-        render(SCENARIOS["muscle"], out, overrides=SHORT, fps=10, width=64, height=48)
-    _assert_refused(ei)
-    assert ei.value.exit_code == 2
-    capsys.readouterr()
-    assert cli.main(_render_argv("muscle", out)) == 2
-    err = capsys.readouterr().err
-    assert "walker.model = 'muscle'" in err and "afo-mj run" in err and "nothing written" in err
-    assert list(tmp_path.iterdir()) == []
+    from afo_mj.outputs import video
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    drawn = []
+
+    def fake_render(rec, path, **kw):
+        drawn.append(rec)
+        return {"frames": 1, "fps": kw.get("fps"), "width": kw.get("width"),
+                "height": kw.get("height"), "duration_s": 0.1, "codec": "h264",
+                "path": str(path)}
+    monkeypatch.setattr(video, "render_record", fake_render)
+    argv = ["render", str(SCENARIOS["muscle"]), "--mp4", str(tmp_path / "m.mp4")]
+    for s_ in SHORT2:
+        argv += ["--set", s_]
+    assert cli.main(argv) == 0
+    (rec,) = drawn
+    g = _gait(rec, load_scenario(SCENARIOS["muscle"], overrides=SHORT2))
+    for key in ("cadence_steps_per_min", "speed_m_s"):
+        assert g[key]["mean"] == muscle_run[key]["mean"], key
 
 
 # --- compare: a device on the muscle walker is refused by the scenario parser -------------------
@@ -202,11 +240,11 @@ def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
 #: module -> what it does with a muscle scenario
 TORQUE_WALK_CALLERS = {
     "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
-    "afo_mj/experiments/batch.py": "walk_batch refuses it before any worker",
     "afo_mj/experiments/walk_env.py": "the constructor refuses it",
-    "afo_mj/app/render.py": "refuses it (exit 2)",
     "afo_mj/app/run.py": "afo-mj run: the muscle walk (simulate_walk only on torque)",
-    "afo_mj/experiments/device_walk.py": "device walks: run_walk for torque only (WALKERS)",
+    "afo_mj/experiments/device_walk.py": "WALKERS: run_walk for torque only; every walk of a "
+                                         "scenario (run, device walks, walk_batch, render) "
+                                         "goes through it",
 }
 SCENARIO_LOADERS = {
     "afo_mj/app/render.py", "afo_mj/app/run.py", "afo_mj/experiments/walk_env.py",

@@ -31,8 +31,9 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
 
     A scenario with a ``[device]`` table runs one of its conditions (``condition``, default
     the last listed, the headline: usually ``assist``); a plain walk takes no condition. A
-    bench scenario (``[bench]`` table) has no walk to render, nor (until it runs the muscle
-    walker) a ``walker.model = "muscle"`` scenario: it renders the torque-driven walker only.
+    bench scenario (``[bench]`` table) has no walk to render. The walk is the scenario's own
+    walker (``walker.model``: the torque-driven or the muscle-driven one), walked as
+    ``afo-mj run`` walks it (:func:`afo_mj.experiments.walkers.walk_scenario`).
     ``fps``, ``width``, ``height``,
     ``max_seconds`` and ``progress`` as for :func:`afo_mj.outputs.video.render_record`,
     checked before the (slow) simulation.
@@ -65,20 +66,19 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
     if condition is not None and not isinstance(condition, str):
         raise InvalidRender(f"condition = {condition!r} is not allowed; allowed: a string")
     video.choose_gl()                   # the GL backend, before MuJoCo is imported
-    from afo_mj.gait.walk import Walk, WalkerModelError, check_torque_walker
     try:
         s = load_scenario(p, overrides=tuple(overrides))
-        check_torque_walker(s, "afo-mj render")
-    except (ScenarioError, WalkerModelError) as exc:
+    except ScenarioError as exc:
         raise InvalidRender(str(exc)) from None
     from afo_mj.experiments.device_walk import make_device
+    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
+    from afo_mj.experiments.walkers import walk_duration_s, walk_scenario
     from afo_mj.scenarios.device_scenario import device_config
     try:
         cfg = device_config(s)
     except ScenarioError as exc:
         raise InvalidRender(str(exc)) from None
     ref = s.load_reference()
-    T = s.cycle_time_s(ref)
     if cfg is None:
         if condition is not None:
             raise InvalidRender(f"{p}: condition = {condition!r} is not allowed; allowed: "
@@ -92,12 +92,19 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
                                 + " | ".join(cfg.conditions))
         condition = cond
         dt = s.walker.timestep_s
-        dev = (None if cond == "no_device" else
-               make_device(cfg, cond, dt, int(((s.strides + 1.5) * T + 1.0) / dt) + 4))
+        try:
+            dev = (None if cond == "no_device" else
+                   make_device(cfg, cond, dt, int(walk_duration_s(s, ref) / dt) + 4))
+        except MuscleScenarioError as exc:
+            raise InvalidRender(str(exc)) from None
         sides = () if dev is None else tuple(cfg.sides)
         label = f"{s.name} \u00b7 {cond}"
-    rec = Walk.from_scenario(s, dev, dev.worn_masses() if dev is not None else (),
-                             entry_point="afo-mj render").run()
+    try:
+        # the scenario's own walker (walker.model), as afo-mj run walks it
+        rec, _muscles = walk_scenario(s, dev, dev.worn_masses() if dev is not None else (),
+                                      reference=ref)
+    except MuscleScenarioError as exc:
+        raise InvalidRender(str(exc)) from None
     facts = video.render_record(rec, mp4_path, fps=fps, width=width, height=height,
                                 max_seconds=max_seconds, progress=progress,
                                 device_sides=sides, label=label)

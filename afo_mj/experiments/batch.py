@@ -140,14 +140,15 @@ def run_batch(fn: Callable, items: Sequence, workers: int | None = None) -> list
 
 
 def _simulate(scenario):
-    from afo_mj.gait.walk import simulate_walk
-    return simulate_walk(scenario)
+    """The scenario's walk on its own walker (``walker.model``), as ``afo-mj run`` walks it."""
+    from afo_mj.experiments.walkers import walk_scenario
+    record, _muscles = walk_scenario(scenario)
+    return record
 
 
 def _simulate_summary(scenario) -> dict:
-    from afo_mj.gait.walk import simulate_walk
     from afo_mj.metrics.gait_metrics import analyse_gait
-    record = simulate_walk(scenario)
+    record = _simulate(scenario)
     return analyse_gait(record, scenario.load_reference(), scenario.analyse_strides).summary
 
 
@@ -163,18 +164,22 @@ def walk_batch(scenarios: Sequence, workers: int | None = None, *, result: str =
     record is ~5 MB for 10 strides, and sending it back to this process costs more than
     the summary's analysis (``benchmarks/batch.py`` measures both). With ``raise_errors``
     (default) the first failed walk's error is raised (naming its index); otherwise failed
-    walks give their :class:`BatchResult` in their place. The walks are the torque-driven
-    walker's: a scenario naming another ``walker.model`` raises
-    :class:`~afo_mj.gait.walk.WalkerModelError` before any walk starts."""
+    walks give their :class:`BatchResult` in their place. Each scenario walks on the walker it
+    names (``walker.model``: torque-driven or muscle-driven,
+    :func:`afo_mj.experiments.walkers.walk_scenario`), as ``afo-mj run`` walks it."""
     if result not in RESULTS:
         raise ValueError(f"result = {result!r}; allowed: {', '.join(map(repr, RESULTS))}")
-    from afo_mj.gait.walk import check_torque_walker
+    from afo_mj.experiments.walkers import walker_models
     scenarios = list(scenarios)
+    models = walker_models()
     for i, s in enumerate(scenarios):
         if not hasattr(s, "load_reference") or not hasattr(s, "walker"):
             raise ValueError(f"scenarios[{i}] = {type(s).__name__}; allowed: WalkScenario "
                              f"(afo_mj.scenarios.walk_scenario.load_scenario)")
-        check_torque_walker(s, "walk_batch", index=i)     # before any worker starts
+        model = getattr(s, "walker_model", "torque")
+        if model not in models:                            # before any worker starts
+            raise ValueError(f"scenarios[{i}]: walker.model = {model!r}; allowed: "
+                             + ", ".join(repr(m) for m in models))
     results = run_batch(_simulate if result == "record" else _simulate_summary, scenarios,
                         workers)
     out = []
