@@ -259,6 +259,38 @@ WALKERS = {"torque": (_walk_torque, _torque_duration_s),
            "muscle": (_walk_muscle, _muscle_duration_s)}
 
 
+#: What the ``human_response`` block says of each walker model (:func:`human_response`).
+HUMAN_RESPONSE_NOTES = {
+    "torque": ("the wearer's ankle feedforward is lowered by this fraction of the device "
+               "torque (a written-in rule, not a response): human ankle work changes with a "
+               "device follow from it"),
+    "muscle": "reflexes respond; no written-in rule",
+}
+
+
+def human_response(scenario) -> dict:
+    """How the simulated wearer answers a worn device, for a device run's summary.
+
+    The torque walker has no answer of its own: it lowers its ankle feedforward by
+    ``controller.assistance_adaptation`` × the device's torque (:mod:`afo_mj.gait.walk`), so
+    any change of the human ankle's work with a device rests on that rule. The block is
+    ``{"walker_model": "torque", "rule": "assistance_adaptation", "assistance_adaptation":
+    <the scenario's value>, "note": ...}``. The muscle walker's reflexes respond to the
+    device by themselves: ``{"walker_model": "muscle", "rule": None, "assistance_adaptation":
+    None, "note": ...}``."""
+    model = getattr(scenario, "walker_model", "torque")
+    if model == "torque":
+        return {"walker_model": "torque", "rule": "assistance_adaptation",
+                "assistance_adaptation": float(scenario.controller_params()
+                                               .assistance_adaptation),
+                "note": HUMAN_RESPONSE_NOTES["torque"]}
+    if model == "muscle":
+        return {"walker_model": "muscle", "rule": None, "assistance_adaptation": None,
+                "note": HUMAN_RESPONSE_NOTES["muscle"]}
+    raise ValueError(f"walker.model = {model!r}; allowed: "
+                     f"{', '.join(map(repr, HUMAN_RESPONSE_NOTES))}")
+
+
 def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=None):
     """Run every condition; returns ``(summary, per-condition (record, analysis, device))``.
 
@@ -267,7 +299,9 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
     Umberger 2010 and Bhargava 2004, per muscle: :func:`afo_mj.metrics.muscle_metrics.
     muscle_summary` over the analysed strides) and ``comparison_vs_no_device`` the change of
     the net metabolic rate; ``muscle_walks`` (a dict), when given, receives each condition's
-    :class:`~afo_mj.gait.muscle_walk.MuscleWalk`."""
+    :class:`~afo_mj.gait.muscle_walk.MuscleWalk`. The summary's ``human_response``
+    (:func:`human_response`) says whether the wearer's answer to the device is a written-in
+    rule (torque walker) or their own (muscle walker)."""
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
     model = getattr(scenario, "walker_model", "torque")
     if model not in WALKERS:
@@ -298,7 +332,7 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
     conds = {c: condition_summary(r, a, d, cfg, scenario.analyse_strides)
              for c, (r, a, d) in results.items()}
     summary = {"device_conditions": conds, "device_preset": cfg.preset,
-               "device_sides": list(cfg.sides)}
+               "device_sides": list(cfg.sides), "human_response": human_response(scenario)}
     if cfg.circuit is not None:
         summary["circuit"] = {"name": cfg.circuit.circuit.name,
                               "controller": cfg.circuit.circuit.controller.kind,

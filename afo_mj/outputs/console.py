@@ -11,7 +11,7 @@ import math
 from typing import Mapping
 
 __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_lines",
-           "device_walk_lines", "device_warnings", "sweep_outcome_counts",
+           "device_walk_lines", "human_response_line", "device_warnings", "sweep_outcome_counts",
            "sweep_outcome_lines", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines"]
 
@@ -85,10 +85,13 @@ def walk_lines(scenario, reference, summary: Mapping, wall_time_s: float, out) -
 
 def device_walk_lines(scenario, config, results: Mapping, device_summary: Mapping,
                       wall_time_s: float, out) -> list[str]:
-    """A walk with an orthosis: one line per condition (gait, human ankle work, the device's
-    torque, work, tracking and energy), then the foot-drop and push-off figures."""
+    """A walk with an orthosis: on the torque walker a line saying that the wearer's response
+    to the device is written in (:func:`human_response_line`), then one line per condition
+    (gait, human ankle work, the device's torque, work, tracking and energy), then the
+    foot-drop and push-off figures."""
     lines = [f"afo_mj walk with {config.preset} on {', '.join(config.sides)}: {scenario.name}, "
              f"{_body(scenario)} ({wall_time_s:.1f} s wall)"]
+    lines += human_response_line(device_summary.get("human_response"))
     for c, v in device_summary["device_conditions"].items():
         g = v["gait"]
         line = f"  {c:12s}: "
@@ -147,6 +150,20 @@ def device_walk_lines(scenario, config, results: Mapping, device_summary: Mappin
 def _num(x, fmt: str) -> str:
     """``x`` formatted, '-' for None or NaN."""
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:{fmt}}"
+
+
+def human_response_line(block: Mapping | None) -> list[str]:
+    """One line when a device run's ``human_response`` block
+    (:func:`afo_mj.experiments.device_walk.human_response`) names the torque walker's
+    written-in rule, with its value as the block gives it; none otherwise (the muscle
+    walker's reflexes respond by themselves)."""
+    if not block or block.get("rule") != "assistance_adaptation":
+        return []
+    a = block.get("assistance_adaptation")
+    return [f"  human response: written-in (torque walker, assistance_adaptation = {a}: the "
+            f"wearer's ankle feedforward is lowered by {a} x the device torque, so changes "
+            "of human ankle work with the device follow from it); for the wearer's own "
+            'response use walker.model = "muscle"']
 
 
 def metabolic_lines(muscle: Mapping | None, change: Mapping | None) -> list[str]:

@@ -39,6 +39,13 @@
   (A) and speed (rpm) for the HAFO, servo-valve spool position and command (normalised,
   ± 1 = full stroke) for the valve circuits.
 
+The titles of the two figures that compare the wearer's own (muscle) moments and powers across
+conditions (``ankle_angle_conditions.png``, ``gait_conditions.png``) say when the run's
+summary reports the torque walker's written-in response to the device
+(``human_response.rule = "assistance_adaptation"``,
+:func:`afo_mj.experiments.device_walk.human_response`): there the change of the human ankle's
+work with a device follows from that rule (:func:`human_response_note`).
+
 A condition whose analysis is ``None`` (the walker fell before an analysable cycle) is left
 out of every figure (``gait_conditions.png`` names it in its legend); a figure with nothing
 to draw (no device condition) is not written.
@@ -59,7 +66,8 @@ from afo_mj.metrics.kinetics_filter import filter_note, filtered_kinetic_cycles
 from afo_mj.outputs.reference_display import (
     reference_band_note, reference_has_band, reference_label)
 
-__all__ = ["plot_device_run", "gait_conditions_title", "DEVICE_FIGURES", "FIGURES_BY_KIND"]
+__all__ = ["plot_device_run", "gait_conditions_title", "human_response_note", "DEVICE_FIGURES",
+           "FIGURES_BY_KIND"]
 
 #: Figures :func:`plot_device_run` writes (in this order) for a run with a device condition.
 DEVICE_FIGURES = ("ankle_angle_conditions.png", "gait_conditions.png", "device_torque.png",
@@ -148,6 +156,18 @@ def _band(ax, x, mean, sd, scale, colour, label, alpha=0.22, ls="-", lw=1.8):
 # ------------------------------------------------------------------------------------------
 # 1. ankle curves per condition
 # ------------------------------------------------------------------------------------------
+
+def human_response_note(summary: dict) -> str:
+    """What a figure comparing the wearer's work across conditions must say of the walker:
+    ``" (torque walker: feedforward lowered by <a> × device torque)"`` when the summary's
+    ``human_response`` names the written-in rule ``assistance_adaptation`` (its value as the
+    summary gives it), ``""`` otherwise (the muscle walker, or a summary without the block)."""
+    hr = summary.get("human_response") if isinstance(summary, dict) else None
+    if not isinstance(hr, dict) or hr.get("rule") != "assistance_adaptation":
+        return ""
+    return (f" (torque walker: feedforward lowered by {hr.get('assistance_adaptation')} × "
+            "device torque)")
+
 
 def _plot_conditions(path: Path, conds: dict, reference, side: int, title: str,
                      colours: dict | None = None) -> None:
@@ -608,13 +628,15 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
     if not conds:
         return written
 
+    # the figures of the wearer's own moments and powers name a written-in response
+    human_title = title + human_response_note(summary)
     p = out / "ankle_angle_conditions.png"
-    _plot_conditions(p, conds, reference, side, title, colours)
+    _plot_conditions(p, conds, reference, side, human_title, colours)
     written.append(p)
 
     if any(v[2] is not None for v in results.values()):
         p = out / "gait_conditions.png"
-        _plot_gait_conditions(p, results, reference, side, title, colours)
+        _plot_gait_conditions(p, results, reference, side, human_title, colours)
         written.append(p)
 
     devs = {c: v for c, v in conds.items() if v[2] is not None and v[2].log.n > 1}
