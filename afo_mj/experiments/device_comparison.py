@@ -16,8 +16,12 @@ its base parameters::
     "hose.length_m" = 2.5
 
 Rows are labelled ``"<scenario name>"`` or ``"<scenario name>:<variant>"``. Once per distinct
-walker/gait (walker, reference gait, cadence, strides, controller, worn side) the walk is also
-run without a device, as the human reference (``human_ankle_positive_work_no_device_*``).
+wearer and gait (walker model, reflex set, body and impairment, reference gait, cadence,
+strides, controller, worn side) the walk is also run without a device, as the reference of
+every row that wearer walks: the human ankle work (``human_ankle_positive_work_no_device_*``)
+and, on the muscle walker (``[walker] model = "muscle"``), the wearer's net metabolic rate
+without the device. The no-device walk of a scenario does not depend on its device, so this
+is the ``no_device`` condition ``afo-mj run`` of the row's own scenario walks.
 
 Options:
 
@@ -48,8 +52,9 @@ label; nothing written).
 Columns (per stride = per mean analysed right-leg stride; the ledger is the whole run's, scaled
 by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``afo-mj run``):
 
-* ``scenario, variant, label, scenario_file, preset, sides, fell, fall_time_s``: what the row
-  is (``fall_time_s`` empty when the walker did not fall).
+* ``scenario, variant, label, scenario_file, preset, sides, walker_model, fell,
+  fall_time_s``: what the row is (``walker_model``: ``torque`` or ``muscle``; ``fall_time_s``
+  empty when the walker did not fall).
 * ``torque_tracking_rmse_nm, peak_torque_nm``: commanded against delivered device torque; the
   peak is the largest torque delivered outside end-stop contact (``device.peak_torque_nm`` of
   the run's summary, :mod:`afo_mj.metrics.device_flags`).
@@ -109,6 +114,22 @@ by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``af
   order); empty for a row without an efficiency (not an actuator).
 * ``efficiency_rank_in_scenario``: the same ranking restricted to the rows of one scenario file
   (its variants), 1 = best within that file; empty where ``efficiency_rank`` is.
+* The wearer's effort, on the muscle walker only (empty for a torque-walker row, whose walker
+  has no muscles): ``net_metabolic_{umberger,bhargava}_w_per_kg`` (the net metabolic rate over
+  the analysed strides with the device, Umberger 2010 and Bhargava 2004, as in ``afo-mj
+  run``'s ``muscle`` block), ``net_metabolic_{umberger,bhargava}_no_device_w_per_kg`` (the
+  same wearer's no-device walk) and ``net_metabolic_{umberger,bhargava}_change_pct`` (100 ×
+  (with − without) / without: ``comparison_vs_no_device`` of ``afo-mj run``);
+  ``no_device_fall_time_s`` (when the wearer's no-device walk fell, else empty).
+* ``rank_metabolic``: the muscle-walker rows ranked by ``net_metabolic_umberger_change_pct``,
+  1 = the most negative (the largest saving of the wearer's effort); empty for a row that fell,
+  whose wearer's no-device walk fell, or without a change (no analysed stride).
+  ``rank_battery_energy``: the muscle-walker rows that did not fall ranked by
+  ``electrical_j_per_stride``, 1 = the least battery energy drawn per stride. Both rank every
+  such row once (ties keep the given order) and are empty for a torque-walker row; the rows
+  stay in ``efficiency_rank`` order. A compare may mix the two walkers: the printed tables
+  then say which rows have no effort model, and a line names each row whose metabolic change
+  rests on a fall or has no analysed stride.
 
 The per-stride ledger closes: ``electrical_net = mechanical_net + stored + sum(loss_*)`` and
 ``electrical = that + electrical_regenerated`` (to ``energy_balance_error_rel``), so
@@ -132,6 +153,7 @@ from afo_mj.scenarios.walk_scenario import strides_overrides  # re-exported: com
 
 __all__ = ["CompareError", "CompareItem", "Comparison", "FIXED_COLUMNS", "load_compare_items",
            "strides_overrides", "run_comparison", "comparison_row", "order_rows",
+           "rank_effort", "metabolic_rankable", "battery_rankable", "METABOLIC_COLUMNS",
            "loss_columns", "all_columns", "mechanical_role", "NET_WORK_MIN_J_PER_STRIDE",
            "NET_WORK_MIN_FRACTION"]
 
@@ -166,8 +188,8 @@ class Comparison:
 
 #: the columns every row has, in table order (losses are inserted after ``efficiency_*``)
 HEAD_COLUMNS = (
-    "scenario", "variant", "label", "scenario_file", "preset", "sides", "fell", "fall_time_s",
-    "torque_tracking_rmse_nm", "tracking_poor", "peak_torque_nm",
+    "scenario", "variant", "label", "scenario_file", "preset", "sides", "walker_model", "fell",
+    "fall_time_s", "torque_tracking_rmse_nm", "tracking_poor", "peak_torque_nm",
     "peak_torque_incl_end_stops_nm", "end_stop_contact", "end_stop_contact_time_s_per_stride",
     "end_stop_impulse_nm_s_per_stride", "newton_unconverged", "newton_unconverged_steps",
     "battery_overload", "battery_overload_steps",
@@ -184,7 +206,17 @@ TAIL_COLUMNS = (
     "battery_runtime_h", "not_comparable_reason", "human_ankle_positive_work_j_per_stride",
     "human_ankle_positive_work_no_device_j_per_stride",
     "human_ankle_positive_work_change_j_per_stride", "speed_m_s", "energy_balance_error_rel",
-    "efficiency_rank", "efficiency_rank_in_scenario")
+    "efficiency_rank", "efficiency_rank_in_scenario",
+    "net_metabolic_umberger_w_per_kg", "net_metabolic_umberger_no_device_w_per_kg",
+    "net_metabolic_umberger_change_pct", "net_metabolic_bhargava_w_per_kg",
+    "net_metabolic_bhargava_no_device_w_per_kg", "net_metabolic_bhargava_change_pct",
+    "no_device_fall_time_s", "rank_metabolic", "rank_battery_energy")
+#: the columns of the wearer's effort, given only on the muscle walker (None on the torque one)
+METABOLIC_COLUMNS = ("net_metabolic_umberger_w_per_kg",
+                     "net_metabolic_umberger_no_device_w_per_kg",
+                     "net_metabolic_umberger_change_pct", "net_metabolic_bhargava_w_per_kg",
+                     "net_metabolic_bhargava_no_device_w_per_kg",
+                     "net_metabolic_bhargava_change_pct")
 FIXED_COLUMNS = HEAD_COLUMNS + TAIL_COLUMNS
 
 
@@ -269,11 +301,14 @@ def _mean(entry):
 
 
 def comparison_row(item: CompareItem, block: dict, record=None,
-                   human_no_device: float | None = None) -> dict:
+                   human_no_device: float | None = None, no_device: dict | None = None) -> dict:
     """One table row from a condition block of
     :func:`afo_mj.experiments.device_walk.condition_summary` (``device``, ``energy``,
-    ``energy_per_stride``, ``human``, ``ankle``, ``gait``); nothing device-specific assumed:
-    the losses are whatever ``energy_per_stride.losses_j`` names."""
+    ``energy_per_stride``, ``human``, ``ankle``, ``gait``, and ``muscle`` on the muscle
+    walker); nothing device-specific assumed: the losses are whatever
+    ``energy_per_stride.losses_j`` names. ``no_device`` is the no-device block of the same
+    wearer (its ``human`` work is the reference unless ``human_no_device`` is given, its
+    ``muscle`` block the reference of the metabolic change)."""
     dev = block.get("device") or {}
     en = block.get("energy") or {}
     eps = block.get("energy_per_stride") or {}
@@ -285,7 +320,9 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         fall = getattr(getattr(record, "events", None), "fall_time_s", None)
     row = {"scenario": item.scenario.name, "variant": item.variant, "label": item.label,
            "scenario_file": item.path, "preset": item.cfg.preset,
-           "sides": "+".join(item.cfg.sides), "fell": fall is not None,
+           "sides": "+".join(item.cfg.sides),
+           "walker_model": getattr(item.scenario, "walker_model", "torque"),
+           "fell": fall is not None,
            "fall_time_s": _num(fall)}
     # scale of the whole-run ledger to one mean analysed stride (as energy_per_stride does)
     duration = _num(en.get("run_duration_s"))
@@ -338,6 +375,8 @@ def comparison_row(item: CompareItem, block: dict, record=None,
     for name, v in (eps.get("losses_j") or {}).items():
         row[loss_column(name)] = _num(v)
     human = _num(hum.get("ankle_positive_work_j_per_stride"))
+    if human_no_device is None and no_device is not None:
+        human_no_device = (no_device.get("human") or {}).get("ankle_positive_work_j_per_stride")
     ref = _num(human_no_device)
     row.update({
         "peak_pressure_mpa": _num(dev.get("peak_pressure_mpa")),
@@ -353,9 +392,34 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         "speed_m_s": _mean(gait.get("speed_m_s")),
         "energy_balance_error_rel": _num(en.get("balance_error_rel")),
     })
+    row.update(_metabolic_columns(row["walker_model"], block, no_device))
     # loss names in the order the devices list them (the ledger's chain order)
     row["_loss_names"] = [loss_column(n) for n in (eps.get("losses_j") or {})]
     return row
+
+
+def _metabolic_columns(walker_model: str, block: dict, no_device: dict | None) -> dict:
+    """The wearer's net metabolic rate with the device and without it (the same wearer's
+    no-device walk) and the change in % of the rate without it, by Umberger (2010) and
+    Bhargava (2004); None on the torque walker (no muscles), NaN where a walk has no analysed
+    stride; ``no_device_fall_time_s`` (NaN when that walk did not fall)."""
+    out = {c: None for c in METABOLIC_COLUMNS}
+    out["no_device_fall_time_s"] = math.nan
+    if no_device is not None:
+        out["no_device_fall_time_s"] = _num(no_device.get("fall_time_s"))
+    if walker_model != "muscle":
+        return out
+    mine = block.get("muscle") or {}
+    base = (no_device or {}).get("muscle") or {}
+    for model in ("umberger", "bhargava"):
+        key = f"net_metabolic_{model}_w_per_kg"
+        v, b = _num(mine.get(key)), _num(base.get(key))
+        out[key] = v
+        out[f"net_metabolic_{model}_no_device_w_per_kg"] = b
+        out[f"net_metabolic_{model}_change_pct"] = (100.0 * (v - b) / b
+                                                    if math.isfinite(v) and math.isfinite(b)
+                                                    and b != 0 else math.nan)
+    return out
 
 
 def loss_columns(rows) -> list[str]:
@@ -391,7 +455,44 @@ def order_rows(rows, group_key=lambda r: r["scenario_file"]) -> list[dict]:
     for r in unranked:
         r["efficiency_rank"] = None
         r["efficiency_rank_in_scenario"] = None
+    rank_effort(rows)
     return ranked + unranked
+
+
+def _walked_through(r) -> bool:
+    """The row's walk did not fall (a missing ``fell`` counts as no fall)."""
+    return not r.get("fell")
+
+
+def metabolic_rankable(r) -> bool:
+    """A muscle-walker row whose metabolic change can be ranked: a finite Umberger change,
+    and neither its walk nor its wearer's no-device walk fell."""
+    return (r.get("walker_model") == "muscle" and _walked_through(r)
+            and math.isfinite(_num(r.get("net_metabolic_umberger_change_pct")))
+            and not math.isfinite(_num(r.get("no_device_fall_time_s"))))
+
+
+def battery_rankable(r) -> bool:
+    """A muscle-walker row whose walk did not fall, with a finite energy drawn per stride."""
+    return (r.get("walker_model") == "muscle" and _walked_through(r)
+            and math.isfinite(_num(r.get("electrical_j_per_stride"))))
+
+
+def rank_effort(rows) -> None:
+    """Set ``rank_metabolic`` (1 = the most negative change of the wearer's net metabolic
+    rate, Umberger, against the same wearer without a device) and ``rank_battery_energy``
+    (1 = the least electrical energy drawn per stride) over the muscle-walker rows
+    (:func:`metabolic_rankable`, :func:`battery_rankable`); each rank given once, ties in the
+    given order; None for the other rows (a torque-walker row has no effort model)."""
+    for col, ok, key in (
+            ("rank_metabolic", metabolic_rankable,
+             lambda r: _num(r.get("net_metabolic_umberger_change_pct"))),
+            ("rank_battery_energy", battery_rankable,
+             lambda r: _num(r.get("electrical_j_per_stride")))):
+        for r in rows:
+            r[col] = None
+        for rank, r in enumerate(sorted((r for r in rows if ok(r)), key=key), start=1):
+            r[col] = rank
 
 
 def _walker_gait_key(item: CompareItem) -> str:
@@ -414,27 +515,31 @@ def run_comparison(items, progress=None, human_reference: bool = True,
     from afo_mj.experiments.device_walk import run_device_scenario
 
     t0 = time.perf_counter()
-    human_refs: dict[str, float] = {}
+    # the no-device walk of each distinct wearer and gait (the key holds the walker model,
+    # reflex set, body and impairment): its human ankle work and, on the muscle walker, its
+    # net metabolic rate are the reference of every row worn by that wearer
+    no_device_walks: dict[str, dict] = {}
     rows = []
     for item in items:
-        ref = math.nan
+        ref_block = None
         if human_reference:
             key = _walker_gait_key(item)
-            if key not in human_refs:
+            if key not in no_device_walks:
                 if progress:
                     progress(f"{item.scenario.name}: no_device (human reference)")
                 cfg0 = dataclasses.replace(item.cfg, conditions=("no_device",))
                 s0, _ = run_device_scenario(item.scenario, item.reference, cfg0)
-                h0 = s0["device_conditions"]["no_device"]["human"]
-                human_refs[key] = _num(h0.get("ankle_positive_work_j_per_stride"))
-            ref = human_refs[key]
+                no_device_walks[key] = s0["device_conditions"]["no_device"]
+            ref_block = no_device_walks[key]
         if progress:
             progress(f"{item.label}: assist")
         summary, results = run_device_scenario(item.scenario, item.reference, item.cfg)
         rec = results["assist"][0]
         if keep_runs is not None:
             keep_runs.append((item.label, rec, results["assist"][2]))
-        rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec, ref))
+        rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec,
+                                   None if ref_block is not None else math.nan,
+                                   no_device=ref_block))
     columns = all_columns(rows)     # loss columns in the order the scenarios were given
     rows = order_rows(rows)
     scenarios = []
@@ -445,6 +550,7 @@ def run_comparison(items, progress=None, human_reference: bool = True,
             continue
         scenarios.append({"index": item.index, "file": item.path, "name": item.scenario.name,
                           "preset": item.cfg.preset, "sides": list(item.cfg.sides),
+                          "walker_model": getattr(item.scenario, "walker_model", "torque"),
                           "strides": item.scenario.strides,
                           "analyse_strides": list(item.scenario.analyse_strides),
                           "device": _plain(item.scenario.device),

@@ -15,7 +15,7 @@ from pathlib import Path
 from afo_mj.outputs.console import battery_warnings, solver_warnings
 
 __all__ = ["write_comparison", "format_tables", "headline_table", "loss_table", "plot_comparison",
-           "caveats"]
+           "caveats", "effort_caveats", "EFFORT"]
 
 #: (column, header with unit, format) of the headline tables: the energy chain, then the device
 #: and the walker
@@ -46,6 +46,18 @@ DEVICE = (
     ("human_ankle_positive_work_j_per_stride", "human ankle + [J/stride]", ".2f"),
     ("human_ankle_positive_work_no_device_j_per_stride", "no device [J/stride]", ".2f"),
     ("speed_m_s", "speed [m/s]", ".3f"),
+)
+#: the wearer's effort beside the battery energy (printed when a row is on the muscle walker)
+EFFORT = (
+    ("label", "device", "s"),
+    ("walker_model", "walker", "s"),
+    ("electrical_j_per_stride", "electrical [J/stride]", ".2f"),
+    ("net_metabolic_umberger_w_per_kg", "net metabolic [W/kg]", ".3f"),
+    ("net_metabolic_umberger_no_device_w_per_kg", "no device [W/kg]", ".3f"),
+    ("net_metabolic_umberger_change_pct", "change Umberger [%]", "+.2f"),
+    ("net_metabolic_bhargava_change_pct", "change Bhargava [%]", "+.2f"),
+    ("rank_metabolic", "rank metabolic", "d"),
+    ("rank_battery_energy", "rank battery energy", "d"),
 )
 HEADLINE = CHAIN + DEVICE[1:]
 
@@ -112,10 +124,62 @@ DEFINITIONS = (
     "compared by eff net, rank in scenario = within one scenario file; '-' = not given.")
 
 
-def _definitions() -> str:
+#: How the effort table's figures and ranks are defined (when a row is on the muscle walker).
+EFFORT_DEFINITIONS = (
+    "net metabolic = the wearer's net metabolic rate over the analysed strides (Umberger 2010; "
+    "change also by Bhargava 2004), no device = the same wearer (walker model, reflex set, "
+    "body, impairment, gait) walking without a device, change = (with - without) / without; "
+    "rank metabolic = the muscle-walker rows by that change, most negative first; rank battery "
+    "energy = the muscle-walker rows by the electrical energy drawn per stride, least first; "
+    "a row that fell (or whose no-device walk fell, for rank metabolic) is not ranked.")
+
+
+def _definitions(rows=()) -> str:
     from afo_mj.experiments.device_comparison import (NET_WORK_MIN_FRACTION,
                                                    NET_WORK_MIN_J_PER_STRIDE)
-    return DEFINITIONS.format(min_j=NET_WORK_MIN_J_PER_STRIDE, frac=NET_WORK_MIN_FRACTION)
+    text = DEFINITIONS.format(min_j=NET_WORK_MIN_J_PER_STRIDE, frac=NET_WORK_MIN_FRACTION)
+    return text + ("\n" + EFFORT_DEFINITIONS if _any_muscle(rows) else "")
+
+
+def _any_muscle(rows) -> bool:
+    return any(r.get("walker_model") == "muscle" for r in rows)
+
+
+def effort_caveats(rows) -> list[str]:
+    """Lines about the wearer's effort: in a compare mixing the walkers, which rows have no
+    effort model (the torque walker's); per muscle-walker row whose metabolic change rests on a
+    fall (its walk or its wearer's no-device walk) or on no analysed stride, what it rests on
+    and that it is not ranked."""
+    if not _any_muscle(rows):
+        return []
+    out = []
+    torque = [r["label"] for r in rows if r.get("walker_model") != "muscle"]
+    if torque:
+        out.append("NO EFFORT MODEL: " + ", ".join(torque) + ": on the torque-driven walker, "
+                   "which has no muscles and so no metabolic rate; rank metabolic and rank "
+                   "battery energy rank the muscle-walker rows only")
+    for r in rows:
+        if r.get("walker_model") != "muscle":
+            continue
+        why = []
+        if r.get("fell"):
+            why.append(f"the walker fell at {r['fall_time_s']:.2f} s wearing it")
+        if _finite(r.get("no_device_fall_time_s")):
+            why.append(f"the same wearer's no-device walk fell at "
+                       f"{r['no_device_fall_time_s']:.2f} s")
+        if not _finite(r.get("net_metabolic_umberger_w_per_kg")):
+            why.append("the walk with the device has no analysed stride (no metabolic rate)")
+        if not _finite(r.get("net_metabolic_umberger_no_device_w_per_kg")):
+            why.append("the no-device walk has no analysed stride (no metabolic rate)")
+        if why:
+            change = r.get("net_metabolic_umberger_change_pct")
+            shown = (f"its metabolic change ({change:+.2f} %) rests on that and is not ranked"
+                     if _finite(change) else "it has no metabolic change and is not ranked")
+            fell = r.get("fell") or _finite(r.get("no_device_fall_time_s"))
+            head = "METABOLIC CHANGE ON A FALL" if fell else "NO ANALYSED STRIDE"
+            out.append(f"{head}: {r['label']}: " + "; ".join(why)
+                       + f": {shown}")
+    return out
 
 
 def caveats(rows) -> list[str]:
@@ -140,17 +204,21 @@ def caveats(rows) -> list[str]:
         out += [f"{w.split(':', 1)[0]}: {r['label']}:{w.split(':', 1)[1]}"
                 for w in solver_warnings(r.get("newton_unconverged_steps"))
                 + battery_warnings(r.get("battery_overload_steps"))]
-    return out
+    return out + effort_caveats(rows)
 
 
 def format_tables(comp) -> str:
-    """The two tables as printed on stdout, with the definitions and the caveats."""
+    """The tables as printed on stdout (the energy chain, the device and walker, and, when a
+    row is on the muscle walker, the wearer's effort beside the battery energy), with the
+    definitions and the caveats (:func:`caveats`, :func:`effort_caveats`)."""
     h2, b2 = loss_table(comp.rows, comp.columns)
     notes = caveats(comp.rows)
+    effort = (("\n\nthe wearer's effort (muscle walker) and the battery energy:\n"
+               + _text(*headline_table(comp.rows, EFFORT))) if _any_muscle(comp.rows) else "")
     return ("energy chain (per mean analysed stride):\n"
             + _text(*headline_table(comp.rows, CHAIN))
             + "\n\ndevice and walker:\n" + _text(*headline_table(comp.rows, DEVICE))
-            + "\n\n" + _definitions()
+            + effort + "\n\n" + _definitions(comp.rows)
             + ("\n" + "\n".join(notes) if notes else "")
             + "\n\nwhere the electrical energy goes, per stride [J]:\n" + _text(h2, b2))
 
@@ -160,11 +228,15 @@ def _markdown_report(comp) -> str:
     names = ", ".join(f"`{s['file']}`" for s in comp.scenarios)
     notes = caveats(comp.rows)
     return (f"# Device comparison\n\nScenarios: {names}; the `assist` condition, per mean "
-            "analysed stride. Full table: `comparison.csv`.\n\n" + _definitions() + "\n\n"
+            "analysed stride. Full table: `comparison.csv`.\n\n"
+            + _definitions(comp.rows).replace("\n", "\n\n") + "\n\n"
             + "".join(f"> **{n}**\n>\n" for n in notes) + ("\n" if notes else "")
             + "## Energy chain\n\n"
             + _markdown(*headline_table(comp.rows, CHAIN))
             + "\n\n## Device and walker\n\n" + _markdown(*headline_table(comp.rows, DEVICE))
+            + (("\n\n## The wearer's effort (muscle walker) and the battery energy\n\n"
+                + _markdown(*headline_table(comp.rows, EFFORT))) if _any_muscle(comp.rows)
+               else "")
             + "\n\n## Where the electrical energy goes (J/stride)\n\n" + _markdown(h2, b2)
             + "\n\nelectrical drawn = losses + stored change + regenerated + net mechanical "
               "output (to the energy balance error).\n")
@@ -278,7 +350,7 @@ def write_comparison(out_dir, comp, run_info: dict | None = None) -> Path:
                "scenarios": comp.scenarios,
                "run_info": {"wall_time_s": comp.wall_time_s, **(run_info or {})},
                "note": "assist condition only; per stride = whole-run ledger scaled to the "
-                       "mean analysed stride; " + _definitions()
+                       "mean analysed stride; " + _definitions(comp.rows).replace("\n", " ")
                        + " null = not applicable to that device (see not_comparable_reason)"}
         text = json.dumps(json_ready(doc), indent=2, allow_nan=False)
         (tmp / "comparison.json").write_text(text + "\n", encoding="utf-8")
