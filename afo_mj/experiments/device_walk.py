@@ -188,6 +188,8 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
     ``input_drawn_j``, regenerated = ``input_drawn_j − input_j``, the oil temperature rise
     from the device log, the battery energy from the circuit's battery component)."""
     led = dict(device.ledger(k))
+    if cfg.circuit is None and "battery_energy_wh" in led:
+        return led              # a device that reports its own (the ideal source: None)
     if cfg.circuit is None:
         from afo_mj.hydraulics.battery import Battery
         led["battery_energy_wh"] = Battery(cfg.params.battery).energy_wh
@@ -219,6 +221,10 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
     prof = cfg.profile if active and cfg.impedance is None else None
     kw = dict(sides=cfg.sides, profile=prof, impedance=imp, timestep_s=timestep_s,
               max_steps=max_steps)
+    if cfg.preset == "ideal":   # exactly its command (afo_mj.devices.ideal)
+        from afo_mj.devices.ideal import IdealDevice
+        return IdealDevice(cfg.params, spring=cfg.spring if active else None,
+                           ramp_strides=cfg.ramp_strides, **kw)
     if cfg.circuit is not None:
         from afo_mj.circuits.device import CircuitDevice
         return CircuitDevice(cfg.circuit, **kw)

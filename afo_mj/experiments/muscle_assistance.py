@@ -40,6 +40,7 @@ import numpy as np
 
 from afo_mj.control import assistance as asst
 from afo_mj.devices.hafo import HafoDevice, hafo_params
+from afo_mj.devices.ideal import ClutchedSpring, IdealDevice
 from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams
@@ -113,50 +114,25 @@ class Assistance:
 
 
 class _IdealTorque:
-    """The ideal (massless) torque of ``zhang`` or ``clutched_spring`` per side, with the
-    gait phase estimated from stance as a device would estimate it."""
+    """The ideal (massless) torque of ``zhang`` or ``clutched_spring`` per side as a
+    ``device_torque`` callback of :func:`~afo_mj.gait.muscle_walk.run_muscle_walk`: the
+    command of an :class:`~afo_mj.devices.ideal.IdealDevice` (gait phase estimated from
+    stance as a device would estimate it), which delivers exactly what it commands."""
 
     def __init__(self, a: Assistance, body_mass_kg: float):
-        self.sides = np.array([SIDE_INDEX[s] for s in a.sides])
-        self.phase = asst.new_phase_state(2)
-        self.spring = a.kind == "clutched_spring"
-        self.k = a.spring_nm_per_rad
-        self.engage_phase = a.spring_engage_phase
-        self.release_phase = a.spring_release_phase
-        self.table = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
-                                         *ZHANG_TIMING_PCT) if a.kind == "zhang" else None)
-        #: per side: the clutch's engagement angle (rad), NaN while open; engaged this stance
-        self.theta_engaged = np.full(2, np.nan)
-        self.used = np.zeros(2, bool)
-        self.ramp = a.ramp_strides
-        self.out = np.zeros(2)
+        spring = (ClutchedSpring(a.spring_nm_per_rad, a.spring_engage_phase,
+                                 a.spring_release_phase) if a.kind == "clutched_spring"
+                  else None)
+        profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
+                                      *ZHANG_TIMING_PCT) if a.kind == "zhang" else None)
+        self.device = IdealDevice(sides=a.sides, profile=profile, spring=spring,
+                                  ramp_strides=a.ramp_strides)
+        #: the device's phase-estimator state per walker side
+        self.phase = self.device.phase
 
     def __call__(self, t, angle2, velocity2, stance2):
-        out = self.out
-        out[:] = 0.0
-        for s in self.sides:
-            ph = asst.phase_update(self.phase[s], t, bool(stance2[s]), 0.4, 3.0)
-            gain = (1.0 if self.ramp == 0 else
-                    min(1.0, self.phase[s, asst.PH_N] / self.ramp))
-            if not self.spring:
-                # on the estimated phase, and only while the foot switch reads stance: a
-                # device gates its push-off torque with it, as an estimate that lags a short
-                # stride would otherwise push a swinging foot
-                out[s] = gain * asst.table_lookup(self.table, ph) if stance2[s] else 0.0
-                continue
-            if not stance2[s] or ph < 0.0 or ph > self.release_phase:
-                # swing (or no stride estimate yet, or past the release): the clutch is open
-                self.theta_engaged[s] = np.nan
-                if not stance2[s]:
-                    self.used[s] = False
-                continue
-            if math.isnan(self.theta_engaged[s]) and not self.used[s] \
-                    and ph >= self.engage_phase:
-                self.theta_engaged[s] = angle2[s]          # engages slack, at foot flat
-                self.used[s] = True
-            if not math.isnan(self.theta_engaged[s]):
-                out[s] = -gain * self.k * max(angle2[s] - self.theta_engaged[s], 0.0)
-        return out
+        force2, _damping2 = self.device.begin_step(t, angle2, velocity2, stance2)
+        return force2
 
 
 def hafo_device(a: Assistance, timestep_s: float, max_steps: int = 0) -> HafoDevice:

@@ -3,19 +3,26 @@
 Schema (added to :mod:`afo_mj.scenarios.walk_scenario`)::
 
     [device]
-    preset = "hafo"                   # the pump-controlled HAFO (afo_mj.devices.hafo)
+    preset = "hafo"                   # the pump-controlled HAFO (afo_mj.devices.hafo); "ideal":
+                                      # delivers exactly its command (afo_mj.devices.ideal)
     sides = ["right"]                 # worn on: ["right"], ["left"] or both
     conditions = ["no_device", "transparent", "assist"]   # run in this order; the last is
                                       # the run's headline result
     [device.params]                   # dotted overrides of the preset, e.g.
     "hose.length_m" = 2.2
     [assistance]
-    profile = "zhang"                 # "zhang" (4 parameters) | "spline" (points)
+    profile = "zhang"                 # "zhang" (4 parameters) | "spline" (points) |
+                                      # "impedance" | "clutched_spring" (preset "ideal" only)
     peak_torque_nm = 40.0             # plantarflexion, N·m
     peak_time_pct = 52.9
     rise_time_pct = 26.2
     fall_time_pct = 9.8
     points = [[0, 0], [40, 10], [53, 40], [62, 0]]   # profile = "spline": [% stride, N·m]
+    spring_nm_per_rad = 180.0         # profile = "clutched_spring": stiffness, the clutch
+    engage_pct = 10.0                 # engaging at this % of the stride (spring slack there)
+    release_pct = 62.0                # and opening past this % or at toe off
+    ramp_strides = 3                  # preset "ideal": the torque ramps on linearly over the
+                                      # first strides its phase estimator measures (0: at once)
 
 Conditions: ``no_device`` (nothing worn), ``transparent`` (worn, zero commanded torque, so the
 cost of wearing it shows: its mass and what the hydraulics resist), ``assist`` (the profile).
@@ -36,7 +43,10 @@ from afo_mj.scenarios.walk_scenario import ScenarioError, did_you_mean
 DEVICE_KEYS = ("preset", "sides", "conditions", "params", "variants")
 ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
                "points", "stiffness_nm_per_deg", "damping_nm_s_per_deg", "rest_angle_deg",
-               "clutched", "phases", "stiffnesses_nm_per_deg")
+               "clutched", "phases", "stiffnesses_nm_per_deg", "spring_nm_per_rad",
+               "engage_pct", "release_pct", "ramp_strides")
+#: the [assistance] keys of profile = "clutched_spring"
+SPRING_KEYS = ("spring_nm_per_rad", "engage_pct", "release_pct")
 CONDITIONS = ("no_device", "transparent", "assist")
 
 
@@ -59,14 +69,21 @@ class DeviceConfig:
     #: (:class:`afo_mj.circuits.codegen.CompiledCircuit`) and its description; else None
     circuit: Any = None
     circuit_spec: dict | None = None
+    #: the clutched spring of ``[assistance] profile = "clutched_spring"``
+    #: (:class:`afo_mj.devices.ideal.ClutchedSpring`, the ideal device only), or None
+    spring: Any = None
+    #: ``[assistance] ramp_strides`` (the ideal device only): the torque rises linearly over
+    #: this many strides measured by the phase estimator, 0 = at once
+    ramp_strides: int = 0
 
 
 def device_params(dev: dict, origin: str):
     """``(preset, params, overrides)`` from a scenario's ``[device]`` table: the preset
     (:data:`afo_mj.devices.hafo.PRESETS`) with its ``params`` dotted overrides, validated."""
     from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS, hafo_params
+    from afo_mj.devices.ideal import PRESETS as IDEAL_PRESETS, ideal_params
     from afo_mj.devices.valve_afo import VALVE_PRESETS, valve_params
-    DEVICE_PRESETS = {**HAFO_PRESETS, **VALVE_PRESETS}
+    DEVICE_PRESETS = {**HAFO_PRESETS, **VALVE_PRESETS, **IDEAL_PRESETS}
     preset = dev.get("preset", "hafo")
     if preset not in DEVICE_PRESETS:
         raise ScenarioError(f"{origin}: device.preset = {preset!r} is not allowed; allowed: "
@@ -77,6 +94,7 @@ def device_params(dev: dict, origin: str):
                             "a table of dotted parameter names")
     try:
         params = (hafo_params(overrides, preset) if preset in HAFO_PRESETS
+                  else ideal_params(overrides, preset) if preset in IDEAL_PRESETS
                   else valve_params(overrides, preset))
     except ParameterError as exc:
         raise ScenarioError(f"{origin}: device.params: {exc}") from None
@@ -139,9 +157,20 @@ def device_config(scenario) -> DeviceConfig | None:
         _, vparams, _ = device_params({"preset": preset, "params": merged},
                                       f"{origin}: device.variants.{vname}")
         variants[vname] = vparams
-    profile = None
+    profile = spring = None
+    kind = ass.get("profile", "zhang")
+    stray = [k for k in SPRING_KEYS if k in ass]
+    if stray and kind != "clutched_spring":
+        raise fail(f"assistance.{stray[0]}", ass[stray[0]],
+                   'nothing unless assistance.profile = "clutched_spring"')
+    ramp = ass.get("ramp_strides", 0)
+    if isinstance(ramp, bool) or not isinstance(ramp, int) or not 0 <= ramp <= 100:
+        raise fail("assistance.ramp_strides", ramp, "an integer 0 … 100")
+    if ramp and preset != "ideal":
+        raise fail("assistance.ramp_strides", ramp, f"0 with device.preset = {preset!r} (its "
+                   "compiled controller has no ramp; the ideal device, preset \"ideal\", "
+                   "has one)")
     if "assist" in conds:
-        kind = ass.get("profile", "zhang")
         try:
             if kind == "zhang":
                 profile = asst.zhang_profile(ass.get("peak_torque_nm", 40.0),
@@ -156,8 +185,11 @@ def device_config(scenario) -> DeviceConfig | None:
                 profile = asst.spline_profile([p[0] for p in pts], [p[1] for p in pts])
             elif kind == "impedance":
                 impedance, sweep = _impedance_rows(ass, fail)
+            elif kind == "clutched_spring":
+                spring = _clutched_spring(ass, preset, fail)
             else:
-                raise fail("assistance.profile", kind, '"zhang" | "spline" | "impedance"')
+                raise fail("assistance.profile", kind,
+                           '"zhang" | "spline" | "impedance" | "clutched_spring"')
         except ParameterError as exc:
             raise ScenarioError(f"{origin}: {exc}") from None
     if impedance is not None and cc is not None and cc.circuit.controller.kind == "open_loop":
@@ -176,7 +208,34 @@ def device_config(scenario) -> DeviceConfig | None:
                                                  else [c])]
     return DeviceConfig(preset, params, tuple(sides), tuple(conds), profile, variants,
                         impedance, dict(sweep) if impedance is not None else {},
-                        circuit=cc, circuit_spec=spec)
+                        circuit=cc, circuit_spec=spec, spring=spring, ramp_strides=ramp)
+
+
+def _clutched_spring(ass: dict, preset: str, fail):
+    """The :class:`~afo_mj.devices.ideal.ClutchedSpring` of ``[assistance] profile =
+    "clutched_spring"`` (phases given in % of the stride). Only the ideal device has it: a
+    clutch latches the ankle angle at engagement, which the torque-controlled devices'
+    commands (a profile, impedance rows about a fixed rest angle) cannot express."""
+    from afo_mj.devices.ideal import PRESETS as IDEAL_PRESETS, ClutchedSpring
+    if preset not in IDEAL_PRESETS:
+        raise fail("assistance.profile", "clutched_spring",
+                   f"only with device.preset = {' | '.join(map(repr, IDEAL_PRESETS))} (the "
+                   f"ideal device; {preset!r} cannot latch the ankle angle at engagement: "
+                   "emulate a spring on it with profile = \"impedance\", clutched = true)")
+    vals = {}
+    for key, default in zip(SPRING_KEYS, (180.0, 10.0, 62.0)):
+        v = ass.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise fail(f"assistance.{key}", v, "a finite number")
+        vals[key] = float(v)
+    k, eng, rel = vals["spring_nm_per_rad"], vals["engage_pct"], vals["release_pct"]
+    for key, v, lo, hi in (("spring_nm_per_rad", k, 0.0, 2000.0),
+                           ("engage_pct", eng, 0.0, 50.0), ("release_pct", rel, 30.0, 100.0)):
+        if not lo <= v <= hi:
+            raise fail(f"assistance.{key}", v, f"{lo:g} … {hi:g}")
+    if eng >= rel:
+        raise fail("assistance.engage_pct", eng, f"below assistance.release_pct = {rel:g}")
+    return ClutchedSpring(k, eng / 100.0, rel / 100.0)
 
 
 def _impedance_rows(ass: dict, fail):

@@ -1,0 +1,312 @@
+"""An ideal ankle orthosis: it delivers exactly the torque it commands.
+
+No actuator, no hydraulics, no controller dynamics: each step the joint torque on every worn
+ankle is the command, set from the state at the step's start (``begin_step``), and
+``end_step`` returns that same torque. What it commands (:class:`IdealDevice`):
+
+* a tabulated torque profile against the gait phase (``profile``: the Zhang et al. 2017
+  profile of ``[assistance]``, :func:`afo_mj.control.assistance.zhang_profile`, or a spline),
+  applied only while the foot switch reads stance;
+* an emulated spring/damper (``impedance``: rows of
+  :func:`afo_mj.control.impedance.impedance_table`, torque by
+  :func:`~afo_mj.control.impedance.impedance_torque`), over the whole stride as the circuit
+  devices emulate it;
+* a clutched spring (``spring``, :class:`ClutchedSpring`; Collins, Wiggin & Sawicki 2015,
+  *Nature* 522:212): the clutch engages once per stance, at ``engage_phase`` of the stride,
+  with the spring slack at the ankle angle of that moment; it then resists dorsiflexion past
+  that angle with ``stiffness_nm_per_rad`` and opens at toe off or past ``release_phase``;
+* nothing (transparent): zero torque, the worn mass alone.
+
+The gait phase comes from the foot switch exactly as on the circuit devices (the HAFO's
+controller): :func:`afo_mj.control.assistance.phase_update` per side (heel strike = rising
+edge of stance, phase = time since heel strike / mean of the last measured strides within
+``[min_stride_s, max_stride_s]``, −1 until a stride has been measured: no torque), and
+:func:`afo_mj.control.assistance.table_lookup` on the profile.
+
+The optional worn mass (``IdealAnkleParams.mass_kg``) sits at the ankle axis of each worn side.
+
+The ledger is that of an ideal source (100 % efficient both ways, no store, no loss): the
+electrical energy drawn is the positive mechanical work delivered to the ankle, the energy
+regenerated the negative work absorbed from it, so input = mechanical output and the balance
+error is zero; no pressure, no temperature, no battery, no Newton iterations. For a clutched
+spring the same book applies: what the spring absorbs counts as regenerated and what it
+returns as drawn.
+
+The device steps in Python (no compiled kernels): the torque walker walks it in its Python
+loop (``loop="auto"`` picks it, :meth:`afo_mj.gait.walk.Walk.run`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from afo_mj.circuits.device import CircuitLog
+from afo_mj.control import assistance as asst
+from afo_mj.control.impedance import impedance_table, impedance_torque
+from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_named
+from afo_mj.human.walker import WornMass
+
+__all__ = ["IdealAnkleParams", "ClutchedSpring", "IdealDevice", "IDEAL", "PRESETS",
+           "ideal_params", "LOG_FIELDS"]
+
+SIDE_NAMES = ("right", "left")
+
+
+@dataclasses.dataclass(frozen=True)
+class IdealAnkleParams(Parameters):
+    """The ideal orthosis: its worn mass and the limits of its gait-phase estimator."""
+
+    mass_kg: float = param(0.0, unit="kg", lo=0.0, hi=10.0,
+                           doc="mass worn at the ankle axis, per worn side")
+    min_stride_s: float = param(0.4, unit="s", lo=0.05, hi=10.0,
+                                doc="shortest stride the phase estimator averages in")
+    max_stride_s: float = param(3.0, unit="s", lo=0.05, hi=10.0,
+                                doc="longest stride the phase estimator averages in")
+
+    def check(self) -> None:
+        if self.min_stride_s >= self.max_stride_s:
+            self.fail("min_stride_s", f"must be below max_stride_s = {self.max_stride_s!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ClutchedSpring(Parameters):
+    """A spring in parallel with the calf behind a clutch (module docstring). Phases are
+    fractions of the stride (0 = heel strike)."""
+
+    stiffness_nm_per_rad: float = param(180.0, unit="N·m/rad", lo=0.0, hi=2000.0,
+                                        doc="spring stiffness at the ankle")
+    engage_phase: float = param(0.10, unit="-", lo=0.0, hi=0.5,
+                                doc="stride phase at which the clutch engages (foot flat)")
+    release_phase: float = param(0.62, unit="-", lo=0.3, hi=1.0,
+                                 doc="stride phase past which the clutch opens")
+
+    def check(self) -> None:
+        if self.engage_phase >= self.release_phase:
+            self.fail("engage_phase", f"must be below release_phase = {self.release_phase!r}")
+
+
+IDEAL = IdealAnkleParams()
+#: Device presets by scenario name (``[device] preset = "ideal"``).
+PRESETS = {"ideal": IDEAL}
+
+
+def ideal_params(overrides: dict | None = None, preset: str = "ideal") -> IdealAnkleParams:
+    """A preset (:data:`PRESETS`) with dotted-name overrides (``{"mass_kg": 0.97}``),
+    validated."""
+    if preset not in PRESETS:
+        raise ParameterError(f"device.preset = {preset!r}; allowed: {', '.join(PRESETS)}")
+    base = PRESETS[preset]
+    return replace_named(base, overrides) if overrides else base
+
+
+#: the device log's columns (per worn side): the first ones as on the circuit devices
+#: (:data:`afo_mj.circuits.stepper.LOG_HEADER`), then the clutch
+LOG_FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
+              "phase", "stance", "mechanical_power_w", "ankle_velocity_rad_s",
+              "ankle_angle_rad", "command_angle_rad", "clutch_engaged", "engaged_angle_rad")
+(_T, _CMD, _DLV, _MEAS, _PH, _ST, _PW, _VEL, _ANG, _CANG, _ENG, _EANG) = range(len(LOG_FIELDS))
+
+
+class IdealDevice:
+    """The ideal orthosis on ``sides`` (module docstring), stepped with MuJoCo through the
+    coupled-device protocol: ``begin_step(t, angle2, velocity2, stance2)`` → ``(force2,
+    damping2)`` per walker side (damping always 0), ``end_step(velocity_new2)`` → the
+    delivered torque (= ``force2``). At most one of ``profile`` (+dorsiflexion N·m vs phase,
+    :mod:`afo_mj.control.assistance`), ``impedance`` (rows) and ``spring``
+    (:class:`ClutchedSpring`); none: transparent. ``ramp_strides`` > 0 scales the torque by
+    (strides measured)/``ramp_strides`` until that many strides have been measured.
+    ``max_steps`` > 0 keeps a log of that many steps (:data:`LOG_FIELDS`)."""
+
+    coupled = True
+
+    def __init__(self, params: IdealAnkleParams = IDEAL, sides=("right",), profile=None,
+                 impedance=None, spring: ClutchedSpring | None = None,
+                 timestep_s: float = 1e-3, max_steps: int = 0, ramp_strides: int = 0):
+        if not isinstance(params, IdealAnkleParams):
+            raise ParameterError(f"device params = {type(params).__name__}; allowed: "
+                                 "IdealAnkleParams")
+        sides = tuple(sides)
+        if not sides or len(set(sides)) != len(sides) or any(s not in SIDE_NAMES
+                                                             for s in sides):
+            raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
+                                 "of ['right', 'left']")
+        given = [n for n, v in (("profile", profile), ("impedance", impedance),
+                                ("spring", spring)) if v is not None]
+        if len(given) > 1:
+            raise ParameterError(f"ideal device: {' and '.join(given)} given; allowed: one")
+        if spring is not None and not isinstance(spring, ClutchedSpring):
+            raise ParameterError(f"device spring = {spring!r}; allowed: a ClutchedSpring")
+        if not (isinstance(timestep_s, (int, float)) and math.isfinite(timestep_s)
+                and timestep_s > 0):
+            raise ParameterError(f"device timestep_s = {timestep_s!r}; allowed: > 0")
+        if isinstance(ramp_strides, bool) or not isinstance(ramp_strides, int) \
+                or not 0 <= ramp_strides <= 100:
+            raise ParameterError(f"device ramp_strides = {ramp_strides!r}; allowed: an "
+                                 "integer 0 … 100")
+        if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 0:
+            raise ParameterError(f"device max_steps = {max_steps!r}; allowed: an integer >= 0")
+        self.params = params
+        self.sides = sides
+        self.side_index = np.array([SIDE_NAMES.index(s) for s in sides], dtype=np.int64)
+        self.timestep_s = float(timestep_s)
+        self.profile = (None if profile is None
+                        else np.ascontiguousarray(profile, dtype=float))
+        if self.profile is not None and (self.profile.ndim != 1 or self.profile.size < 2
+                                         or not np.all(np.isfinite(self.profile))):
+            raise ParameterError(f"device profile: shape {self.profile.shape}; allowed: a "
+                                 "finite 1-D table of at least 2 points")
+        self.impedance = impedance
+        self._imp_table = None if impedance is None else impedance_table(impedance)
+        self.spring = spring
+        self.transparent = not given
+        self.ramp_strides = ramp_strides
+        self.stride_limits = (params.min_stride_s, params.max_stride_s)
+        #: phase-estimator state per walker side (:func:`afo_mj.control.assistance.
+        #: new_phase_state`; only the worn sides' rows move)
+        self.phase = asst.new_phase_state(2)
+        #: per walker side: the clutch's engagement angle (rad), NaN while open; whether it
+        #: has engaged in the present stance
+        self.theta_engaged = np.full(2, np.nan)
+        self.used = np.zeros(2, bool)
+        self.force2 = np.zeros(2)
+        self.damping2 = np.zeros(2)
+        self.delivered2 = np.zeros(2)
+        self.commanded2 = np.zeros(2)
+        self.phase2 = np.full(2, -1.0)
+        self._angle2 = np.zeros(2)
+        self._stance2 = np.zeros(2, bool)
+        ns = len(sides)
+        self._pos_j = np.zeros(ns)
+        self._neg_j = np.zeros(ns)
+        self._peak_nm = np.zeros(ns)
+        self.log = CircuitLog(max_steps, ns, LOG_FIELDS) if max_steps else None
+        self.steps = 0
+        self.t_s = 0.0
+
+    # -- masses ----------------------------------------------------------------------------
+    def worn_masses(self) -> list[WornMass]:
+        """The worn mass at the ankle axis of each worn side (none at 0 kg)."""
+        m = self.params.mass_kg
+        if m == 0.0:
+            return []
+        return [WornMass(f"ankle_axis_{'r' if s == 'right' else 'l'}", m, f"ideal_{s}")
+                for s in self.sides]
+
+    @property
+    def mass_total_kg(self) -> float:
+        return len(self.sides) * self.params.mass_kg
+
+    @property
+    def mass_at_ankle_kg(self) -> float:
+        """Per worn side."""
+        return self.params.mass_kg
+
+    # -- coupled protocol --------------------------------------------------------------------
+    def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
+        """The command of every worn side from the state at the step's start; returns the
+        joint force and the extra damping per walker side (views, length 2; damping 0)."""
+        self.t_s = float(t)
+        lo, hi = self.stride_limits
+        out = self.force2
+        out[:] = 0.0
+        for s in self.side_index:
+            on = bool(stance[s])
+            th = float(angle_rad[s])
+            self._angle2[s] = th
+            self._stance2[s] = on
+            ph = asst.phase_update(self.phase[s], t, on, lo, hi)
+            self.phase2[s] = ph
+            gain = (1.0 if self.ramp_strides == 0 else
+                    min(1.0, self.phase[s, asst.PH_N] / self.ramp_strides))
+            if self.spring is not None:
+                stretch = self._clutch(s, ph, on, th)
+                if stretch is not None:
+                    out[s] = -gain * self.spring.stiffness_nm_per_rad * stretch
+            elif self.profile is not None:
+                # only while the foot switch reads stance: a stride estimate that lags a
+                # short stride would otherwise push a swinging foot
+                out[s] = gain * asst.table_lookup(self.profile, ph) if on else 0.0
+            elif self._imp_table is not None:
+                out[s] = gain * impedance_torque(self._imp_table, ph, th,
+                                                 float(velocity_rad_s[s]))
+        self.commanded2[:] = out
+        return self.force2, self.damping2
+
+    def _clutch(self, s: int, ph: float, stance: bool, theta: float) -> float | None:
+        """The clutched spring's dorsiflexion past its engagement angle on walker side ``s``
+        (rad, >= 0), or None while the clutch is open (module docstring)."""
+        sp = self.spring
+        if not stance or ph < 0.0 or ph > sp.release_phase:
+            # swing (or no stride estimate yet, or past the release): the clutch is open
+            self.theta_engaged[s] = np.nan
+            if not stance:
+                self.used[s] = False
+            return None
+        if math.isnan(self.theta_engaged[s]) and not self.used[s] and ph >= sp.engage_phase:
+            self.theta_engaged[s] = theta          # engages slack, at foot flat
+            self.used[s] = True
+        if math.isnan(self.theta_engaged[s]):
+            return None
+        return max(theta - self.theta_engaged[s], 0.0)
+
+    def end_step(self, velocity_new_rad_s):
+        """Close the step with the joint velocity MuJoCo produced; returns the delivered
+        torque per walker side (the command, exactly)."""
+        h = self.timestep_s
+        d = self.delivered2
+        d[:] = self.force2
+        n = self.steps
+        row = None
+        if self.log is not None and n < self.log.data.shape[0]:
+            row = self.log.data[n]
+        for j, s in enumerate(self.side_index):
+            v = float(velocity_new_rad_s[s])
+            tau = float(d[s])
+            # MuJoCo's semi-implicit Euler moves the ankle by h·q̇_{n+1} under this torque
+            w = tau * v * h
+            if w > 0.0:
+                self._pos_j[j] += w
+            else:
+                self._neg_j[j] += w
+            self._peak_nm[j] = max(self._peak_nm[j], abs(tau))
+            if row is not None:
+                eng = not math.isnan(self.theta_engaged[s])
+                row[:, j] = (self.t_s + h, self.commanded2[s], tau, tau, self.phase2[s],
+                             float(self._stance2[s]), tau * v, v, self._angle2[s] + h * v,
+                             self._angle2[s], float(eng),
+                             self.theta_engaged[s] if eng else 0.0)
+        if row is not None:
+            self.log.n = n + 1
+        self.steps = n + 1
+        return self.delivered2
+
+    # -- ledger ----------------------------------------------------------------------------
+    def ledger(self, k: int = 0) -> dict:
+        """Energy ledger of worn side ``k`` (J), that of an ideal source (module docstring):
+        drawn = positive mechanical work, regenerated = negative work absorbed, no losses,
+        no stores, zero balance error; the hydraulic and electrical figures a circuit
+        device reports are zero or None (``hydraulic_j``, ``battery_energy_wh``: none)."""
+        if not 0 <= k < len(self.sides):
+            raise ParameterError(f"ledger side index {k!r}; allowed: 0 … {len(self.sides) - 1}")
+        pos, neg = float(self._pos_j[k]), float(self._neg_j[k])
+        drawn, regen = pos, 0.0 - neg        # 0.0 - : no negative zero
+        e_in = drawn - regen
+        e_out = pos + neg
+        resid = e_in - e_out
+        scale = max(pos - neg, 1e-12)
+        return {"source": "ideal torque source (100 % efficient both ways, no store, no loss)",
+                "input_j": e_in, "input_drawn_j": drawn, "electrical_in_j": e_in,
+                "electrical_drawn_j": drawn, "electrical_regenerated_j": regen,
+                "mechanical_out_j": e_out, "mechanical_positive_out_j": pos,
+                "mechanical_negative_out_j": neg, "hydraulic_j": None,
+                "losses_j": {}, "stored_change_j": {}, "residual_j": resid,
+                "balance_error_rel": resid / scale, "energy_throughput_j": scale,
+                "heat_to_oil_j": 0.0, "peak_pressure_pa": 0.0, "temperature_rise_k": 0.0,
+                "peak_torque_nm": float(self._peak_nm[k]), "battery_energy_wh": None,
+                "monitors": {}, "state_peaks": {}, "probe_integrals": {},
+                "newton_iterations": 0, "jacobian_builds": 0, "newton_unconverged_steps": 0,
+                "substepped_steps": 0, "pressure_floor_steps": 0, "battery_overload_steps": 0,
+                "coupling_torque_error_rms_nm": 0.0}
