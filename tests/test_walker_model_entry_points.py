@@ -241,7 +241,6 @@ def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
 TORQUE_WALK_CALLERS = {
     "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
     "afo_mj/experiments/walk_env.py": "the constructor refuses it",
-    "afo_mj/app/run.py": "afo-mj run: the muscle walk (simulate_walk only on torque)",
     "afo_mj/experiments/device_walk.py": "WALKERS: run_walk for torque only; every walk of a "
                                          "scenario (run, device walks, walk_batch, render) "
                                          "goes through it",

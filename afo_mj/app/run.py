@@ -220,19 +220,19 @@ def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None
 
 
 def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> WalkRun:
-    from afo_mj.gait.walk import WalkNumericsError, simulate_walk
+    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
+    from afo_mj.experiments.walkers import walk_scenario
+    from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.outputs.recording import RecordedRun
 
     t0 = time.perf_counter()
-    muscle_walk = None
     try:
-        if scenario.walker_model == "muscle":
-            muscle_walk = _simulate_muscle_walk(scenario)
-            record = muscle_walk.record
-        else:
-            record = simulate_walk(scenario)
+        # the scenario's own walker (walker.model, one registry: device_walk.WALKERS)
+        record, muscle_walk = walk_scenario(scenario, reference=reference)
+    except MuscleScenarioError as exc:
+        raise InvalidInput(str(exc)) from None
     except (WalkNumericsError, FloatingPointError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
@@ -287,17 +287,6 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
     except (GaitAnalysisError, ReportError) as exc:
         raise RunFailed(f"{scenario.name}: {exc}") from None
     return WalkRun(scenario, reference, record, analysis, summary, wall, out)
-
-
-def _simulate_muscle_walk(scenario):
-    """The muscle-driven walk of a ``walker.model = "muscle"`` scenario
-    (:func:`afo_mj.experiments.muscle_scenario.walk_muscle_scenario`); an unreadable reflex
-    set is invalid input."""
-    from afo_mj.experiments.muscle_scenario import MuscleScenarioError, walk_muscle_scenario
-    try:
-        return walk_muscle_scenario(scenario)
-    except MuscleScenarioError as exc:
-        raise InvalidInput(str(exc)) from None
 
 
 def _muscle_signals(walk) -> dict:
