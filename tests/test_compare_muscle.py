@@ -141,6 +141,11 @@ def test_a_compare_mixing_the_walkers_ranks_effort_among_muscle_rows_only(tmp_pa
               "net_metabolic_bhargava_change_pct", "rank_metabolic", "rank_battery_energy"):
         assert t[c] == "", c
     assert m["rank_metabolic"] == "1" and m["rank_battery_energy"] == "1"
+    # the torque walker's written-in response is named on its row (the default 1.0 of
+    # ControllerParams); the muscle walker has none
+    from afo_mj.gait.walk import ControllerParams
+    assert _f(t["assistance_adaptation"]) == ControllerParams().assistance_adaptation
+    assert m["assistance_adaptation"] == ""
     # the muscle row's reference is its own wearer's no-device walk (the scenario's own
     # walker, not the torque walker's), as afo-mj run walks it
     ref = runs["gait_muscle_hafo"]["device_conditions"]["no_device"]

@@ -108,7 +108,11 @@ by mean analysed stride time / run duration, as in ``energy_per_stride`` of ``af
   ``battery_runtime_h`` and the ranks are empty, with the net and positive mechanical work.
 * ``human_ankle_positive_work_j_per_stride``, ``human_ankle_positive_work_no_device_j_per_
   stride``, ``human_ankle_positive_work_change_j_per_stride`` (muscles alone, with and without
-  the device); ``speed_m_s``; ``energy_balance_error_rel`` (the ledger residual / energy drawn).
+  the device); ``assistance_adaptation``: on the torque walker the fraction of the device
+  torque by which its written-in rule lowers the wearer's ankle feedforward, which the human
+  work change rests on (empty on the muscle walker, whose reflexes respond; the run's
+  ``human_response``); ``speed_m_s``; ``energy_balance_error_rel`` (the ledger residual / energy
+  drawn).
 * ``efficiency_rank``: one ranking of **all** the rows compared (every scenario and variant
   together) by ``efficiency_total``, 1 = best, each rank given once (ties keep the given
   order); empty for a row without an efficiency (not an actuator).
@@ -205,7 +209,8 @@ TAIL_COLUMNS = (
     "peak_pressure_mpa", "fluid_temperature_rise_k", "mass_total_kg", "mass_at_ankle_kg",
     "battery_runtime_h", "not_comparable_reason", "human_ankle_positive_work_j_per_stride",
     "human_ankle_positive_work_no_device_j_per_stride",
-    "human_ankle_positive_work_change_j_per_stride", "speed_m_s", "energy_balance_error_rel",
+    "human_ankle_positive_work_change_j_per_stride", "assistance_adaptation", "speed_m_s",
+    "energy_balance_error_rel",
     "efficiency_rank", "efficiency_rank_in_scenario",
     "net_metabolic_umberger_w_per_kg", "net_metabolic_umberger_no_device_w_per_kg",
     "net_metabolic_umberger_change_pct", "net_metabolic_bhargava_w_per_kg",
@@ -301,14 +306,16 @@ def _mean(entry):
 
 
 def comparison_row(item: CompareItem, block: dict, record=None,
-                   human_no_device: float | None = None, no_device: dict | None = None) -> dict:
+                   human_no_device: float | None = None, no_device: dict | None = None,
+                   human_response: dict | None = None) -> dict:
     """One table row from a condition block of
     :func:`afo_mj.experiments.device_walk.condition_summary` (``device``, ``energy``,
     ``energy_per_stride``, ``human``, ``ankle``, ``gait``, and ``muscle`` on the muscle
     walker); nothing device-specific assumed: the losses are whatever
     ``energy_per_stride.losses_j`` names. ``no_device`` is the no-device block of the same
     wearer (its ``human`` work is the reference unless ``human_no_device`` is given, its
-    ``muscle`` block the reference of the metabolic change)."""
+    ``muscle`` block the reference of the metabolic change); ``human_response`` the run's
+    block of that name (:func:`afo_mj.experiments.device_walk.human_response`)."""
     dev = block.get("device") or {}
     en = block.get("energy") or {}
     eps = block.get("energy_per_stride") or {}
@@ -389,6 +396,8 @@ def comparison_row(item: CompareItem, block: dict, record=None,
         "human_ankle_positive_work_j_per_stride": human,
         "human_ankle_positive_work_no_device_j_per_stride": ref,
         "human_ankle_positive_work_change_j_per_stride": human - ref,
+        # the torque walker's written-in response (None on the muscle walker: no rule)
+        "assistance_adaptation": (human_response or {}).get("assistance_adaptation"),
         "speed_m_s": _mean(gait.get("speed_m_s")),
         "energy_balance_error_rel": _num(en.get("balance_error_rel")),
     })
@@ -539,7 +548,8 @@ def run_comparison(items, progress=None, human_reference: bool = True,
             keep_runs.append((item.label, rec, results["assist"][2]))
         rows.append(comparison_row(item, summary["device_conditions"]["assist"], rec,
                                    None if ref_block is not None else math.nan,
-                                   no_device=ref_block))
+                                   no_device=ref_block,
+                                   human_response=summary.get("human_response")))
     columns = all_columns(rows)     # loss columns in the order the scenarios were given
     rows = order_rows(rows)
     scenarios = []
