@@ -17,7 +17,8 @@ the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller 
   at ``spring_engage_phase`` of the stride (foot flat), with the spring slack at the ankle
   angle of that moment; it then resists dorsiflexion past that angle with
   ``spring_nm_per_rad`` and returns the energy in push-off, and opens at toe off or at
-  ``spring_release_phase``, free in swing;
+  ``spring_release_phase``, free in swing (both ideal conditions are the command of
+  :class:`afo_mj.devices.ideal.IdealDevice`, which scenarios wear as ``preset = "ideal"``);
 * ``hafo`` — the HAFO (preset ``hafo_gait``) worn on the right ankle, its pump, hoses,
   cylinders and controller stepped with MuJoCo, commanding the Zhang profile of
   ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result.
