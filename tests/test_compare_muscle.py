@@ -236,3 +236,15 @@ def test_torque_only_compare_has_no_effort_table_or_lines():
     text = cr.format_tables(comp)
     assert "wearer's effort" not in text and "NO EFFORT MODEL" not in text
     assert cr.effort_caveats(rows) == []
+
+
+def test_compare_takes_every_kind_of_assist_command():
+    """The assist condition may be commanded by a torque profile or (the ideal device) a
+    clutched spring: compare loads both (it refused all but a profile)."""
+    from afo_mj.experiments.device_comparison import load_compare_items
+    for name in ("gait_muscle_clutched_spring.toml", "gait_muscle_ideal_zhang.toml"):
+        path = SCEN / name
+        if not path.exists():
+            pytest.skip(f"{name} not shipped")
+        items = load_compare_items([str(path)], strides=3)
+        assert items and all(it.cfg.conditions == ("assist",) for it in items), name

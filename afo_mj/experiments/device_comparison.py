@@ -264,7 +264,11 @@ def load_compare_items(paths, overrides=(), strides: int | None = None) -> list[
             raise CompareError(f"{path}: device = (none): the walking scenario has no [device] "
                                "table; allowed: a walking scenario with a [device] table, e.g. "
                                "scenarios/gait_assist_hafo.toml")
-        if "assist" not in cfg.conditions or cfg.profile is None:
+        # the assist condition's command: a torque profile, impedance rows or (the ideal
+        # device) a clutched spring
+        commanded = (cfg.profile is not None or cfg.impedance is not None
+                     or cfg.spring is not None)
+        if "assist" not in cfg.conditions or not commanded:
             raise CompareError(f"{path}: device.conditions = {list(cfg.conditions)!r} is not "
                                "allowed for compare; allowed: a list including 'assist' "
                                "(compare runs the assist condition)")

@@ -131,7 +131,7 @@ def mechanical_role(net_j: float, positive_j: float) -> tuple[str, str]:
     reason says why efficiency and battery runtime are not given. Unknown (non-finite) work
     gives ``("", reason)``."""
     net, pos = _num(net_j), _num(positive_j)
-    what = "efficiency_total, battery_runtime_h and the ranks are not given"
+    what = "efficiency_total, battery_runtime_h and the efficiency ranks are not given"
     if not (math.isfinite(net) and math.isfinite(pos)):
         return "", f"net mechanical work unknown: {what}"
     work = f"net {net:.2f} J/stride, positive {pos:.2f} J/stride"
