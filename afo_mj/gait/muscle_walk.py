@@ -22,6 +22,7 @@ the basal 1.2 W/kg.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 
@@ -34,7 +35,7 @@ from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
 
 __all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_scaled",
-           "run_muscle_walk", "load_reflex_set", "MUSCLE_SOLE_PITCH_RAD"]
+           "run_muscle_walk", "MuscleWalkStepper", "load_reflex_set", "MUSCLE_SOLE_PITCH_RAD"]
 
 GRAVITY_M_S2 = 9.81
 #: the stature Geyer & Herr's muscle lengths are for (m)
@@ -172,12 +173,318 @@ def muscle_table_scaled(timestep_s: float, max_force_scale: dict | None = None,
     return T
 
 
+class MuscleWalkStepper:
+    """A steppable walk of the muscle-driven walker, as :class:`afo_mj.gait.walk.Walk` is of
+    the torque-driven one: :meth:`reset`, :meth:`step` (one 1 ms step: the reflex law, the
+    device and one ``mj_step``), named accessors of the state, :attr:`done` and
+    :meth:`record` (the :class:`MuscleWalk` of the steps so far). :func:`run_muscle_walk` is
+    a loop over it, so a walk stepped here to its end is what ``run_muscle_walk`` returns,
+    bit for bit. The arguments are :func:`run_muscle_walk`'s.
+
+    ``step(action)``: ``action`` an extra ankle torque per side (N·m, + dorsiflexion, right
+    then left) applied for this step beside the muscles and any device (``device_torque``
+    or ``device``), and recorded with the device's in ``device_moment_nm``; None applies
+    nothing. The walk is over (:attr:`done`) when the walker fell or ``duration_s`` is
+    walked; a diverging state raises FloatingPointError (from :meth:`step`, or from
+    :meth:`record` for a warning MuJoCo raised without resetting).
+
+    Example::
+
+        w = MuscleWalkStepper(WalkerParams(), load_reflex_set(path), duration_s=5.0)
+        while not w.done:
+            w.step()
+        walk = w.record()
+    """
+
+    def __init__(self, walker: WalkerParams | None = None, params: np.ndarray | None = None,
+                 duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
+                 worn_masses=(), device_torque=None, device=None,
+                 max_force_scale: dict | None = None):
+        w = walker or WalkerParams()
+        P = reflex_params() if params is None else np.asarray(params, dtype=float)
+        if P.shape != (rl.N_P,) or not np.all(np.isfinite(P)):
+            raise ValueError(f"params: shape {P.shape}; allowed: {rl.N_P} finite numbers "
+                             f"(reflex_params)")
+        if not (duration_s > 0 and math.isfinite(duration_s)):
+            raise ValueError(f"duration_s = {duration_s!r}; allowed: finite > 0")
+        if device is not None and device_torque is not None:
+            raise ValueError("run_muscle_walk: both device and device_torque given; "
+                             "allowed: one")
+        self._args = (w, P, duration_s, initial_speed_m_s, tuple(worn_masses), device_torque,
+                      device, max_force_scale)
+        self._stepped = False
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start (Geyer & Herr's posture, a new MuJoCo and reflex state). A
+        coupled ``device`` keeps its own state: with one, make a new stepper with a fresh
+        device instead (refused here once stepped)."""
+        (w, P, duration_s, initial_speed_m_s, worn_masses, device_torque, device,
+         max_force_scale) = self._args
+        if device is not None and self._stepped:
+            raise RuntimeError("MuscleWalkStepper.reset: the device keeps its own state; "
+                               "allowed: a new MuscleWalkStepper with a new device")
+        phys = build_muscle_walker(w, worn_masses)
+        m, d = phys.model, phys.data
+        h = float(m.opt.timestep)
+        if device is not None and abs(device.timestep_s - h) > 1e-12:
+            raise ValueError(f"device timestep_s = {device.timestep_s} differs from the "
+                             f"walker's MuJoCo timestep {h}; allowed: equal")
+        T = muscle_table_scaled(h, max_force_scale, w.height_m)
+        mg = phys.body_mass_kg * GRAVITY_M_S2
+        lq, lv = phys.leg_qpos, phys.leg_dof
+        q = d.qpos
+        start = np.radians([[40.0, 5.0, 0.0], [5.0, 5.0, 5.0]])    # [right swing, left stance]
+        for s in range(2):
+            q[lq[s]] = start[s]
+        q[phys.pelvis_qpos[2]] = rl.DEFAULTS["trunk_lean_ref_rad"]
+        d.qvel[phys.pelvis_dof[0]] = initial_speed_m_s * math.sqrt(w.height_m / 1.75)
+        mujoco.mj_kinematics(m, d)
+        q[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.0005
+        mujoco.mj_forward(m, d)
+        X = rl.initial_state(T, start, (False, True), (-0.5, 0.0),
+                             float(q[phys.pelvis_qpos[2]]))
+        ring = np.zeros((rl.RING_LEN, rl.RING_COLS))
+        n_max = int(duration_s / h) + 1
+        z0 = float(q[phys.pelvis_qpos[1]])
+        drop = FALL_DROP_M * w.height_m / 1.75
+        buf = {k_: np.zeros((n_max,) + shp) for k_, shp in (
+            ("time", ()), ("qpos", (m.nq,)), ("qvel", (m.nv,)), ("sens", (m.nsensordata,)),
+            ("cz", (4,)), ("dev", (2,)), ("u", (2, 7)), ("a", (2, 7)), ("f", (2, 7)),
+            ("v", (2, 7)), ("eu", (2, 7)), ("eb", (2, 7)), ("tau", (2, 3)))}
+        events = GaitEvents()
+        ctrl, ff = d.ctrl, phys.ff_act
+        pt_q, pt_v = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
+        pz_q = int(phys.pelvis_qpos[1])
+        contact = phys.contact_geoms.ravel()
+        dank = phys.leg_dof[:, 2]
+        # knee and ankle dofs [side][knee, ankle]: the soft limits' damping joins their own
+        dlim = phys.leg_dof[:, 1:3].copy()
+        base_limit = m.dof_damping[dlim].copy()
+        base_damping = base_limit[:, 1].copy()
+        tau = X[rl.X_TAU:rl.X_TAU + 6]
+        c_lim = X[rl.X_LIMIT_DAMP:rl.X_LIMIT_DAMP + 6].reshape(2, 3)[:, 1:3]
+        stance_x = X[rl.X_STANCE:rl.X_STANCE + 2]
+        tau_rec = np.zeros((2, 3))
+        reflex_step, mj_step, isfinite = rl.reflex_step, mujoco.mj_step, np.isfinite
+        hs_s, to_s = events.heel_strikes_s, events.toe_offs_s
+        b_time, b_qpos, b_qvel, b_sens, b_cz, b_dev = (buf[n] for n in (
+            "time", "qpos", "qvel", "sens", "cz", "dev"))
+        b_u, b_a, b_f, b_v, b_eu, b_eb, b_tau = (buf[n] for n in (
+            "u", "a", "f", "v", "eu", "eb", "tau"))
+        qvel, sens, gxpos, qfrc_applied, dof_damping = (d.qvel, d.sensordata, d.geom_xpos,
+                                                        d.qfrc_applied, m.dof_damping)
+        touch = phys.touch_adr
+        k = 0
+        lim_was = False
+        acted = False
+        done = [False]
+
+        def step(action=None):
+            nonlocal k, lim_was, acted
+            if done[0]:
+                raise RuntimeError("MuscleWalkStepper.step: the walk is over (fell or its "
+                                   "duration walked); allowed: reset() (no device) or a new "
+                                   "MuscleWalkStepper")
+            t = d.time
+            reflex_step(t, h, q, qvel, sens, lq, lv, touch, pt_q, pt_v, P, T, X, ring, mg)
+            for s in range(2):
+                code = X[rl.X_EVENT + s]
+                if code == 1.0:
+                    hs_s[s].append(t)
+                elif code == 2.0:
+                    to_s[s].append(t)
+            ctrl[ff[0, 0]], ctrl[ff[0, 1]], ctrl[ff[0, 2]] = tau[0], tau[1], tau[2]
+            ctrl[ff[1, 0]], ctrl[ff[1, 1]], ctrl[ff[1, 2]] = tau[3], tau[4], tau[5]
+            # the soft limits' damping, integrated implicitly by MuJoCo (reflex_law, step 5);
+            # written only while a limit is (or was, the step before) engaged
+            lim_now = bool(c_lim.any())
+            if lim_now or lim_was:
+                dof_damping[dlim] = base_limit + c_lim
+            lim_was = lim_now
+            dev = None
+            if device_torque is not None:
+                dev = np.asarray(device_torque(t, q[lq[:, 2]], qvel[dank], stance_x > 0.5),
+                                 float)
+                qfrc_applied[dank] = dev
+                b_dev[k] = dev
+            elif device is not None:
+                # end-of-step torque = force − D q̇_{n+1}, D integrated implicitly by MuJoCo
+                dev, extra2 = device.begin_step(t, q[lq[:, 2]], qvel[dank], stance_x > 0.5)
+                qfrc_applied[dank] = dev
+                dof_damping[dank] = base_damping + c_lim[:, 1] + extra2
+            if action is not None or acted:
+                # an external ankle torque per side (N·m, + dorsiflexion) beside the device's
+                a2 = (np.zeros(2) if action is None
+                      else np.array([float(action[0]), float(action[1])]))
+                qfrc_applied[dank] = a2 if dev is None else dev + a2
+                acted = action is not None
+            mj_step(m, d)
+            if d.time < t:
+                # MuJoCo met a huge or non-finite acceleration or control (a diverging muscle
+                # state) and reset the state, time included
+                done[0] = True
+                raise FloatingPointError(f"muscle walk: the simulation diverged at t = "
+                                         f"{t:.4f} s (MuJoCo reset its state)")
+            if device is not None:
+                b_dev[k] = device.end_step(qvel[dank])
+            if acted:
+                b_dev[k] += a2
+            b_time[k] = d.time
+            b_qpos[k] = q
+            b_qvel[k] = qvel
+            b_sens[k] = sens
+            b_cz[k] = gxpos[contact, 2]
+            b_u[k] = X[rl.X_U:rl.X_U + 14].reshape(2, 7)
+            b_a[k] = X[rl.X_ACT:rl.X_ACT + 14].reshape(2, 7)
+            b_f[k] = X[rl.X_F:rl.X_F + 14].reshape(2, 7)
+            b_v[k] = X[rl.X_VCE:rl.X_VCE + 14].reshape(2, 7)
+            b_eu[k] = X[rl.X_EDOT_U:rl.X_EDOT_U + 14].reshape(2, 7)
+            b_eb[k] = X[rl.X_EDOT_B:rl.X_EDOT_B + 14].reshape(2, 7)
+            # the joint moment: the motors' and the limits' damping at the step's end velocity
+            if lim_now:
+                tau_rec[:] = tau.reshape(2, 3)
+                tau_rec[:, 1:3] -= c_lim * qvel[dlim]
+                b_tau[k] = tau_rec
+            else:
+                b_tau[k] = tau.reshape(2, 3)
+            k += 1
+            if not isfinite(q).all() or not isfinite(X).all():
+                done[0] = True
+                raise FloatingPointError(f"muscle walk: non-finite state at t = "
+                                         f"{d.time:.4f} s")
+            if q[pz_q] < z0 - drop or abs(q[pt_q]) > FALL_TILT_RAD:
+                events.fall_time_s = round(float(d.time), 9)   # the sum of steps
+                done[0] = True
+            elif k >= n_max:
+                done[0] = True
+
+        self._step, self._done = step, done
+        self._steps = lambda: k
+        self.walker, self.params, self.duration_s, self.n_max = w, P, duration_s, n_max
+        self.phys, self.model, self.data = phys, m, d
+        self.events, self.device = events, device
+        self._X, self._buf, self._h = X, buf, h
+        self._stepped = False
+
+    # -- stepping --------------------------------------------------------------------------
+    def step(self, action=None) -> None:
+        """One 1 ms step (class docstring)."""
+        self._stepped = True
+        self._step(action)
+
+    @property
+    def done(self) -> bool:
+        """The walker fell or the duration is walked."""
+        return self._done[0]
+
+    @property
+    def steps(self) -> int:
+        """Steps recorded so far."""
+        return self._steps()
+
+    # -- named accessors (copies of the state) ------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def joint_angles_rad(self) -> np.ndarray:
+        """(2, 3) [right, left][hip, knee, ankle] (+ flexion, + dorsiflexion)."""
+        return self.data.qpos[self.phys.leg_qpos].copy()
+
+    @property
+    def joint_velocities_rad_s(self) -> np.ndarray:
+        return self.data.qvel[self.phys.leg_dof].copy()
+
+    @property
+    def stance(self) -> np.ndarray:
+        """(2,) bool: the reflex controller's stance state per leg."""
+        return self._X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5
+
+    @property
+    def phase(self) -> np.ndarray:
+        """(2,) gait phase per leg now: time since its last heel strike over its last
+        stride, clipped to [0, 1] (0 before its second heel strike): the record's
+        ``gait_phase`` at the last step."""
+        out = np.zeros(2)
+        t = self.data.time
+        for s in range(2):
+            hs = self.events.heel_strikes_s[s]
+            if len(hs) >= 2:
+                out[s] = min(max((t - hs[-1]) / (hs[-1] - hs[-2]), 0.0), 1.0)
+        return out
+
+    @property
+    def grf_n(self) -> np.ndarray:
+        """(2, 2) ground reaction force per foot [forward, up] (N)."""
+        s = self.data.sensordata
+        adr = self.phys.foot_force_adr
+        return -np.stack([s[adr], s[adr + 2]], axis=1)
+
+    @property
+    def pelvis_speed_m_s(self) -> float:
+        return float(self.data.qvel[self.phys.pelvis_dof[0]])
+
+    @property
+    def joint_moment_nm(self) -> np.ndarray:
+        """(2, 3) the muscles' joint moments of the last step (N·m; zeros before one)."""
+        k = self.steps
+        return self._buf["tau"][k - 1].copy() if k else np.zeros((2, 3))
+
+    @property
+    def device_moment_nm(self) -> np.ndarray:
+        """(2,) the ankle torque of the device and the action in the last step (N·m)."""
+        k = self.steps
+        return self._buf["dev"][k - 1].copy() if k else np.zeros(2)
+
+    @property
+    def fallen(self) -> bool:
+        return self.events.fall_time_s is not None
+
+    def record(self) -> MuscleWalk:
+        """The :class:`MuscleWalk` of the steps so far. Raises FloatingPointError when
+        MuJoCo met a non-finite or huge control or acceleration on the way."""
+        d, phys, w, h = self.data, self.phys, self.walker, self._h
+        bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
+               if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]
+        if bad:
+            # MuJoCo met a non-finite or huge control or acceleration (a diverging muscle
+            # state) and reset the state: what follows is not a walk
+            raise FloatingPointError(f"muscle walk: the simulation diverged "
+                                     f"({', '.join(bad)}) before t = {d.time:.4f} s")
+        k = self.steps
+        events = self.events
+        b = {key: v[:k] for key, v in self._buf.items()}
+        qq, vv = b["qpos"], b["qvel"]
+        record = GaitRecord(
+            body_mass_kg=w.body_mass_kg, height_m=w.height_m, sample_period_s=h,
+            time_s=b["time"].copy(), joint_angle_rad=qq[:, phys.leg_qpos],
+            joint_velocity_rad_s=vv[:, phys.leg_dof], joint_moment_nm=b["tau"].copy(),
+            device_moment_nm=b["dev"].copy(),
+            grf_n=-b["sens"][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
+            contact_force_n=b["sens"][:, phys.touch_adr],
+            contact_height_m=b["cz"].reshape(k, 2, 2) - phys.contact_radius_m,
+            pelvis_position_m=np.column_stack([qq[:, phys.pelvis_qpos[0]],
+                                               qq[:, phys.pelvis_qpos[1]]
+                                               + phys.pelvis_height_offset_m]),
+            pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
+            pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
+            residual_force_n=np.zeros((k, 2)), residual_moment_nm=np.zeros(k),
+            gait_phase=_phase_from_events(b["time"], events), qpos=qq.copy(),
+            model_xml=phys.xml)
+        record.events = copy.deepcopy(events)
+        return MuscleWalk(record, b["u"].copy(), b["a"].copy(), b["f"].copy(), b["v"].copy(),
+                          b["eu"].copy(), b["eb"].copy())
+
+
 def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
                     duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
                     worn_masses=(), device_torque=None, device=None,
                     max_force_scale: dict | None = None) -> MuscleWalk:
     """Walk the muscle-driven walker for ``duration_s`` (or until it falls) under the reflex
-    parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's).
+    parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's): a loop over
+    :class:`MuscleWalkStepper`.
 
     ``device_torque(t, angle2, velocity2, stance2) -> (2,)`` optionally adds an ankle torque
     per side (N·m, + dorsiflexion) beside the muscles (an ideal assistance profile).
@@ -188,144 +495,13 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
     is the reflex controller's stance state. ``max_force_scale``: see
     :func:`muscle_table_scaled`.
     """
-    w = walker or WalkerParams()
-    P = reflex_params() if params is None else np.asarray(params, dtype=float)
-    if P.shape != (rl.N_P,) or not np.all(np.isfinite(P)):
-        raise ValueError(f"params: shape {P.shape}; allowed: {rl.N_P} finite numbers "
-                         f"(reflex_params)")
-    if not (duration_s > 0 and math.isfinite(duration_s)):
-        raise ValueError(f"duration_s = {duration_s!r}; allowed: finite > 0")
-    if device is not None and device_torque is not None:
-        raise ValueError("run_muscle_walk: both device and device_torque given; allowed: one")
-    phys = build_muscle_walker(w, worn_masses)
-    m, d = phys.model, phys.data
-    h = float(m.opt.timestep)
-    if device is not None and abs(device.timestep_s - h) > 1e-12:
-        raise ValueError(f"device timestep_s = {device.timestep_s} differs from the walker's "
-                         f"MuJoCo timestep {h}; allowed: equal")
-    T = muscle_table_scaled(h, max_force_scale, w.height_m)
-    mg = phys.body_mass_kg * GRAVITY_M_S2
-    lq, lv = phys.leg_qpos, phys.leg_dof
-    q = d.qpos
-    start = np.radians([[40.0, 5.0, 0.0], [5.0, 5.0, 5.0]])       # [right swing, left stance]
-    for s in range(2):
-        q[lq[s]] = start[s]
-    q[phys.pelvis_qpos[2]] = rl.DEFAULTS["trunk_lean_ref_rad"]
-    d.qvel[phys.pelvis_dof[0]] = initial_speed_m_s * math.sqrt(w.height_m / 1.75)
-    mujoco.mj_kinematics(m, d)
-    q[phys.pelvis_qpos[1]] -= phys.contact_point_heights_m().min() - 0.0005
-    mujoco.mj_forward(m, d)
-    X = rl.initial_state(T, start, (False, True), (-0.5, 0.0), float(q[phys.pelvis_qpos[2]]))
-    ring = np.zeros((rl.RING_LEN, rl.RING_COLS))
-    n_max = int(duration_s / h) + 1
-    z0 = float(q[phys.pelvis_qpos[1]])
-    drop = FALL_DROP_M * w.height_m / 1.75
-    buf = {k: np.zeros((n_max,) + shp) for k, shp in (
-        ("time", ()), ("qpos", (m.nq,)), ("qvel", (m.nv,)), ("sens", (m.nsensordata,)),
-        ("cz", (4,)), ("dev", (2,)), ("u", (2, 7)), ("a", (2, 7)), ("f", (2, 7)),
-        ("v", (2, 7)), ("eu", (2, 7)), ("eb", (2, 7)), ("tau", (2, 3)))}
-    events = GaitEvents()
-    ctrl, ff = d.ctrl, phys.ff_act
-    pt_q, pt_v = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
-    contact = phys.contact_geoms.ravel()
-    dank = phys.leg_dof[:, 2]
-    # knee and ankle dofs [side][knee, ankle]: the soft limits' damping joins their own
-    dlim = phys.leg_dof[:, 1:3].copy()
-    base_limit = m.dof_damping[dlim].copy()
-    base_damping = base_limit[:, 1].copy()
-    k = 0
-    tau = X[rl.X_TAU:rl.X_TAU + 6]
-    c_lim = X[rl.X_LIMIT_DAMP:rl.X_LIMIT_DAMP + 6].reshape(2, 3)[:, 1:3]
-    tau_rec = np.zeros((2, 3))
-    lim_was = False
-    while k < n_max:
-        t = d.time
-        rl.reflex_step(t, h, q, d.qvel, d.sensordata, lq, lv, phys.touch_adr, pt_q, pt_v, P, T,
-                       X, ring, mg)
-        for s in range(2):
-            code = X[rl.X_EVENT + s]
-            if code == 1.0:
-                events.heel_strikes_s[s].append(t)
-            elif code == 2.0:
-                events.toe_offs_s[s].append(t)
-        ctrl[ff[0, 0]], ctrl[ff[0, 1]], ctrl[ff[0, 2]] = tau[0], tau[1], tau[2]
-        ctrl[ff[1, 0]], ctrl[ff[1, 1]], ctrl[ff[1, 2]] = tau[3], tau[4], tau[5]
-        # the soft limits' damping, integrated implicitly by MuJoCo (reflex_law, step 5);
-        # written only while a limit is (or was, the step before) engaged
-        lim_now = bool(c_lim.any())
-        if lim_now or lim_was:
-            m.dof_damping[dlim] = base_limit + c_lim
-        lim_was = lim_now
-        if device_torque is not None:
-            dev = np.asarray(device_torque(t, q[lq[:, 2]], d.qvel[dank],
-                                           X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5), float)
-            d.qfrc_applied[dank] = dev
-            buf["dev"][k] = dev
-        elif device is not None:
-            # end-of-step torque = force − D q̇_{n+1}, D integrated implicitly by MuJoCo
-            force2, extra2 = device.begin_step(t, q[lq[:, 2]], d.qvel[dank],
-                                               X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5)
-            d.qfrc_applied[dank] = force2
-            m.dof_damping[dank] = base_damping + c_lim[:, 1] + extra2
-        mujoco.mj_step(m, d)
-        if d.time < t:
-            # MuJoCo met a huge or non-finite acceleration or control (a diverging muscle
-            # state) and reset the state, time included
-            raise FloatingPointError(f"muscle walk: the simulation diverged at t = {t:.4f} s "
-                                     "(MuJoCo reset its state)")
-        if device is not None:
-            buf["dev"][k] = device.end_step(d.qvel[dank])
-        buf["time"][k] = d.time
-        buf["qpos"][k] = q
-        buf["qvel"][k] = d.qvel
-        buf["sens"][k] = d.sensordata
-        buf["cz"][k] = d.geom_xpos[contact, 2]
-        buf["u"][k] = X[rl.X_U:rl.X_U + 14].reshape(2, 7)
-        buf["a"][k] = X[rl.X_ACT:rl.X_ACT + 14].reshape(2, 7)
-        buf["f"][k] = X[rl.X_F:rl.X_F + 14].reshape(2, 7)
-        buf["v"][k] = X[rl.X_VCE:rl.X_VCE + 14].reshape(2, 7)
-        buf["eu"][k] = X[rl.X_EDOT_U:rl.X_EDOT_U + 14].reshape(2, 7)
-        buf["eb"][k] = X[rl.X_EDOT_B:rl.X_EDOT_B + 14].reshape(2, 7)
-        # the joint moment: the motors' and the limits' damping at the step's end velocity
-        if lim_now:
-            tau_rec[:] = tau.reshape(2, 3)
-            tau_rec[:, 1:3] -= c_lim * d.qvel[dlim]
-            buf["tau"][k] = tau_rec
-        else:
-            buf["tau"][k] = tau.reshape(2, 3)
-        k += 1
-        if not np.isfinite(q).all() or not np.isfinite(X).all():
-            raise FloatingPointError(f"muscle walk: non-finite state at t = {d.time:.4f} s")
-        if q[phys.pelvis_qpos[1]] < z0 - drop or abs(q[phys.pelvis_qpos[2]]) > FALL_TILT_RAD:
-            events.fall_time_s = round(float(d.time), 9)   # the sum of steps, not 4.3419999
-            break
-    bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
-           if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]
-    if bad:
-        # MuJoCo met a non-finite or huge control or acceleration (a diverging muscle state)
-        # and reset the state: what follows is not a walk
-        raise FloatingPointError(f"muscle walk: the simulation diverged ({', '.join(bad)}) "
-                                 f"before t = {d.time:.4f} s")
-    b = {key: v[:k] for key, v in buf.items()}
-    qq, vv = b["qpos"], b["qvel"]
-    record = GaitRecord(
-        body_mass_kg=w.body_mass_kg, height_m=w.height_m, sample_period_s=h,
-        time_s=b["time"].copy(), joint_angle_rad=qq[:, phys.leg_qpos],
-        joint_velocity_rad_s=vv[:, phys.leg_dof], joint_moment_nm=b["tau"].copy(),
-        device_moment_nm=b["dev"].copy(),
-        grf_n=-b["sens"][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
-        contact_force_n=b["sens"][:, phys.touch_adr],
-        contact_height_m=b["cz"].reshape(k, 2, 2) - phys.contact_radius_m,
-        pelvis_position_m=np.column_stack([qq[:, phys.pelvis_qpos[0]],
-                                           qq[:, phys.pelvis_qpos[1]]
-                                           + phys.pelvis_height_offset_m]),
-        pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
-        pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
-        residual_force_n=np.zeros((k, 2)), residual_moment_nm=np.zeros(k),
-        gait_phase=_phase_from_events(b["time"], events), qpos=qq.copy(), model_xml=phys.xml)
-    record.events = events
-    return MuscleWalk(record, b["u"].copy(), b["a"].copy(), b["f"].copy(), b["v"].copy(),
-                      b["eu"].copy(), b["eb"].copy())
+    w = MuscleWalkStepper(walker, params, duration_s, initial_speed_m_s, worn_masses,
+                          device_torque, device, max_force_scale)
+    step, done = w._step, w._done
+    w._stepped = True
+    while not done[0]:
+        step()
+    return w.record()
 
 
 def _phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
