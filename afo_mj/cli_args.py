@@ -159,15 +159,27 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     og.add_argument("--seed", type=int, default=1, help="CMA-ES seed (same seed, same result)")
     og.add_argument("--start", default=None, help="reflex_params.json to start from")
     og.add_argument("--workers", type=int, default=None, help="worker processes")
-    og.add_argument("--body-mass-kg", type=float, default=75.0, help="walker body mass, kg")
-    og.add_argument("--height-m", type=float, default=1.75, help="walker stature, m")
-    og.add_argument("--assistance", default="none",
+    og.add_argument("--body-mass-kg", type=float, default=None,
+                    help="walker body mass, kg (default 75)")
+    og.add_argument("--height-m", type=float, default=None,
+                    help="walker stature, m (default 1.75)")
+    og.add_argument("--assistance", default=None,
                     choices=("none", "worn_mass", "zhang", "clutched_spring", "hafo"),
                     help="device worn while optimising (the adapted wearer; default none)")
-    og.add_argument("--ramp-strides", type=int, default=0,
+    og.add_argument("--ramp-strides", type=int, default=None,
                     help="the ideal torque (zhang) ramps on over this many strides (default 0)")
-    og.add_argument("--plantarflexor-strength", type=float, default=1.0,
-                    help="soleus and gastrocnemius maximum force as a fraction (weakness)")
+    og.add_argument("--plantarflexor-strength", type=float, default=None,
+                    help="soleus and gastrocnemius maximum force as a fraction (weakness; "
+                         "default 1)")
+    og.add_argument("--scenario", default=None, metavar="FILE",
+                    help="wear this muscle-walker scenario's device instead of --assistance: "
+                         "its body, impairment and device; its walker.reflex_set is the warm "
+                         "start unless --start is given")
+    og.add_argument("--condition", default=None,
+                    help="the scenario's condition worn (default its last listed, e.g. assist)")
+    og.add_argument("--set", dest="overrides", action="append", metavar="KEY=VALUE",
+                    help="override a --scenario key, e.g. device.params.mass_kg=0.5 "
+                         "(repeatable)")
     og.add_argument("--robust", action="store_true",
                     help="also walk with body mass -15 %% and +15 %%, 1 kg at the right ankle "
                          "and the HAFO's worn masses (each fall penalised)")

@@ -438,4 +438,27 @@ def gait_optimization_lines(doc: Mapping, out) -> list[str]:
         lines.append(f"  no steady walk yet: {q}")
     lines.append(f"  {out}/reflex_params.json")
     lines.append(json.dumps({"cost": doc["cost"], "quality": q}, default=str))
+    lines.extend(reflex_set_lines(doc, out))
     return lines
+
+
+def reflex_set_lines(doc: Mapping, out) -> list[str]:
+    """The line that makes a muscle scenario walk with the optimised set: ``reflex_set =
+    "<path>"`` for its ``[walker]`` table, the path relative to the scenario's folder (where
+    scenarios resolve it) for an optimisation of a scenario, else absolute."""
+    import json
+    import os
+    from pathlib import Path
+    target = Path(out).resolve() / "reflex_params.json"
+    sc = doc.get("scenario")
+    if sc:
+        folder = Path(sc["path"]).parent
+        try:
+            path = Path(os.path.relpath(target, folder)).as_posix()
+        except ValueError:      # another drive (Windows): no relative path
+            path = target.as_posix()
+        head = f"  to walk {Path(sc['path']).name} with this wearer, put in its [walker]:"
+    else:
+        path = target.as_posix()
+        head = "  to walk a muscle scenario with this set, put in its [walker]:"
+    return [head, f"reflex_set = {json.dumps(path)}"]

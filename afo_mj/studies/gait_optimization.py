@@ -23,6 +23,11 @@ scored), lower is better, in stages so that any walk that stands beats any fall:
   known local optimum), and with
   ``emg_weight`` the soleus and tibialis anterior timing term (:class:`GaitObjective`).
 
+The device worn is one of :mod:`afo_mj.experiments.muscle_assistance`'s conditions
+(``GaitObjective.assistance``) or the device of one condition of a scenario
+(``GaitObjective.scenario``, :class:`ScenarioDevice`, :func:`scenario_objective`: ``afo-mj
+optimize-gait --scenario FILE``), rebuilt for every walk as ``afo-mj run`` builds it.
+
 Resumable: after every generation the optimiser's whole state (``es.pickle_dumps()``) and the
 best set so far are written atomically to the output folder; run again with the same folder
 and it continues from there.
@@ -31,6 +36,7 @@ and it continues from there.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -43,12 +49,14 @@ import numpy as np
 from afo_mj.experiments.batch import run_batch
 from afo_mj.experiments.muscle_assistance import Assistance, assistance_walk
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.muscle_walk import MUSCLE_SOLE_PITCH_RAD, load_reflex_set, reflex_params
+from afo_mj.gait.muscle_walk import (MUSCLE_SOLE_PITCH_RAD, load_reflex_set, reflex_params,
+                                     run_muscle_walk)
 from afo_mj.gait.reference import load_normative
 from afo_mj.human.walker import WalkerParams
 
-__all__ = ["GaitObjective", "WalkVariant", "robustness_variants", "gait_cost", "gait_quality",
-           "optimize_gait", "params_from_log", "load_reflex_set"]
+__all__ = ["GaitObjective", "ScenarioDevice", "scenario_objective", "WalkVariant",
+           "robustness_variants", "gait_cost", "gait_quality", "optimize_gait",
+           "params_from_log", "load_reflex_set"]
 
 #: the reference kinematics at 50 phase points
 _PHASE = np.linspace(0.0, 1.0, 51)[:-1]
@@ -83,6 +91,85 @@ def robustness_variants() -> tuple:
             WalkVariant("HAFO worn masses", worn_masses=hafo))
 
 
+@functools.lru_cache(maxsize=4)
+def _scenario_and_device(path: str, overrides: tuple):
+    """``(scenario, DeviceConfig or None)`` of a scenario file (each worker process reads it
+    once)."""
+    from afo_mj.scenarios.device_scenario import device_config
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(path, overrides=list(overrides))
+    return sc, device_config(sc)
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioDevice:
+    """The device a scenario's condition wears (``afo-mj optimize-gait --scenario``): built
+    for every walk from the scenario's ``[device]``/``[circuit]``/``[assistance]`` by
+    :func:`afo_mj.experiments.device_walk.make_device`, exactly as ``afo-mj run`` builds it,
+    with its worn masses; ``no_device``: nothing worn. Held as the scenario file (an absolute
+    path), its ``--set`` overrides and the SHA-256 of its bytes, so that it pickles to the
+    worker processes (each rebuilds the device) and a changed file makes another objective
+    (a resumed optimisation refuses it)."""
+
+    path: str
+    condition: str
+    overrides: tuple = ()
+    sha256: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "overrides", tuple(self.overrides))
+
+    def config(self):
+        """``(scenario, DeviceConfig or None)``."""
+        return _scenario_and_device(self.path, self.overrides)
+
+    def walk(self, walker: WalkerParams, params, duration_s: float,
+             max_force_scale: dict | None = None, worn_masses=()):
+        """The muscle walk of ``walker`` under ``params`` wearing this condition's device
+        (and ``worn_masses`` besides its own): ``(walk, device or None)``."""
+        from afo_mj.experiments.device_walk import make_device
+        _sc, cfg = self.config()
+        dev, worn = None, ()
+        if self.condition != "no_device":
+            dev = make_device(cfg, self.condition, walker.timestep_s,
+                              int(duration_s / walker.timestep_s) + 4)
+            # a circuit description has no worn-mass layout (as in run_device_scenario)
+            worn = tuple(dev.worn_masses()) if hasattr(dev, "worn_masses") else ()
+        walk = run_muscle_walk(walker, params, duration_s, worn_masses=worn + tuple(worn_masses),
+                               device=dev, max_force_scale=max_force_scale)
+        return walk, dev
+
+
+def scenario_objective(path, condition: str | None = None, overrides=(), **objective_kw):
+    """The objective of re-optimising the wearer of a muscle-walker scenario with its device
+    worn in ``condition`` (default: the scenario's headline, its last listed condition):
+    the scenario's body and ``[impairment]`` strength fractions, its device rebuilt per walk
+    (:class:`ScenarioDevice`); ``objective_kw`` the other :class:`GaitObjective` fields.
+    Returns ``(objective, scenario)`` (the scenario's ``reflex_set`` is the natural warm
+    start). Raises ValueError (:class:`~afo_mj.scenarios.walk_scenario.ScenarioError` for the
+    file itself) naming the key: a torque-walker scenario, an unknown condition."""
+    import hashlib
+    from afo_mj.experiments.muscle_scenario import muscle_force_scale
+    p = Path(path).resolve()
+    overrides = tuple(overrides or ())
+    sc, cfg = _scenario_and_device(str(p), overrides)
+    if sc.walker_model != "muscle":
+        raise ValueError(f"{path}: walker.model = {sc.walker_model!r}; allowed: 'muscle' "
+                         "(optimize-gait re-optimises the muscle walker's reflexes: set "
+                         "walker.model = \"muscle\" and walker.reflex_set in its [walker])")
+    conditions = tuple(cfg.conditions) if cfg is not None else ("no_device",)
+    cond = conditions[-1] if condition is None else condition
+    if cond not in conditions:
+        raise ValueError(f"condition = {cond!r}; allowed: {', '.join(map(repr, conditions))} "
+                         f"(device.conditions of {path})")
+    digest = hashlib.sha256(p.read_bytes()).hexdigest()
+    scale = muscle_force_scale(sc.walker) or {}
+    objective = GaitObjective(walker=sc.walker, max_force_scale=tuple(scale.items()),
+                              scenario=ScenarioDevice(str(p), cond, overrides, digest),
+                              **objective_kw)
+    return objective, sc
+
+
 @dataclasses.dataclass(frozen=True)
 class GaitObjective:
     """What the optimiser asks of a walk (see the module docstring)."""
@@ -113,8 +200,15 @@ class GaitObjective:
     #: ``((muscle, factor), …)``: maximum isometric forces scaled (a weakness the wearer
     #: has; :func:`afo_mj.gait.muscle_walk.muscle_table_scaled`)
     max_force_scale: tuple = ()
+    #: a scenario's device worn instead of ``assistance`` (:class:`ScenarioDevice`), or None;
+    #: left out of the repr when None (the optimiser's state key, :func:`_state_key`, of
+    #: the objectives written before it stays the same)
+    scenario: ScenarioDevice | None = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self):
+        if self.scenario is not None and self.assistance.kind != "none":
+            raise ValueError(f"GaitObjective: assistance.kind = {self.assistance.kind!r} and a "
+                             "scenario's device given; allowed: one device")
         for name, lo in (("target_speed_m_s", 0.3), ("duration_s", 2.0), ("settle_s", 0.0),
                          ("speed_weight", 0.0), ("effort_weight", 0.0), ("min_stride_s", 0.0),
                          ("tracking_weight", 0.0), ("tracking_max_weight", 0.0),
@@ -163,12 +257,26 @@ def gait_quality(walk, settle_s: float, reference=None) -> dict | None:
             "net_cost_of_transport_j_per_kg_m": cot, "strides": len(hs) - 1}
 
 
+def _walk(objective: GaitObjective, walker: WalkerParams, params, worn_masses=()):
+    """One walk of the objective's device (a scenario's or an assistance condition)."""
+    scale = dict(objective.max_force_scale) or None
+    if objective.scenario is not None:
+        return objective.scenario.walk(walker, params, objective.duration_s,
+                                       max_force_scale=scale, worn_masses=worn_masses)
+    return assistance_walk(objective.assistance, walker, params, objective.duration_s,
+                           max_force_scale=scale, worn_masses=worn_masses)
+
+
+def _state_key(objective: GaitObjective) -> str:
+    """What a saved optimiser state must match to be resumed."""
+    key = repr(objective)
+    return key if objective.scenario is None else f"{key} scenario={objective.scenario!r}"
+
+
 def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict]:
     """The objective of one walk under ``params`` (lower is better) and what it measured."""
     try:
-        walk, _ = assistance_walk(objective.assistance, objective.walker, params,
-                                  objective.duration_s,
-                                  max_force_scale=dict(objective.max_force_scale) or None)
+        walk, _ = _walk(objective, objective.walker, params)
     except FloatingPointError as exc:
         return 2000.0, {"error": str(exc)}
     r = walk.record
@@ -199,9 +307,7 @@ def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict
             w = dataclasses.replace(objective.walker, body_mass_kg=objective.walker.body_mass_kg
                                     * v.body_mass_scale)
             try:
-                vw, _ = assistance_walk(objective.assistance, w, params, objective.duration_s,
-                                        max_force_scale=dict(objective.max_force_scale) or None,
-                                        worn_masses=v.worn_masses)
+                vw, _ = _walk(objective, w, params, worn_masses=v.worn_masses)
                 fell = vw.record.events.fall_time_s
             except FloatingPointError:
                 fell = 0.0
@@ -258,7 +364,7 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
     out.mkdir(parents=True, exist_ok=True)
     base = reflex_params()
     state_file = out / "cma_state.pkl"
-    key = repr(objective)
+    key = _state_key(objective)
     if state_file.exists():
         saved = pickle.loads(state_file.read_bytes())
         if saved.get("objective") != key:
@@ -308,10 +414,12 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
            "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
            "cost": best[0], "quality": best_info,
            "objective": {k: v for k, v in dataclasses.asdict(objective).items()
-                         if k not in ("walker", "assistance", "variants", "max_force_scale")},
+                         if k not in ("walker", "assistance", "variants", "max_force_scale",
+                                      "scenario")},
            "max_force_scale": dict(objective.max_force_scale),
            "variants": [v.name for v in objective.variants],
-           "assistance": dataclasses.asdict(objective.assistance),
+           "assistance": (dataclasses.asdict(objective.assistance)
+                          if objective.scenario is None else None),
            "walker": {"body_mass_kg": objective.walker.body_mass_kg,
                       "height_m": objective.walker.height_m,
                       "timestep_s": objective.walker.timestep_s,
@@ -321,5 +429,9 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
                          "popsize": es.popsize},
            "history": history,
            "wall_s": total_s}
+    if objective.scenario is not None:
+        sd = objective.scenario
+        doc["scenario"] = {"path": sd.path, "condition": sd.condition,
+                           "overrides": list(sd.overrides), "sha256": sd.sha256}
     _write_atomic(out / "reflex_params.json", json.dumps(doc, indent=1).encode())
     return doc
