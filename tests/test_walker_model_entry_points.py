@@ -3,9 +3,10 @@ names or refuses it (issue 38 item 1, issue 39 item 2). ``afo-mj run``, device w
 ``compare``, ``walk_batch`` and ``render`` walk the scenario's own walker (through
 :data:`afo_mj.experiments.device_walk.WALKERS`): on ``walk_muscle_healthy.toml`` their cadence
 and speed are ``afo-mj run``'s (125/min), not the torque walker's (104/min), which
-``walk_batch`` and ``render`` used to walk in its place. ``simulate_walk``,
-``Walk.from_scenario`` and the gymnasium environment step the torque walker interactively and
-still refuse a muscle scenario (one error naming the model and ``afo-mj run``).
+``walk_batch`` and ``render`` used to walk in its place. The gymnasium environment steps the
+scenario's walker too (its registry, afo_mj.experiments.walk_env.WALKERS). ``simulate_walk``
+and ``Walk.from_scenario`` step the torque walker interactively and still refuse a muscle
+scenario (one error naming the model and ``afo-mj run``).
 
 A census of the package's calls keeps the list honest: a new caller of the torque walk (or of
 a scenario loader outside the listed modules) fails here until it is added to the matrix."""
@@ -152,16 +153,24 @@ def test_gym_env_torque_steps():
     assert np.all(np.isfinite(obs)) and np.isfinite(reward) and not terminated
 
 
-def test_gym_env_muscle_refused_by_constructor_and_gym_make():
+def test_gym_env_walks_the_muscle_walker(muscle_run):
+    """gym.make of the environment on a muscle scenario steps the muscle walker: a zero-action
+    episode has afo-mj run's cadence and speed (125/min, not the torque walker's 104/min)."""
     import gymnasium as gym
 
     from afo_mj.experiments import walk_env as we
-    from afo_mj.gait.walk import WalkerModelError
-    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
-        we.AnkleAssistEnv(str(SCENARIOS["muscle"]), overrides=SHORT)
-    _assert_refused(ei)
-    with pytest.raises(WalkerModelError, match=REFUSAL):
-        gym.make(we.ENV_ID, scenario=str(SCENARIOS["muscle"]))
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    env = gym.make(we.ENV_ID, scenario=str(SCENARIOS["muscle"]), overrides=SHORT2)
+    env.reset(seed=0)
+    while True:
+        *_, term, trunc, _info = env.step(np.zeros(2))
+        if term or trunc:
+            break
+    assert trunc and not term
+    rec = env.unwrapped.walk.record().record
+    g = _gait(rec, load_scenario(SCENARIOS["muscle"], overrides=SHORT2))
+    for key in ("cadence_steps_per_min", "speed_m_s"):
+        assert g[key]["mean"] == muscle_run[key]["mean"], key
 
 
 # --- render (Python and afo-mj render) ----------------------------------------------------------
@@ -240,7 +249,8 @@ def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
 #: module -> what it does with a muscle scenario
 TORQUE_WALK_CALLERS = {
     "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
-    "afo_mj/experiments/walk_env.py": "the constructor refuses it",
+    "afo_mj/experiments/walk_env.py": "WALKERS: Walk for torque only; the muscle walker "
+                                      "through MuscleWalkStepper",
     "afo_mj/experiments/device_walk.py": "WALKERS: run_walk for torque only; every walk of a "
                                          "scenario (run, device walks, walk_batch, render) "
                                          "goes through it",

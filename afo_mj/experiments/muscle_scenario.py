@@ -2,7 +2,8 @@
 (:func:`afo_mj.gait.muscle_walk.run_muscle_walk`), with or without an orthosis: the one place
 that turns such a scenario into the walk's arguments, for ``afo-mj run`` of a plain muscle
 scenario and for every condition of a device scenario on the muscle walker
-(:func:`afo_mj.experiments.device_walk.run_device_scenario`).
+(:func:`afo_mj.experiments.device_walk.run_device_scenario`), and steppable
+(:func:`muscle_scenario_stepper`) for the gymnasium environment.
 
 What the scenario sets:
 
@@ -23,7 +24,7 @@ import json
 from pathlib import Path
 
 __all__ = ["MuscleScenarioError", "muscle_walk_duration_s", "muscle_force_scale",
-           "walk_muscle_scenario"]
+           "walk_muscle_scenario", "muscle_scenario_stepper"]
 
 #: the stride time assumed for a reflex file that records none (s)
 DEFAULT_STRIDE_S = 1.2
@@ -64,14 +65,27 @@ def muscle_force_scale(walker) -> dict | None:
     return scale or None
 
 
+def _walk_args(scenario, device, worn_masses) -> dict:
+    """The arguments of the scenario's muscle walk (:func:`run_muscle_walk` and
+    :class:`MuscleWalkStepper` take the same)."""
+    params, _doc = _reflex_set(scenario)
+    w = scenario.walker
+    return dict(walker=w, params=params, duration_s=muscle_walk_duration_s(scenario),
+                worn_masses=worn_masses, device=device, max_force_scale=muscle_force_scale(w))
+
+
 def walk_muscle_scenario(scenario, device=None, worn_masses=()):
     """The muscle walk of ``scenario`` (a :class:`~afo_mj.gait.muscle_walk.MuscleWalk`),
     wearing ``device`` (a coupled orthosis stepped with MuJoCo, e.g. a
     :class:`~afo_mj.circuits.device.CircuitDevice`; its foot switch is the reflex
     controller's stance) and ``worn_masses`` when given."""
     from afo_mj.gait.muscle_walk import run_muscle_walk
-    params, _doc = _reflex_set(scenario)
-    w = scenario.walker
-    return run_muscle_walk(w, params, muscle_walk_duration_s(scenario),
-                           worn_masses=worn_masses, device=device,
-                           max_force_scale=muscle_force_scale(w))
+    return run_muscle_walk(**_walk_args(scenario, device, worn_masses))
+
+
+def muscle_scenario_stepper(scenario, device=None, worn_masses=()):
+    """The same walk as :func:`walk_muscle_scenario`, steppable: a
+    :class:`~afo_mj.gait.muscle_walk.MuscleWalkStepper` (stepped to its end, its record is
+    that walk's)."""
+    from afo_mj.gait.muscle_walk import MuscleWalkStepper
+    return MuscleWalkStepper(**_walk_args(scenario, device, worn_masses))

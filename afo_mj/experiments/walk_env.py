@@ -2,26 +2,35 @@
 controller without editing the walk loop.
 
 :class:`AnkleAssistEnv` (registered as ``afo_mj/AnkleAssist-v0``; vector form through
-``gymnasium.make_vec``) steps a :class:`afo_mj.gait.walk.Walk` of a walking scenario at a
-chosen control rate (the action is held over the MuJoCo steps of one control period):
+``gymnasium.make_vec``) steps the walker a walking scenario names at a chosen control rate
+(the action is held over the MuJoCo steps of one control period): ``walker.model =
+"torque"`` a :class:`afo_mj.gait.walk.Walk`, ``"muscle"`` a
+:class:`afo_mj.gait.muscle_walk.MuscleWalkStepper` (the reflex walker of ``afo-mj run``:
+stepped with a zero action to its end, its record is that walk's). The models are the
+entries of :data:`WALKERS`, the one place the environment tells them apart:
 
 * **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
   N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device) or the torque
   command of the scenario's HAFO (``mode="hafo"``: the command goes through its pump, hoses
   and cylinders, which deliver what they can; its worn masses are on the body);
 * **observation** (:data:`OBSERVATION_NAMES`): joint angles and velocities of both legs, the
-  controller's phase estimate and stance flags, both feet's ground reaction forces per body
+  phase per leg (torque walker: its controller's estimate; muscle walker: time since the
+  leg's last heel strike over its last stride, 0 before its second) and the stance flags
+  (the controller's foot switch), both feet's ground reaction forces per body
   weight, the pelvis speed, and the torque delivered at each ankle in the last step; in
   ``mode="hafo"`` then the device's state per side (line and chamber pressures, shaft speed,
   motor current: :attr:`AnkleAssistEnv.observation_names`);
 * **reward**: ``reward_fn(env)`` if given, else :func:`default_reward`, per control step:
   ``− w_track × mean squared angle error (rad², against the scenario's reference at each leg's
   phase) − w_effort × Σ (human ankle moment / (m g L))² − w_energy × P / (m g v)`` (the
+  human ankle moment: the record's ``joint_moment_nm``, actuators or muscles; the
   first two at the end of the control step; ``L`` = 0.53 × stature, ``v`` the pelvis speed,
   at least 0.3 m/s) with ``P`` the mean over the control step of the device's electrical
   power (HAFO: battery current × bus voltage, drawn only) or of the action's positive
   mechanical power (ideal); the terms of the last step are in :attr:`AnkleAssistEnv.last`;
-* **termination** on a fall, **truncation** when the scenario's strides are done.
+* **termination** on a fall, **truncation** when the walk is over (torque walker: the
+  scenario's strides done; muscle walker: ``afo-mj run``'s duration walked,
+  :func:`afo_mj.experiments.muscle_scenario.muscle_walk_duration_s`).
 
 Example::
 
@@ -34,15 +43,17 @@ Example::
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
+from typing import Callable
 
 import gymnasium as gym
 import numpy as np
 
-from afo_mj.gait.walk import Walk, check_torque_walker
+from afo_mj.gait.walk import Walk
 
-__all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID"]
+__all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID", "WALKERS"]
 
 ENV_ID = "afo_mj/AnkleAssist-v0"
 OBSERVATION_NAMES = tuple(
@@ -52,6 +63,43 @@ OBSERVATION_NAMES = tuple(
     + [f"{s}_grf_{c}_per_body_weight" for s in ("right", "left") for c in ("x", "z")]
     + ["pelvis_speed_m_s", "right_ankle_device_torque_nm", "left_ankle_device_torque_nm"])
 GRAVITY_M_S2 = 9.81
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkerEntry:
+    """How the environment steps one walker model. ``make(env, worn_masses, device)``: a new
+    steppable walk of ``env.scenario`` (``step(action)``, ``done``, ``fallen``, ``steps``,
+    ``time_s``, ``joint_angles_rad``, ``joint_velocities_rad_s``, ``phase``, ``stance``,
+    ``grf_n``, ``pelvis_speed_m_s``, ``phys``, ``record()``); ``ankle_moments(walk)``: the
+    (human, device + action) ankle moments per side of its last step (N·m)."""
+
+    make: Callable
+    ankle_moments: Callable
+
+
+def _torque_walk(env, worn_masses, device):
+    sc = env.scenario
+    return Walk(sc.walker, env.reference, env.cycle_time_s, sc.strides, sc.controller_params(),
+                worn_masses=worn_masses, device=device)
+
+
+def _torque_moments(w):
+    k = w.steps - 1
+    return w._buf.qfrc_actuator[k][w.phys.leg_dof[:, 2]], w._buf.device[k]
+
+
+def _muscle_walk(env, worn_masses, device):
+    from afo_mj.experiments.muscle_scenario import muscle_scenario_stepper
+    return muscle_scenario_stepper(env.scenario, device=device, worn_masses=worn_masses)
+
+
+def _muscle_moments(w):
+    return w.joint_moment_nm[:, 2], w.device_moment_nm
+
+
+#: walker model (``[walker] model``) -> how the environment steps it
+WALKERS = {"torque": WalkerEntry(_torque_walk, _torque_moments),
+           "muscle": WalkerEntry(_muscle_walk, _muscle_moments)}
 
 
 def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float = 1.0,
@@ -66,8 +114,7 @@ class AnkleAssistEnv(gym.Env):
     (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
     says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
     must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
-    the torque-driven one: a scenario with ``walker.model = "muscle"`` raises
-    :class:`~afo_mj.gait.walk.WalkerModelError` here."""
+    the one the scenario names (:data:`WALKERS`)."""
 
     metadata = {"render_modes": []}
 
@@ -80,7 +127,11 @@ class AnkleAssistEnv(gym.Env):
         if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
             raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
         self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
-        check_torque_walker(self.scenario, f"the gymnasium environment {ENV_ID}")
+        model = getattr(self.scenario, "walker_model", "torque")
+        if model not in WALKERS:
+            raise ValueError(f"walker.model = {model!r}; allowed in {ENV_ID}: "
+                             + ", ".join(repr(m) for m in WALKERS))
+        self.walker_entry = WALKERS[model]
         self.reference = self.scenario.load_reference()
         self.cycle_time_s = self.scenario.cycle_time_s(self.reference)
         dt = self.scenario.walker.timestep_s
@@ -101,7 +152,7 @@ class AnkleAssistEnv(gym.Env):
         lo = -hi
         lo[12:16] = 0.0
         self.observation_space = gym.spaces.Box(lo, hi, dtype=np.float64)
-        self.walk: Walk | None = None
+        self.walk = None
         self.device = None
         self._command = np.zeros(2)
         self.last: dict = {}
@@ -125,8 +176,7 @@ class AnkleAssistEnv(gym.Env):
                                      sides=("right", "left"), timestep_s=sc.walker.timestep_s,
                                      torque_fn=torque_fn)
             worn = tuple(self.device.worn_masses())
-        self.walk = Walk(sc.walker, self.reference, self.cycle_time_s, sc.strides,
-                         sc.controller_params(), worn_masses=worn, device=self.device)
+        self.walk = self.walker_entry.make(self, worn, self.device)
         self.last = {"track_rad2": 0.0, "effort": 0.0, "energy": 0.0}
         return self._observation(), {"time_s": 0.0}
 
@@ -162,7 +212,7 @@ class AnkleAssistEnv(gym.Env):
         ph = w.phase
         ref = np.stack([self.reference.angles_rad(ph[s]) for s in range(2)])
         track = float(np.mean((w.joint_angles_rad - ref) ** 2))
-        tau_h = w._buf.qfrc_actuator[w.steps - 1][w.phys.leg_dof[:, 2]] if w.steps else 0.0
+        tau_h = self.walker_entry.ankle_moments(w)[0] if w.steps else 0.0
         effort = float(np.sum((tau_h / (mg * leg)) ** 2))
         self.last = {"track_rad2": track, "effort": effort,
                      "energy": energy / max(n, 1) / (mg * v_ref)}
@@ -187,7 +237,7 @@ class AnkleAssistEnv(gym.Env):
     def _observation(self) -> np.ndarray:
         w = self.walk
         mg = w.phys.body_mass_kg * GRAVITY_M_S2
-        dev = (w._buf.device[w.steps - 1] if w.steps else np.zeros(2))
+        dev = self.walker_entry.ankle_moments(w)[1] if w.steps else np.zeros(2)
         parts = [w.joint_angles_rad.ravel(), w.joint_velocities_rad_s.ravel(), w.phase,
                  w.stance.astype(float), (w.grf_n / mg).ravel(), [w.pelvis_speed_m_s], dev]
         if self.device is not None:
