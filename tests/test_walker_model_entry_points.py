@@ -260,6 +260,7 @@ SCENARIO_LOADERS = {
     "afo_mj/experiments/device_comparison.py",       # compare: [device] only
     "afo_mj/studies/sweep.py",                       # key check only; points are afo-mj run
     "afo_mj/design/system_design.py",                # its own device scenario, no walk run
+    "afo_mj/studies/gait_optimization.py",           # optimize-gait --scenario: muscle only
     "afo_mj/scenarios/walk_scenario.py",
 }
 
