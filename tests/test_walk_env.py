@@ -258,6 +258,7 @@ def test_hafo_mode_on_the_muscle_walker():
 
 
 def test_a_walker_model_without_an_entry_is_named(monkeypatch):
-    monkeypatch.setattr(we, "WALKERS", {"torque": we.WALKERS["torque"]})
+    from afo_mj.experiments import walkers
+    monkeypatch.setattr(walkers, "WALKER_MODELS", {"torque": walkers.WALKER_MODELS["torque"]})
     with pytest.raises(ValueError, match="walker.model = 'muscle'; allowed in .*'torque'"):
         we.AnkleAssistEnv(MUSCLE, overrides=SHORT)

@@ -1,10 +1,10 @@
 """Every entry point that takes a walking scenario either walks the walker model the scenario
 names or refuses it (issue 38 item 1, issue 39 item 2). ``afo-mj run``, device walks,
 ``compare``, ``walk_batch`` and ``render`` walk the scenario's own walker (through
-:data:`afo_mj.experiments.device_walk.WALKERS`): on ``walk_muscle_healthy.toml`` their cadence
+:data:`afo_mj.experiments.walkers.WALKER_MODELS`): on ``walk_muscle_healthy.toml`` their cadence
 and speed are ``afo-mj run``'s (125/min), not the torque walker's (104/min), which
 ``walk_batch`` and ``render`` used to walk in its place. The gymnasium environment steps the
-scenario's walker too (its registry, afo_mj.experiments.walk_env.WALKERS). ``simulate_walk``
+scenario's walker too (the same registry). ``simulate_walk``
 and ``Walk.from_scenario`` step the torque walker interactively and still refuse a muscle
 scenario (one error naming the model and ``afo-mj run``).
 
@@ -232,7 +232,7 @@ def test_render_walks_the_muscle_walker(tmp_path, monkeypatch, muscle_run):
 
 def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
     """A device scenario on the muscle walker is compared on the muscle walker (the device
-    walk steps the scenario's walker, afo_mj.experiments.device_walk.WALKERS), not refused
+    walk steps the scenario's walker, afo_mj.experiments.walkers.WALKER_MODELS), not refused
     and not swapped."""
     from afo_mj.experiments.device_comparison import load_compare_items
     items = load_compare_items([str(ROOT / "scenarios" / "gait_assist_hafo.toml")], strides=1)
@@ -249,11 +249,9 @@ def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
 #: module -> what it does with a muscle scenario
 TORQUE_WALK_CALLERS = {
     "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
-    "afo_mj/experiments/walk_env.py": "WALKERS: Walk for torque only; the muscle walker "
-                                      "through MuscleWalkStepper",
-    "afo_mj/experiments/device_walk.py": "WALKERS: run_walk for torque only; every walk of a "
-                                         "scenario (run, device walks, walk_batch, render) "
-                                         "goes through it",
+    "afo_mj/experiments/walkers.py": "WALKER_MODELS: run_walk and Walk for torque only; every "
+                                     "walk of a scenario (run, device walks, compare, "
+                                     "walk_batch, render, the environment) goes through it",
 }
 SCENARIO_LOADERS = {
     "afo_mj/app/render.py", "afo_mj/app/run.py", "afo_mj/experiments/walk_env.py",

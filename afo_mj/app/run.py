@@ -229,7 +229,7 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
 
     t0 = time.perf_counter()
     try:
-        # the scenario's own walker (walker.model, one registry: device_walk.WALKERS)
+        # the scenario's own walker (walker.model, one registry: walkers.WALKER_MODELS)
         record, muscle_walk = walk_scenario(scenario, reference=reference)
     except MuscleScenarioError as exc:
         raise InvalidInput(str(exc)) from None

@@ -233,38 +233,6 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
     return HafoDevice(cfg.params, **kw)
 
 
-def _walk_torque(scenario, reference, dev, worn, label):
-    """One condition on the torque-driven tracking walker: ``(record, None)``."""
-    from afo_mj.gait.walk import run_walk
-    rec = run_walk(scenario.walker, reference, scenario.cycle_time_s(reference),
-                   scenario.strides, scenario.controller_params(), worn_masses=worn,
-                   device=dev, label=label)
-    return rec, None
-
-
-def _walk_muscle(scenario, reference, dev, worn, label):
-    """One condition on the muscle-driven reflex walker: ``(record, MuscleWalk)``."""
-    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
-    walk = walk_muscle_scenario(scenario, device=dev, worn_masses=worn)
-    return walk.record, walk
-
-
-def _torque_duration_s(scenario, reference) -> float:
-    return (scenario.strides + 1.5) * scenario.cycle_time_s(reference) + 1.0
-
-
-def _muscle_duration_s(scenario, reference) -> float:
-    from afo_mj.experiments.muscle_scenario import muscle_walk_duration_s
-    return muscle_walk_duration_s(scenario)
-
-
-#: How each walker model (``walker.model``) walks one condition of a device scenario:
-#: ``(walk(scenario, reference, device, worn_masses, label) -> (record, muscle walk or None),
-#: duration(scenario, reference) -> the longest the walk lasts, s)``.
-WALKERS = {"torque": (_walk_torque, _torque_duration_s),
-           "muscle": (_walk_muscle, _muscle_duration_s)}
-
-
 #: What the ``human_response`` block says of each walker model (:func:`human_response`).
 HUMAN_RESPONSE_NOTES = {
     "torque": ("the wearer's ankle feedforward is lowered by this fraction of the device "
@@ -300,7 +268,8 @@ def human_response(scenario) -> dict:
 def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=None):
     """Run every condition; returns ``(summary, per-condition (record, analysis, device))``.
 
-    The walker is the scenario's (``walker.model``, :data:`WALKERS`). On the muscle walker
+    The walker is the scenario's (``walker.model``,
+    :data:`afo_mj.experiments.walkers.WALKER_MODELS`). On the muscle walker
     each condition's block gains ``muscle`` (net metabolic rate and cost of transport by
     Umberger 2010 and Bhargava 2004, per muscle: :func:`afo_mj.metrics.muscle_metrics.
     muscle_summary` over the analysed strides) and ``comparison_vs_no_device`` the change of
@@ -309,10 +278,9 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
     (:func:`human_response`) says whether the wearer's answer to the device is a written-in
     rule (torque walker) or their own (muscle walker)."""
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
-    model = getattr(scenario, "walker_model", "torque")
-    if model not in WALKERS:
-        raise ValueError(f"walker.model = {model!r}; allowed: {', '.join(map(repr, WALKERS))}")
-    walk_fn, duration_fn = WALKERS[model]
+    from afo_mj.experiments.walkers import walker_model
+    entry = walker_model(scenario)
+    walk_fn, duration_fn = entry.walk, entry.duration
     dt = scenario.walker.timestep_s
     results, walks = {}, {}
     n = len(cfg.conditions)

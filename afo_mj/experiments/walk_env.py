@@ -7,7 +7,8 @@ controller without editing the walk loop.
 "torque"`` a :class:`afo_mj.gait.walk.Walk`, ``"muscle"`` a
 :class:`afo_mj.gait.muscle_walk.MuscleWalkStepper` (the reflex walker of ``afo-mj run``:
 stepped with a zero action to its end, its record is that walk's). The models are the
-entries of :data:`WALKERS`, the one place the environment tells them apart:
+entries of :data:`afo_mj.experiments.walkers.WALKER_MODELS`, the one place they are told
+apart:
 
 * **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
   N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device) or the torque
@@ -43,17 +44,15 @@ Example::
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
-from typing import Callable
 
 import gymnasium as gym
 import numpy as np
 
-from afo_mj.gait.walk import Walk
+from afo_mj.experiments.walkers import walker_model
 
-__all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID", "WALKERS"]
+__all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID"]
 
 ENV_ID = "afo_mj/AnkleAssist-v0"
 OBSERVATION_NAMES = tuple(
@@ -64,42 +63,6 @@ OBSERVATION_NAMES = tuple(
     + ["pelvis_speed_m_s", "right_ankle_device_torque_nm", "left_ankle_device_torque_nm"])
 GRAVITY_M_S2 = 9.81
 
-
-@dataclasses.dataclass(frozen=True)
-class WalkerEntry:
-    """How the environment steps one walker model. ``make(env, worn_masses, device)``: a new
-    steppable walk of ``env.scenario`` (``step(action)``, ``done``, ``fallen``, ``steps``,
-    ``time_s``, ``joint_angles_rad``, ``joint_velocities_rad_s``, ``phase``, ``stance``,
-    ``grf_n``, ``pelvis_speed_m_s``, ``phys``, ``record()``); ``ankle_moments(walk)``: the
-    (human, device + action) ankle moments per side of its last step (N·m)."""
-
-    make: Callable
-    ankle_moments: Callable
-
-
-def _torque_walk(env, worn_masses, device):
-    sc = env.scenario
-    return Walk(sc.walker, env.reference, env.cycle_time_s, sc.strides, sc.controller_params(),
-                worn_masses=worn_masses, device=device)
-
-
-def _torque_moments(w):
-    k = w.steps - 1
-    return w._buf.qfrc_actuator[k][w.phys.leg_dof[:, 2]], w._buf.device[k]
-
-
-def _muscle_walk(env, worn_masses, device):
-    from afo_mj.experiments.muscle_scenario import muscle_scenario_stepper
-    return muscle_scenario_stepper(env.scenario, device=device, worn_masses=worn_masses)
-
-
-def _muscle_moments(w):
-    return w.joint_moment_nm[:, 2], w.device_moment_nm
-
-
-#: walker model (``[walker] model``) -> how the environment steps it
-WALKERS = {"torque": WalkerEntry(_torque_walk, _torque_moments),
-           "muscle": WalkerEntry(_muscle_walk, _muscle_moments)}
 
 
 def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float = 1.0,
@@ -114,7 +77,7 @@ class AnkleAssistEnv(gym.Env):
     (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
     says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
     must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
-    the one the scenario names (:data:`WALKERS`)."""
+    the one the scenario names (:data:`afo_mj.experiments.walkers.WALKER_MODELS`)."""
 
     metadata = {"render_modes": []}
 
@@ -127,11 +90,7 @@ class AnkleAssistEnv(gym.Env):
         if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
             raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
         self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
-        model = getattr(self.scenario, "walker_model", "torque")
-        if model not in WALKERS:
-            raise ValueError(f"walker.model = {model!r}; allowed in {ENV_ID}: "
-                             + ", ".join(repr(m) for m in WALKERS))
-        self.walker_entry = WALKERS[model]
+        self.walker_entry = walker_model(self.scenario, ENV_ID)
         self.reference = self.scenario.load_reference()
         self.cycle_time_s = self.scenario.cycle_time_s(self.reference)
         dt = self.scenario.walker.timestep_s
@@ -176,7 +135,7 @@ class AnkleAssistEnv(gym.Env):
                                      sides=("right", "left"), timestep_s=sc.walker.timestep_s,
                                      torque_fn=torque_fn)
             worn = tuple(self.device.worn_masses())
-        self.walk = self.walker_entry.make(self, worn, self.device)
+        self.walk = self.walker_entry.stepper(self.scenario, self.reference, self.device, worn)
         self.last = {"track_rad2": 0.0, "effort": 0.0, "energy": 0.0}
         return self._observation(), {"time_s": 0.0}
 

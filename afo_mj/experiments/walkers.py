@@ -1,30 +1,105 @@
-"""One walk of a scenario on the walker it names (``walker.model``), for every entry point that
-walks a scenario without stepping it interactively: ``afo-mj run`` (plain and device walks),
-``walk_batch``, ``afo-mj render``. The models are registered once, in
-:data:`afo_mj.experiments.device_walk.WALKERS` (``"torque"``: the tracking walker's
-:func:`~afo_mj.gait.walk.run_walk`; ``"muscle"``: the reflex walker through
-:func:`~afo_mj.experiments.muscle_scenario.walk_muscle_scenario`); a model is added there, not
-by a branch here.
+"""The walker models, registered once: how a scenario naming ``walker.model`` is walked by every
+entry point (``afo-mj run`` of plain and device walks, ``compare``, ``sweep``, ``walk_batch``,
+``afo-mj render``) and stepped by the gymnasium environment
+(:mod:`afo_mj.experiments.walk_env`). A model is added by one entry of :data:`WALKER_MODELS`,
+not by branches in the callers:
+
+* ``"torque"``: the tracking walker (:func:`afo_mj.gait.walk.run_walk`, its steppable
+  :class:`~afo_mj.gait.walk.Walk`);
+* ``"muscle"``: the reflex walker (:func:`afo_mj.experiments.muscle_scenario.
+  walk_muscle_scenario`, its steppable :class:`~afo_mj.gait.muscle_walk.MuscleWalkStepper`).
 """
 
 from __future__ import annotations
 
-__all__ = ["walk_scenario", "walk_duration_s", "walker_models"]
+import dataclasses
+from typing import Callable
+
+__all__ = ["WalkerModel", "WALKER_MODELS", "walker_model", "walk_scenario", "walk_duration_s",
+           "walker_models"]
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkerModel:
+    """One walker model.
+
+    ``walk(scenario, reference, device, worn_masses, label) -> (record, muscle walk or None)``:
+    the whole walk; ``duration(scenario, reference)``: the longest it lasts (s), what a worn
+    device must be able to log; ``stepper(scenario, reference, device, worn_masses)``: a
+    steppable walk (``step(action)``, ``done``, ``fallen``, ``steps``, ``time_s``,
+    ``joint_angles_rad``, ``joint_velocities_rad_s``, ``phase``, ``stance``, ``grf_n``,
+    ``pelvis_speed_m_s``, ``phys``, ``record()``); ``ankle_moments(stepper)``: the (human,
+    device + action) ankle moments per side of its last step (N·m)."""
+
+    walk: Callable
+    duration: Callable
+    stepper: Callable
+    ankle_moments: Callable
+
+
+def _walk_torque(scenario, reference, dev, worn, label):
+    from afo_mj.gait.walk import run_walk
+    rec = run_walk(scenario.walker, reference, scenario.cycle_time_s(reference),
+                   scenario.strides, scenario.controller_params(), worn_masses=worn,
+                   device=dev, label=label)
+    return rec, None
+
+
+def _torque_duration_s(scenario, reference) -> float:
+    return (scenario.strides + 1.5) * scenario.cycle_time_s(reference) + 1.0
+
+
+def _torque_stepper(scenario, reference, device, worn):
+    from afo_mj.gait.walk import Walk
+    return Walk(scenario.walker, reference, scenario.cycle_time_s(reference), scenario.strides,
+                scenario.controller_params(), worn_masses=worn, device=device)
+
+
+def _torque_moments(w):
+    k = w.steps - 1
+    return w._buf.qfrc_actuator[k][w.phys.leg_dof[:, 2]], w._buf.device[k]
+
+
+def _walk_muscle(scenario, reference, dev, worn, label):
+    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
+    walk = walk_muscle_scenario(scenario, device=dev, worn_masses=worn)
+    return walk.record, walk
+
+
+def _muscle_duration_s(scenario, reference) -> float:
+    from afo_mj.experiments.muscle_scenario import muscle_walk_duration_s
+    return muscle_walk_duration_s(scenario)
+
+
+def _muscle_stepper(scenario, reference, device, worn):
+    from afo_mj.experiments.muscle_scenario import muscle_scenario_stepper
+    return muscle_scenario_stepper(scenario, device=device, worn_masses=worn)
+
+
+def _muscle_moments(w):
+    return w.joint_moment_nm[:, 2], w.device_moment_nm
+
+
+#: The walker models by ``walker.model`` name.
+WALKER_MODELS = {
+    "torque": WalkerModel(_walk_torque, _torque_duration_s, _torque_stepper, _torque_moments),
+    "muscle": WalkerModel(_walk_muscle, _muscle_duration_s, _muscle_stepper, _muscle_moments),
+}
 
 
 def walker_models() -> tuple[str, ...]:
     """The registered walker models."""
-    from afo_mj.experiments.device_walk import WALKERS
-    return tuple(WALKERS)
+    return tuple(WALKER_MODELS)
 
 
-def _entry(scenario):
-    from afo_mj.experiments.device_walk import WALKERS
+def walker_model(scenario, where: str = "") -> WalkerModel:
+    """The entry of the model ``scenario`` names; an unregistered one raises ValueError
+    naming it and the allowed ones (``where``: what refuses it)."""
     model = getattr(scenario, "walker_model", "torque")
-    if model not in WALKERS:
-        raise ValueError(f"walker.model = {model!r}; allowed: "
-                         + ", ".join(repr(m) for m in WALKERS))
-    return WALKERS[model]
+    if model not in WALKER_MODELS:
+        raise ValueError(f"walker.model = {model!r}; allowed{' in ' + where if where else ''}: "
+                         + ", ".join(repr(m) for m in WALKER_MODELS))
+    return WALKER_MODELS[model]
 
 
 def walk_scenario(scenario, device=None, worn_masses=(), label: str = "", reference=None):
@@ -33,14 +108,12 @@ def walk_scenario(scenario, device=None, worn_masses=(), label: str = "", refere
     and the :class:`~afo_mj.gait.muscle_walk.MuscleWalk` with the muscles' signals on the
     muscle walker). ``label`` names the walk in progress lines; ``reference`` defaults to the
     scenario's."""
-    walk, _duration = _entry(scenario)
     ref = scenario.load_reference() if reference is None else reference
-    return walk(scenario, ref, device, tuple(worn_masses), label)
+    return walker_model(scenario).walk(scenario, ref, device, tuple(worn_masses), label)
 
 
 def walk_duration_s(scenario, reference=None) -> float:
     """The longest the scenario's walk lasts (s): what a device worn on it must be able to
     log."""
-    _walk, duration = _entry(scenario)
     ref = scenario.load_reference() if reference is None else reference
-    return duration(scenario, ref)
+    return walker_model(scenario).duration(scenario, ref)
