@@ -55,6 +55,18 @@ def test_a_device_is_worn_by_the_muscle_walker():
                                                                    "assist")
 
 
+def test_a_shipped_set_named_by_a_number_from_the_command_line():
+    """``--set walker.reflex_set=1.25`` arrives as the number 1.25: it names the shipped set
+    (it was refused as 'the wrong type (float)'); a number naming no set is still refused."""
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "walk_muscle_healthy.toml"
+    for value, name in (("1.25", "1.25"), ("1.0", "1.0"), ("1", "1.0")):
+        sc = load_scenario(path, overrides=[f"walker.reflex_set={value}"])
+        assert sc.reflex_set == muscle_reflex_sets()[name]
+    with pytest.raises(ScenarioError, match="walker.reflex_set = 3.5"):
+        load_scenario(path, overrides=["walker.reflex_set=3.5"])
+
+
 def test_reflex_set_path_relative_to_the_file(tmp_path):
     src = muscle_reflex_sets()["1.5"]
     (tmp_path / "mine.json").write_text(src.read_text())

@@ -451,6 +451,10 @@ def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -
                        "walker's tracking controller; the muscle walker's reflexes are "
                        "walker.reflex_set)", "no [controller] table")
     shipped = muscle_reflex_sets()
+    if (isinstance(raw_set, (int, float)) and not isinstance(raw_set, bool)
+            and repr(float(raw_set)) in shipped):
+        # --set walker.reflex_set=1.25 reads the name as a number: the shipped set it names
+        raw_set = repr(float(raw_set))
     raw = ctx.string("walker.reflex_set", "1.25" if raw_set is None else raw_set,
                      "a shipped set (" + ", ".join(shipped) + ") or a reflex_params.json path")
     if raw in shipped:
