@@ -74,6 +74,7 @@ def runs(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_rows_carry_the_wearers_effort_as_afo_mj_run_reports_it(compared, runs):
     out, rows, _ = compared
     assert set(rows) == {"gait_muscle_hafo", "gait_spring_return"}
@@ -108,6 +109,7 @@ def test_rows_carry_the_wearers_effort_as_afo_mj_run_reports_it(compared, runs):
         assert r["no_device_fall_time_s"] == ""
 
 
+@pytest.mark.slow
 def test_ranks_order_the_rows_by_metabolic_change_and_by_battery_energy(compared):
     _, rows, stdout = compared
     rs = list(rows.values())
@@ -129,6 +131,7 @@ def test_ranks_order_the_rows_by_metabolic_change_and_by_battery_energy(compared
         assert f"{_f(r['net_metabolic_umberger_change_pct']):+.2f}" in line
 
 
+@pytest.mark.slow
 def test_a_compare_mixing_the_walkers_ranks_effort_among_muscle_rows_only(tmp_path, runs):
     out = tmp_path / "mixed"
     rc, stdout, err = _main(["compare", str(HAFO), str(TORQUE_HAFO), "--out", str(out),

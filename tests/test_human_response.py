@@ -60,6 +60,7 @@ def _default_adaptation() -> float:
                 if f.name == "assistance_adaptation")
 
 
+@pytest.mark.slow
 def test_torque_walker_names_its_written_in_rule(tmp_path, capsys, monkeypatch):
     r = _run(tmp_path, "half", TORQUE,
              [*SHORT_TORQUE, "--set", "controller.assistance_adaptation=0.5"], capsys,
@@ -97,6 +98,7 @@ def test_muscle_walker_has_no_rule(tmp_path, capsys, monkeypatch):
         assert "feedforward lowered" not in r["titles"][name], name
 
 
+@pytest.mark.slow
 def test_default_results_unchanged(tmp_path, capsys, monkeypatch):
     """The default run names the default value, and every number equals (bitwise: the JSON
     text of each number) that of the run with the default given explicitly."""

@@ -93,6 +93,7 @@ def test_the_assist_condition_is_the_assistance_studys_hafo_walk(tmp_path):
     assert m["net_metabolic_umberger_w_per_kg"] == pytest.approx(rate, rel=0.02)
 
 
+@pytest.mark.slow
 def test_a_described_circuit_on_the_muscle_walker(tmp_path, capsys):
     """The spring-return circuit description worn by the muscle walker: exit 0, the wearer's
     metabolic rate per condition on the console and in the summary, the ledger closed."""
