@@ -381,3 +381,33 @@ def test_device_study_without_energy_values_has_no_pareto_figure(tmp_path):
     res = write_study_report(d)
     assert "pareto.png" not in res["files"] and res["summary"]["pareto"] is None
     assert "no successful run has both" in res["text"]
+
+
+METABOLIC = "comparison_vs_no_device.assist.net_metabolic_umberger_change_pct"
+
+
+def test_muscle_walker_studies_rank_by_the_wearers_metabolic_change(tmp_path):
+    """A device study on the muscle walker ranks by the wearer's net metabolic change (%), its
+    Pareto front is that change against the electrical energy, labelled with their units,
+    and the report gives the runs' spread on the metric (mean, sample SD, range) computed
+    here with the statistics module."""
+    import statistics
+
+    from afo_mj.studies.study_analysis import metric_spread
+    changes = [-1.97, 0.21, 0.49]
+    rows = [{**r, METABOLIC: c} for r, c in zip(_device_rows()[:3], changes)]
+    dev = pd.DataFrame(rows)
+    assert default_metric(dev) == METABOLIC
+    assert pareto_metrics(dev) == (METABOLIC, EPS)
+    # without a value in any successful run the human work change is the metric again
+    assert default_metric(dev.assign(**{METABOLIC: np.nan})) == CHANGE
+    sp = metric_spread(changes + [math.nan])
+    assert sp["n"] == 3 and sp["mean"] == pytest.approx(statistics.mean(changes), rel=1e-12)
+    assert sp["sd"] == pytest.approx(statistics.stdev(changes), rel=1e-12)
+    assert (sp["min"], sp["max"]) == (-1.97, 0.49)
+    assert metric_spread([1.0])["sd"] is None and metric_spread([])["n"] == 0
+    study = _study("seeds", "grid", [_param("walker.reflex_set", levels=["a", "b", "c"])])
+    d = _write(tmp_path, study, rows)
+    rep = write_study_report(d)
+    assert "(%) vs " in rep["text"] and "Over the 3 runs with a value: mean" in rep["text"]
+    assert rep["summary"]["spread"]["n"] == 3

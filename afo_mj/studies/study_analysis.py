@@ -19,7 +19,9 @@ Metrics. Every metric is a column of the results table (a dotted ``summary.json`
 :func:`default_metric` picks, for device studies (runs with ``device_conditions.*``), the
 change of the human (muscle) ankle positive work per stride of the headline condition vs no
 device, ``comparison_vs_no_device.<cond>.human_ankle_positive_work_change_j_per_stride``
-(J/stride, smaller = more work taken off the muscles), or, without a no-device condition,
+(J/stride, smaller = more work taken off the muscles) — on the muscle walker the wearer's net
+metabolic rate change ``comparison_vs_no_device.<cond>.net_metabolic_umberger_change_pct``
+(%) first — or, without a no-device condition,
 ``human.ankle_positive_work_j_per_stride``; for walk studies ``ankle_angle_rms_error_deg.mean``
 (deg, the ankle angle's RMS error against the reference). The headline condition is the one
 ``afo-mj run`` writes out (the last of ``device.conditions``), recognised as the condition
@@ -32,8 +34,9 @@ gets, for every ``device_conditions.<cond>.*`` and ``comparison_vs_no_device.<co
 column, a ``<prefix>.headline.*`` column holding each run's own headline condition's value
 (:func:`add_headline_columns`), so its runs rank, and form a Pareto front, on one metric.
 
-Pareto front (device studies, :func:`pareto_metrics`), both minimised: x = the human ankle
-positive work change vs no device (above; more negative is better) and y =
+Pareto front (device studies, :func:`pareto_metrics`), both minimised: x = the wearer's net
+metabolic rate change (muscle walker) or else the human ankle positive work change vs no
+device (above; more negative is better) and y =
 ``device_conditions.<cond>.energy_per_stride.electrical_in_j``, the summary's own electrical
 energy per stride (J/stride): the whole run's electrical energy drawn from the battery times
 the mean analysed stride time over the run duration (start-up strides included in the
@@ -81,6 +84,8 @@ MAXIMISE_HINTS = ("efficiency", "battery_runtime", "within_1sd_fraction", "compl
 
 _FIXED = ("order", "run_id", "status", "exit_code", "error", "wall_time_s")
 _CHANGE = "human_ankle_positive_work_change_j_per_stride"
+#: on the muscle walker the wearer's effort: net metabolic rate change vs no device (%)
+_METABOLIC = "net_metabolic_umberger_change_pct"
 _CMP = "comparison_vs_no_device."
 _DC = "device_conditions."
 _HUMAN = "human.ankle_positive_work_j_per_stride"
@@ -290,15 +295,31 @@ def _has_finite_ok(df: pd.DataFrame, col: str) -> bool:
     return col in df.columns and bool(np.any(np.isfinite(_values(df, col)[_ok(df)])))
 
 
+def metric_spread(values) -> dict:
+    """``n``, ``mean``, ``sd`` (sample, ``n − 1``; None below two values), ``min`` and ``max``
+    of the finite ``values``: how far the runs of a study spread on its metric, which is what
+    an effect has to exceed (e.g. the spread between seeds of one adapted wearer)."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    n = int(x.size)
+    if n == 0:
+        return {"n": 0, "mean": None, "sd": None, "min": None, "max": None}
+    return {"n": n, "mean": float(np.mean(x)),
+            "sd": float(np.std(x, ddof=1)) if n >= 2 else None,
+            "min": float(np.min(x)), "max": float(np.max(x))}
+
+
 def default_metric(df: pd.DataFrame) -> str:
-    """A sensible ranking metric (smaller is better). Device studies: the headline
-    condition's human ankle positive work change vs no device (J/stride), else the human
-    ankle positive work per stride; walk studies: the ankle angle RMS error (deg). Raises
-    ValueError when the table has none of them with a value."""
+    """A sensible ranking metric (smaller is better). Device studies: on the muscle walker the
+    wearer's net metabolic rate change vs no device of the headline condition (%, Umberger
+    2010: the field ranks assistance by it), else that condition's human ankle positive work
+    change vs no device (J/stride), else the human ankle positive work per stride; walk
+    studies: the ankle angle RMS error (deg). Raises ValueError when the table has none of
+    them with a value."""
     head = headline_condition(df)
     tried = []
     if head is not None:
-        tried += [f"{_CMP}{head}.{_CHANGE}", _HUMAN,
+        tried += [f"{_CMP}{head}.{_METABOLIC}", f"{_CMP}{head}.{_CHANGE}", _HUMAN,
                   f"{_DC}{head}.human.ankle_positive_work_j_per_stride"]
     tried += list(_WALK_METRICS)
     for m in tried:
@@ -309,15 +330,17 @@ def default_metric(df: pd.DataFrame) -> str:
 
 
 def pareto_metrics(df: pd.DataFrame) -> tuple[str, str] | None:
-    """The Pareto axes of a device study, both minimised: (human ankle positive work change
-    vs no device, J/stride; electrical energy drawn per stride, J/stride) of the headline
+    """The Pareto axes of a device study, both minimised: (the wearer's net metabolic rate
+    change vs no device, % (muscle walker), or else the human ankle positive work change vs
+    no device, J/stride; electrical energy drawn per stride, J/stride) of the headline
     condition; None when the table does not have both (walk study, no ``no_device``)."""
     head = headline_condition(df)
     if head is None:
         return None
-    x, y = f"{_CMP}{head}.{_CHANGE}", f"{_DC}{head}.{_EPS}"
-    if x in df.columns and y in df.columns:
-        return x, y
+    y = f"{_DC}{head}.{_EPS}"
+    for x in (f"{_CMP}{head}.{_METABOLIC}", f"{_CMP}{head}.{_CHANGE}"):
+        if x in df.columns and y in df.columns and _has_finite_ok(df, x):
+            return x, y
     return None
 
 
@@ -669,10 +692,17 @@ def analyse_study(out_dir, metric: str | None = None,
         summary["top"] = [_run_record(df, int(i), pcols, {"value": _jsonable(v[i])})
                           for i in ranked[:20]]
         summary["best"] = summary["top"][0] if summary["top"] else None
+        summary["spread"] = metric_spread(v[ranked])
         if summary["best"]:
             b = summary["best"]
             sections += ["", f"Best run: {b['run_id']}: {metric} = {_fmt(b['value'])} at "
                          + ", ".join(f"{k} = {_fmt(x)}" for k, x in b["parameters"].items())]
+        sp = summary["spread"]
+        if sp["n"] >= 2:
+            # the spread the best run stands out from (e.g. between seeds of one wearer)
+            sections.append(f"Over the {sp['n']} runs with a value: mean {_fmt(sp['mean'])}, "
+                            f"SD {_fmt(sp['sd'])}, range {_fmt(sp['min'])} … "
+                            f"{_fmt(sp['max'])} ({label_of(metric)})")
         axes = pareto_metrics(df)
         front = None
         if axes is not None:
@@ -689,8 +719,8 @@ def analyse_study(out_dir, metric: str | None = None,
                 "runs": [_run_record(front, k, pcols, {"x": _jsonable(xs[k]),
                                                        "y": _jsonable(ys[k])})
                          for k in range(len(front))]}
-            lines = [f"Pareto front ({len(front)} runs; both minimised): {axes[0]} "
-                     f"(J/stride) vs {axes[1]} (J/stride)"]
+            lines = [f"Pareto front ({len(front)} runs; both minimised): {label_of(axes[0])} "
+                     f"vs {label_of(axes[1])}"]
             for k in range(len(front)):
                 r = summary["pareto"]["runs"][k]
                 lines.append(f"  {r['run_id']}: x = {_fmt(xs[k])}, y = {_fmt(ys[k])}  ("
