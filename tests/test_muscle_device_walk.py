@@ -120,3 +120,21 @@ def test_the_torque_walkers_controller_is_still_refused_on_the_muscle_walker(tmp
     err = capsys.readouterr().err
     assert "controller" in err and "does not apply to walker.model = 'muscle'" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_no_metabolic_change_is_given_against_a_fall():
+    """A walk that fell (with or without the device) has no steady rate to set against the
+    other's: the change is None and the note names the fall (the fall is the result)."""
+    from afo_mj.experiments.device_walk import _metabolic_change
+    a = {"net_metabolic_umberger_w_per_kg": 4.0, "net_metabolic_bhargava_w_per_kg": 3.0}
+    b = {"net_metabolic_umberger_w_per_kg": 3.0, "net_metabolic_bhargava_w_per_kg": 2.4}
+    ok = _metabolic_change(a, b)
+    assert ok["net_metabolic_umberger_change_pct"] == pytest.approx(-25.0)
+    assert ok["net_metabolic_bhargava_change_w_per_kg"] == pytest.approx(-0.6)
+    assert "net_metabolic_change_note" not in ok
+    for base_fall, cond_fall, says in ((None, 0.57, "with the device fell at t = 0.570 s"),
+                                       (0.852, None, "without the device fell at t = 0.852")):
+        c = _metabolic_change(a, b, base_fall, cond_fall)
+        assert c["net_metabolic_umberger_change_pct"] is None
+        assert c["net_metabolic_bhargava_change_w_per_kg"] is None
+        assert says in c["net_metabolic_change_note"]

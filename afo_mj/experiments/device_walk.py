@@ -320,7 +320,9 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
                 (v["human"]["ankle_positive_work_j_per_stride"] - base)
                 if base is not None and v["human"]["ankle_positive_work_j_per_stride"]
                 is not None else None,
-                **_metabolic_change(conds["no_device"].get("muscle"), v.get("muscle"))}
+                **_metabolic_change(conds["no_device"].get("muscle"), v.get("muscle"),
+                                    conds["no_device"].get("fall_time_s"),
+                                    v.get("fall_time_s"))}
             for c, v in conds.items() if c != "no_device"}
     return summary, results
 
@@ -334,18 +336,27 @@ def _muscle_block(walk, analysis) -> dict | None:
     return muscle_summary(walk, t0, t1)
 
 
-def _metabolic_change(base: dict | None, cond: dict | None) -> dict:
+def _metabolic_change(base: dict | None, cond: dict | None, base_fall_s=None,
+                      cond_fall_s=None) -> dict:
     """The wearer's net metabolic rate with the device minus without it, W/kg and % of the
     rate without it, by both models (nothing on the torque walker, None where a condition
-    has no analysed stride)."""
+    has no analysed stride). A walk that fell (with or without the device) gives no change:
+    its rate over the strides before the fall is no steady walk's, so the two cannot be set
+    against each other; ``net_metabolic_change_note`` says which fell (the fall is the
+    result)."""
     if base is None and cond is None:
         return {}
     out = {}
+    fell = [f"the walk {w} fell at t = {t:.3f} s" for w, t in
+            (("without the device", base_fall_s), ("with the device", cond_fall_s))
+            if t is not None]
     for model in ("umberger", "bhargava"):
         key = f"net_metabolic_{model}_w_per_kg"
         b = None if base is None else base.get(key)
         v = None if cond is None else cond.get(key)
-        ok = b is not None and v is not None
+        ok = b is not None and v is not None and not fell
         out[f"net_metabolic_{model}_change_w_per_kg"] = (v - b) if ok else None
         out[f"net_metabolic_{model}_change_pct"] = (100.0 * (v - b) / b) if ok and b else None
+    if fell:
+        out["net_metabolic_change_note"] = "not given: " + "; ".join(fell)
     return out

@@ -179,6 +179,8 @@ def metabolic_lines(muscle: Mapping | None, change: Mapping | None) -> list[str]
     if pct is not None:
         line += (f"; vs no device {pct:+.1f} % (Umberger), "
                  f"{change['net_metabolic_bhargava_change_pct']:+.1f} % (Bhargava)")
+    elif (change or {}).get("net_metabolic_change_note"):
+        line += f"; change vs no device {change['net_metabolic_change_note']}"
     return [line]
 
 
