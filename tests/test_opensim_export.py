@@ -96,3 +96,29 @@ def test_output_opensim_writes_every_run_into_the_results(tmp_path):
     from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
     with pytest.raises(ScenarioError, match="output.opensim = 'yes'"):
         parse_scenario('[output]\nopensim = "yes"')
+
+
+def test_a_device_walk_on_the_muscle_walker_exports_every_condition(tmp_path):
+    """OpenSim files serve both walkers: a HAFO walk on the muscle walker writes each
+    condition's ik/id/grf, and the assist condition's read back equal its record (the
+    muscle walker's joint angles and moments, not the torque walker's)."""
+    from afo_mj.app.run import run_scenario
+    out = tmp_path / "res"
+    res = run_scenario(ROOT / "scenarios" / "gait_muscle_hafo.toml", out_dir=out,
+                       figures=False,
+                       overrides=["gait.strides=3", "gait.analyse_strides=[2, 3]",
+                                  "output.opensim=true",
+                                  'device.conditions=["no_device", "assist"]'])
+    names = sorted(p.name for p in (out / "opensim").iterdir())
+    assert names == sorted(f"{c}_{k}" for c in ("no_device", "assist")
+                           for k in ("grf.mot", "id.sto", "ik.mot"))
+    rec = res.results["assist"][0]
+    _, labels, data = read_opensim_storage(out / "opensim" / "assist_ik.mot")
+    col = {lab: data[:, i] for i, lab in enumerate(labels)}
+    np.testing.assert_allclose(col["time"], rec.time_s, rtol=1e-9)
+    np.testing.assert_allclose(np.radians(col["ankle_angle_r"]), rec.joint_angle_rad[:, 0, 2],
+                               rtol=1e-8, atol=1e-10)
+    _, labels, data = read_opensim_storage(out / "opensim" / "assist_id.sto")
+    col = {lab: data[:, i] for i, lab in enumerate(labels)}
+    np.testing.assert_allclose(col["ankle_angle_r_moment"], rec.joint_moment_nm[:, 0, 2],
+                               rtol=1e-8, atol=1e-8)
