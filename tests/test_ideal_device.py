@@ -197,6 +197,11 @@ def test_clutched_spring_scenario_runs_with_the_wearers_metabolic_change(tmp_pat
     assert "vs no device" in text
     assert assist["energy"]["balance_error_rel"] == 0.0
     assert (out / "device_timeseries.csv").is_file()
+    # the gait figures with and without the device; no hydraulics figures for a device
+    # that has no hydraulics (their signals are not in its log)
+    pngs = {p.name for p in out.glob("*.png")}
+    assert {"gait_conditions.png", "ankle_angle_conditions.png"} <= pngs
+    assert not pngs & {"device_torque.png", "device_stride_hydraulics.png"}
 
 
 def test_the_ideal_device_walks_the_torque_walker(tmp_path):

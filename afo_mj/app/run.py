@@ -335,11 +335,6 @@ def _device_files_writer(results, reference, dsum, name, wall_s, figures: bool):
             plot_device_run(tmp, {c: (r, a, None) for c, (r, a, _d) in results.items()},
                             reference, dsum, name)
             plot_circuit_gait(tmp, results, dsum, name)
-        elif dsum.get("device_preset") == "ideal":
-            # the ideal device (afo_mj.devices.ideal) has no hydraulics to draw: the gait
-            # figures only (its torque is in device_timeseries.csv)
-            plot_device_run(tmp, {c: (r, a, None) for c, (r, a, _d) in results.items()},
-                            reference, dsum, name)
         else:
             plot_device_run(tmp, results, reference, dsum, name)
     return write

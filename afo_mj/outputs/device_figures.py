@@ -609,6 +609,11 @@ def _plot_power_flow(path: Path, energies: dict, title: str, note: str,
 
 # ------------------------------------------------------------------------------------------
 
+#: the log fields the torque and hydraulics figures need (those of the HAFO and valve presets)
+PRESET_LOG_FIELDS = ("commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
+                     "chamber_a_pa", "chamber_b_pa")
+
+
 def plot_device_run(out_dir, results: dict, reference, summary: dict,
                     title: str) -> list[Path]:
     """Write the device-run figures (see the module docstring) into ``out_dir`` (created if
@@ -639,7 +644,10 @@ def plot_device_run(out_dir, results: dict, reference, summary: dict,
         _plot_gait_conditions(p, results, reference, side, human_title, colours)
         written.append(p)
 
-    devs = {c: v for c, v in conds.items() if v[2] is not None and v[2].log.n > 1}
+    # the torque and hydraulics figures read the preset devices' signal names; a device that
+    # logs others (the ideal device, a described circuit) has the gait figures only
+    devs = {c: v for c, v in conds.items() if v[2] is not None and v[2].log.n > 1
+            and all(f in v[2].log.FIELDS for f in PRESET_LOG_FIELDS)}
     if devs:
         p = out / "device_torque.png"
         _plot_torque(p, devs, side, title)
