@@ -31,6 +31,7 @@ import numpy as np
 
 from afo_mj.gait import reflex_law as rl
 from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.gait.stepped import SteppedWalk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
 
@@ -173,7 +174,7 @@ def muscle_table_scaled(timestep_s: float, max_force_scale: dict | None = None,
     return T
 
 
-class MuscleWalkStepper:
+class MuscleWalkStepper(SteppedWalk):
     """A steppable walk of the muscle-driven walker, as :class:`afo_mj.gait.walk.Walk` is of
     the torque-driven one: :meth:`reset`, :meth:`step` (one 1 ms step: the reflex law, the
     device and one ``mj_step``), named accessors of the state, :attr:`done` and
@@ -373,30 +374,7 @@ class MuscleWalkStepper:
         self._stepped = True
         self._step(action)
 
-    @property
-    def done(self) -> bool:
-        """The walker fell or the duration is walked."""
-        return self._done[0]
-
-    @property
-    def steps(self) -> int:
-        """Steps recorded so far."""
-        return self._steps()
-
     # -- named accessors (copies of the state) ------------------------------------------------
-    @property
-    def time_s(self) -> float:
-        return float(self.data.time)
-
-    @property
-    def joint_angles_rad(self) -> np.ndarray:
-        """(2, 3) [right, left][hip, knee, ankle] (+ flexion, + dorsiflexion)."""
-        return self.data.qpos[self.phys.leg_qpos].copy()
-
-    @property
-    def joint_velocities_rad_s(self) -> np.ndarray:
-        return self.data.qvel[self.phys.leg_dof].copy()
-
     @property
     def stance(self) -> np.ndarray:
         """(2,) bool: the reflex controller's stance state per leg."""
@@ -416,17 +394,6 @@ class MuscleWalkStepper:
         return out
 
     @property
-    def grf_n(self) -> np.ndarray:
-        """(2, 2) ground reaction force per foot [forward, up] (N)."""
-        s = self.data.sensordata
-        adr = self.phys.foot_force_adr
-        return -np.stack([s[adr], s[adr + 2]], axis=1)
-
-    @property
-    def pelvis_speed_m_s(self) -> float:
-        return float(self.data.qvel[self.phys.pelvis_dof[0]])
-
-    @property
     def joint_moment_nm(self) -> np.ndarray:
         """(2, 3) the muscles' joint moments of the last step (N·m; zeros before one)."""
         k = self.steps
@@ -437,10 +404,6 @@ class MuscleWalkStepper:
         """(2,) the ankle torque of the device and the action in the last step (N·m)."""
         k = self.steps
         return self._buf["dev"][k - 1].copy() if k else np.zeros(2)
-
-    @property
-    def fallen(self) -> bool:
-        return self.events.fall_time_s is not None
 
     def record(self) -> MuscleWalk:
         """The :class:`MuscleWalk` of the steps so far. Raises FloatingPointError when

@@ -61,6 +61,7 @@ import numpy as np
 from afo_mj import progress
 from afo_mj.gait import control_law as law
 from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.gait.stepped import SteppedWalk
 from afo_mj.human.anthropometry import scale_body
 from afo_mj.human.walker import DynamicScale, WalkerParams, WalkerPhysics, build_walker
 from afo_mj.hydraulics.params import Parameters, param
@@ -286,7 +287,7 @@ class _Buffers:
                    z((n, model.nsensordata)), z((n, 4)), z((n, 2)), z((n, 2)))
 
 
-class Walk:
+class Walk(SteppedWalk):
     """A steppable walk of the torque-driven walker, in the manner of dm_control's ``Physics``:
     :meth:`reset`, :meth:`step` (one MuJoCo step of the controller, the device and the
     physics, returning that step's gait events), named accessors of the state and
@@ -600,29 +601,7 @@ class Walk:
         self._stepped = True
         return self._step(action)
 
-    @property
-    def done(self) -> bool:
-        return self._done[0]
-
-    @property
-    def steps(self) -> int:
-        """Steps recorded so far."""
-        return self._steps()
-
     # -- named accessors (views of MuJoCo's state are copied) ------------------------------
-    @property
-    def time_s(self) -> float:
-        return float(self.data.time)
-
-    @property
-    def joint_angles_rad(self) -> np.ndarray:
-        """(2, 3) [right, left][hip, knee, ankle] (+ flexion, + dorsiflexion)."""
-        return self.data.qpos[self.phys.leg_qpos].copy()
-
-    @property
-    def joint_velocities_rad_s(self) -> np.ndarray:
-        return self.data.qvel[self.phys.leg_dof].copy()
-
     @property
     def phase(self) -> np.ndarray:
         """(2,) the controller's gait-phase estimate per leg, 0 … 1 from heel strike."""
@@ -632,21 +611,6 @@ class Walk:
     def stance(self) -> np.ndarray:
         """(2,) bool: the foot is on the ground (the controller's foot switch)."""
         return self._state[law.S_SWING:law.S_SWING + 2] < 0.5
-
-    @property
-    def grf_n(self) -> np.ndarray:
-        """(2, 2) ground reaction force per foot [forward, up] (N)."""
-        s = self.data.sensordata
-        adr = self.phys.foot_force_adr
-        return -np.stack([s[adr], s[adr + 2]], axis=1)
-
-    @property
-    def pelvis_speed_m_s(self) -> float:
-        return float(self.data.qvel[self.phys.pelvis_dof[0]])
-
-    @property
-    def fallen(self) -> bool:
-        return self.events.fall_time_s is not None
 
     def record(self) -> GaitRecord:
         """The record of the steps so far."""
