@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import io
 import json
 import math
 import types
@@ -12,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from afo_mj import cli
 from afo_mj.experiments import device_comparison as dc
+from cli_helpers import csv_number, run_cli
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios"
 HAFO = SCEN / "gait_assist_hafo.toml"
@@ -35,15 +33,6 @@ def _hoses_copy(tmp: Path) -> Path:
     return p
 
 
-def _main(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main(argv)
-    return rc, out.getvalue(), err.getvalue()
-
-
-def _f(x: str) -> float:
-    return float(x) if x != "" else math.nan
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +40,7 @@ def compared(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("compare")
     hoses = _hoses_copy(tmp)
     out = tmp / "cmp"
-    rc, stdout, stderr = _main(["compare", str(HAFO), str(hoses), "--out", str(out),
+    rc, stdout, stderr = run_cli(["compare", str(HAFO), str(hoses), "--out", str(out),
                                 "--strides", "5"])
     assert rc == 0, stderr
     with (out / "comparison.csv").open(encoding="utf-8") as f:
@@ -80,9 +69,9 @@ def test_files_rows_and_columns(compared):
         assert c in cols, c
     for r in rows:
         assert r["preset"] == "hafo_gait" and r["fell"] == "false"
-        assert 0.2 < _f(r["efficiency_total"]) < 1.0
-        assert _f(r["mass_total_kg"]) > _f(r["mass_at_ankle_kg"]) > 0
-        assert _f(r["human_ankle_positive_work_no_device_j_per_stride"]) > 0
+        assert 0.2 < csv_number(r["efficiency_total"]) < 1.0
+        assert csv_number(r["mass_total_kg"]) > csv_number(r["mass_at_ankle_kg"]) > 0
+        assert csv_number(r["human_ankle_positive_work_no_device_j_per_stride"]) > 0
     # the human reference is one no-device walk shared by all three rows (same walker/gait)
     assert len({r["human_ankle_positive_work_no_device_j_per_stride"] for r in rows}) == 1
 
@@ -104,19 +93,20 @@ def test_files_rows_and_columns(compared):
 def test_per_stride_ledger_closes(compared):
     _, rows, _, _ = compared
     for r in rows:
-        losses = sum(_f(v) for k, v in r.items() if k.startswith("loss_") and v != "")
-        mech_net, stored = _f(r["mechanical_net_j_per_stride"]), _f(r["stored_j_per_stride"])
-        elec_net = _f(r["electrical_net_j_per_stride"])
-        elec = _f(r["electrical_j_per_stride"])
+        losses = sum(csv_number(v) for k, v in r.items() if k.startswith("loss_") and v != "")
+        mech_net = csv_number(r["mechanical_net_j_per_stride"])
+        stored = csv_number(r["stored_j_per_stride"])
+        elec_net = csv_number(r["electrical_net_j_per_stride"])
+        elec = csv_number(r["electrical_j_per_stride"])
         assert losses + mech_net + stored == pytest.approx(elec_net, rel=0.02), r["label"]
-        assert (losses + mech_net + stored + _f(r["electrical_regenerated_j_per_stride"])
+        assert (losses + mech_net + stored + csv_number(r["electrical_regenerated_j_per_stride"])
                 == pytest.approx(elec, rel=0.02)), r["label"]
-        assert abs(_f(r["energy_balance_error_rel"])) < 0.02
+        assert abs(csv_number(r["energy_balance_error_rel"])) < 0.02
         # efficiency chain: each stage passes on less than it takes
-        assert 0 < _f(r["efficiency_electrical_to_hydraulic"]) < 1
-        assert 0 < _f(r["efficiency_hydraulic_to_mechanical"]) < 1
-        assert _f(r["efficiency_hydraulic_to_mechanical"]) == pytest.approx(
-            mech_net / _f(r["hydraulic_j_per_stride"]))
+        assert 0 < csv_number(r["efficiency_electrical_to_hydraulic"]) < 1
+        assert 0 < csv_number(r["efficiency_hydraulic_to_mechanical"]) < 1
+        assert csv_number(r["efficiency_hydraulic_to_mechanical"]) == pytest.approx(
+            mech_net / csv_number(r["hydraulic_j_per_stride"]))
 
 
 def test_longer_hose_loses_more_in_the_line(compared):
@@ -125,14 +115,15 @@ def test_longer_hose_loses_more_in_the_line(compared):
     short = by["gait_assist_hafo_hoses:short_hose"]
     long_ = by["gait_assist_hafo_hoses:long_hose"]
     # laminar line loss ∝ length: 5x the hose, clearly more loss (flows differ somewhat)
-    assert _f(long_["loss_line_j_per_stride"]) > 1.5 * _f(short["loss_line_j_per_stride"])
-    assert (_f(long_["efficiency_hydraulic_to_mechanical"])
-            < _f(short["efficiency_hydraulic_to_mechanical"]))
+    assert (csv_number(long_["loss_line_j_per_stride"])
+            > 1.5 * csv_number(short["loss_line_j_per_stride"]))
+    assert (csv_number(long_["efficiency_hydraulic_to_mechanical"])
+            < csv_number(short["efficiency_hydraulic_to_mechanical"]))
 
 
 def test_rows_ranked_together_over_all_scenarios(compared):
     _, rows, stdout, hoses = compared
-    eff = [_f(r["efficiency_total"]) for r in rows]
+    eff = [csv_number(r["efficiency_total"]) for r in rows]
     assert all(math.isfinite(e) for e in eff)          # all three are actuators
     assert eff == sorted(eff, reverse=True)            # one ranking, best first
     assert [int(r["efficiency_rank"]) for r in rows] == [1, 2, 3]
@@ -151,7 +142,7 @@ def test_rows_ranked_together_over_all_scenarios(compared):
 ])
 def test_not_a_device_walk_is_rejected(tmp_path, scenario, needle):
     out = tmp_path / "cmp"
-    rc, _, err = _main(["compare", str(HAFO), str(SCEN / scenario), "--out", str(out),
+    rc, _, err = run_cli(["compare", str(HAFO), str(SCEN / scenario), "--out", str(out),
                         "--strides", "3"])
     assert rc == 2
     assert scenario in err and needle in err and "allowed" in err
@@ -160,11 +151,11 @@ def test_not_a_device_walk_is_rejected(tmp_path, scenario, needle):
 
 def test_invalid_options_are_rejected(tmp_path):
     out = tmp_path / "cmp"
-    rc, _, err = _main(["compare", str(HAFO), str(HAFO), "--out", str(out)])
+    rc, _, err = run_cli(["compare", str(HAFO), str(HAFO), "--out", str(out)])
     assert rc == 2 and "row label = 'gait_assist_hafo'" in err and "allowed" in err
-    rc, _, err = _main(["compare", str(HAFO), "--out", str(out), "--strides", "0"])
+    rc, _, err = run_cli(["compare", str(HAFO), "--out", str(out), "--strides", "0"])
     assert rc == 2 and "--strides = 0" in err and "allowed" in err
-    rc, _, err = _main(["compare", str(HAFO), "--out", str(out), "--set",
+    rc, _, err = run_cli(["compare", str(HAFO), "--out", str(out), "--set",
                         "device.params.hose.length_m=-1"])
     assert rc == 2 and "length_m = -1" in err and "allowed" in err
     assert not out.exists()
@@ -179,7 +170,7 @@ def test_failing_run_writes_nothing(tmp_path, monkeypatch):
 
     monkeypatch.setattr(device_walk, "run_device_scenario", boom)
     out = tmp_path / "cmp"
-    rc, _, err = _main(["compare", str(HAFO), "--out", str(out), "--strides", "3"])
+    rc, _, err = run_cli(["compare", str(HAFO), "--out", str(out), "--strides", "3"])
     assert rc == 1 and "synthetic numerics failure" in err
     assert not out.exists() and list(tmp_path.iterdir()) == []
 

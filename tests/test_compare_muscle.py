@@ -10,9 +10,7 @@ against orderings worked out by hand.
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import io
 import json
 import math
 import types
@@ -20,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from afo_mj import cli
 from afo_mj.experiments import device_comparison as dc
 from afo_mj.outputs import comparison_report as cr
+from cli_helpers import csv_number, run_cli
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios"
 HAFO = SCEN / "gait_muscle_hafo.toml"
@@ -35,15 +33,6 @@ EFFORT_COLUMNS = ("walker_model", "net_metabolic_umberger_w_per_kg",
                   "rank_metabolic", "rank_battery_energy")
 
 
-def _main(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main(argv)
-    return rc, out.getvalue(), err.getvalue()
-
-
-def _f(x: str) -> float:
-    return float(x) if x != "" else math.nan
 
 
 def _csv(out: Path) -> dict:
@@ -54,7 +43,7 @@ def _csv(out: Path) -> dict:
 @pytest.fixture(scope="module")
 def compared(tmp_path_factory):
     out = tmp_path_factory.mktemp("cmp_muscle") / "cmp"
-    rc, stdout, stderr = _main(["compare", str(HAFO), str(SPRING), "--out", str(out),
+    rc, stdout, stderr = run_cli(["compare", str(HAFO), str(SPRING), "--out", str(out),
                                 *MUSCLE, *SHORT])
     assert rc == 0, stderr
     return out, _csv(out), stdout
@@ -67,7 +56,7 @@ def runs(tmp_path_factory):
     out = {}
     for name, path in (("gait_muscle_hafo", HAFO), ("gait_spring_return", SPRING)):
         d = tmp / name
-        rc, _, err = _main(["run", str(path), "--out", str(d), *MUSCLE, *SHORT, "--set",
+        rc, _, err = run_cli(["run", str(path), "--out", str(d), *MUSCLE, *SHORT, "--set",
                             'device.conditions=["no_device", "assist"]'])
         assert rc == 0, err
         out[name] = json.loads((d / "summary.json").read_text(encoding="utf-8"))
@@ -89,22 +78,22 @@ def test_rows_carry_the_wearers_effort_as_afo_mj_run_reports_it(compared, runs):
         with_dev = conds["assist"]["muscle"]
         without = conds["no_device"]["muscle"]
         for model in ("umberger", "bhargava"):
-            rate, base = _f(r[f"net_metabolic_{model}_w_per_kg"]), \
-                _f(r[f"net_metabolic_{model}_no_device_w_per_kg"])
+            rate, base = csv_number(r[f"net_metabolic_{model}_w_per_kg"]), \
+                csv_number(r[f"net_metabolic_{model}_no_device_w_per_kg"])
             # the row's own figures: with the device, and this wearer without one
             assert rate == pytest.approx(with_dev[f"net_metabolic_{model}_w_per_kg"],
                                          rel=1e-12)
             assert base == pytest.approx(without[f"net_metabolic_{model}_w_per_kg"],
                                          rel=1e-12)
-            change = _f(r[f"net_metabolic_{model}_change_pct"])
+            change = csv_number(r[f"net_metabolic_{model}_change_pct"])
             assert change == pytest.approx(100.0 * (rate - base) / base, rel=1e-12)
             assert change == pytest.approx(
                 s["comparison_vs_no_device"]["assist"][f"net_metabolic_{model}_change_pct"],
                 rel=1e-9)
         # the battery energy is the run's assist energy per stride
-        assert _f(r["electrical_j_per_stride"]) == pytest.approx(
+        assert csv_number(r["electrical_j_per_stride"]) == pytest.approx(
             conds["assist"]["energy_per_stride"]["electrical_in_j"], rel=1e-12)
-        assert _f(r["human_ankle_positive_work_no_device_j_per_stride"]) == pytest.approx(
+        assert csv_number(r["human_ankle_positive_work_no_device_j_per_stride"]) == pytest.approx(
             conds["no_device"]["human"]["ankle_positive_work_j_per_stride"], rel=1e-12)
         assert r["no_device_fall_time_s"] == ""
 
@@ -113,9 +102,9 @@ def test_rows_carry_the_wearers_effort_as_afo_mj_run_reports_it(compared, runs):
 def test_ranks_order_the_rows_by_metabolic_change_and_by_battery_energy(compared):
     _, rows, stdout = compared
     rs = list(rows.values())
-    by_change = sorted(rs, key=lambda r: _f(r["net_metabolic_umberger_change_pct"]))
+    by_change = sorted(rs, key=lambda r: csv_number(r["net_metabolic_umberger_change_pct"]))
     assert [int(r["rank_metabolic"]) for r in by_change] == [1, 2]
-    by_energy = sorted(rs, key=lambda r: _f(r["electrical_j_per_stride"]))
+    by_energy = sorted(rs, key=lambda r: csv_number(r["electrical_j_per_stride"]))
     assert [int(r["rank_battery_energy"]) for r in by_energy] == [1, 2]
     # the existing ranking is kept (neither device is an actuator on this walk: no rank)
     assert all(r["efficiency_rank"] == "" for r in rs)
@@ -128,13 +117,13 @@ def test_ranks_order_the_rows_by_metabolic_change_and_by_battery_energy(compared
     effort = stdout.split("the wearer's effort (muscle walker) and the battery energy:")[1]
     for r in rs:
         line = next(x for x in effort.splitlines() if x.startswith(r["label"] + " "))
-        assert f"{_f(r['net_metabolic_umberger_change_pct']):+.2f}" in line
+        assert f"{csv_number(r['net_metabolic_umberger_change_pct']):+.2f}" in line
 
 
 @pytest.mark.slow
 def test_a_compare_mixing_the_walkers_ranks_effort_among_muscle_rows_only(tmp_path, runs):
     out = tmp_path / "mixed"
-    rc, stdout, err = _main(["compare", str(HAFO), str(TORQUE_HAFO), "--out", str(out),
+    rc, stdout, err = run_cli(["compare", str(HAFO), str(TORQUE_HAFO), "--out", str(out),
                              *SHORT])
     assert rc == 0, err
     rows = _csv(out)
@@ -147,16 +136,16 @@ def test_a_compare_mixing_the_walkers_ranks_effort_among_muscle_rows_only(tmp_pa
     # the torque walker's written-in response is named on its row (the default 1.0 of
     # ControllerParams); the muscle walker has none
     from afo_mj.gait.walk import ControllerParams
-    assert _f(t["assistance_adaptation"]) == ControllerParams().assistance_adaptation
+    assert csv_number(t["assistance_adaptation"]) == ControllerParams().assistance_adaptation
     assert m["assistance_adaptation"] == ""
     # the muscle row's reference is its own wearer's no-device walk (the scenario's own
     # walker, not the torque walker's), as afo-mj run walks it
     ref = runs["gait_muscle_hafo"]["device_conditions"]["no_device"]
-    assert _f(m["net_metabolic_umberger_no_device_w_per_kg"]) == pytest.approx(
+    assert csv_number(m["net_metabolic_umberger_no_device_w_per_kg"]) == pytest.approx(
         ref["muscle"]["net_metabolic_umberger_w_per_kg"], rel=1e-12)
-    assert _f(m["human_ankle_positive_work_no_device_j_per_stride"]) == pytest.approx(
+    assert csv_number(m["human_ankle_positive_work_no_device_j_per_stride"]) == pytest.approx(
         ref["human"]["ankle_positive_work_j_per_stride"], rel=1e-12)
-    assert _f(t["human_ankle_positive_work_no_device_j_per_stride"]) != pytest.approx(
+    assert csv_number(t["human_ankle_positive_work_no_device_j_per_stride"]) != pytest.approx(
         ref["human"]["ankle_positive_work_j_per_stride"], rel=1e-3)
     line = next(x for x in stdout.splitlines() if x.startswith("NO EFFORT MODEL"))
     assert "gait_assist_hafo" in line and "gait_muscle_hafo" not in line
