@@ -261,6 +261,10 @@ def human_response(scenario) -> dict:
     if model == "muscle":
         return {"walker_model": "muscle", "rule": None, "assistance_adaptation": None,
                 "note": HUMAN_RESPONSE_NOTES["muscle"]}
+    from afo_mj.gait.controller import controller_class, controller_names
+    if model in controller_names():
+        return {"walker_model": model, "rule": None, "assistance_adaptation": None,
+                "note": controller_class(model).device_response_note}
     raise ValueError(f"walker.model = {model!r}; allowed: "
                      f"{', '.join(map(repr, HUMAN_RESPONSE_NOTES))}")
 

@@ -7,7 +7,10 @@ not by branches in the callers:
 * ``"torque"``: the tracking walker (:func:`afo_mj.gait.walk.run_walk`, its steppable
   :class:`~afo_mj.gait.walk.Walk`);
 * ``"muscle"``: the reflex walker (:func:`afo_mj.experiments.muscle_scenario.
-  walk_muscle_scenario`, its steppable :class:`~afo_mj.gait.muscle_walk.MuscleWalkStepper`).
+  walk_muscle_scenario`, its steppable :class:`~afo_mj.gait.muscle_walk.MuscleWalkStepper`);
+* any controller registered with :func:`afo_mj.gait.controller.register_controller`: stepped
+  by :class:`afo_mj.gait.controller_walk.ControllerWalk` (:data:`CONTROLLER_WALKER`), built
+  from the scenario's walker, reference, cycle time, strides and ``[controller]`` table.
 """
 
 from __future__ import annotations
@@ -15,8 +18,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-__all__ = ["WalkerModel", "WALKER_MODELS", "walker_model", "walk_scenario", "walk_duration_s",
-           "walker_models"]
+__all__ = ["WalkerModel", "WALKER_MODELS", "CONTROLLER_WALKER", "walker_model", "walk_scenario",
+           "walk_duration_s", "walker_models"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +83,34 @@ def _muscle_moments(w):
     return w.joint_moment_nm[:, 2], w.device_moment_nm
 
 
+def _controller(scenario, reference):
+    from afo_mj.gait.controller import ControllerSetup, controller_class
+    cls = controller_class(scenario.walker_model)
+    setup = ControllerSetup(scenario.walker, reference, scenario.cycle_time_s(reference),
+                            scenario.strides)
+    return cls(scenario.controller_params(), setup)
+
+
+def _controller_stepper(scenario, reference, device, worn):
+    from afo_mj.gait.controller_walk import ControllerWalk
+    return ControllerWalk(_controller(scenario, reference),
+                          _torque_duration_s(scenario, reference), scenario.strides,
+                          worn_masses=worn, device=device)
+
+
+def _walk_controller(scenario, reference, dev, worn, label):
+    return _controller_stepper(scenario, reference, dev, worn).run(), None
+
+
+def _controller_moments(w):
+    return w.joint_moment_nm[:, 2], w.device_moment_nm
+
+
+#: the walker of every registered controller (:mod:`afo_mj.gait.controller`): its walk lasts
+#: as long as the torque walker's (``strides`` + 1.5 cycles + 1 s at most)
+CONTROLLER_WALKER = WalkerModel(_walk_controller, _torque_duration_s, _controller_stepper,
+                                _controller_moments)
+
 #: The walker models by ``walker.model`` name.
 WALKER_MODELS = {
     "torque": WalkerModel(_walk_torque, _torque_duration_s, _torque_stepper, _torque_moments),
@@ -88,18 +119,22 @@ WALKER_MODELS = {
 
 
 def walker_models() -> tuple[str, ...]:
-    """The registered walker models."""
-    return tuple(WALKER_MODELS)
+    """The walker models: the built-in ones and every registered controller."""
+    from afo_mj.gait.controller import controller_names
+    return tuple(WALKER_MODELS) + tuple(n for n in controller_names() if n not in WALKER_MODELS)
 
 
 def walker_model(scenario, where: str = "") -> WalkerModel:
     """The entry of the model ``scenario`` names; an unregistered one raises ValueError
     naming it and the allowed ones (``where``: what refuses it)."""
     model = getattr(scenario, "walker_model", "torque")
-    if model not in WALKER_MODELS:
-        raise ValueError(f"walker.model = {model!r}; allowed{' in ' + where if where else ''}: "
-                         + ", ".join(repr(m) for m in WALKER_MODELS))
-    return WALKER_MODELS[model]
+    if model in WALKER_MODELS:
+        return WALKER_MODELS[model]
+    from afo_mj.gait.controller import BUILTIN, controller_names
+    if model in controller_names() and model not in BUILTIN:
+        return CONTROLLER_WALKER
+    raise ValueError(f"walker.model = {model!r}; allowed{' in ' + where if where else ''}: "
+                     + ", ".join(repr(m) for m in walker_models()))
 
 
 def walk_scenario(scenario, device=None, worn_masses=(), label: str = "", reference=None):

@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["GaitRecord", "GaitEvents"]
+__all__ = ["GaitRecord", "GaitEvents", "phase_from_events"]
 
 
 @dataclasses.dataclass
@@ -66,6 +66,9 @@ class GaitRecord:
     #: the compiled walker's MJCF text (builtin textures only, no asset files), so the
     #: model of ``qpos`` can be rebuilt with ``mujoco.MjModel.from_xml_string``
     model_xml: str | None = None
+    #: per-step signals of the human controller beside the joint signals, by name, each
+    #: ``(n,) + shape`` (e.g. a muscle controller's activations); empty when it declares none
+    signals: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
     def allocate(cls, n: int, body_mass_kg: float, height_m: float,
@@ -82,9 +85,22 @@ class GaitRecord:
 
     def trimmed(self, n: int) -> "GaitRecord":
         """The first ``n`` samples (views)."""
-        return dataclasses.replace(self, **{k: getattr(self, k)[:n] for k in self.array_fields()})
+        return dataclasses.replace(self, **{k: getattr(self, k)[:n] for k in self.array_fields()},
+                                   signals={k: v[:n] for k, v in self.signals.items()})
 
     @property
     def joint_power_w(self) -> np.ndarray:
         """(n, 2, 3) human joint power, moment × angular velocity [W]."""
         return self.joint_moment_nm * self.joint_velocity_rad_s
+
+
+def phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
+    """(n, 2) gait phase per leg at ``time_s``: time since its last heel strike over the last
+    stride's duration (0 before its second heel strike), clipped to [0, 1]."""
+    out = np.zeros((len(time_s), 2))
+    for s in range(2):
+        hs = np.asarray(events.heel_strikes_s[s], float)
+        for a, b_, c in zip(hs[:-1], hs[1:], list(hs[2:]) + [np.inf]):
+            sel = (time_s >= b_) & (time_s < c)
+            out[sel, s] = np.clip((time_s[sel] - b_) / (b_ - a), 0.0, 1.0)
+    return out

@@ -19,7 +19,10 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # the walk, [impairment] strength fractions scale the
                                      # muscles' maximum forces, [controller] does not apply;
                                      # [device], [circuit] and [assistance] are worn as on
-                                     # the torque walker
+                                     # the torque walker; or the name of a controller
+                                     # registered with afo_mj.gait.controller.
+                                     # register_controller ([controller] then fills its
+                                     # Params)
     reflex_set = "1.25"              # muscle model: a shipped set (MUSCLE_REFLEX_SETS) or a
                                      # reflex_params.json path (afo-mj optimize-gait), relative
                                      # to the file
@@ -240,7 +243,12 @@ class WalkScenario:
     def controller_params(self):
         """:class:`afo_mj.gait.walk.ControllerParams` with this scenario's overrides; a
         schwartz2008 reference without ``controller.initial_speed_m_s`` gets its own start
-        speed (:meth:`start_speed_m_s`)."""
+        speed (:meth:`start_speed_m_s`). A registered controller's model: its ``Params``
+        from ``[controller]`` (None when it takes none)."""
+        if self.walker_model not in ("torque", "muscle"):
+            from afo_mj.gait.controller import controller_class
+            cls = controller_class(self.walker_model)
+            return None if cls.Params is None else cls.Params(**self.controller)
         from afo_mj.gait.walk import ControllerParams
         kw = dict(self.controller)
         if self.reference == "schwartz2008" and "initial_speed_m_s" not in kw:
@@ -280,7 +288,15 @@ class WalkScenario:
                 "reflex_set": None if self.reflex_set is None else str(self.reflex_set),
                 "controller": dict(self.controller),
                 # every gain the run used (defaults included), so a result can be reproduced
-                "controller_effective": dataclasses.asdict(self.controller_params())}
+                "controller_effective": _effective(self.controller_params())}
+
+
+def _effective(params) -> dict | None:
+    """Every parameter a run used (defaults included), JSON-ready."""
+    if params is None:
+        return None
+    return {k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in dataclasses.asdict(params).items()}
 
 
 def _load_reference_file(path: Path, body_mass_kg: float, id_path: Path | None = None,
@@ -412,8 +428,12 @@ def _walker(ctx: _Ctx, walker_tbl: dict, imp_tbl: dict) -> WalkerParams:
                             f"{', '.join(dotted.values())} rejected together: {exc}") from None
 
 
-#: walker models (``walker.model``)
-WALKER_MODELS = ("torque", "muscle")
+def walker_model_names() -> tuple[str, ...]:
+    """The walker models a scenario may name (``walker.model``): the built-in ``"torque"`` and
+    ``"muscle"`` and every controller registered with
+    :func:`afo_mj.gait.controller.register_controller`."""
+    from afo_mj.gait.controller import controller_names
+    return controller_names()
 
 
 def muscle_reflex_sets() -> dict[str, Path]:
@@ -436,13 +456,15 @@ def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -
     for the torque model); the muscle model refuses the torque walker's ``[controller]`` and
     nothing else: an orthosis (``[device]``, ``[circuit]``, ``[assistance]``) is worn by
     either walker."""
-    model = ctx.string("walker.model", model, " | ".join(repr(m) for m in WALKER_MODELS))
-    if model not in WALKER_MODELS:
-        raise ctx.fail("walker.model", model, "is not a walker model",
-                       " | ".join(repr(m) for m in WALKER_MODELS))
-    if model == "torque":
+    names = walker_model_names()
+    model = ctx.string("walker.model", model, " | ".join(repr(m) for m in names))
+    if model not in names:
+        raise ctx.fail("walker.model", model, "is not a walker model (built in, or a "
+                       "controller registered with afo_mj.gait.controller.register_controller)",
+                       " | ".join(repr(m) for m in names))
+    if model != "muscle":
         if raw_set is not None:
-            raise ctx.fail("walker.reflex_set", raw_set, "is given for the torque model",
+            raise ctx.fail("walker.reflex_set", raw_set, f"is given for the {model} model",
                            "walker.reflex_set with walker.model = 'muscle'")
         return None
     if ctx.table(doc, "controller"):
@@ -469,7 +491,28 @@ def _muscle_model(ctx: _Ctx, doc: dict, model, raw_set, base_dir: Path | None) -
     return p
 
 
-def _controller(ctx: _Ctx, tbl: dict) -> dict[str, float]:
+def _registered_controller(ctx: _Ctx, model: str, tbl: dict) -> dict[str, Any]:
+    """``[controller]`` of a registered controller: its ``Params`` dataclass's fields, checked
+    by constructing it (its own range checks name the key, the value and what is allowed)."""
+    from afo_mj.gait.controller import controller_class
+    cls = controller_class(model)
+    if cls.Params is None:
+        if tbl:
+            raise ctx.fail("controller", dict(tbl), f"is given, but the {model!r} controller "
+                           "takes no parameters", "no [controller] table")
+        return {}
+    ctx.unknown("controller", tbl, [f.name for f in dataclasses.fields(cls.Params)])
+    try:
+        cls.Params(**tbl)
+    except (ValueError, TypeError) as exc:
+        raise ScenarioError(f"{ctx.origin}: [controller] of walker.model = {model!r} "
+                            f"rejected: {exc}") from None
+    return dict(tbl)
+
+
+def _controller(ctx: _Ctx, tbl: dict, model: str = "torque") -> dict[str, float]:
+    if model not in ("torque", "muscle"):
+        return _registered_controller(ctx, model, tbl)
     fields = _controller_fields()
     out: dict[str, float] = {}
     if fields is None:                # controller module absent: keep plain numbers
@@ -714,7 +757,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                            allowed_bands)
         bands.append((src, cond))
 
-    controller = _controller(ctx, ctx.table(doc, "controller"))
+    controller = _controller(ctx, ctx.table(doc, "controller"), model)
     out_tbl = ctx.table(doc, "output")
     ctx.unknown("output", out_tbl, _OUTPUT_KEYS)
     record = out_tbl.get("record", False)
