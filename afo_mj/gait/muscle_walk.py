@@ -6,8 +6,12 @@ Model: the same seven-segment MuJoCo walker as the torque-driven one
 motors carrying the muscles' torques (no strength clamp: the muscles' own force–length–
 velocity relations and activations limit them), hinge limits active, and the pelvis residual
 actuators at zero. The controller and the muscles are one compiled law,
-:func:`afo_mj.gait.reflex_law.reflex_step`; the loop around it is Python (one compiled call
-and one ``mj_step`` per 1 ms step).
+:func:`afo_mj.gait.reflex_law.reflex_step`. The loop around it (events, soft limits, a coupled
+device, ``mj_step``, recording, checks) runs compiled
+(:func:`afo_mj.gait.muscle_loop.muscle_walk_steps`, no Python per step) where it can: no
+device or a coupled device with C entry points, and no external action torque; otherwise in
+Python (:meth:`MuscleWalkStepper.step`'s reference step, one compiled call and one
+``mj_step`` per 1 ms step). Both give the same walk bit for bit.
 
 Start (Geyer & Herr 2010): the left leg in stance (hip 5° flexed, knee 5°, ankle 5°
 dorsiflexed), the right leg swinging forward (hip 40°, knee 5°, ankle 0°), trunk leaning
@@ -29,6 +33,7 @@ import math
 import mujoco
 import numpy as np
 
+from afo_mj.gait import muscle_loop as ml
 from afo_mj.gait import reflex_law as rl
 from afo_mj.gait.record import GaitEvents, GaitRecord
 from afo_mj.gait.stepped import SteppedWalk
@@ -179,8 +184,9 @@ class MuscleWalkStepper(SteppedWalk):
     the torque-driven one: :meth:`reset`, :meth:`step` (one 1 ms step: the reflex law, the
     device and one ``mj_step``), named accessors of the state, :attr:`done` and
     :meth:`record` (the :class:`MuscleWalk` of the steps so far). :func:`run_muscle_walk` is
-    a loop over it, so a walk stepped here to its end is what ``run_muscle_walk`` returns,
-    bit for bit. The arguments are :func:`run_muscle_walk`'s.
+    its :meth:`run` (every step to the end in one compiled call), so a walk stepped here to
+    its end is what ``run_muscle_walk`` returns, bit for bit. The arguments are
+    :func:`run_muscle_walk`'s.
 
     ``step(action)``: ``action`` an extra ankle torque per side (N·m, + dorsiflexion, right
     then left) applied for this step beside the muscles and any device (``device_torque``
@@ -188,6 +194,13 @@ class MuscleWalkStepper(SteppedWalk):
     nothing. The walk is over (:attr:`done`) when the walker fell or ``duration_s`` is
     walked; a diverging state raises FloatingPointError (from :meth:`step`, or from
     :meth:`record` for a warning MuJoCo raised without resetting).
+
+    ``loop``: where a step runs (module docstring): ``"compiled"``
+    (:func:`afo_mj.gait.muscle_loop.muscle_walk_steps`; refused, ValueError, with a
+    ``device_torque`` callable or a device without ``native_coupling``, and ``step(action)``
+    with an action is then refused too), ``"python"`` (the reference step), ``"auto"``
+    (default) compiled where it applies — ``step()`` with no action and no action the step
+    before — and Python otherwise.
 
     Example::
 
@@ -200,8 +213,10 @@ class MuscleWalkStepper(SteppedWalk):
     def __init__(self, walker: WalkerParams | None = None, params: np.ndarray | None = None,
                  duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
                  worn_masses=(), device_torque=None, device=None,
-                 max_force_scale: dict | None = None):
+                 max_force_scale: dict | None = None, loop: str = "auto"):
         w = walker or WalkerParams()
+        if loop not in ("auto", "compiled", "python"):
+            raise ValueError(f"loop = {loop!r}; allowed: 'auto', 'compiled', 'python'")
         P = reflex_params() if params is None else np.asarray(params, dtype=float)
         if P.shape != (rl.N_P,) or not np.all(np.isfinite(P)):
             raise ValueError(f"params: shape {P.shape}; allowed: {rl.N_P} finite numbers "
@@ -211,6 +226,22 @@ class MuscleWalkStepper(SteppedWalk):
         if device is not None and device_torque is not None:
             raise ValueError("run_muscle_walk: both device and device_torque given; "
                              "allowed: one")
+        if loop == "compiled" and device_torque is not None:
+            raise ValueError("loop = 'compiled' needs no device_torque: a Python callable's "
+                             "torque runs in the Python loop; allowed: 'auto', 'python'")
+        native = None
+        if loop != "python" and device is not None:
+            coupling = getattr(device, "native_coupling", None)
+            native = coupling() if coupling is not None else None
+            if native is None and loop == "compiled":
+                raise ValueError("loop = 'compiled' needs a device with compiled entry points "
+                                 "(native_coupling); this device steps in Python (e.g. a "
+                                 "Python torque_fn); allowed: 'auto', 'python'")
+        self.loop = loop
+        #: the compiled loop applies (no Python device callable; a device has C entry points)
+        self.compiled = loop != "python" and device_torque is None and (
+            device is None or native is not None)
+        self._native = native
         self._args = (w, P, duration_s, initial_speed_m_s, tuple(worn_masses), device_torque,
                       device, max_force_scale)
         self._stepped = False
@@ -280,13 +311,14 @@ class MuscleWalkStepper(SteppedWalk):
         lim_was = False
         acted = False
         done = [False]
+        over = ("MuscleWalkStepper.step: the walk is over (fell or its duration walked); "
+                "allowed: reset() (no device) or a new MuscleWalkStepper")
 
-        def step(action=None):
+        def step_python(action=None):
+            # the reference step: muscle_loop.muscle_walk_steps is this, compiled
             nonlocal k, lim_was, acted
             if done[0]:
-                raise RuntimeError("MuscleWalkStepper.step: the walk is over (fell or its "
-                                   "duration walked); allowed: reset() (no device) or a new "
-                                   "MuscleWalkStepper")
+                raise RuntimeError(over)
             t = d.time
             reflex_step(t, h, q, qvel, sens, lq, lv, touch, pt_q, pt_v, P, T, X, ring, mg)
             for s in range(2):
@@ -360,8 +392,29 @@ class MuscleWalkStepper(SteppedWalk):
             elif k >= n_max:
                 done[0] = True
 
+        run_compiled = (_compiled_steps(phys, device, self._native, P, T, X, ring, mg,
+                                        z0 - drop, buf, events, base_limit, base_damping, done,
+                                        over)
+                        if self.compiled else None)
+
+        def run(k_end):
+            # steps k … k_end − 1 (or to the walk's end) in the compiled loop
+            nonlocal k, lim_was
+            k, lim_was, err = run_compiled(k, k_end, lim_was)
+            if err is not None:
+                raise err
+
+        def step(action=None):
+            if action is None and run_compiled is not None and not acted:
+                run(k + 1)
+            else:
+                step_python(action)
+
         self._step, self._done = step, done
+        self._step_python, self._run_compiled = step_python, (
+            run if run_compiled is not None else None)
         self._steps = lambda: k
+        self._acted = lambda: acted
         self.walker, self.params, self.duration_s, self.n_max = w, P, duration_s, n_max
         self.phys, self.model, self.data = phys, m, d
         self.events, self.device = events, device
@@ -371,8 +424,25 @@ class MuscleWalkStepper(SteppedWalk):
     # -- stepping --------------------------------------------------------------------------
     def step(self, action=None) -> None:
         """One 1 ms step (class docstring)."""
+        if action is not None and self.loop == "compiled":
+            raise ValueError("MuscleWalkStepper.step(action): an action torque steps in the "
+                             "Python loop; allowed: step() with loop = 'compiled', or "
+                             "loop = 'auto' or 'python'")
         self._stepped = True
         self._step(action)
+
+    def run(self) -> MuscleWalk:
+        """Step to the walk's end — in one call of the compiled loop where it applies
+        (:attr:`compiled`), else the Python step — and return :meth:`record`."""
+        self._stepped = True
+        if self._run_compiled is not None and not self._acted():
+            if not self._done[0]:
+                self._run_compiled(self.n_max)
+        else:
+            step, done = self._step_python, self._done
+            while not done[0]:
+                step()
+        return self.record()
 
     # -- named accessors (copies of the state) ------------------------------------------------
     @property
@@ -444,10 +514,10 @@ class MuscleWalkStepper(SteppedWalk):
 def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
                     duration_s: float = 10.0, initial_speed_m_s: float = 1.3,
                     worn_masses=(), device_torque=None, device=None,
-                    max_force_scale: dict | None = None) -> MuscleWalk:
+                    max_force_scale: dict | None = None, loop: str = "auto") -> MuscleWalk:
     """Walk the muscle-driven walker for ``duration_s`` (or until it falls) under the reflex
-    parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's): a loop over
-    :class:`MuscleWalkStepper`.
+    parameters ``params`` (:func:`reflex_params`; default Geyer & Herr's):
+    :meth:`MuscleWalkStepper.run`.
 
     ``device_torque(t, angle2, velocity2, stance2) -> (2,)`` optionally adds an ankle torque
     per side (N·m, + dorsiflexion) beside the muscles (an ideal assistance profile).
@@ -457,14 +527,105 @@ def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | Non
     new ankle velocities close its step; its timestep must be the walker's. Its foot switch
     is the reflex controller's stance state. ``max_force_scale``: see
     :func:`muscle_table_scaled`.
+
+    ``loop``: ``"compiled"`` runs the whole walk in one call of the compiled loop
+    (:mod:`afo_mj.gait.muscle_loop`; refused with a ``device_torque`` callable or a device
+    without compiled entry points), ``"python"`` steps it in Python around the same compiled
+    law, ``"auto"`` (default) the compiled loop where it applies. Both give the same walk bit
+    for bit.
     """
-    w = MuscleWalkStepper(walker, params, duration_s, initial_speed_m_s, worn_masses,
-                          device_torque, device, max_force_scale)
-    step, done = w._step, w._done
-    w._stepped = True
-    while not done[0]:
-        step()
-    return w.record()
+    return MuscleWalkStepper(walker, params, duration_s, initial_speed_m_s, worn_masses,
+                             device_torque, device, max_force_scale, loop).run()
+
+
+def _compiled_steps(phys, device, nc, P, T, X, ring, mg, fall_z, buf, events, base_limit,
+                    base_damping, done, over):
+    """The compiled loop of a :class:`MuscleWalkStepper` with its arguments bound once
+    (``nc``: a coupled device's native coupling, or None); returns ``run(k, k_end,
+    lim_was) -> (k, lim_was, error)``, which runs
+    :func:`afo_mj.gait.muscle_loop.muscle_walk_steps` from row ``k``, moves the events, a
+    coupled device's counters and the end of the walk on, and returns the error the
+    Python step raises (FloatingPointError) or None."""
+    from afo_mj.gait.native_step import native_step, time_view
+    m, d = phys.model, phys.data
+    lc = np.zeros(ml.N_LOOP_CONST)
+    lc[ml.L_H] = float(m.opt.timestep)
+    lc[ml.L_MG] = mg
+    lc[ml.L_FALL_Z] = fall_z
+    lc[ml.L_FALL_TILT] = FALL_TILT_RAD
+    li = np.zeros(ml.N_LOOP_INDEX, dtype=np.int64)
+    li[ml.LI_PZ] = int(phys.pelvis_qpos[1])
+    li[ml.LI_PT_Q], li[ml.LI_PT_V] = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
+    li[ml.LI_FN] = native_step().mj_step_address
+    li[ml.LI_MODEL], li[ml.LI_DATA] = m._address, d._address
+    n_max = buf["time"].shape[0]
+    ev_time = np.zeros(2 * n_max + 4)
+    ev_code = np.zeros((2 * n_max + 4, 2), dtype=np.int64)
+    dev_io = np.zeros(6)
+    outs = (np.zeros(2), np.zeros(2), np.zeros(2))
+    if nc is not None:
+        log = nc.log
+        if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
+                and nc.meta.flags.c_contiguous and log.ndim == 3):
+            raise AssertionError("device coupling: buffer, layout and log must be C arrays")
+        li[ml.LI_DEV_BEGIN], li[ml.LI_DEV_END] = nc.begin_address, nc.end_address
+        li[ml.LI_P_IO] = dev_io.ctypes.data
+        li[ml.LI_P_BUF] = nc.buffer.ctypes.data
+        li[ml.LI_P_META] = nc.meta.ctypes.data
+        li[ml.LI_P_LOG] = log.ctypes.data
+        li[ml.LI_LOG_N:ml.LI_LOG_S + 1] = log.shape
+        li[ml.LI_ANK_R], li[ml.LI_ANK_L] = phys.leg_qpos[:, 2]
+        li[ml.LI_DANK_R], li[ml.LI_DANK_L] = phys.leg_dof[:, 2]
+        lc[ml.L_BASE_DAMP_R], lc[ml.L_BASE_DAMP_L] = base_damping
+        lc[ml.L_DEV_DT] = float(device.timestep_s)
+        outs = (nc.force2, nc.damping2, nc.delivered2)
+    args = (time_view(d), d.qpos, d.qvel, d.sensordata, d.geom_xpos, d.ctrl,
+            d.qfrc_applied, m.dof_damping, P, T, X, ring, phys.leg_qpos, phys.leg_dof,
+            phys.touch_adr, np.ascontiguousarray(phys.ff_act, dtype=np.int64),
+            np.ascontiguousarray(phys.leg_dof[:, 1:3], dtype=np.int64), base_limit,
+            np.ascontiguousarray(phys.contact_geoms.ravel(), dtype=np.int64),
+            *(buf[n] for n in ("time", "qpos", "qvel", "sens", "cz", "dev", "u", "a", "f",
+                               "v", "eu", "eb", "tau")),
+            ev_time, ev_code, lc, li, dev_io, *outs)
+    steps_fn = ml.muscle_walk_steps
+    hs_s, to_s = events.heel_strikes_s, events.toe_offs_s
+
+    def run(k, k_end, lim_was):
+        if done[0]:
+            raise RuntimeError(over)
+        li[ml.LI_LIM_WAS] = 1 if lim_was else 0
+        li[ml.LI_N_EVENTS] = 0
+        steps0 = li[ml.LI_DEV_STEPS] = device.steps if nc is not None else 0
+        code, k = steps_fn(k, min(k_end, n_max), *args)
+        for n in range(int(li[ml.LI_N_EVENTS])):
+            (hs_s if ev_code[n, 1] == 1 else to_s)[int(ev_code[n, 0])].append(
+                float(ev_time[n]))
+        lim_was = bool(li[ml.LI_LIM_WAS])
+        err = None
+        if code != ml.CHUNK_DONE:
+            done[0] = True
+        if nc is not None:
+            try:
+                # the device's own error (DEVICE_NON_FINITE), as its end_step raises it
+                device.native_finished(int(li[ml.LI_DEV_STEPS]) - steps0,
+                                       float(lc[ml.L_DEV_LAST_T]),
+                                       failed=code == ml.DEVICE_NON_FINITE)
+            except FloatingPointError as exc:
+                err = exc
+        if code == ml.DIVERGED:
+            # MuJoCo met a huge or non-finite acceleration or control and reset its state
+            err = FloatingPointError(f"muscle walk: the simulation diverged at t = "
+                                     f"{lc[ml.L_T]:.4f} s (MuJoCo reset its state)")
+        elif code == ml.NON_FINITE:
+            err = FloatingPointError(f"muscle walk: non-finite state at t = "
+                                     f"{d.time:.4f} s")
+        elif code == ml.FELL:
+            events.fall_time_s = round(float(d.time), 9)   # the sum of steps
+        elif k >= n_max:
+            done[0] = True
+        return k, lim_was, err
+
+    return run
 
 
 def _phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
