@@ -193,3 +193,36 @@ def test_controller_walk_refuses_bad_arguments():
         ControllerWalk(c, 1.0, strides=0)
     with pytest.raises(gc.ControllerError, match="ReflexControllerParams"):
         ReflexController(object(), reflex_setup())
+
+
+def test_walk_batch_and_the_environment_walk_a_registered_controller(tmp_path,
+                                                                     clock_registered):
+    """walk_batch's forked workers and the gymnasium environment step the registered
+    controller, not the torque walker: their cadence is the clock's."""
+    import gymnasium as gym
+
+    import afo_mj.experiments.walk_env  # noqa: F401  (registers the environment)
+    from afo_mj.experiments.batch import walk_batch
+    from afo_mj.gait.reference import load_normative
+    from afo_mj.metrics.gait_metrics import analyse_gait
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    p = tmp_path / "clock.toml"
+    p.write_text(f'[walker]\nmodel = "{NAME}"\n[gait]\nstrides = 4\nanalyse_strides = [2, 4]\n',
+                 encoding="utf-8")
+    sc = load_scenario(p)
+    clock = 120.0 / load_normative("winter", "normal").cycle_time_s
+    recs = walk_batch([sc, sc], workers=2)
+    for rec in recs:
+        s = analyse_gait(rec, sc.load_reference(), sc.analyse_strides).summary
+        assert s["cadence_steps_per_min"]["mean"] == pytest.approx(clock, rel=0.01)
+    env = gym.make("afo_mj/AnkleAssist-v0", scenario=str(p), mode="torque")
+    env.reset(seed=0)
+    inner = env.unwrapped
+    done, n = False, 0
+    while not done and n < 3000:
+        _, _, term, trunc, _ = env.step(np.zeros(inner.action_space.shape))
+        done, n = term or trunc, n + 1
+    hs = inner.walk.events.heel_strikes_s[0]
+    assert type(inner.walk).__name__ == "ControllerWalk"
+    assert len(hs) >= 3
+    assert 120.0 / np.diff(hs[1:]).mean() == pytest.approx(clock, rel=0.01)
