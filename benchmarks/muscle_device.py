@@ -6,7 +6,7 @@ process, on one core (threads pinned before anything is imported), after a warm-
 the muscle walker alone and wearing the HAFO (``hafo_gait``, Zhang assistance 40 N·m, the
 wearer adapted to it: reflex set ``adapted/hafo``, i.e. ``scenarios/gait_muscle_hafo.toml``'s
 assist condition), each walk timed best of 3 as µs per 1 ms step. Both walks go through
-:func:`afo_mj.experiments.muscle_scenario.walk_muscle_scenario`, the path ``afo-mj run``
+:func:`afo_mj.gait.muscle_scenario.walk_muscle_scenario`, the path ``afo-mj run``
 takes. Prints both, the ratio (``device_over_alone``) and the real-time factors; the last
 line is a JSON object.
 """
@@ -41,7 +41,7 @@ def _best_us_per_step(walk_once, repeats: int = 3) -> tuple[float, int]:
 
 def main() -> None:
     from afo_mj.experiments.device_walk import make_device
-    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
+    from afo_mj.gait.muscle_scenario import walk_muscle_scenario
     from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import load_scenario
 

@@ -86,7 +86,7 @@ def test_invalid_input_and_failed_runs_write_nothing(tmp_path, monkeypatch):
 
     def boom(scenario):
         raise WalkNumericsError("qacc not finite at t = 0.5 s")
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario",
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario",
                         lambda scenario, *a, **k: boom(scenario))
     with pytest.raises(RunFailed, match="qacc not finite") as exc:
         run_scenario(HEALTHY, overrides=SHORT, out_dir=out)

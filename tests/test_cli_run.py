@@ -24,7 +24,7 @@ HEALTHY = Path(__file__).resolve().parents[1] / "scenarios" / "walk_healthy.toml
 
 def _as_walk(simulate):
     """A stand-in for ``simulate_walk(scenario)`` as the app's walk of a scenario
-    (:func:`afo_mj.experiments.walkers.walk_scenario`: the record and no muscle walk)."""
+    (:func:`afo_mj.gait.walkers.walk_scenario`: the record and no muscle walk)."""
     return lambda scenario, *args, **kwargs: (simulate(scenario), None)
 
 
@@ -42,7 +42,7 @@ def fake_sim(monkeypatch, record):
         seen.append(scenario)
         return record
 
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario", _as_walk(simulate))
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario", _as_walk(simulate))
     return seen
 
 
@@ -112,7 +112,7 @@ def test_bad_scenario_exit_2_and_nothing_written(tmp_path, fake_sim, capsys):
 
 
 def test_fall_before_a_stride_is_a_reported_outcome(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario",
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario",
                         _as_walk(lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9)))
     out = tmp_path / "out"
     assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 0
@@ -128,7 +128,7 @@ def test_numerics_failure_exit_1_and_nothing_written(tmp_path, monkeypatch, caps
 
     def boom(sc):
         raise WalkNumericsError("non-finite walker state at t = 0.1230 s")
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario", _as_walk(boom))
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario", _as_walk(boom))
     out = tmp_path / "out"
     assert cli.main(["run", str(HEALTHY), "--out", str(out)]) == 1
     assert "non-finite walker state" in capsys.readouterr().err
@@ -232,7 +232,7 @@ def test_reused_out_holds_only_this_runs_files(tmp_path, fake_sim, no_png, monke
     assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
                      "--set", "gait.analyse_strides=[2, 3]"]) == 0
     assert (out / "gait_curves.png").exists()
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario",
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario",
                         _as_walk(lambda sc: synthetic_record(n_cycles=3, fall_time_s=0.9)))
     assert cli.main(["run", str(HEALTHY), "--out", str(out), "--set", "gait.strides=3",
                      "--set", "gait.analyse_strides=[2, 3]"]) == 0

@@ -95,7 +95,7 @@ def test_ideal_zhang_from_the_scenario_is_the_assistance_studys_walk():
     3-stride ramp) with the same reflex set; its torque is the Zhang profile written out here
     on the phase recomputed from the logged foot switch, once the ramp is over."""
     from afo_mj.experiments.muscle_assistance import Assistance, assistance_walk
-    from afo_mj.experiments.muscle_scenario import muscle_walk_duration_s
+    from afo_mj.gait.muscle_scenario import muscle_walk_duration_s
     from afo_mj.gait.muscle_walk import load_reflex_set
     from afo_mj.scenarios.walk_scenario import muscle_reflex_sets
     sc, cfg, summary, results = _run(ZHANG)

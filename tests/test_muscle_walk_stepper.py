@@ -15,10 +15,10 @@ import pytest
 
 from afo_mj.gait import reflex_law as rl
 from afo_mj.gait.muscle_walk import (FALL_DROP_M, FALL_TILT_RAD, GRAVITY_M_S2, MuscleWalk,
-                                     MuscleWalkStepper, _phase_from_events, build_muscle_walker,
+                                     MuscleWalkStepper, build_muscle_walker,
                                      load_reflex_set, muscle_table_scaled, reflex_params,
                                      run_muscle_walk)
-from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.gait.record import GaitEvents, GaitRecord, phase_from_events
 from afo_mj.human.walker import WalkerParams
 
 
@@ -161,7 +161,7 @@ def _frozen_run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarr
         pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
         pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
         residual_force_n=np.zeros((k, 2)), residual_moment_nm=np.zeros(k),
-        gait_phase=_phase_from_events(b["time"], events), qpos=qq.copy(), model_xml=phys.xml)
+        gait_phase=phase_from_events(b["time"], events), qpos=qq.copy(), model_xml=phys.xml)
     record.events = events
     return MuscleWalk(record, b["u"].copy(), b["a"].copy(), b["f"].copy(), b["v"].copy(),
                       b["eu"].copy(), b["eb"].copy())
@@ -188,6 +188,11 @@ def assert_same_walk(a: MuscleWalk, b: MuscleWalk) -> None:
         x, y = getattr(a.record, f.name), getattr(b.record, f.name)
         if isinstance(x, np.ndarray):
             assert x.shape == y.shape and np.array_equal(x, y), f.name
+        elif f.name == "signals":
+            # a record's muscle signals are its walk's muscle arrays (the frozen loop has none)
+            for walk, sig in ((a, x), (b, y)):
+                for name, arr in sig.items():
+                    assert np.array_equal(arr, getattr(walk, name)), name
         else:
             assert x == y, f.name
     ea, eb = a.record.events, b.record.events

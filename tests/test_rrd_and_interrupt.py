@@ -46,7 +46,7 @@ def no_simulation(monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("simulated before --rrd was checked")
     monkeypatch.setattr("afo_mj.app.run.run_scenario", never)
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario", never)
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario", never)
     monkeypatch.setattr("afo_mj.experiments.device_comparison.run_comparison", never)
 
 
@@ -119,7 +119,7 @@ def synthetic_walk(monkeypatch):
     """The walk replaced by a synthetic record (no physics): fast."""
     from gait_fixtures import WinterSplines, synthetic_record
     rec = synthetic_record(splines=WinterSplines())
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario",
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario",
                         lambda scenario, *a, **k: (rec, None))
     return rec
 
@@ -156,7 +156,7 @@ def test_ctrl_c_in_run_with_rrd_writes_nothing(tmp_path, synthetic_walk, monkeyp
     staging directory and the folders made for --out are gone."""
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
-    monkeypatch.setattr("afo_mj.experiments.walkers.walk_scenario" if where == "simulation"
+    monkeypatch.setattr("afo_mj.gait.walkers.walk_scenario" if where == "simulation"
                         else "afo_mj.app.run.write_rrd", interrupted)
     out = tmp_path / "runs" / "D"
     rc = _main(["run", str(HEALTHY), "--out", str(out), "--rrd", str(out / "walk.rrd")])

@@ -151,7 +151,7 @@ def test_muscle_episode_with_zero_action_is_afo_mj_runs_walk():
     """A whole episode of walk_muscle_healthy.toml with a zero action, 100 Hz: truncated (no
     fall) when afo-mj run's walk ends, and the stepped record is that walk's
     (walk_muscle_scenario, i.e. run_muscle_walk), every array equal."""
-    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
+    from afo_mj.gait.muscle_scenario import walk_muscle_scenario
     env = gym.make(we.ENV_ID, scenario=MUSCLE, overrides=SHORT)
     obs, _ = env.reset(seed=0)
     assert obs.shape == (len(we.OBSERVATION_NAMES),)
@@ -182,7 +182,7 @@ def test_muscle_episode_with_zero_action_is_afo_mj_runs_walk():
 def test_muscle_torque_action_is_the_steppers_action():
     """The action on the muscle walker is MuscleWalkStepper.step's action, held over the
     control period; the reward's terms from the stepper's state."""
-    from afo_mj.experiments.muscle_scenario import muscle_scenario_stepper
+    from afo_mj.gait.muscle_scenario import muscle_scenario_stepper
     env = we.AnkleAssistEnv(MUSCLE, control_rate_hz=50.0, overrides=SHORT)
     env.reset(seed=1)
     w = muscle_scenario_stepper(env.scenario)
@@ -258,7 +258,7 @@ def test_hafo_mode_on_the_muscle_walker():
 
 
 def test_a_walker_model_without_an_entry_is_named(monkeypatch):
-    from afo_mj.experiments import walkers
+    from afo_mj.gait import walkers
     monkeypatch.setattr(walkers, "WALKER_MODELS", {"torque": walkers.WALKER_MODELS["torque"]})
     with pytest.raises(ValueError, match="walker.model = 'muscle'; allowed in .*'torque'"):
         we.AnkleAssistEnv(MUSCLE, overrides=SHORT)

@@ -1,12 +1,12 @@
 """Every entry point that takes a walking scenario either walks the walker model the scenario
 names or refuses it (issue 38 item 1, issue 39 item 2). ``afo-mj run``, device walks,
 ``compare``, ``walk_batch`` and ``render`` walk the scenario's own walker (through
-:data:`afo_mj.experiments.walkers.WALKER_MODELS`): on ``walk_muscle_healthy.toml`` their cadence
+:data:`afo_mj.gait.walkers.WALKER_MODELS`): on ``walk_muscle_healthy.toml`` their cadence
 and speed are ``afo-mj run``'s (125/min), not the torque walker's (104/min), which
-``walk_batch`` and ``render`` used to walk in its place. The gymnasium environment steps the
-scenario's walker too (the same registry). ``simulate_walk``
-and ``Walk.from_scenario`` step the torque walker interactively and still refuse a muscle
-scenario (one error naming the model and ``afo-mj run``).
+``walk_batch`` and ``render`` used to walk in its place. The gymnasium environment and
+``simulate_walk`` walk the scenario's walker too (the same registry); ``Walk.from_scenario``
+builds the torque walker's own steppable class and refuses a muscle scenario (one error naming
+the model and ``afo-mj run``).
 
 A census of the package's calls keeps the list honest: a new caller of the torque walk (or of
 a scenario loader outside the listed modules) fails here until it is added to the matrix."""
@@ -56,12 +56,22 @@ def test_simulate_walk_torque_runs():
     assert np.all(np.isfinite(rec.qpos))
 
 
-def test_simulate_walk_muscle_refused():
-    from afo_mj.gait.walk import WalkerModelError, simulate_walk
-    with pytest.raises(WalkerModelError, match=REFUSAL) as ei:
-        simulate_walk(_load("muscle"))
-    _assert_refused(ei)
-    assert "simulate_walk" in str(ei.value)
+def test_simulate_walk_walks_the_muscle_walker(muscle_run):
+    """simulate_walk on a muscle scenario walks the muscle walker (afo-mj run's cadence and
+    speed), and its record carries the muscles' signals beside the joints'."""
+    from afo_mj.gait.walk import simulate_walk
+    from afo_mj.scenarios.walk_scenario import load_scenario
+    sc = load_scenario(SCENARIOS["muscle"], overrides=SHORT2)
+    rec = simulate_walk(sc)
+    g = _gait(rec, sc)
+    for key in ("cadence_steps_per_min", "speed_m_s"):
+        assert g[key]["mean"] == muscle_run[key]["mean"], key
+    n = len(rec.time_s)
+    assert set(rec.signals) == {"excitation", "activation", "force_n", "ce_velocity_m_s",
+                                "metabolic_umberger_w", "metabolic_bhargava_w"}
+    assert all(v.shape == (n, 2, 7) for v in rec.signals.values())
+    # an independent check of the activations: bounded by Geyer & Herr's [0.01, 1]
+    assert rec.signals["activation"].min() >= 0.0 and rec.signals["activation"].max() <= 1.0
 
 
 # --- walk_batch ---------------------------------------------------------------------------------
@@ -232,7 +242,7 @@ def test_render_walks_the_muscle_walker(tmp_path, monkeypatch, muscle_run):
 
 def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
     """A device scenario on the muscle walker is compared on the muscle walker (the device
-    walk steps the scenario's walker, afo_mj.experiments.walkers.WALKER_MODELS), not refused
+    walk steps the scenario's walker, afo_mj.gait.walkers.WALKER_MODELS), not refused
     and not swapped."""
     from afo_mj.experiments.device_comparison import load_compare_items
     items = load_compare_items([str(ROOT / "scenarios" / "gait_assist_hafo.toml")], strides=1)
@@ -248,10 +258,11 @@ def test_compare_loads_device_scenarios_on_either_walker(tmp_path):
 
 #: module -> what it does with a muscle scenario
 TORQUE_WALK_CALLERS = {
-    "afo_mj/gait/walk.py": "simulate_walk and Walk.from_scenario refuse it",
-    "afo_mj/experiments/walkers.py": "WALKER_MODELS: run_walk and Walk for torque only; every "
-                                     "walk of a scenario (run, device walks, compare, "
-                                     "walk_batch, render, the environment) goes through it",
+    "afo_mj/gait/walk.py": "Walk.from_scenario refuses it; simulate_walk goes through "
+                           "walkers.walk_scenario",
+    "afo_mj/gait/walkers.py": "WALKER_MODELS: run_walk and Walk for torque only; every "
+                              "walk of a scenario (run, device walks, compare, simulate_walk, "
+                              "walk_batch, render, the environment) goes through it",
 }
 SCENARIO_LOADERS = {
     "afo_mj/app/render.py", "afo_mj/app/run.py", "afo_mj/experiments/walk_env.py",

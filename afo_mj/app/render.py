@@ -33,7 +33,7 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
     the last listed, the headline: usually ``assist``); a plain walk takes no condition. A
     bench scenario (``[bench]`` table) has no walk to render. The walk is the scenario's own
     walker (``walker.model``: the torque-driven or the muscle-driven one), walked as
-    ``afo-mj run`` walks it (:func:`afo_mj.experiments.walkers.walk_scenario`).
+    ``afo-mj run`` walks it (:func:`afo_mj.gait.walkers.walk_scenario`).
     ``fps``, ``width``, ``height``,
     ``max_seconds`` and ``progress`` as for :func:`afo_mj.outputs.video.render_record`,
     checked before the (slow) simulation.
@@ -71,8 +71,8 @@ def render(scenario_path, mp4_path, overrides=(), condition: str | None = None,
     except ScenarioError as exc:
         raise InvalidRender(str(exc)) from None
     from afo_mj.experiments.device_walk import make_device
-    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
-    from afo_mj.experiments.walkers import walk_duration_s, walk_scenario
+    from afo_mj.gait.muscle_scenario import MuscleScenarioError
+    from afo_mj.gait.walkers import walk_duration_s, walk_scenario
     from afo_mj.scenarios.device_scenario import device_config
     try:
         cfg = device_config(s)

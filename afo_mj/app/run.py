@@ -220,8 +220,8 @@ def run_scenario(path, overrides: Sequence[str] = (), strides: int | None = None
 
 
 def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> WalkRun:
-    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
-    from afo_mj.experiments.walkers import walk_scenario
+    from afo_mj.gait.muscle_scenario import MuscleScenarioError
+    from afo_mj.gait.walkers import walk_scenario
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
@@ -344,7 +344,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                 recording=None) -> DeviceWalkRun:
     """A walking scenario with an orthosis: every condition, the headline one written out."""
     from afo_mj.experiments.device_walk import run_device_scenario
-    from afo_mj.experiments.muscle_scenario import MuscleScenarioError
+    from afo_mj.gait.muscle_scenario import MuscleScenarioError
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
     from afo_mj.outputs.recording import RecordedRun

@@ -141,7 +141,7 @@ def run_batch(fn: Callable, items: Sequence, workers: int | None = None) -> list
 
 def _simulate(scenario):
     """The scenario's walk on its own walker (``walker.model``), as ``afo-mj run`` walks it."""
-    from afo_mj.experiments.walkers import walk_scenario
+    from afo_mj.gait.walkers import walk_scenario
     record, _muscles = walk_scenario(scenario)
     return record
 
@@ -166,10 +166,10 @@ def walk_batch(scenarios: Sequence, workers: int | None = None, *, result: str =
     (default) the first failed walk's error is raised (naming its index); otherwise failed
     walks give their :class:`BatchResult` in their place. Each scenario walks on the walker it
     names (``walker.model``: torque-driven or muscle-driven,
-    :func:`afo_mj.experiments.walkers.walk_scenario`), as ``afo-mj run`` walks it."""
+    :func:`afo_mj.gait.walkers.walk_scenario`), as ``afo-mj run`` walks it."""
     if result not in RESULTS:
         raise ValueError(f"result = {result!r}; allowed: {', '.join(map(repr, RESULTS))}")
-    from afo_mj.experiments.walkers import walker_models
+    from afo_mj.gait.walkers import walker_models
     scenarios = list(scenarios)
     models = walker_models()
     for i, s in enumerate(scenarios):

@@ -273,7 +273,7 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
     """Run every condition; returns ``(summary, per-condition (record, analysis, device))``.
 
     The walker is the scenario's (``walker.model``,
-    :data:`afo_mj.experiments.walkers.WALKER_MODELS`). On the muscle walker
+    :data:`afo_mj.gait.walkers.WALKER_MODELS`). On the muscle walker
     each condition's block gains ``muscle`` (net metabolic rate and cost of transport by
     Umberger 2010 and Bhargava 2004, per muscle: :func:`afo_mj.metrics.muscle_metrics.
     muscle_summary` over the analysed strides) and ``comparison_vs_no_device`` the change of
@@ -282,7 +282,7 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
     (:func:`human_response`) says whether the wearer's answer to the device is a written-in
     rule (torque walker) or their own (muscle walker)."""
     from afo_mj.metrics.gait_metrics import GaitAnalysisError, analyse_gait
-    from afo_mj.experiments.walkers import walker_model
+    from afo_mj.gait.walkers import walker_model
     entry = walker_model(scenario)
     walk_fn, duration_fn = entry.walk, entry.duration
     dt = scenario.walker.timestep_s

@@ -7,7 +7,7 @@ controller without editing the walk loop.
 "torque"`` a :class:`afo_mj.gait.walk.Walk`, ``"muscle"`` a
 :class:`afo_mj.gait.muscle_walk.MuscleWalkStepper` (the reflex walker of ``afo-mj run``:
 stepped with a zero action to its end, its record is that walk's). The models are the
-entries of :data:`afo_mj.experiments.walkers.WALKER_MODELS`, the one place they are told
+entries of :data:`afo_mj.gait.walkers.WALKER_MODELS`, the one place they are told
 apart:
 
 * **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
@@ -31,7 +31,7 @@ apart:
   mechanical power (ideal); the terms of the last step are in :attr:`AnkleAssistEnv.last`;
 * **termination** on a fall, **truncation** when the walk is over (torque walker: the
   scenario's strides done; muscle walker: ``afo-mj run``'s duration walked,
-  :func:`afo_mj.experiments.muscle_scenario.muscle_walk_duration_s`).
+  :func:`afo_mj.gait.muscle_scenario.muscle_walk_duration_s`).
 
 Example::
 
@@ -50,7 +50,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from afo_mj.experiments.walkers import walker_model
+from afo_mj.gait.walkers import walker_model
 
 __all__ = ["AnkleAssistEnv", "OBSERVATION_NAMES", "default_reward", "ENV_ID"]
 
@@ -77,7 +77,7 @@ class AnkleAssistEnv(gym.Env):
     (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
     says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
     must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
-    the one the scenario names (:data:`afo_mj.experiments.walkers.WALKER_MODELS`)."""
+    the one the scenario names (:data:`afo_mj.gait.walkers.WALKER_MODELS`)."""
 
     metadata = {"render_modes": []}
 

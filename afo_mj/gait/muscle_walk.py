@@ -35,7 +35,7 @@ import numpy as np
 
 from afo_mj.gait import muscle_loop as ml
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.record import GaitEvents, GaitRecord
+from afo_mj.gait.record import GaitEvents, GaitRecord, phase_from_events
 from afo_mj.gait.stepped import SteppedWalk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams, WalkerPhysics, build_walker
@@ -44,6 +44,11 @@ __all__ = ["MuscleWalk", "reflex_params", "build_muscle_walker", "muscle_table_s
            "run_muscle_walk", "MuscleWalkStepper", "load_reflex_set", "MUSCLE_SOLE_PITCH_RAD"]
 
 GRAVITY_M_S2 = 9.81
+#: the muscle signals a muscle walk's record holds (``record.signals``), each ``(n, 2, 7)``,
+#: in :class:`MuscleWalk`'s field order: excitation, activation, tendon force (N), CE velocity
+#: (m/s), metabolic rate by Umberger 2010 and by Bhargava 2004 (W)
+MUSCLE_SIGNALS = ("excitation", "activation", "force_n", "ce_velocity_m_s",
+                  "metabolic_umberger_w", "metabolic_bhargava_w")
 #: the stature Geyer & Herr's muscle lengths are for (m)
 REFERENCE_HEIGHT_M = 1.75
 #: fall: hip below this drop from its start (m, for a 1.75 m walker) or trunk beyond 1 rad
@@ -504,11 +509,14 @@ class MuscleWalkStepper(SteppedWalk):
             pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
             pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
             residual_force_n=np.zeros((k, 2)), residual_moment_nm=np.zeros(k),
-            gait_phase=_phase_from_events(b["time"], events), qpos=qq.copy(),
+            gait_phase=phase_from_events(b["time"], events), qpos=qq.copy(),
             model_xml=phys.xml)
         record.events = copy.deepcopy(events)
-        return MuscleWalk(record, b["u"].copy(), b["a"].copy(), b["f"].copy(), b["v"].copy(),
-                          b["eu"].copy(), b["eb"].copy())
+        sig = {name: b[key].copy() for name, key in zip(MUSCLE_SIGNALS, ("u", "a", "f", "v",
+                                                                          "eu", "eb"))}
+        # the muscles' signals travel in the record too (the same arrays)
+        record.signals = sig
+        return MuscleWalk(record, *sig.values())
 
 
 def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
@@ -626,15 +634,3 @@ def _compiled_steps(phys, device, nc, P, T, X, ring, mg, fall_z, buf, events, ba
         return k, lim_was, err
 
     return run
-
-
-def _phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
-    """(n, 2) gait phase per leg: time since its last heel strike over the last stride's
-    duration (0 before its second heel strike), clipped to [0, 1]."""
-    out = np.zeros((len(time_s), 2))
-    for s in range(2):
-        hs = np.asarray(events.heel_strikes_s[s], float)
-        for a, b_, c in zip(hs[:-1], hs[1:], list(hs[2:]) + [np.inf]):
-            sel = (time_s >= b_) & (time_s < c)
-            out[sel, s] = np.clip((time_s[sel] - b_) / (b_ - a), 0.0, 1.0)
-    return out

@@ -836,8 +836,9 @@ def _assemble(buf: _Buffers, n: int, phys: WalkerPhysics, walker: WalkerParams,
 
 
 def simulate_walk(scenario, device: AnkleDevice | None = None, worn_masses=()) -> GaitRecord:
-    """Run a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` on the torque-driven walker
-    and return its record (as :func:`run_walk`); a scenario naming another walker model
-    raises :class:`WalkerModelError` (``afo-mj run`` runs the muscle walker)."""
-    return Walk.from_scenario(scenario, device, worn_masses,
-                              entry_point="simulate_walk").run("auto", "")
+    """Walk a :class:`~afo_mj.scenarios.walk_scenario.WalkScenario` on the walker it names
+    (``walker.model``: the torque walker as :func:`run_walk`, the muscle walker, or a
+    registered controller; :mod:`afo_mj.gait.walkers`, as ``afo-mj run`` walks it) and return
+    its record. A muscle walk's record carries its muscles' signals in ``record.signals``."""
+    from afo_mj.gait.walkers import walk_scenario
+    return walk_scenario(scenario, device, tuple(worn_masses))[0]

@@ -149,7 +149,7 @@ def scenario_objective(path, condition: str | None = None, overrides=(), **objec
     start). Raises ValueError (:class:`~afo_mj.scenarios.walk_scenario.ScenarioError` for the
     file itself) naming the key: a torque-walker scenario, an unknown condition."""
     import hashlib
-    from afo_mj.experiments.muscle_scenario import muscle_force_scale
+    from afo_mj.gait.muscle_scenario import muscle_force_scale
     p = Path(path).resolve()
     overrides = tuple(overrides or ())
     sc, cfg = _scenario_and_device(str(p), overrides)

@@ -6,7 +6,7 @@ not by branches in the callers:
 
 * ``"torque"``: the tracking walker (:func:`afo_mj.gait.walk.run_walk`, its steppable
   :class:`~afo_mj.gait.walk.Walk`);
-* ``"muscle"``: the reflex walker (:func:`afo_mj.experiments.muscle_scenario.
+* ``"muscle"``: the reflex walker (:func:`afo_mj.gait.muscle_scenario.
   walk_muscle_scenario`, its steppable :class:`~afo_mj.gait.muscle_walk.MuscleWalkStepper`);
 * any controller registered with :func:`afo_mj.gait.controller.register_controller`: stepped
   by :class:`afo_mj.gait.controller_walk.ControllerWalk` (:data:`CONTROLLER_WALKER`), built
@@ -64,18 +64,18 @@ def _torque_moments(w):
 
 
 def _walk_muscle(scenario, reference, dev, worn, label):
-    from afo_mj.experiments.muscle_scenario import walk_muscle_scenario
+    from afo_mj.gait.muscle_scenario import walk_muscle_scenario
     walk = walk_muscle_scenario(scenario, device=dev, worn_masses=worn)
     return walk.record, walk
 
 
 def _muscle_duration_s(scenario, reference) -> float:
-    from afo_mj.experiments.muscle_scenario import muscle_walk_duration_s
+    from afo_mj.gait.muscle_scenario import muscle_walk_duration_s
     return muscle_walk_duration_s(scenario)
 
 
 def _muscle_stepper(scenario, reference, device, worn):
-    from afo_mj.experiments.muscle_scenario import muscle_scenario_stepper
+    from afo_mj.gait.muscle_scenario import muscle_scenario_stepper
     return muscle_scenario_stepper(scenario, device=device, worn_masses=worn)
 
 

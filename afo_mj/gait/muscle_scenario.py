@@ -68,6 +68,12 @@ def muscle_force_scale(walker) -> dict | None:
 def _walk_args(scenario, device, worn_masses) -> dict:
     """The arguments of the scenario's muscle walk (:func:`run_muscle_walk` and
     :class:`MuscleWalkStepper` take the same)."""
+    if device is not None and not getattr(device, "coupled", False):
+        raise ValueError(f"device {type(device).__name__}: an uncoupled AnkleDevice "
+                         f"(torque_nm only) cannot be worn by the muscle walker, whose reflex "
+                         f"controller estimates no gait phase to give it; allowed: a coupled "
+                         f"device (begin_step/end_step: a CircuitDevice, an IdealDevice), or "
+                         f"walker.model = 'torque'")
     params, _doc = _reflex_set(scenario)
     w = scenario.walker
     return dict(walker=w, params=params, duration_s=muscle_walk_duration_s(scenario),
