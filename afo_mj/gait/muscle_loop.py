@@ -48,11 +48,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 
 from afo_mj.gait import reflex_law as rl
 from afo_mj.gait.native_step import call_mj_step
 from afo_mj.gait.walk_loop import _call_begin, _call_end
+from afo_mj.numba_cache import cached_njit, declare_module_dependencies
 
 __all__ = ["CHUNK_DONE", "FELL", "NON_FINITE", "DIVERGED", "DEVICE_NON_FINITE",
            "muscle_walk_steps",
@@ -80,7 +80,15 @@ CHUNK_DONE, FELL, NON_FINITE, DIVERGED, DEVICE_NON_FINITE = 0, 1, 2, 3, 4
  LI_DEV_STEPS, LI_ANK_R, LI_ANK_L, LI_DANK_R, LI_DANK_L, N_LOOP_INDEX) = range(23)
 
 
-@numba.njit(cache=True, fastmath=False, _nrt=False)
+# the reflex law's cached functions call afo_mj.human.muscle and .metabolics: their caches follow
+# those files too, so that this loop, recompiled, never links a stale law (belongs in reflex_law)
+declare_module_dependencies(rl)
+
+
+# cached on disk with the sources of the reflex law (and its muscles and metabolics), the native
+# step and walk_loop's device intrinsics it compiles in (afo_mj.numba_cache)
+@cached_njit(depends_on=(rl, "afo_mj.gait.walk_loop", "afo_mj.gait.native_step"),
+             fastmath=False, _nrt=False)
 def muscle_walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applied,
                       dof_damping, P, T, X, ring, leg_q, leg_v, touch, ff, dlim, base_limit,
                       contact, b_time, b_qpos, b_qvel, b_sens, b_cz, b_dev, b_u, b_a, b_f, b_v,

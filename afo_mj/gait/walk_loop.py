@@ -37,13 +37,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
 from afo_mj.gait import control_law as law
 from afo_mj.gait.native_step import call_mj_step
+from afo_mj.numba_cache import cached_njit
 
 __all__ = ["CHUNK_DONE", "STRIDES_DONE", "FELL", "NON_FINITE", "DEVICE_NON_FINITE",
            "walk_steps",
@@ -103,7 +103,8 @@ def _call_end(typingctx, fn, p_velocity, p_buf, p_meta, p_log, n_log, n_fields, 
     return sig, codegen
 
 
-@numba.njit(cache=True, fastmath=False, _nrt=False)
+# cached on disk with the sources of the law and the native step it compiles in (afo_mj.numba_cache)
+@cached_njit(depends_on=(law, "afo_mj.gait.native_step"), fastmath=False, _nrt=False)
 def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_step, const,
                index, ctrl, actfrc, qfrc_actuator, actuator_force, contact_geoms,
                b_time, b_qpos, b_qvel, b_qfrc, b_act, b_sens, b_cz, b_phase,
