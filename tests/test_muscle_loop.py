@@ -29,6 +29,10 @@ def assert_same_walk(a: MuscleWalk, b: MuscleWalk) -> None:
             x, y = getattr(obj_a, f.name), getattr(obj_b, f.name)
             if isinstance(x, np.ndarray):
                 assert x.shape == y.shape and np.array_equal(x, y), f.name
+            elif f.name == "signals":
+                assert x.keys() == y.keys()
+                for name in x:
+                    assert np.array_equal(x[name], y[name]), name
             elif f.name != "record":
                 assert x == y, f.name
     ea, eb = a.record.events, b.record.events
