@@ -102,7 +102,10 @@ X_EDOT_U, X_EDOT_B, X_TAU = 70, 84, 98                     # X_TAU: 2 × 3
 X_STANCE, X_TOUCHDOWN_T, X_THETA_TO, X_EVENT, X_SWITCH_T = 104, 106, 108, 110, 112
 X_RING_POS = 114
 X_LIMIT_DAMP = 115                                          # 2 × 3: soft-limit damping
-N_X = 121
+#: the CE velocity of the step before the last (m/s, 14): with ``X_VCE`` it extrapolates the
+#: next step's velocity, the start of the CE-length solve (it does not enter the result)
+X_VCE_PREV = 121
+N_X = 135
 #: ring buffer: per leg 17 columns (force/F_max ×7, l_CE/l_opt ×7, φ_k, φ̇_k, load/mg), then
 #: trunk lean and its rate
 RING_LEN = 64
@@ -167,6 +170,12 @@ def mtu_length_and_arms(T, m, phi_h, phi_k, phi_a):
     return lm, r0, r1
 
 
+@numba.njit(cache=True, inline="always")
+def _delayed(ring, T, pos, col, m):
+    """Muscle ``m``'s ring column ``col + m`` as it was its neural delay ago."""
+    return ring[(pos - int(T[m, T_DELAY])) % RING_LEN, col + m]
+
+
 @numba.njit(cache=True)
 def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelvis_tilt_v,
                 P, T, X, ring, mg):  # pragma: no cover - compiled; exercised by the tests
@@ -211,48 +220,50 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
     d_knee = int(T[VAS, T_DELAY])
     d_hip = int(T[HFL, T_DELAY])
     # --- stimulations ----------------------------------------------------------------------
-    S = np.empty(N_MUSCLES)
+    # (the stimulations S go to X[X_U:] unclipped; the muscles' loop clips them to u)
     for s in range(2):
         o = 1 - s
         b = s * RING_LEG
-        F = np.empty(N_MUSCLES)
-        L = np.empty(N_MUSCLES)
-        for m in range(N_MUSCLES):
-            r_ = (pos - int(T[m, T_DELAY])) % RING_LEN
-            F[m] = ring[r_, b + m]
-            L[m] = ring[r_, b + N_MUSCLES + m]
+        bl = b + N_MUSCLES                  # the CE lengths' columns
+        S = X_U + s * N_MUSCLES
         if X[X_STANCE + s] > 0.5:
-            S[SOL] = P[P_S0_SOL] + P[P_G_SOL] * F[SOL]
-            S[TA] = (P[P_S0_TA] + P[P_G_TA] * max(L[TA] - P[P_LOFF_TA], 0.0)
-                     - P[P_G_SOLTA] * F[SOL])
-            S[GAS] = P[P_S0_GAS] + P[P_G_GAS] * F[GAS]
+            f_sol = _delayed(ring, T, pos, b, SOL)
+            X[S + SOL] = P[P_S0_SOL] + P[P_G_SOL] * f_sol
+            X[S + TA] = (P[P_S0_TA]
+                         + P[P_G_TA] * max(_delayed(ring, T, pos, bl, TA) - P[P_LOFF_TA], 0.0)
+                         - P[P_G_SOLTA] * f_sol)
+            X[S + GAS] = P[P_S0_GAS] + P[P_G_GAS] * _delayed(ring, T, pos, b, GAS)
             rk = (pos - d_knee) % RING_LEN
             phik = ring[rk, b + 14]
             dphi = phik - P[P_PHI_OFF] if (phik > P[P_PHI_OFF] and ring[rk, b + 15] > 0.0) \
                 else 0.0
-            S[VAS] = P[P_S0_VAS] + P[P_G_VAS] * F[VAS] - P[P_K_PHI] * dphi
+            X[S + VAS] = (P[P_S0_VAS] + P[P_G_VAS] * _delayed(ring, T, pos, b, VAS)
+                          - P[P_K_PHI] * dphi)
             rh = (pos - d_hip) % RING_LEN
             load = min(max(ring[rh, b + 16], 0.0), 1.0)
             pd = (P[P_KP] * (ring[rh, 2 * RING_LEG] - P[P_THETA_REF])
                   + P[P_KD] * ring[rh, 2 * RING_LEG + 1])
-            S[GLU] = P[P_S0_GG] + pd * load
-            S[HAM] = P[P_S0_GG] + pd * load
-            S[HFL] = P[P_S0_GG] - pd * load
+            X[S + GLU] = P[P_S0_GG] + pd * load
+            X[S + HAM] = P[P_S0_GG] + pd * load
+            X[S + HFL] = P[P_S0_GG] - pd * load
             if X[X_STANCE + o] > 0.5 and X[X_TOUCHDOWN_T + o] > X[X_TOUCHDOWN_T + s]:
                 # double support, this leg trailing: prepare its swing
-                S[HFL] += P[P_DS]
-                S[GLU] -= P[P_DS]
-                S[VAS] -= P[P_K_BW] * min(max(ring[rk, o * RING_LEG + 16], 0.0), 1.0)
+                X[S + HFL] += P[P_DS]
+                X[S + GLU] -= P[P_DS]
+                X[S + VAS] -= P[P_K_BW] * min(max(ring[rk, o * RING_LEG + 16], 0.0), 1.0)
         else:
-            S[SOL] = P[P_S0_SOL]
-            S[GAS] = P[P_S0_GAS]
-            S[VAS] = P[P_S0_VAS_SWING]
-            S[TA] = P[P_S0_TA] + P[P_G_TA] * max(L[TA] - P[P_LOFF_TA], 0.0)
-            S[HFL] = (P[P_S0_HFL] + P[P_K_LEAN] * (X[X_THETA_TO + s] - P[P_THETA_REF])
-                      + P[P_G_HFL] * max(L[HFL] - P[P_LOFF_HFL], 0.0)
-                      - P[P_G_HAMHFL] * max(L[HAM] - P[P_LOFF_HAM], 0.0))
-            S[HAM] = P[P_S0_HAM] + P[P_G_HAM] * F[HAM]
-            S[GLU] = P[P_S0_GLU] + P[P_G_GLU] * F[GLU]
+            X[S + SOL] = P[P_S0_SOL]
+            X[S + GAS] = P[P_S0_GAS]
+            X[S + VAS] = P[P_S0_VAS_SWING]
+            X[S + TA] = P[P_S0_TA] + P[P_G_TA] * max(_delayed(ring, T, pos, bl, TA)
+                                                     - P[P_LOFF_TA], 0.0)
+            X[S + HFL] = (P[P_S0_HFL] + P[P_K_LEAN] * (X[X_THETA_TO + s] - P[P_THETA_REF])
+                          + P[P_G_HFL] * max(_delayed(ring, T, pos, bl, HFL)
+                                             - P[P_LOFF_HFL], 0.0)
+                          - P[P_G_HAMHFL] * max(_delayed(ring, T, pos, bl, HAM)
+                                                - P[P_LOFF_HAM], 0.0))
+            X[S + HAM] = P[P_S0_HAM] + P[P_G_HAM] * _delayed(ring, T, pos, b, HAM)
+            X[S + GLU] = P[P_S0_GLU] + P[P_G_GLU] * _delayed(ring, T, pos, b, GLU)
         # --- muscles ---------------------------------------------------------------------
         phi_h, phi_k, phi_a = geyer_angles(qpos[leg_q[s, 0]], qpos[leg_q[s, 1]],
                                            qpos[leg_q[s, 2]])
@@ -261,13 +272,17 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
         tau2 = 0.0
         for m in range(N_MUSCLES):
             k = s * N_MUSCLES + m
-            u = min(max(S[m], mu.PREACTIVATION), 1.0)
+            u = min(max(X[X_U + k], mu.PREACTIVATION), 1.0)
             a = mu.activation_step(X[X_ACT + k], u, h, mu.TAU_ACTIVATION_S)
             lm, r0, r1 = mtu_length_and_arms(T, m, phi_h, phi_k, phi_a)
             fmax = T[m, T_FMAX]
             lopt = T[m, T_LOPT]
             lce_old = X[X_LCE + k]
-            lce = mu.mtu_step(lce_old, a, lm, h, fmax, T[m, T_VMAX], lopt, T[m, T_LSLACK])
+            # the solve starts from the CE velocity extrapolated linearly from the last two
+            # steps, 2 v_n − v_{n−1} (it converges to the same root from any start)
+            v_old = X[X_VCE + k]
+            lce = mu.mtu_step(lce_old, a, lm, h, fmax, T[m, T_VMAX], lopt, T[m, T_LSLACK],
+                              2.0 * v_old - X[X_VCE_PREV + k])
             f_se = mu.se_force_n(lm - lce, T[m, T_LSLACK], fmax)
             v = (lce - lce_old) / h
             X[X_ACT + k] = a
@@ -275,6 +290,7 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
             X[X_LCE + k] = lce
             X[X_F + k] = f_se
             X[X_VCE + k] = v
+            X[X_VCE_PREV + k] = v_old
             # metabolic rates
             fl = mu.ce_force_length(lce, lopt)
             fv = mu.ce_force_velocity(v / lopt, T[m, T_VMAX])

@@ -37,8 +37,10 @@ negative, plantarflexing torque).
 The CE length is the MTU's state. Its ODE ``l̇_CE = v_CE(l_CE, a, l_MTU)`` is stiff when the
 activation is low (a slack fibre relaxes in microseconds), so :func:`mtu_step` advances it by
 backward Euler: the scalar equation ``x − l_CE,n − h v_CE(x, a_{n+1}, l_MTU,n+1) = 0`` solved by
-a safeguarded Newton iteration inside a bracket (bisection where Newton leaves it), to a
-relative tolerance of 1e-12; ``tests/test_muscle.py`` checks it against scipy's Radau.
+a safeguarded Newton iteration with the analytic derivative (:func:`mtu_residual`) inside a
+bracket (bisection where Newton leaves it), to a relative tolerance of 1e-12;
+``tests/test_muscle.py`` checks the stepped ODE against scipy's Radau and
+``tests/test_muscle_newton.py`` each solve against scipy's brentq.
 
 Parameters of the seven muscles per leg (:data:`GEYER_HERR_2010`): ``F_max``, ``v_max``,
 ``l_opt``, ``l_slack``, ``r_0``, ``φ_max``, ``φ_ref``, ``ρ`` from the model's published
@@ -63,7 +65,7 @@ __all__ = [
     "MUSCLE_NAMES",
     "ce_force_length", "ce_force_velocity", "ce_velocity_from_force", "se_force_n",
     "pe_force_n", "be_force_n", "activation_step", "path_length_and_arm",
-    "mtu_rate", "mtu_step", "equilibrium_ce_length_m", "to_geyer_angle",
+    "mtu_rate", "mtu_residual", "mtu_step", "equilibrium_ce_length_m", "to_geyer_angle",
 ]
 
 #: force–length width (in l_opt) and the force left at its edges, ln(0.05)
@@ -283,37 +285,149 @@ def mtu_rate(l_ce: float, a: float, l_mtu: float, f_max: float, v_max: float, l_
 
 
 @numba.njit(cache=True)
+def _residual(x, l_ce, a, l_mtu, hl, v_max, l_opt, l_slack, l_b, inv_lw, inv_lbw,
+              inv_ls_eps):
+    """:func:`mtu_residual` with its constants precomputed (``hl = h l_opt``,
+    ``l_b = l_opt (1 − w)``, ``inv_lw = 1/(l_opt w)``, ``inv_lbw = 2/(l_opt w)``,
+    ``inv_ls_eps = 1/(l_slack ε_ref)``); forces in units of ``F_max``."""
+    # n = (F_SE − F_PE + F_BE)/F_max and dn/dx
+    q = (l_mtu - x - l_slack) * inv_ls_eps                    # ε/ε_ref
+    if q > 0.0:
+        n = q * q
+        dn = -2.0 * q * inv_ls_eps
+    else:
+        n = 0.0
+        dn = 0.0
+    y = (x - l_opt) * inv_lw                                   # (l_CE − l_opt)/(l_opt w)
+    if y > 0.0:
+        n -= y * y
+        dn -= 2.0 * y * inv_lw
+    if x < l_b:
+        z = (x - l_b) * inv_lbw
+        n += z * z
+        dn += 2.0 * z * inv_lbw
+    # d = max(a f_L, 1e-6) and dd/dx
+    ay = abs(y)
+    d = a * math.exp(C_RESIDUAL * ay * ay * ay)
+    if d > 1e-6:
+        dd = 3.0 * C_RESIDUAL * y * ay * inv_lw * d
+    else:
+        d = 1e-6
+        dd = 0.0
+    inv_d = 1.0 / d
+    f = n * inv_d                                              # f_V
+    df = (dn - f * dd) * inv_d
+    # v = g(f) (ce_velocity_from_force) and dg/df
+    if f <= 0.0:
+        g = -v_max
+        dg = 0.0
+    elif f <= 1.0:
+        inv = 1.0 / (1.0 + K_CURVATURE * f)
+        g = v_max * (f - 1.0) * inv
+        dg = v_max * (1.0 + K_CURVATURE) * inv * inv
+    elif f >= F_V_INFINITY:
+        g = 10.0 * v_max
+        dg = 0.0
+    else:
+        dfn = f - N_ECCENTRIC
+        inv = 1.0 / (7.56 * K_CURVATURE * dfn - (N_ECCENTRIC - 1.0))
+        g = -v_max * (dfn + N_ECCENTRIC - 1.0) * inv
+        if g >= 10.0 * v_max:
+            g = 10.0 * v_max
+            dg = 0.0
+        else:
+            dg = v_max * (N_ECCENTRIC - 1.0) * (1.0 + 7.56 * K_CURVATURE) * inv * inv
+    return x - l_ce - hl * g, 1.0 - hl * dg * df
+
+
+@numba.njit(cache=True)
+def mtu_residual(x: float, l_ce: float, a: float, l_mtu: float, h: float, f_max: float,
+                 v_max: float, l_opt: float, l_slack: float):
+    """The backward-Euler residual of the CE length and its derivative, ``(R, dR/dx)``:
+    ``R(x) = x − l_CE − h l_opt g(f(x))`` with ``f = (F_SE − F_PE + F_BE)/max(a F_max f_L,
+    10⁻⁶ F_max)`` the force–velocity factor the force balance asks for at the CE length
+    ``x`` (MTU length ``l_mtu``) and ``g`` its inverse (:func:`ce_velocity_from_force`), so
+    that ``R = x − l_CE − h · mtu_rate(x)`` (Geyer & Herr 2010, the relations of this
+    module). The derivative is analytic, piece by piece (every force is in units of ``F_max``,
+    which cancels; ``y = (x − l_opt)/(l_opt w)``, ``q = ε/ε_ref``):
+
+    * ``dF_SE/dx = −2 q/(l_slack ε_ref)`` while the tendon is stretched, 0 when slack;
+    * ``dF_PE/dx = 2 y/(l_opt w)`` beyond ``l_opt``; ``dF_BE/dx = 2 z · 2/(l_opt w)`` below
+      ``l_opt (1 − w)``, ``z = (x − l_opt(1 − w))/(l_opt w/2)``;
+    * ``d(a f_L)/dx = a f_L · 3 c y |y|/(l_opt w)`` (0 where the floor 10⁻⁶ holds);
+    * ``df/dx = (dn/dx − f dd/dx)/d`` for ``f = n/d``;
+    * ``dg/df = v_max (1 + K)/(1 + K f)²`` shortening (``0 < f ≤ 1``),
+      ``v_max (N − 1)(1 + 7.56 K)/(7.56 K (f − N) − (N − 1))²`` lengthening, 0 where ``g``
+      is clamped (``f ≤ 0``: ``−v_max``; ``f ≥ F_V∞`` or beyond ``10 v_max``);
+    * ``dR/dx = 1 − h l_opt (dg/df)(df/dx)``.
+
+    At a branch point (``v = 0``, the tendon's slack length, ``l_opt``, the floor, the
+    clamps) the value is continuous and the derivative is the one of the branch the value
+    takes; ``f_max`` is accepted for the signature of :func:`mtu_rate` and cancels."""
+    return _residual(x, l_ce, a, l_mtu, h * l_opt, v_max, l_opt, l_slack,
+                     l_opt * (1.0 - W_WIDTH),
+                     1.0 / (l_opt * W_WIDTH), 2.0 / (l_opt * W_WIDTH),
+                     1.0 / (l_slack * EPS_REF))
+
+
+@numba.njit(cache=True)
 def mtu_step(l_ce: float, a: float, l_mtu: float, h: float, f_max: float, v_max: float,
-             l_opt: float, l_slack: float) -> float:
+             l_opt: float, l_slack: float, v_guess: float = 0.0) -> float:
     """The CE length after a backward-Euler step ``h`` (activation ``a`` and MTU length
-    ``l_mtu`` at the step's end): the root of ``R(x) = x − l_CE − h · mtu_rate(x)`` by Newton
-    with a numerical derivative, kept inside a bracket (bisection when a Newton step leaves
-    it; ``R`` increases with ``x`` for a muscle on the rising tendon curve). Tolerance 1e-12
-    relative to ``l_opt``."""
+    ``l_mtu`` at the step's end): the root of ``R(x) = x − l_CE − h · mtu_rate(x)``
+    (:func:`mtu_residual`) by Newton's method with the analytic derivative, started at
+    ``l_CE + h v_guess`` (``v_guess`` m/s: a prediction of the CE velocity over the step,
+    e.g. extrapolated from the last steps; 0 starts at ``l_CE``), inside a bracket: the rate
+    lies in ``[−v_max, 10 v_max] l_opt``, so the root lies in ``[l_CE − h v_max l_opt,
+    l_CE + 10 h v_max l_opt] ∩ [0, l_mtu]`` (bisection when a Newton step leaves the bracket
+    or the slope is not positive; ``R`` increases with ``x`` for a muscle on the rising
+    tendon curve). Converged when a Newton step is below 1e-12 ``l_opt``, or when the
+    contraction ``θ = |Δx_k|/|Δx_{k−1}|`` of two successive Newton steps bounds the error
+    left, ``θ/(1 − θ) |Δx_k|``, below it (Hairer & Wanner, Solving Ordinary Differential
+    Equations II, section IV.8, the stopping rule of the simplified Newton iteration); the
+    last step is taken. ``tests/test_muscle_newton.py`` checks it against scipy's brentq."""
     tol = 1e-12 * l_opt
-    lo = 0.0
-    hi = l_mtu                       # the CE cannot be longer than the MTU (slack tendon)
-    if hi <= lo:
+    if l_mtu <= 0.0:
         return 1e-6 * l_opt
-    x = min(max(l_ce, lo + 1e-9 * l_opt), hi)
-    # bracket: R(lo) < 0 < R(hi) for a monotone R; widen toward the ends if needed
+    hl = h * l_opt
+    lo = max(l_ce - 1.001 * hl * v_max, 0.0)
+    hi = min(l_ce + 10.01 * hl * v_max, l_mtu)
+    if hi <= lo:                    # a CE longer than its MTU: the whole range
+        lo = 0.0
+        hi = l_mtu
+    x = min(max(l_ce + h * v_guess, lo + 1e-9 * l_opt), hi)
+    l_b = l_opt * (1.0 - W_WIDTH)
+    inv_lw = 1.0 / (l_opt * W_WIDTH)
+    inv_lbw = 2.0 * inv_lw
+    inv_ls_eps = 1.0 / (l_slack * EPS_REF)
+    last = -1.0                     # the last Newton step's size (−1: none to compare)
     for _ in range(100):
-        r = x - l_ce - h * mtu_rate(x, a, l_mtu, f_max, v_max, l_opt, l_slack)
-        if abs(r) < tol:
-            return x
+        r, dr = _residual(x, l_ce, a, l_mtu, hl, v_max, l_opt, l_slack, l_b, inv_lw,
+                          inv_lbw, inv_ls_eps)
         if r > 0.0:
             hi = x
-        else:
+        elif r < 0.0:
             lo = x
-        d = 1e-7 * l_opt
-        r2 = (x + d) - l_ce - h * mtu_rate(x + d, a, l_mtu, f_max, v_max, l_opt, l_slack)
-        slope = (r2 - r) / d
-        xn = x - r / slope if slope > 0.0 else 0.5 * (lo + hi)
-        if not (lo < xn < hi):
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) < tol:
-            return xn
-        x = xn
+        else:
+            return x
+        if dr > 0.0:
+            dx = -r / dr
+            step = abs(dx)
+            if step < tol:
+                return x + dx
+            if step < last:
+                theta = step / last
+                if theta * step < (1.0 - theta) * tol:
+                    return x + dx
+            xn = x + dx
+            if lo < xn < hi:
+                last = step
+                x = xn
+                continue
+        last = -1.0
+        if hi - lo < tol:
+            return 0.5 * (lo + hi)
+        x = 0.5 * (lo + hi)
     return x
 
 
