@@ -64,9 +64,10 @@ DELAY_MS = (20, 20, 20, 10, 5, 5, 5)
 JOINT_INDEX = {"hip": 0, "knee": 1, "ankle": 2}
 
 # muscle table columns: F_max, v_max, l_opt, l_slack, delay (steps), paths, then per path
-# (joint, sign, r0, φ_max, φ_ref, ρ, constant arm), then mass, slow-twitch fraction
+# (joint, sign, r0, φ_max, φ_ref, ρ, constant arm, cos φ_max, sin φ_max, sin(φ_ref − φ_max)),
+# then mass, slow-twitch fraction
 T_FMAX, T_VMAX, T_LOPT, T_LSLACK, T_DELAY, T_NPATH, T_PATH = range(7)
-PATH_W = 7
+PATH_W = 10
 T_MASS = T_PATH + 2 * PATH_W
 T_SLOW = T_MASS + 1
 T_COLS = T_SLOW + 1
@@ -132,8 +133,10 @@ def muscle_table(timestep_s: float) -> np.ndarray:
                          p.slack_length_m, round(DELAY_MS[m] * 1e-3 / timestep_s), len(paths)]
         for k, jp in enumerate(paths):
             c = T_PATH + PATH_W * k
-            T[m, c:c + PATH_W] = [JOINT_INDEX[jp.joint], jp.sign, jp.r0_m, jp.phi_max_rad or 0.0,
-                                  jp.phi_ref_rad, jp.rho, 1.0 if jp.phi_max_rad is None else 0.0]
+            pm = jp.phi_max_rad or 0.0
+            T[m, c:c + PATH_W] = [JOINT_INDEX[jp.joint], jp.sign, jp.r0_m, pm,
+                                  jp.phi_ref_rad, jp.rho, 1.0 if jp.phi_max_rad is None else 0.0,
+                                  math.cos(pm), math.sin(pm), math.sin(jp.phi_ref_rad - pm)]
         T[m, T_MASS] = p.mass_kg
         T[m, T_SLOW] = p.slow_twitch_fraction
     if T[:, T_DELAY].max() >= RING_LEN:
@@ -150,24 +153,44 @@ def geyer_angles(hip, knee, ankle):
 
 
 @numba.njit(cache=True)
-def mtu_length_and_arms(T, m, phi_h, phi_k, phi_a):
-    """MTU length of muscle ``m`` at Geyer's angles and the moment arms of its (up to two)
-    paths (Geyer & Herr 2010, section II-B): ``(l_MTU, r_0, r_1)``."""
+def mtu_length_and_arms_sc(T, m, phi_h, sin_k, cos_k, sin_a, cos_a):
+    """:func:`mtu_length_and_arms` from ``sin φ`` and ``cos φ`` of the knee and ankle (a
+    leg's four sines and cosines serve all its muscles): ``sin(φ − φ_max) = sin φ cos φ_max −
+    cos φ sin φ_max`` and ``cos(φ − φ_max) = cos φ cos φ_max + sin φ sin φ_max``, with the
+    path's ``cos φ_max``, ``sin φ_max`` and ``sin(φ_ref − φ_max)`` from the table; then
+    ``Δl = s ρ r_0 [sin(φ − φ_max) − sin(φ_ref − φ_max)]`` and ``r = r_0 cos(φ − φ_max)``,
+    at the hip ``Δl = s ρ r_0 (φ − φ_ref)`` and ``r = r_0`` (Geyer & Herr 2010, section
+    II-B; :func:`afo_mj.human.muscle.path_length_and_arm`)."""
     lm = T[m, T_LOPT] + T[m, T_LSLACK]
     r0 = 0.0
     r1 = 0.0
     for q in range(int(T[m, T_NPATH])):
         c = T_PATH + PATH_W * q
         j = int(T[m, c])
-        phi = phi_h if j == 0 else (phi_k if j == 1 else phi_a)
-        dl, r = mu.path_length_and_arm(phi, T[m, c + 1], T[m, c + 2], T[m, c + 3],
-                                       T[m, c + 4], T[m, c + 5], T[m, c + 6] > 0.5)
+        sr = T[m, c + 1] * T[m, c + 5] * T[m, c + 2]         # s ρ r_0
+        if T[m, c + 6] > 0.5:
+            dl = sr * (phi_h - T[m, c + 4])
+            r = T[m, c + 2]
+        else:
+            sp = sin_k if j == 1 else sin_a
+            cp = cos_k if j == 1 else cos_a
+            dl = sr * ((sp * T[m, c + 7] - cp * T[m, c + 8]) - T[m, c + 9])
+            r = T[m, c + 2] * (cp * T[m, c + 7] + sp * T[m, c + 8])
         lm += dl
         if q == 0:
             r0 = r
         else:
             r1 = r
     return lm, r0, r1
+
+
+@numba.njit(cache=True)
+def mtu_length_and_arms(T, m, phi_h, phi_k, phi_a):
+    """MTU length of muscle ``m`` at Geyer's angles and the moment arms of its (up to two)
+    paths (Geyer & Herr 2010, section II-B): ``(l_MTU, r_0, r_1)``
+    (:func:`mtu_length_and_arms_sc`)."""
+    return mtu_length_and_arms_sc(T, m, phi_h, math.sin(phi_k), math.cos(phi_k),
+                                  math.sin(phi_a), math.cos(phi_a))
 
 
 @numba.njit(cache=True, inline="always")
@@ -264,77 +287,101 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
                                                 - P[P_LOFF_HAM], 0.0))
             X[S + HAM] = P[P_S0_HAM] + P[P_G_HAM] * _delayed(ring, T, pos, b, HAM)
             X[S + GLU] = P[P_S0_GLU] + P[P_G_GLU] * _delayed(ring, T, pos, b, GLU)
-        # --- muscles ---------------------------------------------------------------------
-        phi_h, phi_k, phi_a = geyer_angles(qpos[leg_q[s, 0]], qpos[leg_q[s, 1]],
-                                           qpos[leg_q[s, 2]])
-        tau0 = 0.0
-        tau1 = 0.0
-        tau2 = 0.0
-        for m in range(N_MUSCLES):
-            k = s * N_MUSCLES + m
-            u = min(max(X[X_U + k], mu.PREACTIVATION), 1.0)
-            a = mu.activation_step(X[X_ACT + k], u, h, mu.TAU_ACTIVATION_S)
-            lm, r0, r1 = mtu_length_and_arms(T, m, phi_h, phi_k, phi_a)
-            fmax = T[m, T_FMAX]
-            lopt = T[m, T_LOPT]
-            lce_old = X[X_LCE + k]
-            # the solve starts from the CE velocity extrapolated linearly from the last two
-            # steps, 2 v_n − v_{n−1} (it converges to the same root from any start)
-            v_old = X[X_VCE + k]
-            lce = mu.mtu_step(lce_old, a, lm, h, fmax, T[m, T_VMAX], lopt, T[m, T_LSLACK],
-                              2.0 * v_old - X[X_VCE_PREV + k])
-            f_se = mu.se_force_n(lm - lce, T[m, T_LSLACK], fmax)
-            v = (lce - lce_old) / h
-            X[X_ACT + k] = a
-            X[X_U + k] = u
-            X[X_LCE + k] = lce
-            X[X_F + k] = f_se
-            X[X_VCE + k] = v
-            X[X_VCE_PREV + k] = v_old
-            # metabolic rates
-            fl = mu.ce_force_length(lce, lopt)
-            fv = mu.ce_force_velocity(v / lopt, T[m, T_VMAX])
-            f_act = a * fmax * fl * fv
-            f_fib = f_act + mu.pe_force_n(lce, lopt, fmax)
-            X[X_EDOT_U + k] = me.umberger2010_rate_w(u, a, lce / lopt, v / lopt, f_act, fl,
-                                                     T[m, T_VMAX], lopt, T[m, T_MASS],
-                                                     T[m, T_SLOW])[0]
-            X[X_EDOT_B + k] = me.bhargava2004_rate_w(u, lce / lopt, v, f_fib, f_act,
-                                                     T[m, T_MASS], T[m, T_SLOW])[0]
-            for q in range(int(T[m, T_NPATH])):
-                c = T_PATH + PATH_W * q
-                j = int(T[m, c])
-                tq = T[m, c + 1] * (r0 if q == 0 else r1) * f_se
-                if j == 0:
-                    tau0 += tq
-                elif j == 1:
-                    tau1 += tq
-                else:
-                    tau2 += tq
-        # --- soft joint limits (Geyer's model; damping implicit, step 5 above) -----------
+    # --- muscles: each muscle's left and right solved together (mu.mtu_step_pair) ---------
+    ph0, sk0, ck0, sa0, ca0 = _leg_trig(qpos, leg_q, 0)
+    ph1, sk1, ck1, sa1, ca1 = _leg_trig(qpos, leg_q, 1)
+    for j in range(6):
+        X[X_TAU + j] = 0.0
+    for m in range(N_MUSCLES):
+        a0, lm0, ra0, rb0 = _muscle_inputs(X, T, m, 0, h, ph0, sk0, ck0, sa0, ca0)
+        a1, lm1, ra1, rb1 = _muscle_inputs(X, T, m, 1, h, ph1, sk1, ck1, sa1, ca1)
+        # each solve starts from the CE velocity extrapolated linearly from the last two
+        # steps, 2 v_n − v_{n−1} (it converges to the same root from any start)
+        k0 = m
+        k1 = N_MUSCLES + m
+        lce0, lce1 = mu.mtu_step_pair(
+            X[X_LCE + k0], a0, lm0, 2.0 * X[X_VCE + k0] - X[X_VCE_PREV + k0],
+            X[X_LCE + k1], a1, lm1, 2.0 * X[X_VCE + k1] - X[X_VCE_PREV + k1],
+            h, T[m, T_FMAX], T[m, T_VMAX], T[m, T_LOPT], T[m, T_LSLACK])
+        _muscle_outputs(X, T, m, 0, h, a0, lm0, ra0, rb0, lce0)
+        _muscle_outputs(X, T, m, 1, h, a1, lm1, ra1, rb1, lce1)
+    # --- soft joint limits (Geyer's model; damping implicit, step 5 above) ---------------
+    for s in range(2):
         c_knee = 0.0
         c_ankle = 0.0
         thk = qpos[leg_q[s, 1]]
         if thk < KNEE_LIMIT_RAD and qvel[leg_v[s, 1]] < SOFT_LIMIT_SPEED_RAD_S:
             pen = KNEE_LIMIT_RAD - thk
-            tau1 += SOFT_LIMIT_NM_PER_RAD * pen
+            X[X_TAU + 3 * s + 1] += SOFT_LIMIT_NM_PER_RAD * pen
             c_knee = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
         tha = qpos[leg_q[s, 2]]
         wa = qvel[leg_v[s, 2]]
         if tha > ANKLE_LIMITS_RAD[1] and wa > -SOFT_LIMIT_SPEED_RAD_S:
             pen = tha - ANKLE_LIMITS_RAD[1]
-            tau2 -= SOFT_LIMIT_NM_PER_RAD * pen
+            X[X_TAU + 3 * s + 2] -= SOFT_LIMIT_NM_PER_RAD * pen
             c_ankle = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
         elif tha < ANKLE_LIMITS_RAD[0] and wa < SOFT_LIMIT_SPEED_RAD_S:
             pen = ANKLE_LIMITS_RAD[0] - tha
-            tau2 += SOFT_LIMIT_NM_PER_RAD * pen
+            X[X_TAU + 3 * s + 2] += SOFT_LIMIT_NM_PER_RAD * pen
             c_ankle = SOFT_LIMIT_NM_PER_RAD * pen / SOFT_LIMIT_SPEED_RAD_S
         X[X_LIMIT_DAMP + 3 * s] = 0.0
         X[X_LIMIT_DAMP + 3 * s + 1] = c_knee
         X[X_LIMIT_DAMP + 3 * s + 2] = c_ankle
-        X[X_TAU + 3 * s] = tau0
-        X[X_TAU + 3 * s + 1] = tau1
-        X[X_TAU + 3 * s + 2] = tau2
+
+
+@numba.njit(cache=True, inline="always")
+def _leg_trig(qpos, leg_q, s):
+    """Leg ``s``'s hip angle φ_h and the sines and cosines of its knee and ankle angles
+    (Geyer's internal angles, :func:`geyer_angles`)."""
+    phi_h, phi_k, phi_a = geyer_angles(qpos[leg_q[s, 0]], qpos[leg_q[s, 1]], qpos[leg_q[s, 2]])
+    return phi_h, math.sin(phi_k), math.cos(phi_k), math.sin(phi_a), math.cos(phi_a)
+
+
+@numba.njit(cache=True, inline="always")
+def _muscle_inputs(X, T, m, s, h, phi_h, sin_k, cos_k, sin_a, cos_a):
+    """Muscle ``m`` of leg ``s`` before its solve: the stimulation ``X[X_U]`` clipped to the
+    excitation ``u`` (written back), the activation advanced (``τ ȧ = u − a``, exact step),
+    the MTU length and moment arms: ``(a, l_MTU, r_0, r_1)``."""
+    k = s * N_MUSCLES + m
+    u = min(max(X[X_U + k], mu.PREACTIVATION), 1.0)
+    X[X_U + k] = u
+    a = mu.activation_step(X[X_ACT + k], u, h, mu.TAU_ACTIVATION_S)
+    lm, r0, r1 = mtu_length_and_arms_sc(T, m, phi_h, sin_k, cos_k, sin_a, cos_a)
+    return a, lm, r0, r1
+
+
+@numba.njit(cache=True, inline="always")
+def _muscle_outputs(X, T, m, s, h, a, lm, r0, r1, lce):
+    """Muscle ``m`` of leg ``s`` after its solve (new CE length ``lce``): the state
+    (activation, CE length, tendon force, CE velocity and the one before), the metabolic
+    rates (Umberger 2010, Bhargava et al. 2004) and its paths' torques ``s r F`` added to
+    the leg's ``X[X_TAU]``."""
+    k = s * N_MUSCLES + m
+    fmax = T[m, T_FMAX]
+    lopt = T[m, T_LOPT]
+    u = X[X_U + k]
+    lce_old = X[X_LCE + k]
+    f_se = mu.se_force_n(lm - lce, T[m, T_LSLACK], fmax)
+    v = (lce - lce_old) / h
+    X[X_ACT + k] = a
+    X[X_LCE + k] = lce
+    X[X_F + k] = f_se
+    X[X_VCE_PREV + k] = X[X_VCE + k]
+    X[X_VCE + k] = v
+    # metabolic rates
+    fl = mu.ce_force_length(lce, lopt)
+    fv = mu.ce_force_velocity(v / lopt, T[m, T_VMAX])
+    f_act = a * fmax * fl * fv
+    f_fib = f_act + mu.pe_force_n(lce, lopt, fmax)
+    X[X_EDOT_U + k] = me.umberger2010_rate_w(u, a, lce / lopt, v / lopt, f_act, fl,
+                                             T[m, T_VMAX], lopt, T[m, T_MASS],
+                                             T[m, T_SLOW])[0]
+    X[X_EDOT_B + k] = me.bhargava2004_rate_w(u, lce / lopt, v, f_fib, f_act,
+                                             T[m, T_MASS], T[m, T_SLOW])[0]
+    for q in range(int(T[m, T_NPATH])):
+        c = T_PATH + PATH_W * q
+        j = int(T[m, c])
+        X[X_TAU + 3 * s + j] += T[m, c + 1] * (r0 if q == 0 else r1) * f_se
 
 
 def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool, bool],

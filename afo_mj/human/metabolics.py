@@ -124,8 +124,11 @@ def bhargava2004_rate_w(u: float, l_norm: float, v_m_s: float, f_fiber_n: float,
     179.0
     """
     uu = min(max(u, 0.0), 1.0)
-    u_st = slow_twitch * math.sin(0.5 * math.pi * uu)
-    u_ft = (1.0 - slow_twitch) * (1.0 - math.cos(0.5 * math.pi * uu))
+    # with s = sin(π u/4) (one sine; its cosine √(1 − s²) ≥ 1/√2 on [0, π/4]):
+    # sin(π u/2) = 2 s √(1 − s²) and 1 − cos(π u/2) = 2 s² (no cancellation at small u)
+    s4 = math.sin(0.25 * math.pi * uu)
+    u_st = slow_twitch * (2.0 * s4 * math.sqrt(1.0 - s4 * s4))
+    u_ft = (1.0 - slow_twitch) * (2.0 * s4 * s4)
     act = mass_kg * (40.0 * u_st + 133.0 * u_ft)
     main = mass_kg * bhargava_length_factor(l_norm) * (74.0 * u_st + 111.0 * u_ft)
     if v_m_s <= 0.0:

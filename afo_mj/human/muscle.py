@@ -65,7 +65,8 @@ __all__ = [
     "MUSCLE_NAMES",
     "ce_force_length", "ce_force_velocity", "ce_velocity_from_force", "se_force_n",
     "pe_force_n", "be_force_n", "activation_step", "path_length_and_arm",
-    "mtu_rate", "mtu_residual", "mtu_step", "equilibrium_ce_length_m", "to_geyer_angle",
+    "mtu_rate", "mtu_residual", "mtu_step", "mtu_step_pair", "equilibrium_ce_length_m",
+    "to_geyer_angle",
 ]
 
 #: force–length width (in l_opt) and the force left at its edges, ln(0.05)
@@ -370,6 +371,42 @@ def mtu_residual(x: float, l_ce: float, a: float, l_mtu: float, h: float, f_max:
                      1.0 / (l_slack * EPS_REF))
 
 
+@numba.njit(cache=True, inline="always")
+def _newton_start(l_ce, l_mtu, h, v_max, l_opt, v_guess):
+    """The solve's bracket and start (:func:`mtu_step`): ``(x, lo, hi)``."""
+    hl = h * l_opt
+    lo = max(l_ce - 1.001 * hl * v_max, 0.0)
+    hi = min(l_ce + 10.01 * hl * v_max, l_mtu)
+    if hi <= lo:                    # a CE longer than its MTU: the whole range
+        lo = 0.0
+        hi = l_mtu
+    return min(max(l_ce + h * v_guess, lo + 1e-9 * l_opt), hi), lo, hi
+
+
+@numba.njit(cache=True, inline="always")
+def _newton_update(x, r, dr, lo, hi, last, tol):
+    """One safeguarded Newton update of :func:`mtu_step` from ``R(x) = r``, ``R'(x) = dr``:
+    ``(x_next, lo, hi, last, done)``; ``last`` the last Newton step's size (−1: none)."""
+    if r > 0.0:
+        hi = x
+    elif r < 0.0:
+        lo = x
+    else:
+        return x, lo, hi, last, True
+    if dr > 0.0:
+        dx = -r / dr
+        step = abs(dx)
+        # converged: the step below tol, or θ/(1 − θ) · step below it, θ = step/last
+        if step < tol or step * step < (last - step) * tol:
+            return x + dx, lo, hi, last, True
+        xn = x + dx
+        if lo < xn < hi:
+            return xn, lo, hi, step, False
+    if hi - lo < tol:
+        return 0.5 * (lo + hi), lo, hi, -1.0, True
+    return 0.5 * (lo + hi), lo, hi, -1.0, False
+
+
 @numba.njit(cache=True)
 def mtu_step(l_ce: float, a: float, l_mtu: float, h: float, f_max: float, v_max: float,
              l_opt: float, l_slack: float, v_guess: float = 0.0) -> float:
@@ -386,49 +423,60 @@ def mtu_step(l_ce: float, a: float, l_mtu: float, h: float, f_max: float, v_max:
     left, ``θ/(1 − θ) |Δx_k|``, below it (Hairer & Wanner, Solving Ordinary Differential
     Equations II, section IV.8, the stopping rule of the simplified Newton iteration); the
     last step is taken. ``tests/test_muscle_newton.py`` checks it against scipy's brentq."""
-    tol = 1e-12 * l_opt
     if l_mtu <= 0.0:
         return 1e-6 * l_opt
+    tol = 1e-12 * l_opt
+    x, lo, hi = _newton_start(l_ce, l_mtu, h, v_max, l_opt, v_guess)
     hl = h * l_opt
-    lo = max(l_ce - 1.001 * hl * v_max, 0.0)
-    hi = min(l_ce + 10.01 * hl * v_max, l_mtu)
-    if hi <= lo:                    # a CE longer than its MTU: the whole range
-        lo = 0.0
-        hi = l_mtu
-    x = min(max(l_ce + h * v_guess, lo + 1e-9 * l_opt), hi)
     l_b = l_opt * (1.0 - W_WIDTH)
     inv_lw = 1.0 / (l_opt * W_WIDTH)
     inv_lbw = 2.0 * inv_lw
     inv_ls_eps = 1.0 / (l_slack * EPS_REF)
-    last = -1.0                     # the last Newton step's size (−1: none to compare)
+    last = -1.0
     for _ in range(100):
         r, dr = _residual(x, l_ce, a, l_mtu, hl, v_max, l_opt, l_slack, l_b, inv_lw,
                           inv_lbw, inv_ls_eps)
-        if r > 0.0:
-            hi = x
-        elif r < 0.0:
-            lo = x
-        else:
-            return x
-        if dr > 0.0:
-            dx = -r / dr
-            step = abs(dx)
-            if step < tol:
-                return x + dx
-            if step < last:
-                theta = step / last
-                if theta * step < (1.0 - theta) * tol:
-                    return x + dx
-            xn = x + dx
-            if lo < xn < hi:
-                last = step
-                x = xn
-                continue
-        last = -1.0
-        if hi - lo < tol:
-            return 0.5 * (lo + hi)
-        x = 0.5 * (lo + hi)
+        x, lo, hi, last, done = _newton_update(x, r, dr, lo, hi, last, tol)
+        if done:
+            break
     return x
+
+
+@numba.njit(cache=True)
+def mtu_step_pair(l_ce0: float, a0: float, l_mtu0: float, v_guess0: float, l_ce1: float,
+                  a1: float, l_mtu1: float, v_guess1: float, h: float, f_max: float,
+                  v_max: float, l_opt: float, l_slack: float):
+    """Two :func:`mtu_step` solves of one muscle (the same parameters: the left and right
+    leg's) interleaved, so that their iterations overlap on the processor: ``(x0, x1)``, each
+    bit for bit what :func:`mtu_step` returns (the same start, updates and stopping rule)."""
+    tol = 1e-12 * l_opt
+    x0, lo0, hi0 = _newton_start(l_ce0, l_mtu0, h, v_max, l_opt, v_guess0)
+    x1, lo1, hi1 = _newton_start(l_ce1, l_mtu1, h, v_max, l_opt, v_guess1)
+    done0 = l_mtu0 <= 0.0
+    done1 = l_mtu1 <= 0.0
+    if done0:
+        x0 = 1e-6 * l_opt
+    if done1:
+        x1 = 1e-6 * l_opt
+    hl = h * l_opt
+    l_b = l_opt * (1.0 - W_WIDTH)
+    inv_lw = 1.0 / (l_opt * W_WIDTH)
+    inv_lbw = 2.0 * inv_lw
+    inv_ls_eps = 1.0 / (l_slack * EPS_REF)
+    last0 = -1.0
+    last1 = -1.0
+    for _ in range(100):
+        if not done0:
+            r, dr = _residual(x0, l_ce0, a0, l_mtu0, hl, v_max, l_opt, l_slack, l_b, inv_lw,
+                              inv_lbw, inv_ls_eps)
+            x0, lo0, hi0, last0, done0 = _newton_update(x0, r, dr, lo0, hi0, last0, tol)
+        if not done1:
+            r, dr = _residual(x1, l_ce1, a1, l_mtu1, hl, v_max, l_opt, l_slack, l_b, inv_lw,
+                              inv_lbw, inv_ls_eps)
+            x1, lo1, hi1, last1, done1 = _newton_update(x1, r, dr, lo1, hi1, last1, tol)
+        if done0 and done1:
+            break
+    return x0, x1
 
 
 def equilibrium_ce_length_m(a: float, l_mtu: float, p: MuscleParams) -> float:
