@@ -38,8 +38,9 @@ The device is stepped as a generated circuit (:func:`hafo_circuit`, :mod:`afo_mj
 the hand-written kernel it replaced is kept only as the equivalence tests' reference
 (``tests/kernel_reference``).
 Torque control is through motor voltage (:class:`~afo_mj.circuits.controllers.PumpTorque`);
-its gains (:class:`HafoControlParams`) give the isometric torque-step response of
-the bench scenario (``scenarios/bench_hafo.toml``).
+its gains (``control``, the controller's own
+:class:`~afo_mj.circuits.controllers.PumpTorqueGains`) give the isometric torque-step response
+of the bench scenario (``scenarios/bench_hafo.toml``).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ import math
 
 import numpy as np
 
+from afo_mj.circuits.controllers import PumpTorqueGains
 from afo_mj.circuits.device import CircuitDevice
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
@@ -61,24 +63,9 @@ from afo_mj.hydraulics.relief_valve import ReliefValveParams
 from afo_mj.hydraulics.seal import OringSealParams
 from afo_mj.human.walker import WornMass
 
-__all__ = ["HafoControlParams", "PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
+__all__ = ["PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
            "HafoDevice", "mass_budget", "hafo_params",
            "HAFO_GAIT", "PRESETS"]
-
-
-@dataclasses.dataclass(frozen=True)
-class HafoControlParams(Parameters):
-    """Gains of the low-level torque controller
-    (:class:`~afo_mj.circuits.controllers.PumpTorque`)."""
-
-    pressure_gain_rad_s_per_pa: float = param(1.2e-5, unit="rad/s/Pa", lo=0.0, hi=1e-2,
-                                              doc="k_p: pump speed per unit pressure error")
-    pressure_integral_gain_rad_per_pa: float = param(4e-4, unit="rad/(Pa s)", lo=0.0, hi=1.0,
-                                                     doc="k_i: pump speed per ∫ pressure error")
-    integral_limit_pa_s: float = param(1e5, unit="Pa s", lo=0.0, hi=1e9,
-                                       doc="anti-windup clamp on ∫ pressure error")
-    speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
-                                          doc="k_ω: motor voltage per unit speed error")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,11 +114,17 @@ class PumpAnkleParams(Parameters):
     thermal_resistance_k_w: float = param(3.0, unit="K/W", lo=0.01, hi=1e3,
                                           doc="oil to ambient through pack and hoses")
     ambient_temperature_k: float = param(298.15, unit="K", lo=230.0, hi=330.0)
-    control: HafoControlParams = HafoControlParams()
+    #: the torque loop's gains (:class:`~afo_mj.circuits.controllers.PumpTorque`); its
+    #: ``spring_feedforward`` is for a spring-return cylinder and stays 0 here
+    control: PumpTorqueGains = PumpTorqueGains()
 
     def check(self) -> None:
         if self.cylinder.kind != "piston_cable":
             self.fail("cylinder", "the ankle actuator uses piston_cable cylinders")
+        if self.control.spring_feedforward != 0.0:
+            raise ParameterError(f"{type(self).__name__}.control.spring_feedforward = "
+                                 f"{self.control.spring_feedforward!r}: the piston-cable "
+                                 "cylinders have no return spring; allowed: 0")
         if self.reservoir_pressure_pa >= self.relief.cracking_dp_pa:
             self.fail("reservoir_pressure_pa", "must be below relief.cracking_dp_pa")
 
@@ -240,8 +233,8 @@ HAFO_GAIT = HAFO_ACTUATOR.replace(
     driver=HAFO_ACTUATOR.driver.replace(current_limit_a=18.6),
     battery=HAFO_ACTUATOR.battery.replace(max_current_a=30.0),
     hose=HAFO_ACTUATOR.hose.replace(bore_m=4.2e-3),
-    control=HafoControlParams(pressure_gain_rad_s_per_pa=0.4e-5,
-                              pressure_integral_gain_rad_per_pa=4e-4 / 3.0))
+    control=PumpTorqueGains(pressure_gain_rad_s_per_pa=0.4e-5,
+                            pressure_integral_gain_rad_per_pa=4e-4 / 3.0))
 
 #: Device presets by scenario name.
 PRESETS = {"hafo": HAFO, "hafo_gait": HAFO_GAIT}
@@ -269,7 +262,7 @@ def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
         Battery, BatterySourceParams, CheckValve, CheckValveParams, FlushingValve,
         FlushingValveParams, Hose, MotorDriver, PulleyCylinders, Pump, ReliefValve,
         Reservoir, ReservoirParams, Volume, VolumeParams)
-    from afo_mj.circuits.controllers import OpenLoop, PumpTorque, PumpTorqueGains
+    from afo_mj.circuits.controllers import OpenLoop, PumpTorque
     if mode not in ("torque", "voltage"):
         raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
     port = VolumeParams(volume_m3=p.pump_port_volume_m3)
@@ -302,13 +295,8 @@ def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
         "chamber_b": ["hose_b.b", "cylinders.b"],
         "ankle": ["cylinders.joint"],
     }
-    c = p.control
     controller = (OpenLoop() if mode == "voltage" else PumpTorque(
-        PumpTorqueGains(pressure_gain_rad_s_per_pa=c.pressure_gain_rad_s_per_pa,
-                        pressure_integral_gain_rad_per_pa=c.pressure_integral_gain_rad_per_pa,
-                        integral_limit_pa_s=c.integral_limit_pa_s,
-                        speed_gain_v_s_per_rad=c.speed_gain_v_s_per_rad),
-        motor="motor", pump="pump", actuator="cylinders"))
+        p.control, motor="motor", pump="pump", actuator="cylinders"))
     p0 = p.reservoir_pressure_pa if initial_pressure_pa is None else initial_pressure_pa
     return Circuit(name, comps, nodes, controller, fluid=p.fluid,
                    thermal=ThermalParams(heat_capacity_j_k=p.heat_capacity_j_k,

@@ -66,41 +66,56 @@ from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleP
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
-from afo_mj.hydraulics.params import ParameterError, Parameters, effect, param, replace_named
+from afo_mj.hydraulics.params import ParameterError, effect, param, replace_named
 from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL
 from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
-__all__ = ["ValveControlParams", "ValveAnkleParams", "VALVE_PRESETS", "valve_params",
-           "valve_mass_budget", "ValveAfoDevice", "CIRCUITS", "SERVO_LOSS_TABLE",
-           "DIGITAL_LOSS_TABLE", "SUPPLY_MODES", "valve_circuit", "valve_initial_state"]
+__all__ = ["CONTROL_SET_BY_PRESET", "VALVE_CONTROL_ALIASES", "ValveAnkleParams",
+           "VALVE_PRESETS", "valve_params", "valve_mass_budget", "ValveAfoDevice", "CIRCUITS",
+           "SERVO_LOSS_TABLE", "DIGITAL_LOSS_TABLE", "SUPPLY_MODES", "valve_circuit",
+           "valve_initial_state"]
 
 CIRCUITS = ("servo", "digital")
 SUPPLY_MODES = ("constant_speed", "unloading", "pressure_control", "variable_displacement")
 
 
-@dataclasses.dataclass(frozen=True)
-class ValveControlParams(Parameters):
-    """Gains of the valve circuit's controllers (:mod:`afo_mj.circuits.valve_controllers`)."""
+#: The controller parameters (:class:`~afo_mj.circuits.valve_controllers.ValveTorqueParams`)
+#: that a valve preset sets from its own fields, by dotted name: the torque saturation, the
+#: oil density of the flow feedforward, the supply's set speed, its pressure loop (on with
+#: ``supply_mode = "pressure_control"``) and the rail set points. ``valve_control`` keeps
+#: them at their defaults (:meth:`ValveAnkleParams.check`), so each has one name.
+CONTROL_SET_BY_PRESET = {
+    "max_torque_nm": "max_torque_nm",
+    "feedforward_density_kg_m3": "fluid.density_kg_m3",
+    "supply.speed_set_rad_s": "motor_speed_rad_s",
+    "supply.pressure_control_enabled": "supply_mode",
+    "supply.follows_demand_enabled": "supply_pressure_follows_demand",
+    "supply.pressure_set_pa": "supply_pressure_set_pa",
+    "supply.pressure_margin_pa": "supply_pressure_margin_pa",
+    "supply.pressure_min_pa": "supply_pressure_min_pa",
+}
 
-    valve_gain_per_pa: float = param(2e-8, unit="1/Pa", lo=0.0, hi=1e-4,
-                                     doc="k_v: valve command per unit pressure error")
-    valve_integral_gain_per_pa_s: float = param(1e-6, unit="1/(Pa s)", lo=0.0, hi=1.0,
-                                                doc="k_vi: valve command per ∫ pressure error")
-    valve_integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
-                                             doc="anti-windup clamp on ∫ pressure error")
-    speed_gain_v_s_per_rad: float = param(0.02, unit="V s/rad", lo=0.0, hi=10.0,
-                                          doc="motor speed loop: voltage per speed error")
-    speed_integral_gain_v_per_rad: float = param(0.5, unit="V/rad", lo=0.0, hi=1e3,
-                                                 doc="motor speed loop: voltage per ∫ error")
-    speed_integral_limit_rad: float = param(50.0, unit="rad", lo=0.0, hi=1e6,
-                                            doc="anti-windup clamp on ∫ speed error")
-    supply_gain_rad_s_per_pa: float = param(1e-4, unit="rad/s/Pa", lo=0.0, hi=1.0,
-                                            doc="rail pressure loop: speed per pressure error")
-    supply_integral_gain_rad_per_pa: float = param(1e-3, unit="rad/(Pa s)", lo=0.0, hi=10.0,
-                                                   doc="rail pressure loop: speed per ∫ error")
-    supply_integral_limit_pa_s: float = param(2e5, unit="Pa s", lo=0.0, hi=1e9,
-                                              doc="anti-windup clamp on ∫ rail error")
+#: The valve presets' former flat names of the supply's loop gains (``ValveControlParams``,
+#: before its fields became :class:`~afo_mj.circuits.valve_controllers.ValveTorqueParams`'s):
+#: still accepted by :func:`valve_params`, as the names they stand for.
+VALVE_CONTROL_ALIASES = {
+    "valve_control.speed_gain_v_s_per_rad": "valve_control.supply.speed_gain_v_s_per_rad",
+    "valve_control.speed_integral_gain_v_per_rad":
+        "valve_control.supply.speed_integral_gain_v_per_rad",
+    "valve_control.speed_integral_limit_rad": "valve_control.supply.speed_integral_limit_rad",
+    "valve_control.supply_gain_rad_s_per_pa": "valve_control.supply.pressure_gain_rad_s_per_pa",
+    "valve_control.supply_integral_gain_rad_per_pa":
+        "valve_control.supply.pressure_integral_gain_rad_per_pa",
+    "valve_control.supply_integral_limit_pa_s":
+        "valve_control.supply.pressure_integral_limit_pa_s",
+}
+
+
+def _dotted(obj, name: str):
+    for part in name.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,10 +182,20 @@ class ValveAnkleParams(PumpAnkleParams):
                                            "unloading and relief valves")
     power_supply_worn: bool = effect(True, doc="battery, motor, pump and valves worn at the "
                                                "waist (False: a tethered bench supply)")
-    valve_control: ValveControlParams = ValveControlParams()
+    #: the gains of the valve circuit's controller (the torque loop, the supply's speed and
+    #: rail-pressure loops); its set points are the preset's own fields
+    #: (:data:`CONTROL_SET_BY_PRESET`) and stay at their defaults here
+    valve_control: _vc.ValveTorqueParams = _vc.ValveTorqueParams()
 
     def check(self) -> None:
         super().check()
+        default = _vc.ValveTorqueParams()
+        for name, field in CONTROL_SET_BY_PRESET.items():
+            value = _dotted(self.valve_control, name)
+            if value != _dotted(default, name):
+                raise ParameterError(f"{type(self).__name__}.valve_control.{name} = {value!r}: "
+                                     f"set by the preset's {field}; allowed: the default "
+                                     f"{_dotted(default, name)!r} (set {field} instead)")
         if self.circuit not in CIRCUITS:
             self.fail("circuit", f"allowed: {', '.join(CIRCUITS)}")
         if self.supply_mode not in SUPPLY_MODES:
@@ -230,8 +255,8 @@ VALVE_PRESETS = {
     "digital": _VALVE_BASE.replace(
         circuit="digital", supply_mode="constant_speed", accumulator_enabled=False,
         initial_supply_pressure_pa=0.5e6, servo_coil_power_w=0.0,
-        valve_control=ValveControlParams(valve_gain_per_pa=8e-8,
-                                         valve_integral_gain_per_pa_s=5e-7)),
+        valve_control=_vc.ValveTorqueParams(valve_gain_per_pa=8e-8,
+                                            valve_integral_gain_per_pa_s=5e-7)),
     "phafo": _VALVE_BASE.replace(
         supply_mode="pressure_control", supply_pressure_follows_demand=False,
         supply_pressure_set_pa=14.1e6, pulley_radius_m=0.032, max_torque_nm=62.0,
@@ -247,11 +272,21 @@ VALVE_PRESETS = {
 
 
 def valve_params(overrides: dict | None = None, preset: str = "valve") -> ValveAnkleParams:
-    """A preset (:data:`VALVE_PRESETS`) with dotted-name overrides, validated."""
+    """A preset (:data:`VALVE_PRESETS`) with dotted-name overrides, validated (the former
+    names of :data:`VALVE_CONTROL_ALIASES` are read as the names they stand for)."""
     if preset not in VALVE_PRESETS:
         raise ParameterError(f"device.preset = {preset!r}; allowed: {', '.join(VALVE_PRESETS)}")
     base = VALVE_PRESETS[preset]
-    return replace_named(base, overrides or {}) if overrides else base
+    if not overrides:
+        return base
+    named = {}
+    for key, value in overrides.items():
+        name = VALVE_CONTROL_ALIASES.get(key, key)
+        if name in named:
+            raise ParameterError(f"device.params: {key!r} and {name!r} name one parameter; "
+                                 "allowed: one of them")
+        named[name] = value
+    return replace_named(base, named)
 
 
 def valve_mass_budget(p: ValveAnkleParams) -> tuple[HafoMassItem, ...]:
@@ -308,7 +343,9 @@ def valve_circuit(params: ValveAnkleParams) -> Circuit:
     (the accumulator's port volume when there is one), the accumulator and
     ``accumulator_blend_pa``; ``unloading`` with the unloading supply, the compensator fields
     with the variable-displacement one, the rail set points with pressure control;
-    ``valve_control``, ``motor_speed_rad_s`` and ``max_torque_nm`` in the controller.
+    ``valve_control`` (the controller's own gains) in the controller, with its set points
+    (:data:`CONTROL_SET_BY_PRESET`) from ``motor_speed_rad_s``, ``max_torque_nm``, the supply
+    mode and rail set points and the oil's density.
     Fields of a supply or circuit not chosen describe no component (the old kernel packed
     them and kept, e.g., a shut unloading valve leaking in every servo supply). Not in the
     circuit at all: the HAFO's flushing valve and its control gains (the valve circuits have
@@ -379,23 +416,10 @@ def valve_circuit(params: ValveAnkleParams) -> Circuit:
         nodes["pump_out"].append("unloading.a")
         nodes["tank"].append("unloading.b")
         nodes["rail"].append("unloading.pilot")
-    c = p.valve_control
-    supply = _vc.SupplyControlParams(
-        speed_set_rad_s=p.motor_speed_rad_s, speed_gain_v_s_per_rad=c.speed_gain_v_s_per_rad,
-        speed_integral_gain_v_per_rad=c.speed_integral_gain_v_per_rad,
-        speed_integral_limit_rad=c.speed_integral_limit_rad,
-        pressure_control_enabled=p.supply_mode == "pressure_control",
-        follows_demand_enabled=p.supply_pressure_follows_demand,
-        pressure_set_pa=p.supply_pressure_set_pa, pressure_margin_pa=p.supply_pressure_margin_pa,
-        pressure_min_pa=p.supply_pressure_min_pa,
-        pressure_gain_rad_s_per_pa=c.supply_gain_rad_s_per_pa,
-        pressure_integral_gain_rad_per_pa=c.supply_integral_gain_rad_per_pa,
-        pressure_integral_limit_pa_s=c.supply_integral_limit_pa_s)
-    loop = dict(valve_gain_per_pa=c.valve_gain_per_pa,
-                valve_integral_gain_per_pa_s=c.valve_integral_gain_per_pa_s,
-                valve_integral_limit_pa_s=c.valve_integral_limit_pa_s,
-                max_torque_nm=p.max_torque_nm,
-                feedforward_density_kg_m3=p.fluid.density_kg_m3, supply=supply)
+    # the controller: the preset's gains with the set points its own fields give
+    loop = replace_named(p.valve_control, {
+        name: (p.supply_mode == "pressure_control" if field == "supply_mode"
+               else _dotted(p, field)) for name, field in CONTROL_SET_BY_PRESET.items()})
     if digital:
         if p.servo_coil_power_w != 0.0:
             raise CircuitError(f"servo_coil_power_w = {p.servo_coil_power_w!r} with circuit = "
@@ -417,7 +441,8 @@ def valve_circuit(params: ValveAnkleParams) -> Circuit:
         nodes["port_a"] += ["edge_pa.b", "release.a"]
         nodes["port_b"].append("edge_bt.a")
         controller = _vc.DigitalValveTorque(
-            _vc.DigitalValveTorqueParams(pwm_frequency_hz=p.pwm_frequency_hz, **loop),
+            _vc.DigitalValveTorqueParams(pwm_frequency_hz=p.pwm_frequency_hz, **{
+                f.name: getattr(loop, f.name) for f in dataclasses.fields(loop)}),
             motor="motor", pump="pump", switching="switching", release="release",
             actuator="cylinders")
     else:
@@ -430,8 +455,8 @@ def valve_circuit(params: ValveAnkleParams) -> Circuit:
         nodes["rail"].append("servo.p")
         nodes["port_a"].append("servo.a")
         nodes["port_b"].append("servo.b")
-        controller = _vc.ServoValveTorque(_vc.ValveTorqueParams(**loop), motor="motor",
-                                          pump="pump", valve="servo", actuator="cylinders")
+        controller = _vc.ServoValveTorque(loop, motor="motor", pump="pump", valve="servo",
+                                          actuator="cylinders")
     return Circuit(
         f"valve_{p.circuit}_{p.supply_mode}", comps, nodes, controller, fluid=p.fluid,
         thermal=ThermalParams(heat_capacity_j_k=p.heat_capacity_j_k,
