@@ -118,3 +118,14 @@ def test_the_speed_limits_are_roots_too():
     l_ce = 1.3 * lo_m
     x = mu.mtu_step(l_ce, 0.0, l_ce + 0.9 * p.slack_length_m, H, *_args(p), 0.05)
     assert x == pytest.approx(l_ce - H * vm * lo_m, abs=1e-12 * lo_m)
+
+
+def test_the_pair_solve_is_two_single_solves_bit_for_bit():
+    """mtu_step_pair (the reflex law's left and right solves interleaved) returns exactly
+    what two mtu_step calls return, over the grid (each state paired with the next)."""
+    states = list(_states())
+    for (p, l0, a0, m0), (_, l1, a1, m1) in zip(states[:-1], states[1:]):
+        g0, g1 = 0.01, -0.02
+        x0, x1 = mu.mtu_step_pair(l0, a0, m0, g0, l1, a1, m1, g1, H, *_args(p))
+        assert x0 == mu.mtu_step(l0, a0, m0, H, *_args(p), g0)
+        assert x1 == mu.mtu_step(l1, a1, m1, H, *_args(p), g1)

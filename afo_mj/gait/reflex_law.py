@@ -9,10 +9,11 @@ mechanics produces human walking dynamics and muscle activities", IEEE TNSRE 18 
    (on above 5 % of body weight, off below 1 %, each phase lasting at least 50 ms), and
    records the event (stance onset = heel
    strike, 1; stance end = toe off, 2) and, at toe off, the trunk's lean;
-2. stores the signals the reflexes read into a ring buffer (muscle forces / F_max, CE lengths
-   / l_opt, knee angle and velocity, leg load / body weight, trunk lean and its rate) and
-   reads them back with the neural delays: 20 ms for the ankle muscles (SOL, GAS, TA),
-   10 ms for VAS, 5 ms for the hip muscles (HAM, GLU, HFL);
+2. stores the signals the reflexes read into a ring buffer (muscle forces and CE lengths,
+   read back as force / F_max and length / l_opt, knee angle and velocity, leg load / body
+   weight, trunk lean and its rate) and reads them back with the neural delays: 20 ms for
+   the ankle muscles (SOL, GAS, TA), 10 ms for VAS, 5 ms for the hip muscles (HAM, GLU,
+   HFL);
 3. sets the stimulations (clipped to [0.01, 1]):
    stance — SOL, GAS: positive force feedback; TA: length feedback beyond ``l_off,TA``, less
    SOL force; VAS: force feedback less the knee-overextension term
@@ -103,11 +104,12 @@ X_EDOT_U, X_EDOT_B, X_TAU = 70, 84, 98                     # X_TAU: 2 × 3
 X_STANCE, X_TOUCHDOWN_T, X_THETA_TO, X_EVENT, X_SWITCH_T = 104, 106, 108, 110, 112
 X_RING_POS = 114
 X_LIMIT_DAMP = 115                                          # 2 × 3: soft-limit damping
-#: the CE velocity of the step before the last (m/s, 14): with ``X_VCE`` it extrapolates the
-#: next step's velocity, the start of the CE-length solve (it does not enter the result)
-X_VCE_PREV = 121
-N_X = 135
-#: ring buffer: per leg 17 columns (force/F_max ×7, l_CE/l_opt ×7, φ_k, φ̇_k, load/mg), then
+#: the CE velocities of the two steps before the last (m/s, 14 each): with ``X_VCE`` they
+#: extrapolate the next step's velocity, the start of the CE-length solve (it does not enter
+#: the result)
+X_VCE_PREV, X_VCE_PREV2 = 121, 135
+N_X = 149
+#: ring buffer: per leg 17 columns (force (N) ×7, l_CE (m) ×7, φ_k, φ̇_k, load/mg), then
 #: trunk lean and its rate
 RING_LEN = 64
 RING_LEG = 17
@@ -194,9 +196,16 @@ def mtu_length_and_arms(T, m, phi_h, phi_k, phi_a):
 
 
 @numba.njit(cache=True, inline="always")
-def _delayed(ring, T, pos, col, m):
-    """Muscle ``m``'s ring column ``col + m`` as it was its neural delay ago."""
-    return ring[(pos - int(T[m, T_DELAY])) % RING_LEN, col + m]
+def _delayed_force(ring, T, pos, b, m):
+    """Muscle ``m``'s force / F_max (leg columns from ``b``) as it was its neural delay ago
+    (normalised as it is read: only the few the reflexes read)."""
+    return ring[(pos - int(T[m, T_DELAY])) % RING_LEN, b + m] / T[m, T_FMAX]
+
+
+@numba.njit(cache=True, inline="always")
+def _delayed_length(ring, T, pos, b, m):
+    """Muscle ``m``'s CE length / l_opt (leg columns from ``b``) its neural delay ago."""
+    return ring[(pos - int(T[m, T_DELAY])) % RING_LEN, b + N_MUSCLES + m] / T[m, T_LOPT]
 
 
 @numba.njit(cache=True)
@@ -232,8 +241,8 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
     for s in range(2):
         b = s * RING_LEG
         for m in range(N_MUSCLES):
-            ring[w, b + m] = X[X_F + s * N_MUSCLES + m] / T[m, T_FMAX]
-            ring[w, b + N_MUSCLES + m] = X[X_LCE + s * N_MUSCLES + m] / T[m, T_LOPT]
+            ring[w, b + m] = X[X_F + s * N_MUSCLES + m]
+            ring[w, b + N_MUSCLES + m] = X[X_LCE + s * N_MUSCLES + m]
         ring[w, b + 14] = math.pi - qpos[leg_q[s, 1]]
         ring[w, b + 15] = -qvel[leg_v[s, 1]]
         ring[w, b + 16] = (sens[touch[s, 0]] + sens[touch[s, 1]]) / mg
@@ -247,20 +256,19 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
     for s in range(2):
         o = 1 - s
         b = s * RING_LEG
-        bl = b + N_MUSCLES                  # the CE lengths' columns
         S = X_U + s * N_MUSCLES
         if X[X_STANCE + s] > 0.5:
-            f_sol = _delayed(ring, T, pos, b, SOL)
+            f_sol = _delayed_force(ring, T, pos, b, SOL)
             X[S + SOL] = P[P_S0_SOL] + P[P_G_SOL] * f_sol
             X[S + TA] = (P[P_S0_TA]
-                         + P[P_G_TA] * max(_delayed(ring, T, pos, bl, TA) - P[P_LOFF_TA], 0.0)
+                         + P[P_G_TA] * max(_delayed_length(ring, T, pos, b, TA) - P[P_LOFF_TA], 0.0)
                          - P[P_G_SOLTA] * f_sol)
-            X[S + GAS] = P[P_S0_GAS] + P[P_G_GAS] * _delayed(ring, T, pos, b, GAS)
+            X[S + GAS] = P[P_S0_GAS] + P[P_G_GAS] * _delayed_force(ring, T, pos, b, GAS)
             rk = (pos - d_knee) % RING_LEN
             phik = ring[rk, b + 14]
             dphi = phik - P[P_PHI_OFF] if (phik > P[P_PHI_OFF] and ring[rk, b + 15] > 0.0) \
                 else 0.0
-            X[S + VAS] = (P[P_S0_VAS] + P[P_G_VAS] * _delayed(ring, T, pos, b, VAS)
+            X[S + VAS] = (P[P_S0_VAS] + P[P_G_VAS] * _delayed_force(ring, T, pos, b, VAS)
                           - P[P_K_PHI] * dphi)
             rh = (pos - d_hip) % RING_LEN
             load = min(max(ring[rh, b + 16], 0.0), 1.0)
@@ -278,15 +286,15 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
             X[S + SOL] = P[P_S0_SOL]
             X[S + GAS] = P[P_S0_GAS]
             X[S + VAS] = P[P_S0_VAS_SWING]
-            X[S + TA] = P[P_S0_TA] + P[P_G_TA] * max(_delayed(ring, T, pos, bl, TA)
+            X[S + TA] = P[P_S0_TA] + P[P_G_TA] * max(_delayed_length(ring, T, pos, b, TA)
                                                      - P[P_LOFF_TA], 0.0)
             X[S + HFL] = (P[P_S0_HFL] + P[P_K_LEAN] * (X[X_THETA_TO + s] - P[P_THETA_REF])
-                          + P[P_G_HFL] * max(_delayed(ring, T, pos, bl, HFL)
+                          + P[P_G_HFL] * max(_delayed_length(ring, T, pos, b, HFL)
                                              - P[P_LOFF_HFL], 0.0)
-                          - P[P_G_HAMHFL] * max(_delayed(ring, T, pos, bl, HAM)
+                          - P[P_G_HAMHFL] * max(_delayed_length(ring, T, pos, b, HAM)
                                                 - P[P_LOFF_HAM], 0.0))
-            X[S + HAM] = P[P_S0_HAM] + P[P_G_HAM] * _delayed(ring, T, pos, b, HAM)
-            X[S + GLU] = P[P_S0_GLU] + P[P_G_GLU] * _delayed(ring, T, pos, b, GLU)
+            X[S + HAM] = P[P_S0_HAM] + P[P_G_HAM] * _delayed_force(ring, T, pos, b, HAM)
+            X[S + GLU] = P[P_S0_GLU] + P[P_G_GLU] * _delayed_force(ring, T, pos, b, GLU)
     # --- muscles: each muscle's left and right solved together (mu.mtu_step_pair) ---------
     ph0, sk0, ck0, sa0, ca0 = _leg_trig(qpos, leg_q, 0)
     ph1, sk1, ck1, sa1, ca1 = _leg_trig(qpos, leg_q, 1)
@@ -295,13 +303,11 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
     for m in range(N_MUSCLES):
         a0, lm0, ra0, rb0 = _muscle_inputs(X, T, m, 0, h, ph0, sk0, ck0, sa0, ca0)
         a1, lm1, ra1, rb1 = _muscle_inputs(X, T, m, 1, h, ph1, sk1, ck1, sa1, ca1)
-        # each solve starts from the CE velocity extrapolated linearly from the last two
-        # steps, 2 v_n − v_{n−1} (it converges to the same root from any start)
-        k0 = m
-        k1 = N_MUSCLES + m
+        # each solve starts from the CE velocity extrapolated quadratically from the last
+        # three steps (it converges to the same root from any start)
         lce0, lce1 = mu.mtu_step_pair(
-            X[X_LCE + k0], a0, lm0, 2.0 * X[X_VCE + k0] - X[X_VCE_PREV + k0],
-            X[X_LCE + k1], a1, lm1, 2.0 * X[X_VCE + k1] - X[X_VCE_PREV + k1],
+            X[X_LCE + m], a0, lm0, _velocity_guess(X, m),
+            X[X_LCE + N_MUSCLES + m], a1, lm1, _velocity_guess(X, N_MUSCLES + m),
             h, T[m, T_FMAX], T[m, T_VMAX], T[m, T_LOPT], T[m, T_LSLACK])
         _muscle_outputs(X, T, m, 0, h, a0, lm0, ra0, rb0, lce0)
         _muscle_outputs(X, T, m, 1, h, a1, lm1, ra1, rb1, lce1)
@@ -327,6 +333,13 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
         X[X_LIMIT_DAMP + 3 * s] = 0.0
         X[X_LIMIT_DAMP + 3 * s + 1] = c_knee
         X[X_LIMIT_DAMP + 3 * s + 2] = c_ankle
+
+
+@numba.njit(cache=True, inline="always")
+def _velocity_guess(X, k):
+    """Muscle ``k``'s CE velocity over the coming step extrapolated by the quadratic through
+    the last three, ``3 v_n − 3 v_{n−1} + v_{n−2}`` (the start of its solve)."""
+    return 3.0 * (X[X_VCE + k] - X[X_VCE_PREV + k]) + X[X_VCE_PREV2 + k]
 
 
 @numba.njit(cache=True, inline="always")
@@ -366,6 +379,7 @@ def _muscle_outputs(X, T, m, s, h, a, lm, r0, r1, lce):
     X[X_ACT + k] = a
     X[X_LCE + k] = lce
     X[X_F + k] = f_se
+    X[X_VCE_PREV2 + k] = X[X_VCE_PREV + k]
     X[X_VCE_PREV + k] = X[X_VCE + k]
     X[X_VCE + k] = v
     # metabolic rates

@@ -75,14 +75,15 @@ def umberger2010_rate_w(u: float, a: float, l_norm: float, v_lopt_s: float,
     A = u if u > a else 0.5 * (u + a)
     A = max(A, 0.0)
     am0 = 128.0 * (1.0 - slow_twitch) + 25.0
+    a06 = math.exp(0.6 * math.log(A))                          # A^0.6 (0 at A = 0)
     if l_norm <= 1.0:
-        am = AEROBIC_SCALE * A ** 0.6 * am0
+        am = AEROBIC_SCALE * a06 * am0
     else:
-        am = AEROBIC_SCALE * A ** 0.6 * (0.4 * am0 + 0.6 * am0 * f_length)
-    v_ft = v_max_lopt_s
-    v_st = v_max_lopt_s / 2.5
-    a_st = 100.0 / v_st
-    a_ft = 153.0 / v_ft
+        am = AEROBIC_SCALE * a06 * (0.4 * am0 + 0.6 * am0 * f_length)
+    # α_ST = 100/v_max,ST = 100 · 2.5/v_max, α_FT = 153/v_max,FT = 153/v_max
+    inv_v_max = 1.0 / v_max_lopt_s
+    a_st = 250.0 * inv_v_max
+    a_ft = 153.0 * inv_v_max
     v = v_lopt_s
     if v <= 0.0:
         st = min(-a_st * v, 100.0)

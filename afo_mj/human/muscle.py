@@ -387,12 +387,8 @@ def _newton_start(l_ce, l_mtu, h, v_max, l_opt, v_guess):
 def _newton_update(x, r, dr, lo, hi, last, tol):
     """One safeguarded Newton update of :func:`mtu_step` from ``R(x) = r``, ``R'(x) = dr``:
     ``(x_next, lo, hi, last, done)``; ``last`` the last Newton step's size (−1: none)."""
-    if r > 0.0:
-        hi = x
-    elif r < 0.0:
-        lo = x
-    else:
-        return x, lo, hi, last, True
+    hi = x if r > 0.0 else hi
+    lo = x if r < 0.0 else lo
     if dr > 0.0:
         dx = -r / dr
         step = abs(dx)
@@ -402,6 +398,8 @@ def _newton_update(x, r, dr, lo, hi, last, tol):
         xn = x + dx
         if lo < xn < hi:
             return xn, lo, hi, step, False
+    elif r == 0.0:
+        return x, lo, hi, last, True
     if hi - lo < tol:
         return 0.5 * (lo + hi), lo, hi, -1.0, True
     return 0.5 * (lo + hi), lo, hi, -1.0, False
