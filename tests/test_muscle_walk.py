@@ -218,6 +218,14 @@ def test_cli_optimize_gait(tmp_path, capsys):
 
 
 SHIPPED = ["1.0", "1.25", "1.5", "child"]
+#: how closely a new evaluation reproduces a shipped set's recorded cost. The sets were
+#: optimised with the CE-length solve of before 7aab662 (Newton with a numerical derivative);
+#: today's (analytic derivative, a warm start) lands on the same root to within 1e-12 l_opt,
+#: and the 22 s walk carries that to 1e-10 … 3.6e-8 relative in the cost (1.0 m/s: 3.6e-8,
+#: child: 9e-9, 1.25_emg: 4.5e-9, 1.25: 1.2e-9, 1.5: 1e-10; 2026-11-28). A change of the law
+#: itself moves it far more: one gain moved by 1e-6 relative (g_soleus, g_vasti or kp_trunk)
+#: moves the 1.25 set's cost by 1e-3 … 4e-3 relative (2026-11-28).
+COST_RTOL = 1e-6
 
 
 @pytest.mark.slow
@@ -225,8 +233,7 @@ SHIPPED = ["1.0", "1.25", "1.5", "child"]
 def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
     """The shipped set for ``speed`` m/s: 22 s (or 3 s plus 21.5 of its strides, if longer)
     without a fall (≥ 20 right strides), the mean speed within 0.15 m/s of the target, and the
-    optimiser's recorded cost reproduced exactly by a new evaluation (the walk is
-    deterministic)."""
+    optimiser's recorded cost reproduced by a new evaluation to 1e-6 relative (COST_RTOL)."""
     from pathlib import Path
 
     from afo_mj.studies.gait_optimization import (GaitObjective, gait_cost, gait_quality,
@@ -248,7 +255,7 @@ def test_shipped_set_walks_twenty_strides_and_reproduces_its_cost(speed):
     assert walk.cost_of_transport(3.0, duration) > 0
     obj = GaitObjective(**{k: v for k, v in doc["objective"].items()}, walker=walker)
     cost, info = gait_cost(params, obj)
-    assert cost == doc["cost"]
+    assert cost == pytest.approx(doc["cost"], rel=COST_RTOL, abs=0.0)
 
 
 @pytest.mark.slow
@@ -297,7 +304,7 @@ def test_robust_set_walks_twenty_strides_under_every_perturbation(name):
         assert r.events.fall_time_s is None, v.name
         assert len(r.events.heel_strikes_s[0]) >= 21, v.name
     cost, _ = gait_cost(params, GaitObjective(**doc["objective"], variants=variants))
-    assert cost == doc["cost"]
+    assert cost == pytest.approx(doc["cost"], rel=COST_RTOL, abs=0.0)
 
 
 def test_weak_objective_walks_the_weak_walker():
