@@ -154,7 +154,7 @@ def geyer_angles(hip, knee, ankle):
     return math.pi - hip, math.pi - knee, 0.5 * math.pi - ankle
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def mtu_length_and_arms_sc(T, m, phi_h, sin_k, cos_k, sin_a, cos_a):
     """:func:`mtu_length_and_arms` from ``sin φ`` and ``cos φ`` of the knee and ankle (a
     leg's four sines and cosines serve all its muscles): ``sin(φ − φ_max) = sin φ cos φ_max −

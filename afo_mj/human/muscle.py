@@ -285,7 +285,7 @@ def mtu_rate(l_ce: float, a: float, l_mtu: float, f_max: float, v_max: float, l_
     return ce_velocity_from_force(f_v, v_max) * l_opt
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _residual(x, l_ce, a, l_mtu, hl, v_max, l_opt, l_slack, l_b, inv_lw, inv_lbw,
               inv_ls_eps):
     """:func:`mtu_residual` with its constants precomputed (``hl = h l_opt``,
@@ -440,7 +440,7 @@ def mtu_step(l_ce: float, a: float, l_mtu: float, h: float, f_max: float, v_max:
     return x
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def mtu_step_pair(l_ce0: float, a0: float, l_mtu0: float, v_guess0: float, l_ce1: float,
                   a1: float, l_mtu1: float, v_guess1: float, h: float, f_max: float,
                   v_max: float, l_opt: float, l_slack: float):
