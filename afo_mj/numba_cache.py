@@ -40,7 +40,8 @@ from pathlib import Path
 import numba
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, _CacheLocator
 
-__all__ = ["cached_njit", "declare_dependencies", "declare_module_dependencies",
+__all__ = ["cached_njit", "cached_cfunc", "LazyCFunc", "declare_dependencies",
+           "declare_module_dependencies",
            "dependency_modules", "dependency_digest", "DependentFunctionCache"]
 
 
@@ -187,3 +188,44 @@ def declare_module_dependencies(module) -> tuple:
                 and isinstance(value._cache, FunctionCache)):
             done.append(declare_dependencies(value, (module,)))
     return tuple(done)
+
+
+class LazyCFunc:
+    """A ``numba.cfunc`` cached like :func:`cached_njit` (its stamp covers the declared
+    modules too), compiled — or loaded from the cache — on first use of :attr:`address` (or
+    :meth:`compile`), not at import."""
+
+    def __init__(self, py_func, sig, depends_on: Iterable, options: dict):
+        from numba.core import sigutils
+        self.py_func, self.sig = py_func, sigutils.normalize_signature(sig)
+        self.depends_on, self.options = tuple(depends_on), dict(options)
+        self._cfunc = None
+
+    def compile(self):
+        """The compiled ``numba`` CFunc (compiled or loaded once per process)."""
+        if self._cfunc is None:
+            from numba.core.ccallback import CFunc
+            cf = CFunc(self.py_func, self.sig, locals={}, options=self.options)
+            modules = dependency_modules(self.depends_on, _top(self.py_func.__module__))
+            cf._cache = DependentFunctionCache(self.py_func, modules)
+            cf.compile()
+            self._cfunc = cf
+        return self._cfunc
+
+    @property
+    def address(self) -> int:
+        """The C function's address."""
+        return self.compile().address
+
+    @property
+    def cache_hits(self) -> int:
+        return self.compile().cache_hits
+
+
+def cached_cfunc(sig, *, depends_on: Iterable, **options):
+    """``numba.cfunc(sig, cache=True, **options)`` with the dependent cache of
+    :func:`cached_njit`, compiled on first use (:class:`LazyCFunc`)."""
+    def decorate(py_func):
+        return LazyCFunc(py_func, sig, depends_on, options)
+
+    return decorate

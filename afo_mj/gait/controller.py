@@ -22,7 +22,10 @@ drives the walker's actuators. :class:`HumanController` is what one declares:
 
 A controller written in Python against this interface is stepped by
 :class:`afo_mj.gait.controller_walk.ControllerWalk` (a Python loop, as a Python
-:class:`~afo_mj.circuits.device.AnkleDevice` is stepped today): every entry point that walks a
+:class:`~afo_mj.circuits.device.AnkleDevice` is stepped); one that also gives a compiled step
+(:meth:`~HumanController.compiled`: a ``numba.cfunc`` of one fixed C signature,
+:mod:`afo_mj.gait.controller_loop`) is stepped by the same walk in compiled code, with no
+Python per step. Every entry point that walks a
 scenario (``afo-mj run``, ``compare``, ``sweep``, ``render``, ``walk_batch``, the gymnasium
 environment) walks it once it is registered with :func:`register_controller` — one new file
 and one registry line, no change to the walks, the loops or the application.
@@ -65,7 +68,8 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-__all__ = ["HumanController", "ControllerSetup", "ControllerError", "register_controller",
+__all__ = ["HumanController", "ControllerSetup", "ControllerError", "CompiledStep",
+           "register_controller",
            "unregister_controller", "controller_class", "controller_names", "BUILTIN",
            "ACTUATOR_GROUPS", "READS", "EV_NONE", "EV_HEEL_STRIKE", "EV_TOE_OFF"]
 
@@ -93,6 +97,24 @@ class ControllerSetup:
     reference: Any
     cycle_time_s: float
     strides: int = 10
+
+
+@dataclasses.dataclass(frozen=True)
+class CompiledStep:
+    """A controller's compiled step (:mod:`afo_mj.gait.controller_loop`): the address of its
+    cfunc of :data:`~afo_mj.gait.controller_loop.STEP_SIGNATURE`, its int64 ``block`` (the
+    addresses and sizes it reads its arrays from), its ``state`` array (float64, 1-D: the
+    declared signals are read from it, ``signal_index[name]`` the entries of each in the
+    declared shape), whether the joint moments recorded are the ones it writes to ``out``
+    (``moments_from_out``; else MuJoCo's actuator forces on the leg joints), and ``keep``:
+    every array the block points into, held alive while the walk runs."""
+
+    address: int
+    block: np.ndarray
+    state: np.ndarray
+    signal_index: Mapping[str, np.ndarray]
+    moments_from_out: bool = False
+    keep: tuple = ()
 
 
 class HumanController(abc.ABC):
@@ -202,6 +224,13 @@ class HumanController(abc.ABC):
     def signal_values(self) -> Mapping[str, np.ndarray]:
         """This step's values of :attr:`signals` (arrays of the declared shapes)."""
         return {}
+
+    def compiled(self, phys) -> CompiledStep | None:
+        """Its compiled step, called after :meth:`start` (None: it has none, the default;
+        it is then stepped in Python). A compiled step must compute what :meth:`step` and the
+        other hooks compute, on the same arrays (the walk may switch between them, e.g. for a
+        step with an external action), so that the walk is the same in either loop."""
+        return None
 
     # -- helpers ----------------------------------------------------------------------------
     def walker_params(self):

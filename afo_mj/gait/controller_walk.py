@@ -52,7 +52,7 @@ class ControllerWalk(SteppedWalk):
     """
 
     def __init__(self, controller: HumanController, duration_s: float, strides: int | None = None,
-                 worn_masses=(), device=None):
+                 worn_masses=(), device=None, loop: str = "auto"):
         if not isinstance(controller, HumanController):
             raise TypeError(f"controller {controller!r}; allowed: a HumanController")
         if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s)
@@ -61,8 +61,10 @@ class ControllerWalk(SteppedWalk):
         if strides is not None and (isinstance(strides, bool) or not isinstance(strides, int)
                                     or strides < 1):
             raise ValueError(f"strides = {strides!r}; allowed: an integer >= 1 or None")
+        if loop not in ("auto", "compiled", "python"):
+            raise ValueError(f"loop = {loop!r}; allowed: 'auto', 'compiled', 'python'")
         self.controller, self.duration_s, self.strides = controller, float(duration_s), strides
-        self.device, self._worn = device, tuple(worn_masses)
+        self.device, self._worn, self.loop = device, tuple(worn_masses), loop
         self._stepped = False
         self.reset()
 
@@ -89,8 +91,13 @@ class ControllerWalk(SteppedWalk):
                      "qvel": np.zeros((n, m.nv)), "sens": np.zeros((n, m.nsensordata)),
                      "cz": np.zeros((n, 4)), "dev": np.zeros((n, 2)), "tau": np.zeros((n, 2, 3)),
                      "res": np.zeros((n, 3))}
-        self._sig = {name: np.zeros((n,) + tuple(shape))
-                     for name, (_unit, shape) in ctl.signals.items()}
+        # the declared signals side by side in one buffer (the compiled loop fills it too)
+        self._sig_layout, off = {}, 0
+        for name, (_unit, shape) in ctl.signals.items():
+            size = int(np.prod(shape))
+            self._sig_layout[name] = (off, tuple(shape))
+            off += size
+        self._sig = np.zeros((n, off))
         self._k = 0
         self._right_strides = 0
         self._done = [False]
@@ -102,14 +109,54 @@ class ControllerWalk(SteppedWalk):
         self._base_limit = m.dof_damping[self._dlim].copy()
         self._lim_was = False
         self._no_extra = np.zeros((2, 2))
+        self._run_compiled = self._compiled_runner()
+
+    @property
+    def compiled(self) -> bool:
+        """The walk runs in compiled code (:mod:`afo_mj.gait.controller_loop`): the controller
+        has a compiled step, the device (if any) compiled entry points, and ``loop`` is not
+        ``"python"``. A step with an action (and the one after it) runs in Python."""
+        return self._run_compiled is not None
+
+    def _compiled_runner(self):
+        """The compiled loop bound to this walk's arrays, or None (refused with the reason
+        when ``loop = "compiled"`` cannot be honoured)."""
+        if self.loop == "python":
+            return None
+        ctl, device, phys = self.controller, self.device, self.phys
+        cs = ctl.compiled(phys)
+        why = None
+        if cs is None:
+            why = f"the controller {ctl.name or type(ctl).__name__} has no compiled step"
+        elif device is not None and not (self._coupled and hasattr(device, "native_coupling")):
+            why = ("the device has no compiled entry points (a device whose torque is a "
+                   "Python callback runs in the Python loop)")
+        nc = None
+        if why is None and device is not None:
+            nc = device.native_coupling()
+            if nc is None:
+                why = "the device has no compiled entry points"
+        if why is not None:
+            if self.loop == "compiled":
+                raise ValueError(f"loop = 'compiled' cannot be honoured: {why}; allowed: "
+                                 "'auto', 'python'")
+            return None
+        return _CompiledRun(self, cs, nc)
 
     # -- stepping --------------------------------------------------------------------------
     def step(self, action=None) -> None:
-        """One step (module docstring)."""
+        """One step (module docstring): in compiled code where the walk is :attr:`compiled`
+        and no action is given (nor was the step before), else in Python."""
         if self._done[0]:
             raise RuntimeError("ControllerWalk.step: the walk is over (fell, its strides or its "
                                "duration walked); allowed: reset() (no device) or a new walk")
         self._stepped = True
+        if action is None and self._run_compiled is not None and not self._acted:
+            self._run_compiled(self._k + 1)
+            return
+        self._step_python(action)
+
+    def _step_python(self, action=None) -> None:
         ctl, phys, device = self.controller, self.phys, self.device
         m, d = self.model, self.data
         t = float(d.time)
@@ -169,7 +216,8 @@ class ControllerWalk(SteppedWalk):
         b["tau"][k] = ctl.joint_moments_nm(phys)
         b["res"][k] = d.qfrc_actuator[phys.pelvis_dof]
         for name, val in ctl.signal_values().items():
-            self._sig[name][k] = val
+            off, shape = self._sig_layout[name]
+            self._sig[k, off:off + int(np.prod(shape))] = np.ravel(val)
         self._k = k + 1
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             self._done[0] = True
@@ -183,9 +231,15 @@ class ControllerWalk(SteppedWalk):
             self._done[0] = True
 
     def run(self) -> GaitRecord:
-        """Step to the end; returns :meth:`record`."""
-        while not self._done[0]:
-            self.step()
+        """Step to the end — in one call of the compiled loop where the walk is
+        :attr:`compiled`, else step by step in Python — and return :meth:`record`."""
+        self._stepped = True
+        if self._run_compiled is not None and not self._acted:
+            if not self._done[0]:
+                self._run_compiled(self.n_max)
+        else:
+            while not self._done[0]:
+                self._step_python()
         return self.record()
 
     # -- named accessors ---------------------------------------------------------------------
@@ -242,6 +296,106 @@ class ControllerWalk(SteppedWalk):
             residual_force_n=b["res"][:, :2].copy(), residual_moment_nm=b["res"][:, 2].copy(),
             gait_phase=phase_from_events(b["time"], self.events), qpos=qq.copy(),
             model_xml=phys.xml,
-            signals={name: v[:k].copy() for name, v in self._sig.items()})
+            signals={name: self._sig[:k, off:off + int(np.prod(shape))].reshape((k,) + shape)
+                     .copy() for name, (off, shape) in self._sig_layout.items()})
         record.events = copy.deepcopy(self.events)
         return record
+
+
+class _CompiledRun:
+    """The compiled loop (:func:`afo_mj.gait.controller_loop.controller_steps`) bound to a
+    :class:`ControllerWalk`'s arrays once; ``run(k_end)`` runs it from the walk's row on and
+    moves the walk's counters, events, a coupled device's counters and its end on, raising
+    what the Python step raises."""
+
+    def __init__(self, walk: ControllerWalk, cs, nc):
+        from afo_mj.gait import controller_loop as cl
+        from afo_mj.gait.native_step import native_step, time_view
+        self.walk, self.cs, self.nc, self.cl = walk, cs, nc, cl
+        phys, device = walk.phys, walk.device
+        m, d = phys.model, phys.data
+        lc = np.zeros(cl.N_LOOP_CONST)
+        lc[cl.L_STRIDES] = 0.0 if walk.strides is None else float(walk.strides)
+        lc[cl.L_FALL_Z], lc[cl.L_FALL_TILT] = walk._fall_z, walk._fall_tilt
+        li = np.zeros(cl.N_LOOP_INDEX, dtype=np.int64)
+        out = np.zeros(cl.N_OUT)
+        out[cl.OUT_MOMENT_SOURCE] = 1.0 if cs.moments_from_out else 0.0
+        li[cl.LI_STEP], li[cl.LI_BLOCK] = int(cs.address), cs.block.ctypes.data
+        li[cl.LI_PZ], li[cl.LI_PT] = int(phys.pelvis_qpos[1]), int(phys.pelvis_qpos[2])
+        li[cl.LI_FN] = native_step().mj_step_address
+        li[cl.LI_MODEL], li[cl.LI_DATA] = m._address, d._address
+        li[cl.LI_OUT] = out.ctypes.data
+        n_max = walk.n_max
+        ev_time = np.zeros(2 * n_max + 4)
+        ev_code = np.zeros((2 * n_max + 4, 2), dtype=np.int64)
+        dev_io = np.zeros(6)
+        outs = (np.zeros(2), np.zeros(2), np.zeros(2))
+        if nc is not None:
+            log = nc.log
+            if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
+                    and nc.meta.flags.c_contiguous and log.ndim == 3):
+                raise AssertionError("device coupling: buffer, layout and log must be C arrays")
+            li[cl.LI_DEV_BEGIN], li[cl.LI_DEV_END] = nc.begin_address, nc.end_address
+            li[cl.LI_P_IO] = dev_io.ctypes.data
+            li[cl.LI_P_BUF] = nc.buffer.ctypes.data
+            li[cl.LI_P_META] = nc.meta.ctypes.data
+            li[cl.LI_P_LOG] = log.ctypes.data
+            li[cl.LI_LOG_N:cl.LI_LOG_S + 1] = log.shape
+            lc[cl.L_DEV_DT] = float(device.timestep_s)
+            outs = (nc.force2, nc.damping2, nc.delivered2)
+        sig_index = np.concatenate(
+            [np.asarray(cs.signal_index[name], dtype=np.int64).ravel()
+             for name in walk._sig_layout] or [np.zeros(0, dtype=np.int64)])
+        if sig_index.shape[0] != walk._sig.shape[1]:
+            raise ValueError(f"{walk.controller.name}: compiled signal_index covers "
+                             f"{sig_index.shape[0]} values; its signals declare "
+                             f"{walk._sig.shape[1]}")
+        b = walk._buf
+        i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
+        self.args = (time_view(d), d.qpos, d.qvel, d.sensordata, d.geom_xpos, d.ctrl,
+                     d.qfrc_applied, m.dof_damping, d.qfrc_actuator, cs.state, sig_index,
+                     i64(phys.leg_dof), i64(phys.leg_qpos[:, 2]), i64(walk._dlim),
+                     np.ascontiguousarray(walk._base_limit), i64(phys.contact_geoms.ravel()),
+                     i64(phys.pelvis_dof), b["time"], b["qpos"], b["qvel"], b["sens"], b["cz"],
+                     b["dev"], b["tau"], b["res"], walk._sig, ev_time, ev_code, out, lc, li,
+                     dev_io, *outs)
+        self.lc, self.li, self.ev_time, self.ev_code = lc, li, ev_time, ev_code
+
+    def __call__(self, k_end: int) -> None:
+        walk, cl, li, lc, nc = self.walk, self.cl, self.li, self.lc, self.nc
+        ev = walk.events
+        li[cl.LI_LIM_WAS] = 1 if walk._lim_was else 0
+        li[cl.LI_N_EVENTS] = 0
+        li[cl.LI_RIGHT_STRIDES] = walk._right_strides
+        steps0 = li[cl.LI_DEV_STEPS] = walk.device.steps if nc is not None else 0
+        code, k = cl.controller_steps(walk._k, min(k_end, walk.n_max), *self.args)
+        walk._k = k
+        for n in range(int(li[cl.LI_N_EVENTS])):
+            side, c = int(self.ev_code[n, 0]), int(self.ev_code[n, 1])
+            (ev.heel_strikes_s if c == 1 else ev.toe_offs_s)[side].append(
+                float(self.ev_time[n]))
+        walk._right_strides = int(li[cl.LI_RIGHT_STRIDES])
+        walk._lim_was = bool(li[cl.LI_LIM_WAS])
+        if code != cl.CHUNK_DONE:
+            walk._done[0] = True
+        err = None
+        if nc is not None:
+            try:
+                walk.device.native_finished(int(li[cl.LI_DEV_STEPS]) - steps0,
+                                            float(lc[cl.L_DEV_LAST_T]),
+                                            failed=code == cl.DEVICE_NON_FINITE)
+            except FloatingPointError as exc:
+                err = exc
+        name = walk.controller.name
+        d = walk.data
+        if code == cl.DIVERGED:
+            err = FloatingPointError(f"{name} walk: the simulation diverged at t = "
+                                     f"{lc[cl.L_T]:.4f} s (MuJoCo reset its state)")
+        elif code == cl.NON_FINITE:
+            err = FloatingPointError(f"{name} walk: non-finite state at t = {d.time:.4f} s")
+        elif code == cl.FELL:
+            ev.fall_time_s = round(float(d.time), 9)
+        elif k >= walk.n_max:
+            walk._done[0] = True
+        if err is not None:
+            raise err

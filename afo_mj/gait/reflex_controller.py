@@ -20,8 +20,13 @@ import math
 
 import numpy as np
 
+from numba import carray
+
+from afo_mj.gait import controller_loop as cl
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.controller import ControllerError, ControllerSetup, HumanController
+from afo_mj.numba_cache import cached_cfunc
+from afo_mj.gait.controller import (CompiledStep, ControllerError, ControllerSetup,
+                                    HumanController)
 
 __all__ = ["ReflexController", "ReflexControllerParams", "reflex_setup"]
 
@@ -131,12 +136,75 @@ class ReflexController(HumanController):
         z0 = float(phys.data.qpos[phys.pelvis_qpos[1]])
         return z0 - FALL_DROP_M * self.walker_params().height_m / 1.75, FALL_TILT_RAD
 
+    def compiled(self, phys) -> CompiledStep:
+        """The same step compiled (:func:`_reflex_cfunc`): the law on this controller's own
+        arrays (``X``, the ring, ``P``, ``T``), so the Python and the compiled step can take
+        turns within one walk."""
+        F = np.concatenate(([self._h, self._mg], self._P))
+        idx = np.zeros((9, 3), dtype=np.int64)
+        idx[0:2] = phys.leg_qpos
+        idx[2:4] = phys.leg_dof
+        idx[4:6, 0:2] = phys.touch_adr
+        idx[6, 0:2] = int(phys.pelvis_qpos[2]), int(phys.pelvis_dof[2])
+        idx[7:9] = phys.ff_act
+        T, X, ring = self._T, self._X, self._ring
+        for a in (T, X, ring):
+            if not a.flags.c_contiguous:
+                raise AssertionError("reflex controller: its arrays must be C-contiguous")
+        m = phys.model
+        block = np.array([m.nq, m.nv, m.nsensordata, F.ctypes.data, F.shape[0],
+                          T.ctypes.data, T.shape[0], T.shape[1], X.ctypes.data, X.shape[0],
+                          ring.ctypes.data, ring.shape[0], ring.shape[1], idx.ctypes.data,
+                          m.nu], dtype=np.int64)
+        index = {name: np.arange(off, off + 14).reshape(2, 7) for name, off in (
+            ("excitation", rl.X_U), ("activation", rl.X_ACT), ("force_n", rl.X_F),
+            ("ce_velocity_m_s", rl.X_VCE), ("metabolic_umberger_w", rl.X_EDOT_U),
+            ("metabolic_bhargava_w", rl.X_EDOT_B))}
+        return CompiledStep(_reflex_cfunc().address, block, X, index, moments_from_out=True,
+                            keep=(F, idx, T, X, ring))
+
     def signal_values(self):
         X = self._X
         return {name: X[off:off + 14].reshape(2, 7) for name, off in (
             ("excitation", rl.X_U), ("activation", rl.X_ACT), ("force_n", rl.X_F),
             ("ce_velocity_m_s", rl.X_VCE), ("metabolic_umberger_w", rl.X_EDOT_U),
             ("metabolic_bhargava_w", rl.X_EDOT_B))}
+
+
+def _reflex_cfunc():
+    """The reflex controller's compiled step (:func:`_reflex_cstep`, compiled or loaded from
+    numba's cache on first use)."""
+    return _reflex_cstep
+
+
+@cached_cfunc(cl.STEP_SIGNATURE, depends_on=(rl, cl), error_model="numpy")
+def _reflex_cstep(t, qpos_p, qvel_p, sens_p, gxpos_p, blk, ctrl_p, out):  # pragma: no cover
+    """The reflex controller's compiled step, of :data:`afo_mj.gait.controller_loop.
+    STEP_SIGNATURE`: :func:`afo_mj.gait.reflex_law.reflex_step` on the controller's arrays,
+    the six joint torques to the torque motors, and ``out`` (events, stance, the soft limits'
+    damping, the joint torques). Its block: ``[nq, nv, nsensordata, F, len F, T, rows, cols,
+    X, len X, ring, rows, cols, idx, nu]`` with ``F = [h, m g, P…]`` and ``idx`` (9, 3)
+    int64: the legs' qpos and dof addresses, the touch sensors, the pelvis tilt's qpos and
+    dof, the torque motors."""
+    qpos = carray(qpos_p, (blk[0],))
+    qvel = carray(qvel_p, (blk[1],))
+    sens = carray(sens_p, (blk[2],))
+    F = carray(cl.f64_ptr(blk[3]), (blk[4],))
+    T = carray(cl.f64_ptr(blk[5]), (blk[6], blk[7]))
+    X = carray(cl.f64_ptr(blk[8]), (blk[9],))
+    ring = carray(cl.f64_ptr(blk[10]), (blk[11], blk[12]))
+    idx = carray(cl.i64_ptr(blk[13]), (9, 3))
+    ctrl = carray(ctrl_p, (blk[14],))
+    rl.reflex_step(t, F[0], qpos, qvel, sens, idx[0:2], idx[2:4], idx[4:6, 0:2], idx[6, 0],
+                   idx[6, 1], F[2:], T, X, ring, F[1])
+    for s in range(2):
+        for j in range(3):
+            ctrl[idx[7 + s, j]] = X[rl.X_TAU + 3 * s + j]
+            out[cl.OUT_TAU + 3 * s + j] = X[rl.X_TAU + 3 * s + j]
+        out[cl.OUT_EVENT + s] = X[rl.X_EVENT + s]
+        out[cl.OUT_STANCE + s] = 1.0 if X[rl.X_STANCE + s] > 0.5 else 0.0
+        out[cl.OUT_DAMP + 2 * s] = X[rl.X_LIMIT_DAMP + 3 * s + 1]
+        out[cl.OUT_DAMP + 2 * s + 1] = X[rl.X_LIMIT_DAMP + 3 * s + 2]
 
 
 def reflex_setup(walker=None) -> ControllerSetup:
