@@ -92,6 +92,23 @@ def test_bhargava_by_hand():
     assert u_st > u_ft
 
 
+def test_bhargava_from_the_fibres_is_the_rate():
+    """The rate from the fibres' excitations (the reflex law keeps them while u holds) is
+    bhargava2004_rate_w bit for bit; the excitations are Bhargava's sin and 1 − cos."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        u, ln, v, f, fa, m, st = (rng.uniform(-0.1, 1.1), rng.uniform(0.3, 1.8),
+                                  rng.uniform(-0.5, 0.5), rng.uniform(0, 3000),
+                                  rng.uniform(0, 3000), rng.uniform(0.1, 2), rng.uniform(0, 1))
+        u_st, u_ft = me.bhargava_fibre_excitations(u, st)
+        uu = min(max(u, 0.0), 1.0)
+        assert u_st == pytest.approx(st * math.sin(0.5 * math.pi * uu), rel=1e-14, abs=1e-16)
+        assert u_ft == pytest.approx((1 - st) * (1 - math.cos(0.5 * math.pi * uu)),
+                                     rel=1e-12, abs=1e-16)
+        assert (me.bhargava2004_rate_from_fibres_w(u_st, u_ft, ln, v, f, fa, m)
+                == me.bhargava2004_rate_w(u, ln, v, f, fa, m, st))
+
+
 def test_bhargava_length_factor_and_floor():
     pts = {0.0: 0.5, 0.5: 0.5, 0.75: 0.75, 1.0: 1.0, 1.25: 0.5, 1.5: 0.0, 2.0: 0.0}
     for x, y in pts.items():

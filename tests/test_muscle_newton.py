@@ -129,3 +129,24 @@ def test_the_pair_solve_is_two_single_solves_bit_for_bit():
         x0, x1 = mu.mtu_step_pair(l0, a0, m0, g0, l1, a1, m1, g1, H, *_args(p))
         assert x0 == mu.mtu_step(l0, a0, m0, H, *_args(p), g0)
         assert x1 == mu.mtu_step(l1, a1, m1, H, *_args(p), g1)
+
+
+def test_the_quad_solve_is_four_single_solves_bit_for_bit():
+    """mtu_step_quad (two muscles' left and right solves interleaved, as the reflex law
+    calls it) returns exactly what four mtu_step calls return: a state of the grid with the
+    next (one muscle) and the same two of the following muscle (the other), every 5th."""
+    states = list(_states())
+    n = len(states) // len(NAMES)                 # states per muscle, muscle by muscle
+    g = (0.01, -0.02, 0.0, 0.3)
+    checked = 0
+    for i in range(0, len(states) - n - 1, 5):
+        four = (states[i], states[i + 1], states[i + n], states[i + n + 1])
+        if not (four[0][0] is four[1][0] and four[2][0] is four[3][0]):
+            continue                              # a pair across two muscles
+        (p, l0, a0, m0), (_, l1, a1, m1), (q, l2, a2, m2), (_, l3, a3, m3) = four
+        xs = mu.mtu_step_quad(l0, a0, m0, g[0], l1, a1, m1, g[1], *_args(p)[1:],
+                              l2, a2, m2, g[2], l3, a3, m3, g[3], *_args(q)[1:], H)
+        for x, (pp, lc, a, lm), gg in zip(xs, four, g):
+            assert x == mu.mtu_step(lc, a, lm, H, *_args(pp), gg)
+        checked += 1
+    assert checked > 100

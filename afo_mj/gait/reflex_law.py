@@ -108,7 +108,13 @@ X_LIMIT_DAMP = 115                                          # 2 × 3: soft-limit
 #: extrapolate the next step's velocity, the start of the CE-length solve (it does not enter
 #: the result)
 X_VCE_PREV, X_VCE_PREV2 = 121, 135
-N_X = 149
+#: the excitation whose fibre excitations (Bhargava et al. 2004: ``u_ST``, ``u_FT``,
+#: :func:`afo_mj.human.metabolics.bhargava_fibre_excitations`) are held at ``X_FIBRE_ST``
+#: and ``X_FIBRE_FT`` (14 each): while a muscle's excitation holds (at its floor or its
+#: clip, about 40 % of a walk's muscle-steps) they are taken from there, the values
+#: computed from it before (−1 at the start: none held)
+X_FIBRE_U, X_FIBRE_ST, X_FIBRE_FT = 149, 163, 177
+N_X = 191
 #: ring buffer: per leg 17 columns (force (N) ×7, l_CE (m) ×7, φ_k, φ̇_k, load/mg), then
 #: trunk lean and its rate
 RING_LEN = 64
@@ -300,17 +306,33 @@ def reflex_step(t, h, qpos, qvel, sens, leg_q, leg_v, touch, pelvis_tilt_q, pelv
     ph1, sk1, ck1, sa1, ca1 = _leg_trig(qpos, leg_q, 1)
     for j in range(6):
         X[X_TAU + j] = 0.0
-    for m in range(N_MUSCLES):
+    for m in range(0, N_MUSCLES - 1, 2):
+        # two muscles (four solves) at a time; the last, HFL, with SOL..GLU's pairs done
+        n = m + 1
         a0, lm0, ra0, rb0 = _muscle_inputs(X, T, m, 0, h, ph0, sk0, ck0, sa0, ca0)
         a1, lm1, ra1, rb1 = _muscle_inputs(X, T, m, 1, h, ph1, sk1, ck1, sa1, ca1)
-        # each solve starts from the CE velocity extrapolated quadratically from the last
-        # three steps (it converges to the same root from any start)
-        lce0, lce1 = mu.mtu_step_pair(
+        a2, lm2, ra2, rb2 = _muscle_inputs(X, T, n, 0, h, ph0, sk0, ck0, sa0, ca0)
+        a3, lm3, ra3, rb3 = _muscle_inputs(X, T, n, 1, h, ph1, sk1, ck1, sa1, ca1)
+        lce0, lce1, lce2, lce3 = mu.mtu_step_quad(
             X[X_LCE + m], a0, lm0, _velocity_guess(X, m),
             X[X_LCE + N_MUSCLES + m], a1, lm1, _velocity_guess(X, N_MUSCLES + m),
-            h, T[m, T_FMAX], T[m, T_VMAX], T[m, T_LOPT], T[m, T_LSLACK])
+            T[m, T_VMAX], T[m, T_LOPT], T[m, T_LSLACK],
+            X[X_LCE + n], a2, lm2, _velocity_guess(X, n),
+            X[X_LCE + N_MUSCLES + n], a3, lm3, _velocity_guess(X, N_MUSCLES + n),
+            T[n, T_VMAX], T[n, T_LOPT], T[n, T_LSLACK], h)
         _muscle_outputs(X, T, m, 0, h, a0, lm0, ra0, rb0, lce0)
         _muscle_outputs(X, T, m, 1, h, a1, lm1, ra1, rb1, lce1)
+        _muscle_outputs(X, T, n, 0, h, a2, lm2, ra2, rb2, lce2)
+        _muscle_outputs(X, T, n, 1, h, a3, lm3, ra3, rb3, lce3)
+    m = N_MUSCLES - 1
+    a0, lm0, ra0, rb0 = _muscle_inputs(X, T, m, 0, h, ph0, sk0, ck0, sa0, ca0)
+    a1, lm1, ra1, rb1 = _muscle_inputs(X, T, m, 1, h, ph1, sk1, ck1, sa1, ca1)
+    lce0, lce1 = mu.mtu_step_pair(
+        X[X_LCE + m], a0, lm0, _velocity_guess(X, m),
+        X[X_LCE + N_MUSCLES + m], a1, lm1, _velocity_guess(X, N_MUSCLES + m),
+        h, T[m, T_FMAX], T[m, T_VMAX], T[m, T_LOPT], T[m, T_LSLACK])
+    _muscle_outputs(X, T, m, 0, h, a0, lm0, ra0, rb0, lce0)
+    _muscle_outputs(X, T, m, 1, h, a1, lm1, ra1, rb1, lce1)
     # --- soft joint limits (Geyer's model; damping implicit, step 5 above) ---------------
     for s in range(2):
         c_knee = 0.0
@@ -390,8 +412,13 @@ def _muscle_outputs(X, T, m, s, h, a, lm, r0, r1, lce):
     X[X_EDOT_U + k] = me.umberger2010_rate_w(u, a, lce / lopt, v / lopt, f_act, fl,
                                              T[m, T_VMAX], lopt, T[m, T_MASS],
                                              T[m, T_SLOW])[0]
-    X[X_EDOT_B + k] = me.bhargava2004_rate_w(u, lce / lopt, v, f_fib, f_act,
-                                             T[m, T_MASS], T[m, T_SLOW])[0]
+    if u != X[X_FIBRE_U + k]:
+        u_st, u_ft = me.bhargava_fibre_excitations(u, T[m, T_SLOW])
+        X[X_FIBRE_U + k] = u
+        X[X_FIBRE_ST + k] = u_st
+        X[X_FIBRE_FT + k] = u_ft
+    X[X_EDOT_B + k] = me.bhargava2004_rate_from_fibres_w(
+        X[X_FIBRE_ST + k], X[X_FIBRE_FT + k], lce / lopt, v, f_fib, f_act, T[m, T_MASS])[0]
     for q in range(int(T[m, T_NPATH])):
         c = T_PATH + PATH_W * q
         j = int(T[m, c])
@@ -407,6 +434,7 @@ def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool,
     X = np.zeros(N_X)
     X[X_ACT:X_ACT + 14] = mu.PREACTIVATION
     X[X_U:X_U + 14] = mu.PREACTIVATION
+    X[X_FIBRE_U:X_FIBRE_U + 14] = -1.0
     for s in range(2):
         ph, pk, pa = geyer_angles(*[float(v) for v in leg_angles_rad[s]])
         for m, name in enumerate(MUSCLES):

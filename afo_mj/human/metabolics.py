@@ -47,7 +47,8 @@ import math
 import numba
 
 __all__ = ["AEROBIC_SCALE", "BASAL_W_PER_KG", "MIN_HEAT_W_PER_KG",
-           "umberger2010_rate_w", "bhargava2004_rate_w", "bhargava_length_factor",
+           "umberger2010_rate_w", "bhargava2004_rate_w", "bhargava_fibre_excitations",
+           "bhargava2004_rate_from_fibres_w", "bhargava_length_factor",
            "basal_rate_w"]
 
 #: Umberger's S for aerobic activity (2003, p. 104)
@@ -113,23 +114,23 @@ def bhargava_length_factor(l_norm: float) -> float:
 
 
 @numba.njit(cache=True)
-def bhargava2004_rate_w(u: float, l_norm: float, v_m_s: float, f_fiber_n: float,
-                        f_active_n: float, mass_kg: float, slow_twitch: float):
-    """Bhargava et al. (2004) metabolic rate of one muscle (W): ``(total, heat, work)``.
-
-    ``u`` excitation; ``l_norm = l_CE/l_opt``; ``v_m_s`` the CE velocity (m/s, negative
-    shortening); ``f_fiber_n`` the fibre force (active and passive), ``f_active_n`` its active
-    part; ``mass_kg``; ``slow_twitch`` the slow-twitch fraction.
-
-    >>> round(bhargava2004_rate_w(1.0, 1.0, 0.0, 1000.0, 1000.0, 1.0, 0.5)[0], 3)
-    179.0
-    """
+def bhargava_fibre_excitations(u: float, slow_twitch: float):
+    """Bhargava et al.'s (2004) excitations of the slow and fast fibres from the excitation
+    ``u`` (clipped to [0, 1]): ``(u_ST, u_FT) = (f_ST sin(π u/2), (1 − f_ST)(1 − cos(π u/2)))``,
+    from ``s = sin(π u/4)`` (one sine; its cosine ``√(1 − s²) ≥ 1/√2`` on [0, π/4]):
+    ``sin(π u/2) = 2 s √(1 − s²)`` and ``1 − cos(π u/2) = 2 s²`` (no cancellation at small
+    ``u``). They depend on ``u`` alone: a caller whose ``u`` holds may keep them."""
     uu = min(max(u, 0.0), 1.0)
-    # with s = sin(π u/4) (one sine; its cosine √(1 − s²) ≥ 1/√2 on [0, π/4]):
-    # sin(π u/2) = 2 s √(1 − s²) and 1 − cos(π u/2) = 2 s² (no cancellation at small u)
     s4 = math.sin(0.25 * math.pi * uu)
-    u_st = slow_twitch * (2.0 * s4 * math.sqrt(1.0 - s4 * s4))
-    u_ft = (1.0 - slow_twitch) * (2.0 * s4 * s4)
+    return (slow_twitch * (2.0 * s4 * math.sqrt(1.0 - s4 * s4)),
+            (1.0 - slow_twitch) * (2.0 * s4 * s4))
+
+
+@numba.njit(cache=True)
+def bhargava2004_rate_from_fibres_w(u_st: float, u_ft: float, l_norm: float, v_m_s: float,
+                                    f_fiber_n: float, f_active_n: float, mass_kg: float):
+    """:func:`bhargava2004_rate_w` from the fibres' excitations ``u_ST``, ``u_FT``
+    (:func:`bhargava_fibre_excitations`): ``(total, heat, work)`` (W)."""
     act = mass_kg * (40.0 * u_st + 133.0 * u_ft)
     main = mass_kg * bhargava_length_factor(l_norm) * (74.0 * u_st + 111.0 * u_ft)
     if v_m_s <= 0.0:
@@ -140,6 +141,24 @@ def bhargava2004_rate_w(u: float, l_norm: float, v_m_s: float, f_fiber_n: float,
         w = 0.0
     heat = max(act + main + sh, MIN_HEAT_W_PER_KG * mass_kg)
     return heat + w, heat, w
+
+
+@numba.njit(cache=True)
+def bhargava2004_rate_w(u: float, l_norm: float, v_m_s: float, f_fiber_n: float,
+                        f_active_n: float, mass_kg: float, slow_twitch: float):
+    """Bhargava et al. (2004) metabolic rate of one muscle (W): ``(total, heat, work)``.
+
+    ``u`` excitation; ``l_norm = l_CE/l_opt``; ``v_m_s`` the CE velocity (m/s, negative
+    shortening); ``f_fiber_n`` the fibre force (active and passive), ``f_active_n`` its active
+    part; ``mass_kg``; ``slow_twitch`` the slow-twitch fraction
+    (:func:`bhargava_fibre_excitations`, then :func:`bhargava2004_rate_from_fibres_w`).
+
+    >>> round(bhargava2004_rate_w(1.0, 1.0, 0.0, 1000.0, 1000.0, 1.0, 0.5)[0], 3)
+    179.0
+    """
+    u_st, u_ft = bhargava_fibre_excitations(u, slow_twitch)
+    return bhargava2004_rate_from_fibres_w(u_st, u_ft, l_norm, v_m_s, f_fiber_n, f_active_n,
+                                           mass_kg)
 
 
 def basal_rate_w(body_mass_kg: float) -> float:

@@ -477,6 +477,66 @@ def mtu_step_pair(l_ce0: float, a0: float, l_mtu0: float, v_guess0: float, l_ce1
     return x0, x1
 
 
+
+@numba.njit(cache=True, inline="always")
+def _solve_start(l_ce, l_mtu, h, v_max, l_opt, v_guess):
+    """One :func:`mtu_step` solve before its first iteration: ``(x, lo, hi, last, done)``
+    (an MTU of no length is done at ``10⁻⁶ l_opt``)."""
+    x, lo, hi = _newton_start(l_ce, l_mtu, h, v_max, l_opt, v_guess)
+    done = l_mtu <= 0.0
+    if done:
+        x = 1e-6 * l_opt
+    return x, lo, hi, -1.0, done
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_constants(h, l_opt, l_slack):
+    """The constants of a muscle's residual (:func:`_residual`) and its tolerance, as
+    :func:`mtu_step` computes them: ``(hl, l_b, inv_lw, inv_lbw, inv_ls_eps, tol)``."""
+    inv_lw = 1.0 / (l_opt * W_WIDTH)
+    return (h * l_opt, l_opt * (1.0 - W_WIDTH), inv_lw, 2.0 * inv_lw,
+            1.0 / (l_slack * EPS_REF), 1e-12 * l_opt)
+
+
+@numba.njit(cache=True, inline="always")
+def mtu_step_quad(l_ce0: float, a0: float, l_mtu0: float, v_guess0: float, l_ce1: float,
+                  a1: float, l_mtu1: float, v_guess1: float, v_max: float, l_opt: float,
+                  l_slack: float, l_ce2: float, a2: float, l_mtu2: float, v_guess2: float,
+                  l_ce3: float, a3: float, l_mtu3: float, v_guess3: float, v_max_b: float,
+                  l_opt_b: float, l_slack_b: float, h: float):
+    """Four :func:`mtu_step` solves interleaved — two of one muscle (``v_max, l_opt,
+    l_slack``: solves 0 and 1, the left and right leg's) and two of another (``v_max_b,
+    l_opt_b, l_slack_b``: solves 2 and 3) — so that their iterations overlap on the
+    processor: ``(x0, x1, x2, x3)``, each bit for bit what :func:`mtu_step` returns (the same
+    start, updates and stopping rule; :func:`mtu_step_pair` with two muscles)."""
+    hl, l_b, inv_lw, inv_lbw, inv_ls_eps, tol = _solve_constants(h, l_opt, l_slack)
+    hlb, l_bb, inv_lwb, inv_lbwb, inv_ls_epsb, tolb = _solve_constants(h, l_opt_b, l_slack_b)
+    x0, lo0, hi0, last0, done0 = _solve_start(l_ce0, l_mtu0, h, v_max, l_opt, v_guess0)
+    x1, lo1, hi1, last1, done1 = _solve_start(l_ce1, l_mtu1, h, v_max, l_opt, v_guess1)
+    x2, lo2, hi2, last2, done2 = _solve_start(l_ce2, l_mtu2, h, v_max_b, l_opt_b, v_guess2)
+    x3, lo3, hi3, last3, done3 = _solve_start(l_ce3, l_mtu3, h, v_max_b, l_opt_b, v_guess3)
+    for _ in range(100):
+        if not done0:
+            r, dr = _residual(x0, l_ce0, a0, l_mtu0, hl, v_max, l_opt, l_slack, l_b, inv_lw,
+                              inv_lbw, inv_ls_eps)
+            x0, lo0, hi0, last0, done0 = _newton_update(x0, r, dr, lo0, hi0, last0, tol)
+        if not done1:
+            r, dr = _residual(x1, l_ce1, a1, l_mtu1, hl, v_max, l_opt, l_slack, l_b, inv_lw,
+                              inv_lbw, inv_ls_eps)
+            x1, lo1, hi1, last1, done1 = _newton_update(x1, r, dr, lo1, hi1, last1, tol)
+        if not done2:
+            r, dr = _residual(x2, l_ce2, a2, l_mtu2, hlb, v_max_b, l_opt_b, l_slack_b, l_bb,
+                              inv_lwb, inv_lbwb, inv_ls_epsb)
+            x2, lo2, hi2, last2, done2 = _newton_update(x2, r, dr, lo2, hi2, last2, tolb)
+        if not done3:
+            r, dr = _residual(x3, l_ce3, a3, l_mtu3, hlb, v_max_b, l_opt_b, l_slack_b, l_bb,
+                              inv_lwb, inv_lbwb, inv_ls_epsb)
+            x3, lo3, hi3, last3, done3 = _newton_update(x3, r, dr, lo3, hi3, last3, tolb)
+        if done0 and done1 and done2 and done3:
+            break
+    return x0, x1, x2, x3
+
+
 def equilibrium_ce_length_m(a: float, l_mtu: float, p: MuscleParams) -> float:
     """The CE length at which an MTU of length ``l_mtu`` held still with activation ``a`` is
     in equilibrium (``v_CE = 0``: ``F_SE = a F_max f_L + F_PE − F_BE``), by bisection on
