@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from afo_mj.gait import reflex_law as rl
-from afo_mj.gait.muscle_walk import (FALL_DROP_M, FALL_TILT_RAD, GRAVITY_M_S2, MuscleWalk,
+from afo_mj.gait.muscle_walk import (FALL_DROP_M, FALL_TILT_RAD, GRAVITY_M_S2, MUSCLE_SIGNALS,
+                                     MuscleWalk,
                                      MuscleWalkStepper, build_muscle_walker,
                                      load_reflex_set, muscle_table_scaled, reflex_params,
                                      run_muscle_walk)
@@ -358,3 +359,23 @@ def test_bad_arguments_are_named(params):
         MuscleWalkStepper(params=np.ones(3))
     with pytest.raises(ValueError, match="both device and device_torque"):
         MuscleWalkStepper(params=params, device=_spring_device(), device_torque=_callback)
+
+
+def test_a_record_keeps_its_muscle_signals_while_the_walk_goes_on():
+    """The muscles' signals of a record are read-only views of the stepper's buffers (no
+    copy): a record taken mid-walk keeps its values while the stepper steps on (a step
+    writes the row after the last), and equals the same rows of the finished walk's."""
+    w = MuscleWalkStepper(params=load_reflex_set(SHIPPED), duration_s=0.3)
+    for _ in range(120):
+        w.step()
+    early = w.record()
+    kept = {name: getattr(early, name).copy() for name in MUSCLE_SIGNALS}
+    done = w.run()
+    for name in MUSCLE_SIGNALS:
+        a, b = getattr(early, name), getattr(done, name)
+        assert not a.flags.writeable and not b.flags.writeable
+        assert a.shape == (120, 2, 7) and b.shape == (301, 2, 7)
+        assert np.array_equal(a, kept[name]) and np.array_equal(a, b[:120])
+        assert early.record.signals[name] is a
+        with pytest.raises(ValueError):
+            a[0, 0, 0] = 1.0

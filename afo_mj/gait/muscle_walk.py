@@ -482,7 +482,12 @@ class MuscleWalkStepper(SteppedWalk):
 
     def record(self) -> MuscleWalk:
         """The :class:`MuscleWalk` of the steps so far. Raises FloatingPointError when
-        MuJoCo met a non-finite or huge control or acceleration on the way."""
+        MuJoCo met a non-finite or huge control or acceleration on the way.
+
+        The muscles' signals (six ``(n, 2, 7)`` arrays, most of a record's bytes) are
+        read-only views of the stepper's buffers, not copies: a row once stepped is never
+        written again (a step writes the row after it; :meth:`reset` makes new buffers), so
+        two records of one stepper share them unchanged; the rest of the record is copied."""
         d, phys, w, h = self.data, self.phys, self.walker, self._h
         bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
                if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]
@@ -512,11 +517,18 @@ class MuscleWalkStepper(SteppedWalk):
             gait_phase=phase_from_events(b["time"], events), qpos=qq.copy(),
             model_xml=phys.xml)
         record.events = copy.deepcopy(events)
-        sig = {name: b[key].copy() for name, key in zip(MUSCLE_SIGNALS, ("u", "a", "f", "v",
-                                                                          "eu", "eb"))}
+        sig = {name: _read_only(b[key]) for name, key in zip(MUSCLE_SIGNALS, (
+            "u", "a", "f", "v", "eu", "eb"))}
         # the muscles' signals travel in the record too (the same arrays)
         record.signals = sig
         return MuscleWalk(record, *sig.values())
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a``."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 def run_muscle_walk(walker: WalkerParams | None = None, params: np.ndarray | None = None,
