@@ -6,10 +6,11 @@ Run: ``.venv/bin/python benchmarks/muscle_walk.py [reflex_params.json]`` (defaul
 shipped 1.25 m/s set, ``afo_mj/data/reflex_params_1.25.json``, or Geyer & Herr's gains when
 it is missing). In one process, after a warm-up, best of 3 each:
 
-* the compiled walk (:mod:`afo_mj.gait.muscle_loop`): µs per 1 ms step of a 10 s walk (fewer
-  seconds if it falls), the walk's stepping only (:meth:`MuscleWalkStepper.run` on a built
-  stepper, its record's assembly included), and the real-time factor of the whole
-  ``run_muscle_walk`` call (model build included; target ≥ 20 on one core);
+* the compiled walk (:mod:`afo_mj.gait.controller_loop`, the reflex controller's compiled
+  step): µs per 1 ms step of a 10 s walk (fewer seconds if it falls), the walk's stepping
+  only (:meth:`MuscleWalkStepper.run` on a built stepper, its record's assembly included),
+  and the real-time factor of the whole ``run_muscle_walk`` call (model build included;
+  target ≥ 20 on one core);
 * the Python loop (``loop="python"``, the reference step) over the same walk;
 * a bare ``mj_step`` of the same walk: the walk's own steps replayed from its start with the
   controls and joint damping it wrote (checked to end where the walk ended, bit for bit),

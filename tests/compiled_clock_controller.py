@@ -131,6 +131,9 @@ class CompiledClockController(HumanController):
     def stance(self):
         return self._S[S_STANCE:S_STANCE + 2] > 0.5
 
+    def state_array(self):
+        return self._S
+
     def signal_values(self):
         return {"commanded_torque_nm": self._S[S_TAU:S_TAU + 6].reshape(2, 3)}
 

@@ -1,4 +1,5 @@
-"""The muscle walk's compiled loop (afo_mj.gait.muscle_loop, issue 39): run_muscle_walk and
+"""The muscle walk's compiled loop (the reflex controller's compiled step in
+afo_mj.gait.controller_loop, issue 39): run_muscle_walk and
 MuscleWalkStepper in the compiled loop give the walk of the Python step (the reference,
 ``loop="python"``) bit for bit — a plain walk of the shipped set, a walk wearing the coupled
 HAFO (its log and state too), a walk that falls — and a stepper stepped one compiled step at a

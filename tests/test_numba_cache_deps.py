@@ -17,7 +17,8 @@ import sys
 import textwrap
 from pathlib import Path
 
-from afo_mj.gait import control_law, muscle_loop, native_step, reflex_law, walk_loop
+from afo_mj.gait import (control_law, controller_loop, native_step, reflex_controller,
+                         reflex_law, walk_loop)
 from afo_mj.human import metabolics, muscle
 from afo_mj.numba_cache import DependentFunctionCache
 
@@ -122,7 +123,11 @@ def _covered(dispatcher) -> set[str]:
 
 def test_the_compiled_walk_loops_and_the_reflex_law_declare_what_they_call():
     assert {control_law.__name__, native_step.__name__} <= _covered(walk_loop.walk_steps)
-    assert {reflex_law.__name__, muscle.__name__, metabolics.__name__, walk_loop.__name__,
-            control_law.__name__, native_step.__name__} <= _covered(
-                muscle_loop.muscle_walk_steps)
+    assert {walk_loop.__name__, native_step.__name__} <= _covered(
+        controller_loop.controller_steps)
+    # the reflex controller's compiled step (a cfunc) is cached with the law it calls
+    cf = reflex_controller._reflex_cstep.compile()
+    assert isinstance(cf._cache, DependentFunctionCache)
+    assert {reflex_law.__name__, muscle.__name__, metabolics.__name__,
+            controller_loop.__name__} <= {m.__name__ for m in cf._cache.modules}
     assert {muscle.__name__, metabolics.__name__} <= _covered(reflex_law.reflex_step)

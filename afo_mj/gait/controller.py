@@ -225,6 +225,12 @@ class HumanController(abc.ABC):
         """This step's values of :attr:`signals` (arrays of the declared shapes)."""
         return {}
 
+    def state_array(self) -> np.ndarray | None:
+        """Its state as one float64 array (its compiled step's ``state``), checked for
+        finiteness after each step (a non-finite state ends the walk with
+        FloatingPointError); None (the default): none to check."""
+        return None
+
     def compiled(self, phys) -> CompiledStep | None:
         """Its compiled step, called after :meth:`start` (None: it has none, the default;
         it is then stepped in Python). A compiled step must compute what :meth:`step` and the

@@ -46,7 +46,8 @@ walker walks). Per step ``k`` (``t`` the time MuJoCo holds):
 6. row ``k``: time, ``qpos``, ``qvel``, sensors, contact heights, the device's torque, the
    joint moments, the pelvis residuals' generalised forces, and the declared signals (the
    entries ``state[signal_index]`` of the controller's state array);
-7. a non-finite ``qpos`` or ``qvel`` stops the loop (:data:`NON_FINITE`); the pelvis below or
+7. a non-finite ``qpos``, ``qvel`` or controller state stops the loop (:data:`NON_FINITE`);
+   the pelvis below or
    the trunk pitched past the controller's fall limits stops it (:data:`FELL`).
 """
 
@@ -141,7 +142,7 @@ def _call_step(typingctx, fn, t, p_qpos, p_qvel, p_sens, p_gxpos, p_block, p_ctr
 @cached_njit(depends_on=("afo_mj.gait.walk_loop", "afo_mj.gait.native_step"), fastmath=False,
              _nrt=False)
 def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applied,
-                     dof_damping, qfrc_actuator, state, signal_index, leg_dof, ank_q, dlim,
+                     dof_damping, qfrc_actuator, state, signal_runs, leg_dof, ank_q, dlim,
                      base_limit, contact, pelvis_dof, b_time, b_qpos, b_qvel, b_sens, b_cz,
                      b_dev, b_tau, b_res, b_sig, ev_time, ev_code, out, loop_const,
                      loop_index, dev_io, dev_force2, dev_damping2,
@@ -149,8 +150,8 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
     """Run steps ``k … k_end − 1``; returns ``(code, k)`` with ``k`` the rows recorded.
 
     ``time1``: one-element view of ``mjData.time``; ``qpos … qfrc_actuator``: MuJoCo's live
-    arrays; ``state``: the controller's state array, ``signal_index`` the entries of it
-    recorded per step (into ``b_sig``); ``leg_dof`` (2, 3), ``ank_q`` (2: the ankles' qpos
+    arrays; ``state``: the controller's state array, ``signal_runs`` (m, 3) the entries of it
+    recorded per step into ``b_sig``, as runs ``(first entry, first column, length)``; ``leg_dof`` (2, 3), ``ank_q`` (2: the ankles' qpos
     addresses), ``dlim`` (2, 2: knee, ankle dofs),
     ``base_limit`` (2, 2), ``contact`` (4), ``pelvis_dof`` (3): addresses and the knees' and
     ankles' base damping; ``b_*``: the record buffers (rows ``k`` on); ``ev_time`` /
@@ -188,7 +189,8 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
     nv = qvel.shape[0]
     ns = sens.shape[0]
     nc = contact.shape[0]
-    nsig = signal_index.shape[0]
+    nrun = signal_runs.shape[0]
+    nstate = state.shape[0]
     ank_r = dlim[0, 1]
     ank_l = dlim[1, 1]
     lim_was = loop_index[LI_LIM_WAS] != 0
@@ -269,8 +271,11 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
                     b_tau[k, s, j] = qfrc_actuator[leg_dof[s, j]]
         for j in range(3):
             b_res[k, j] = qfrc_actuator[pelvis_dof[j]]
-        for j in range(nsig):
-            b_sig[k, j] = state[signal_index[j]]
+        for r in range(nrun):
+            src = signal_runs[r, 0]
+            dst = signal_runs[r, 1]
+            for j in range(signal_runs[r, 2]):
+                b_sig[k, dst + j] = state[src + j]
         k += 1
         finite = True
         for j in range(nq):
@@ -278,6 +283,9 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
                 finite = False
         for j in range(nv):
             if not math.isfinite(qvel[j]):
+                finite = False
+        for j in range(nstate):
+            if not math.isfinite(state[j]):
                 finite = False
         if not finite:
             return NON_FINITE, k

@@ -72,8 +72,9 @@ class ControllerWalk(SteppedWalk):
         """Back to the controller's start. A worn device keeps its own state: with one, make a
         new walk with a new device instead (refused here once stepped)."""
         if self.device is not None and self._stepped:
-            raise RuntimeError("ControllerWalk.reset: the device keeps its own state; allowed: "
-                               "a new ControllerWalk with a new device")
+            cls = type(self).__name__
+            raise RuntimeError(f"{cls}.reset: the device keeps its own state; allowed: a new "
+                               f"{cls} with a new device")
         ctl, device = self.controller, self.device
         phys = ctl.build_physics(self._worn)
         m, d = phys.model, phys.data
@@ -98,6 +99,14 @@ class ControllerWalk(SteppedWalk):
             self._sig_layout[name] = (off, tuple(shape))
             off += size
         self._sig = np.zeros((n, off))
+        #: per signal, its columns of the buffer as an (n,) + shape view
+        self._sig_views = {name: self._sig[:, o:o + int(np.prod(shape))].reshape((n,) + shape)
+                           for name, (o, shape) in self._sig_layout.items()}
+        self._dank = phys.leg_dof[:, 2].copy()
+        self._ank_q = phys.leg_qpos[:, 2].copy()
+        self._contact = phys.contact_geoms.ravel().copy()
+        self._pelvis_dof = phys.pelvis_dof.copy()
+        self._pz, self._pt = int(phys.pelvis_qpos[1]), int(phys.pelvis_qpos[2])
         self._k = 0
         self._right_strides = 0
         self._done = [False]
@@ -148,8 +157,13 @@ class ControllerWalk(SteppedWalk):
         """One step (module docstring): in compiled code where the walk is :attr:`compiled`
         and no action is given (nor was the step before), else in Python."""
         if self._done[0]:
-            raise RuntimeError("ControllerWalk.step: the walk is over (fell, its strides or its "
-                               "duration walked); allowed: reset() (no device) or a new walk")
+            raise RuntimeError(f"{type(self).__name__}.step: the walk is over (fell, its "
+                               f"strides or its duration walked); allowed: reset() (no device) "
+                               f"or a new {type(self).__name__}")
+        if action is not None and self.loop == "compiled":
+            raise ValueError(f"{type(self).__name__}.step(action): an action torque steps in "
+                             "the Python loop; allowed: step() with loop = 'compiled', or "
+                             "loop = 'auto' or 'python'")
         self._stepped = True
         if action is None and self._run_compiled is not None and not self._acted:
             self._run_compiled(self._k + 1)
@@ -170,7 +184,7 @@ class ControllerWalk(SteppedWalk):
         if self.strides is not None and self._right_strides > self.strides:
             self._done[0] = True
             return
-        dank = phys.leg_dof[:, 2]
+        dank, ank_q = self._dank, self._ank_q
         extra = ctl.joint_damping_nm_s_per_rad(phys)
         if extra is None:
             extra = self._no_extra
@@ -182,13 +196,13 @@ class ControllerWalk(SteppedWalk):
         dev = None
         if self._coupled:
             # end-of-step torque = force − D q̇ₙ₊₁, D integrated implicitly by MuJoCo
-            dev, extra2 = device.begin_step(t, d.qpos[phys.leg_qpos[:, 2]], d.qvel[dank],
-                                            ctl.stance)
+            dev, extra2 = device.begin_step(t, d.qpos[ank_q], d.qvel[dank], ctl.stance)
             d.qfrc_applied[dank] = dev
             m.dof_damping[dank] = self._base_limit[:, 1] + extra[:, 1] + extra2
         elif device is not None:
-            dev = np.asarray(device.torque_nm(t, d.qpos[phys.leg_qpos[:, 2]], d.qvel[dank],
-                                              self.phase, ctl.stance), float)
+            phase = self.phase if getattr(device, "needs_phase", True) else None
+            dev = np.asarray(device.torque_nm(t, d.qpos[ank_q], d.qvel[dank], phase,
+                                              ctl.stance), float)
             d.qfrc_applied[dank] = dev
         if action is not None or self._acted:
             a2 = np.zeros(2) if action is None else np.array([float(action[0]),
@@ -212,19 +226,21 @@ class ControllerWalk(SteppedWalk):
         b["qpos"][k] = d.qpos
         b["qvel"][k] = d.qvel
         b["sens"][k] = d.sensordata
-        b["cz"][k] = d.geom_xpos[phys.contact_geoms.ravel(), 2]
+        b["cz"][k] = d.geom_xpos[self._contact, 2]
         b["tau"][k] = ctl.joint_moments_nm(phys)
-        b["res"][k] = d.qfrc_actuator[phys.pelvis_dof]
+        b["res"][k] = d.qfrc_actuator[self._pelvis_dof]
+        views = self._sig_views
         for name, val in ctl.signal_values().items():
-            off, shape = self._sig_layout[name]
-            self._sig[k, off:off + int(np.prod(shape))] = np.ravel(val)
+            views[name][k] = val
         self._k = k + 1
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+        state = ctl.state_array()
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()
+                and (state is None or np.isfinite(state).all())):
             self._done[0] = True
             raise FloatingPointError(f"{ctl.name} walk: non-finite state at t = "
                                      f"{d.time:.4f} s")
         q = d.qpos
-        if q[phys.pelvis_qpos[1]] < self._fall_z or abs(q[phys.pelvis_qpos[2]]) > self._fall_tilt:
+        if q[self._pz] < self._fall_z or abs(q[self._pt]) > self._fall_tilt:
             self.events.fall_time_s = round(float(d.time), 9)
             self._done[0] = True
         elif self._k >= self.n_max:
@@ -269,7 +285,9 @@ class ControllerWalk(SteppedWalk):
 
     def record(self) -> GaitRecord:
         """The :class:`~afo_mj.gait.record.GaitRecord` of the steps so far, with the
-        controller's signals in ``signals``. Raises FloatingPointError when MuJoCo met a
+        controller's signals in ``signals``: read-only views of the walk's buffer, not
+        copies (a row once stepped is never written again; :meth:`reset` makes a new buffer),
+        so two records of one walk share them unchanged. Raises FloatingPointError when MuJoCo met a
         non-finite or huge control or acceleration on the way."""
         d, phys, k = self.data, self.phys, self._k
         bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
@@ -296,10 +314,18 @@ class ControllerWalk(SteppedWalk):
             residual_force_n=b["res"][:, :2].copy(), residual_moment_nm=b["res"][:, 2].copy(),
             gait_phase=phase_from_events(b["time"], self.events), qpos=qq.copy(),
             model_xml=phys.xml,
-            signals={name: self._sig[:k, off:off + int(np.prod(shape))].reshape((k,) + shape)
-                     .copy() for name, (off, shape) in self._sig_layout.items()})
+            signals={name: _read_only(self._sig[:k, off:off + int(np.prod(shape))]
+                                      .reshape((k,) + shape))
+                     for name, (off, shape) in self._sig_layout.items()})
         record.events = copy.deepcopy(self.events)
         return record
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a``."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 class _CompiledRun:
@@ -350,10 +376,18 @@ class _CompiledRun:
             raise ValueError(f"{walk.controller.name}: compiled signal_index covers "
                              f"{sig_index.shape[0]} values; its signals declare "
                              f"{walk._sig.shape[1]}")
+        # the recorded entries as contiguous runs (first entry, first column, length)
+        runs = []
+        for col, src in enumerate(sig_index.tolist()):
+            if runs and runs[-1][0] + runs[-1][2] == src and runs[-1][1] + runs[-1][2] == col:
+                runs[-1][2] += 1
+            else:
+                runs.append([src, col, 1])
+        sig_runs = np.array(runs, dtype=np.int64).reshape(-1, 3)
         b = walk._buf
         i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
         self.args = (time_view(d), d.qpos, d.qvel, d.sensordata, d.geom_xpos, d.ctrl,
-                     d.qfrc_applied, m.dof_damping, d.qfrc_actuator, cs.state, sig_index,
+                     d.qfrc_applied, m.dof_damping, d.qfrc_actuator, cs.state, sig_runs,
                      i64(phys.leg_dof), i64(phys.leg_qpos[:, 2]), i64(walk._dlim),
                      np.ascontiguousarray(walk._base_limit), i64(phys.contact_geoms.ravel()),
                      i64(phys.pelvis_dof), b["time"], b["qpos"], b["qvel"], b["sens"], b["cz"],

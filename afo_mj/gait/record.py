@@ -97,10 +97,14 @@ class GaitRecord:
 def phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
     """(n, 2) gait phase per leg at ``time_s``: time since its last heel strike over the last
     stride's duration (0 before its second heel strike), clipped to [0, 1]."""
-    out = np.zeros((len(time_s), 2))
+    t = np.asarray(time_s, float)
+    out = np.zeros((len(t), 2))
     for s in range(2):
         hs = np.asarray(events.heel_strikes_s[s], float)
-        for a, b_, c in zip(hs[:-1], hs[1:], list(hs[2:]) + [np.inf]):
-            sel = (time_s >= b_) & (time_s < c)
-            out[sel, s] = np.clip((time_s[sel] - b_) / (b_ - a), 0.0, 1.0)
+        if len(hs) < 2:
+            continue
+        i = np.searchsorted(hs, t, side="right") - 1          # the last heel strike <= t
+        sel = i >= 1
+        b, a = hs[i[sel]], hs[i[sel] - 1]
+        out[sel, s] = np.clip((t[sel] - b) / (b - a), 0.0, 1.0)
     return out

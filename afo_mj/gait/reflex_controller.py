@@ -59,7 +59,9 @@ class ReflexControllerParams:
 class ReflexController(HumanController):
     """Geyer & Herr's reflex controller (module docstring)."""
 
-    name = "reflex"
+    #: the muscle walker's controller (not registered: ``walker.model = "muscle"`` is built
+    #: in, :class:`afo_mj.gait.muscle_walk.MuscleWalkStepper`)
+    name = "muscle"
     Params = ReflexControllerParams
     actuators = ("ff",)
     reads = ("time", "qpos", "qvel", "touch")
@@ -116,6 +118,10 @@ class ReflexController(HumanController):
     @property
     def stance(self) -> np.ndarray:
         return self._X[rl.X_STANCE:rl.X_STANCE + 2] > 0.5
+
+    def state_array(self) -> np.ndarray:
+        """The reflex law's state ``X`` (checked for finiteness each step)."""
+        return self._X
 
     def joint_damping_nm_s_per_rad(self, phys) -> np.ndarray:
         """The soft limits' damping on [knee, ankle] per side (reflex_law, step 5)."""

@@ -53,6 +53,7 @@ import numpy as np
 
 from afo_mj.human import metabolics as me
 from afo_mj.human import muscle as mu
+from afo_mj.numba_cache import declare_module_dependencies
 
 #: muscle order per leg; index ``side * 7 + m``
 MUSCLES = ("soleus", "gastrocnemius", "tibialis_anterior", "vasti", "hamstrings", "gluteals",
@@ -450,3 +451,8 @@ def initial_state(T: np.ndarray, leg_angles_rad: np.ndarray, stance: tuple[bool,
         X[X_SWITCH_T + s] = -1.0
         X[X_THETA_TO + s] = trunk_lean_rad
     return X
+
+
+# the law's cached functions call the muscle and metabolic modules' compiled functions: their
+# caches follow those sources too (afo_mj.numba_cache)
+declare_module_dependencies(__name__)
