@@ -151,10 +151,10 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
 
     ``time1``: one-element view of ``mjData.time``; ``qpos … qfrc_actuator``: MuJoCo's live
     arrays; ``state``: the controller's state array, ``signal_runs`` (m, 3) the entries of it
-    recorded per step into ``b_sig``, as runs ``(first entry, first column, length)``; ``leg_dof`` (2, 3), ``ank_q`` (2: the ankles' qpos
-    addresses), ``dlim`` (2, 2: knee, ankle dofs),
-    ``base_limit`` (2, 2), ``contact`` (4), ``pelvis_dof`` (3): addresses and the knees' and
-    ankles' base damping; ``b_*``: the record buffers (rows ``k`` on); ``ev_time`` /
+    recorded per step into ``b_sig``, as runs ``(first entry, first column, length)``;
+    ``leg_dof`` (2, 3), ``ank_q`` (2: the ankles' qpos addresses), ``dlim`` (2, 2: knee,
+    ankle dofs), ``base_limit`` (2, 2), ``contact`` (4), ``pelvis_dof`` (3): addresses and
+    the knees' and ankles' base damping; ``b_*``: the record buffers (rows ``k`` on); ``ev_time`` /
     ``ev_code`` (``(n, 2)``: side, code) filled from ``loop_index[LI_N_EVENTS]`` on; ``out``:
     the compiled step's output block (its address is ``loop_index[LI_OUT]``); ``dev_io``
     (6): the device's input block; ``dev_force2 … dev_delivered2``: views of the device
