@@ -284,11 +284,15 @@ class ControllerWalk(SteppedWalk):
         return self._buf["dev"][k - 1].copy() if k else np.zeros(2)
 
     def record(self) -> GaitRecord:
-        """The :class:`~afo_mj.gait.record.GaitRecord` of the steps so far, with the
-        controller's signals in ``signals``: read-only views of the walk's buffer, not
-        copies (a row once stepped is never written again; :meth:`reset` makes a new buffer),
-        so two records of one walk share them unchanged. Raises FloatingPointError when MuJoCo met a
-        non-finite or huge control or acceleration on the way."""
+        """The :class:`~afo_mj.gait.record.GaitRecord` of the steps so far. What is a column
+        or block of the walk's buffers — time, ``qpos``, joint angles and velocities, joint
+        and device moments, contact forces, pelvis velocity and tilt, the residuals and the
+        controller's ``signals`` — is a read-only view of them, not a copy (a row once
+        stepped is never written again; :meth:`reset` makes new buffers), so two records of
+        one walk share them unchanged and a record copies nothing of the walk; the GRF, the
+        contact heights, the pelvis position and the gait phase are computed (new arrays).
+        Raises FloatingPointError when MuJoCo met a non-finite or huge control or
+        acceleration on the way."""
         d, phys, k = self.data, self.phys, self._k
         bad = [w_ for w_ in ("BADQACC", "BADQVEL", "BADCTRL")
                if d.warning[getattr(mujoco.mjtWarning, "mjWARN_" + w_)].number > 0]
@@ -296,23 +300,26 @@ class ControllerWalk(SteppedWalk):
             raise FloatingPointError(f"{self.controller.name} walk: the simulation diverged "
                                      f"({', '.join(bad)}) before t = {d.time:.4f} s")
         b = {key: v[:k] for key, v in self._buf.items()}
-        qq, vv = b["qpos"], b["qvel"]
+        qq, vv, sens = b["qpos"], b["qvel"], b["sens"]
         w = self.controller.walker_params()
+        pelvis = np.empty((k, 2))
+        pelvis[:, 0] = qq[:, phys.pelvis_qpos[0]]
+        np.add(qq[:, phys.pelvis_qpos[1]], phys.pelvis_height_offset_m, out=pelvis[:, 1])
         record = GaitRecord(
             body_mass_kg=w.body_mass_kg, height_m=w.height_m, sample_period_s=self._h,
-            time_s=b["time"].copy(), joint_angle_rad=qq[:, phys.leg_qpos],
-            joint_velocity_rad_s=vv[:, phys.leg_dof], joint_moment_nm=b["tau"].copy(),
-            device_moment_nm=b["dev"].copy(),
-            grf_n=-b["sens"][:, np.stack([phys.foot_force_adr, phys.foot_force_adr + 2], 1)],
-            contact_force_n=b["sens"][:, phys.touch_adr],
+            time_s=_read_only(b["time"]), joint_angle_rad=_columns(qq, phys.leg_qpos),
+            joint_velocity_rad_s=_columns(vv, phys.leg_dof),
+            joint_moment_nm=_read_only(b["tau"]), device_moment_nm=_read_only(b["dev"]),
+            grf_n=np.negative(_columns(sens, np.stack([phys.foot_force_adr,
+                                                       phys.foot_force_adr + 2], 1))),
+            contact_force_n=_columns(sens, phys.touch_adr),
             contact_height_m=b["cz"].reshape(k, 2, 2) - phys.contact_radius_m,
-            pelvis_position_m=np.column_stack([qq[:, phys.pelvis_qpos[0]],
-                                               qq[:, phys.pelvis_qpos[1]]
-                                               + phys.pelvis_height_offset_m]),
-            pelvis_velocity_m_s=vv[:, phys.pelvis_dof[:2]],
-            pelvis_tilt_rad=qq[:, phys.pelvis_qpos[2]].copy(),
-            residual_force_n=b["res"][:, :2].copy(), residual_moment_nm=b["res"][:, 2].copy(),
-            gait_phase=phase_from_events(b["time"], self.events), qpos=qq.copy(),
+            pelvis_position_m=pelvis,
+            pelvis_velocity_m_s=_columns(vv, phys.pelvis_dof[:2]),
+            pelvis_tilt_rad=_columns(qq, phys.pelvis_qpos[2]),
+            residual_force_n=_read_only(b["res"][:, :2]),
+            residual_moment_nm=_read_only(b["res"][:, 2]),
+            gait_phase=phase_from_events(b["time"], self.events), qpos=_read_only(qq),
             model_xml=phys.xml,
             signals={name: _read_only(self._sig[:k, off:off + int(np.prod(shape))]
                                       .reshape((k,) + shape))
@@ -326,6 +333,28 @@ def _read_only(a: np.ndarray) -> np.ndarray:
     v = a.view()
     v.flags.writeable = False
     return v
+
+
+def _columns(a: np.ndarray, index) -> np.ndarray:
+    """``a[:, index]`` (``a`` 2-D, ``index`` an integer or an integer array of any shape):
+    a read-only strided view of ``a`` where ``index`` steps evenly along each of its axes
+    (e.g. a leg's hip, knee, ankle at consecutive addresses), else the gathered copy; the
+    same values either way."""
+    idx = np.asarray(index, dtype=np.int64)
+    if idx.ndim == 0:
+        return _read_only(a[:, int(idx)])
+    steps = []
+    for ax in range(idx.ndim):
+        step_ax = np.diff(idx, axis=ax)
+        step = int(step_ax.flat[0]) if step_ax.size else 0
+        if step < 0 or not (step_ax == step).all():
+            return a[:, idx]
+        steps.append(step)
+    if idx.size == 0:
+        return a[:, idx]
+    return np.lib.stride_tricks.as_strided(
+        a[:, int(idx.flat[0]):], shape=(a.shape[0],) + idx.shape,
+        strides=(a.strides[0],) + tuple(st * a.strides[1] for st in steps), writeable=False)
 
 
 class _CompiledRun:

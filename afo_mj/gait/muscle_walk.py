@@ -260,9 +260,9 @@ class MuscleWalkStepper(ControllerWalk):
 
     def run(self) -> MuscleWalk:
         """Step to the walk's end (in one call of the compiled loop where it applies) and
-        return :meth:`record`."""
-        super().run()
-        return self.record()
+        return :meth:`record` (built once: :meth:`ControllerWalk.run` returns this class's
+        :meth:`record`)."""
+        return super().run()
 
     def record(self) -> MuscleWalk:
         """The :class:`MuscleWalk` of the steps so far (its record carries the muscles'

@@ -96,12 +96,26 @@ class GaitRecord:
 
 def phase_from_events(time_s: np.ndarray, events: GaitEvents) -> np.ndarray:
     """(n, 2) gait phase per leg at ``time_s``: time since its last heel strike over the last
-    stride's duration (0 before its second heel strike), clipped to [0, 1]."""
+    stride's duration (0 before its second heel strike), clipped to [0, 1].
+
+    Times in increasing order (a walk's) are filled stride by stride, each stride's samples a
+    slice (no per-sample index arrays); others per sample. The same arithmetic either way."""
     t = np.asarray(time_s, float)
     out = np.zeros((len(t), 2))
+    ordered = len(t) < 2 or bool((t[1:] >= t[:-1]).all())
     for s in range(2):
         hs = np.asarray(events.heel_strikes_s[s], float)
         if len(hs) < 2:
+            continue
+        if ordered:
+            # the samples whose last heel strike is hs[j]: from the first t >= hs[j] on
+            first = np.searchsorted(t, hs, side="left")
+            for j in range(1, len(hs)):
+                lo = first[j]
+                hi = first[j + 1] if j + 1 < len(hs) else len(t)
+                if hi > lo:
+                    b, a = hs[j], hs[j - 1]
+                    np.clip((t[lo:hi] - b) / (b - a), 0.0, 1.0, out=out[lo:hi, s])
             continue
         i = np.searchsorted(hs, t, side="right") - 1          # the last heel strike <= t
         sel = i >= 1
