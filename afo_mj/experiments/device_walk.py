@@ -209,11 +209,16 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
     return led
 
 
-def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int):
+def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int,
+                torque_fn=None):
     """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled), a valve /
     digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`) or a described
     circuit, with the assistance profile or the impedance rows (any torque-controlled
-    device emulates them) when the condition is ``assist`` or a stiffness condition."""
+    device emulates them) when the condition is ``assist`` or a stiffness condition.
+    ``torque_fn(t, angle, velocity)``, when given, is the command instead (the circuit's
+    controller input, :class:`afo_mj.circuits.device.CircuitDevice`; asked once per worn
+    side in ``cfg.sides`` order each step): the environment's action
+    (:mod:`afo_mj.experiments.walk_env`)."""
     from afo_mj.devices.hafo import HafoDevice
     from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
     active = condition == "assist" or condition in cfg.impedance_conditions
@@ -221,6 +226,12 @@ def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps:
     prof = cfg.profile if active and cfg.impedance is None else None
     kw = dict(sides=cfg.sides, profile=prof, impedance=imp, timestep_s=timestep_s,
               max_steps=max_steps)
+    if torque_fn is not None:
+        if cfg.preset == "ideal":
+            raise ValueError("device.preset = 'ideal' takes no torque command: it is no "
+                             "circuit (it delivers its profile exactly); allowed: a circuit "
+                             "device (a HAFO or valve preset, or a [circuit])")
+        kw.update(profile=None, impedance=None, torque_fn=torque_fn)
     if cfg.preset == "ideal":   # exactly its command (afo_mj.devices.ideal)
         from afo_mj.devices.ideal import IdealDevice
         return IdealDevice(cfg.params, spring=cfg.spring if active else None,

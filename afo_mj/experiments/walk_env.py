@@ -11,24 +11,40 @@ entries of :data:`afo_mj.gait.walkers.WALKER_MODELS`, the one place they are tol
 apart:
 
 * **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
-  N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device) or the torque
-  command of the scenario's HAFO (``mode="hafo"``: the command goes through its pump, hoses
-  and cylinders, which deliver what they can; its worn masses are on the body);
+  N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device), the torque
+  command of a HAFO worn on both ankles (``mode="hafo"``, preset ``hafo_preset``: the command
+  goes through its pump, hoses and cylinders, which deliver what they can), or the torque
+  command of the scenario's own device (``mode="device"``: its ``[device]`` preset, any HAFO
+  or valve preset, or its ``[circuit]`` description, built as ``afo-mj run`` builds a
+  condition, :func:`afo_mj.experiments.device_walk.make_device`, on its ``device.sides``; an
+  unworn side's action is not used). The command is the torque reference of the circuit's
+  controller (``torque_fn`` of :class:`afo_mj.circuits.device.CircuitDevice`, the input the
+  assistance profile drives in ``afo-mj run``); the scenario's ``[assistance]`` is not used.
+  A device without that input is refused: the ideal preset (no circuit) and a circuit whose
+  controller passes its command through as the motor voltage (``open_loop``). The worn
+  device's masses are on the body (a described circuit has none);
 * **observation** (:data:`OBSERVATION_NAMES`): joint angles and velocities of both legs, the
   phase per leg (torque walker: its controller's estimate; muscle walker: time since the
   leg's last heel strike over its last stride, 0 before its second) and the stance flags
   (the controller's foot switch), both feet's ground reaction forces per body
-  weight, the pelvis speed, and the torque delivered at each ankle in the last step; in
-  ``mode="hafo"`` then the device's state per side (line and chamber pressures, shaft speed,
-  motor current: :attr:`AnkleAssistEnv.observation_names`);
+  weight, the pelvis speed, and the torque delivered at each ankle in the last step; with a
+  worn device then its circuit's states per worn side (``hafo``: line and chamber pressures,
+  shaft speed, motor current; ``device``: whatever its circuit's states are:
+  :attr:`AnkleAssistEnv.observation_names`);
 * **reward**: ``reward_fn(env)`` if given, else :func:`default_reward`, per control step:
   ``− w_track × mean squared angle error (rad², against the scenario's reference at each leg's
   phase) − w_effort × Σ (human ankle moment / (m g L))² − w_energy × P / (m g v)`` (the
   human ankle moment: the record's ``joint_moment_nm``, actuators or muscles; the
   first two at the end of the control step; ``L`` = 0.53 × stature, ``v`` the pelvis speed,
   at least 0.3 m/s) with ``P`` the mean over the control step of the device's electrical
-  power (HAFO: battery current × bus voltage, drawn only) or of the action's positive
+  power (``hafo``: battery current × bus voltage, drawn only; ``device``: the energy drawn
+  from the circuit's source, the ledger's ``input_drawn_j`` — a battery's chemical energy or
+  an ideal supply's — over the control step's duration) or of the action's positive
   mechanical power (ideal); the terms of the last step are in :attr:`AnkleAssistEnv.last`;
+  with a worn device the step's ``info`` adds the commanded and delivered torque per walker
+  side (``device_commanded_torque_nm``, ``device_delivered_torque_nm``, N·m, zero where not
+  worn) and :attr:`AnkleAssistEnv.device` is the device itself (its ``log`` in ``device``
+  mode, its ``ledger(side)``);
 * **termination** on a fall, **truncation** when the walk is over (torque walker: the
   scenario's strides done; muscle walker: ``afo-mj run``'s duration walked,
   :func:`afo_mj.gait.muscle_scenario.muscle_walk_duration_s`).
@@ -40,6 +56,8 @@ Example::
     env = gym.make("afo_mj/AnkleAssist-v0", scenario="scenarios/walk_healthy.toml")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    dev = gym.make("afo_mj/AnkleAssist-v0", scenario="scenarios/gait_assist_valve.toml",
+                   mode="device")              # the scenario's valve AFO, torque-commanded
 """
 
 from __future__ import annotations
@@ -62,7 +80,21 @@ OBSERVATION_NAMES = tuple(
     + [f"{s}_grf_{c}_per_body_weight" for s in ("right", "left") for c in ("x", "z")]
     + ["pelvis_speed_m_s", "right_ankle_device_torque_nm", "left_ankle_device_torque_nm"])
 GRAVITY_M_S2 = 9.81
+MODES = ("torque", "hafo", "device")
 
+
+def _command_fn(command: np.ndarray, sides):
+    """The ``torque_fn`` that feeds a circuit device its commanded torque from ``command``
+    (per walker side, right then left): the device asks once per worn side, in ``sides``
+    order, every step (:meth:`afo_mj.circuits.device.CircuitDevice.begin_step`)."""
+    idx = [("right", "left").index(s) for s in sides]
+    n, calls = len(idx), [0]
+
+    def torque_fn(t, th, thd):
+        v = command[idx[calls[0] % n]]
+        calls[0] += 1
+        return v
+    return torque_fn
 
 
 def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float = 1.0,
@@ -74,8 +106,9 @@ def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float 
 
 class AnkleAssistEnv(gym.Env):
     """The assistance environment (module docstring). ``scenario``: a walking scenario file
-    (its walker, reference, strides; a ``[device]`` table is not used: the env's ``mode``
-    says what the action drives); ``control_rate_hz``: actions per second (the MuJoCo step
+    (its walker, reference, strides; its ``[device]`` or ``[circuit]`` is worn only in
+    ``mode="device"``, which needs one; the env's ``mode`` says what the action drives);
+    ``control_rate_hz``: actions per second (the MuJoCo step
     must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
     the one the scenario names (:data:`afo_mj.gait.walkers.WALKER_MODELS`)."""
 
@@ -85,8 +118,8 @@ class AnkleAssistEnv(gym.Env):
                  control_rate_hz: float = 100.0, max_torque_nm: float = 60.0,
                  reward_fn=None, overrides=(), hafo_preset: str = "hafo_gait"):
         from afo_mj.scenarios.walk_scenario import load_scenario
-        if mode not in ("torque", "hafo"):
-            raise ValueError(f"mode = {mode!r}; allowed: 'torque', 'hafo'")
+        if mode not in MODES:
+            raise ValueError(f"mode = {mode!r}; allowed: {', '.join(map(repr, MODES))}")
         if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
             raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
         self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
@@ -100,6 +133,12 @@ class AnkleAssistEnv(gym.Env):
                              f"period is a whole number of {dt * 1e3:g} ms MuJoCo steps")
         self.substeps = int(round(sub))
         self.mode, self.max_torque_nm, self.hafo_preset = mode, float(max_torque_nm), hafo_preset
+        self._command = np.zeros(2)        # the commanded torque per walker side (N·m)
+        self.device_config = self._device_config(scenario) if mode == "device" else None
+        self._device_states: tuple[str, ...] = ()
+        if self.device_config is not None:
+            self._device_states = tuple(f"{side}_device.{n}" for side in self.device_config.sides
+                                        for n in self._make_device(0).cc.state_names)
         self.reward_fn = reward_fn or default_reward
         self.action_space = gym.spaces.Box(-self.max_torque_nm, self.max_torque_nm, (2,),
                                            np.float64)
@@ -113,7 +152,6 @@ class AnkleAssistEnv(gym.Env):
         self.observation_space = gym.spaces.Box(lo, hi, dtype=np.float64)
         self.walk = None
         self.device = None
-        self._command = np.zeros(2)
         self.last: dict = {}
 
     # -- gymnasium API -------------------------------------------------------------------------
@@ -124,17 +162,18 @@ class AnkleAssistEnv(gym.Env):
         worn, self.device = (), None
         if self.mode == "hafo":
             from afo_mj.devices.hafo import HafoDevice, hafo_params
-            cmd, calls = self._command, [0]
-
-            def torque_fn(t, th, thd):
-                # the device asks once per worn side, in order (right, left), every step
-                v = cmd[calls[0] % 2]
-                calls[0] += 1
-                return v
-            self.device = HafoDevice(hafo_params(preset=self.hafo_preset),
-                                     sides=("right", "left"), timestep_s=sc.walker.timestep_s,
-                                     torque_fn=torque_fn)
-            worn = tuple(self.device.worn_masses())
+            sides = ("right", "left")
+            self.device = HafoDevice(hafo_params(preset=self.hafo_preset), sides=sides,
+                                     timestep_s=sc.walker.timestep_s,
+                                     torque_fn=_command_fn(self._command, sides))
+        elif self.mode == "device":
+            steps = int(self.walker_entry.duration(sc, self.reference)
+                        / sc.walker.timestep_s) + 4
+            self.device = self._make_device(steps)
+        if self.device is not None:
+            # a circuit description has no worn-mass layout (its parts' masses are metadata)
+            wm = getattr(self.device, "worn_masses", None)
+            worn = tuple(wm()) if wm is not None else ()
         self.walk = self.walker_entry.stepper(self.scenario, self.reference, self.device, worn)
         self.last = {"track_rad2": 0.0, "effort": 0.0, "energy": 0.0}
         return self._observation(), {"time_s": 0.0}
@@ -155,16 +194,21 @@ class AnkleAssistEnv(gym.Env):
         for _ in range(self.substeps):
             if w.done:
                 break
-            if self.mode == "hafo":
+            if self.device is not None:
                 self._command[:] = a
                 w.step()
             else:
                 w.step(a)
             n += 1
-            if self.device is not None:
+            if self.mode == "hafo":
                 d = self.device
                 energy += max(float(np.sum(d.W[:, d.k.W_I_BAT] * d.W[:, d.k.W_U + d.k.U_VBUS])),
                               0.0)
+            elif self.mode == "device":
+                d = self.device
+                drawn = float(np.sum(d.W[:, d.k.W_E_IN_DRAWN]))
+                energy += (drawn - self._drawn_j) / d.timestep_s
+                self._drawn_j = drawn
             else:
                 energy += float(np.sum(np.maximum(a * w.joint_velocities_rad_s[:, 2], 0.0)))
         # tracking and effort at the end of the control step; energy its mean power
@@ -179,19 +223,59 @@ class AnkleAssistEnv(gym.Env):
         terminated = w.fallen
         truncated = w.done and not terminated
         info = {"time_s": w.time_s, "fell": terminated, **self.last}
+        if self.device is not None:
+            info["device_commanded_torque_nm"] = self.device.commanded2.copy()
+            info["device_delivered_torque_nm"] = self.device.delivered2.copy()
         return self._observation(), reward, terminated, truncated, info
 
     @property
     def observation_names(self) -> tuple[str, ...]:
         """The observation's entries: :data:`OBSERVATION_NAMES`, then in ``mode="hafo"``
         each side's circuit states (pressures in Pa, shaft speed, motor current; the
-        circuit's state names)."""
+        circuit's state names), in ``mode="device"`` each worn side's circuit states
+        (``<side>_device.<state name>``, SI)."""
+        if self.mode == "device":
+            return OBSERVATION_NAMES + self._device_states
         if self.mode != "hafo":
             return OBSERVATION_NAMES
         from afo_mj.devices.hafo import HafoDevice, hafo_params
         names = HafoDevice(hafo_params(preset=self.hafo_preset)).cc.state_names
         return OBSERVATION_NAMES + tuple(f"{side}_device.{n}" for side in ("right", "left")
                                          for n in names)
+
+    # -- the scenario's device -------------------------------------------------------------
+    def _device_config(self, path):
+        """The scenario's device (:func:`afo_mj.scenarios.device_scenario.device_config`),
+        refused where ``mode="device"`` cannot command it."""
+        from afo_mj.circuits.catalogue import CONTROLLER_KINDS
+        from afo_mj.scenarios.device_scenario import device_config
+        cfg = device_config(self.scenario)
+        if cfg is None:
+            raise ValueError(f"mode = 'device' with scenario {str(path)!r}: it wears no "
+                             "device (no [device] preset or [circuit] description); allowed: "
+                             "a device scenario (e.g. scenarios/gait_assist_hafo.toml), or "
+                             "mode = 'torque' / 'hafo'")
+        if cfg.preset == "ideal":
+            raise ValueError(f"mode = 'device' with device.preset = 'ideal' ({path}): the "
+                             "ideal device is no circuit and has no torque-command input; "
+                             "allowed: mode = 'torque' (the action is then the torque itself)")
+        ctrl = cfg.circuit.circuit.controller.kind if cfg.circuit is not None else None
+        if ctrl == "open_loop":        # the rule device_config applies to the assist condition
+            torque = [k for k in CONTROLLER_KINDS if k != "open_loop"]
+            raise ValueError(f"mode = 'device' with circuit.controller.kind = 'open_loop' "
+                             f"({path}): it passes its command through as the motor voltage, "
+                             "so the circuit has no torque-command input; allowed: a torque "
+                             f"controller ({', '.join(torque)})")
+        return cfg
+
+    def _make_device(self, max_steps: int):
+        """The scenario's device with the action as its commanded torque (a log of
+        ``max_steps`` steps)."""
+        from afo_mj.experiments.device_walk import make_device
+        cfg = self.device_config
+        self._drawn_j = 0.0
+        return make_device(cfg, "transparent", self.scenario.walker.timestep_s, max_steps,
+                           torque_fn=_command_fn(self._command, cfg.sides))
 
     def _observation(self) -> np.ndarray:
         w = self.walk
