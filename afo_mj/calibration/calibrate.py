@@ -58,11 +58,13 @@ from afo_mj.calibration.effect_library import (
     DeclaredParameter, Effect, EffectParameter, ModelSetting, declared_parameters,
     described_off, effects_for, lean_setting)
 from afo_mj.calibration.identifiability import select_parameters
-from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
+from afo_mj.calibration.measured_data import (
+    CHANNELS, HOLD_VALUES, MeasuredData, MeasuredDataError)
+from afo_mj.calibration.sampling import check_holds
 from afo_mj.calibration.record_checks import check_record, check_signs, declared_charge_pa
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
-from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
+from afo_mj.experiments.bench_replay import HELD_CHANNELS, BenchReplay, ReplayError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
            "model_outputs", "sensor_outputs", "CalibrationSetup", "load_calibration_scenario",
@@ -102,11 +104,24 @@ class CalibrationOptions:
     #: underestimates it threefold; the effects found on the independent rig scored
     #: 0.12–0.62), 1e-4 for the presets
     min_refit_score: float | None = None
+    #: how each input was produced between its samples (the scenario's ``[calibration.hold]``:
+    #: channel → ``"zero_order"`` or ``"linear"``; overrides the sidecar's ``[hold]``); a
+    #: mapping is stored as sorted ``(channel, hold)`` pairs
+    hold: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self):
         def bad(key, allowed):
             raise ParameterError(f"calibration.{key} = {getattr(self, key)!r}; allowed: "
                                  f"{allowed}")
+        if isinstance(self.hold, Mapping):
+            object.__setattr__(self, "hold", tuple(sorted(self.hold.items())))
+        for ch, h in self.hold:
+            if ch not in CHANNELS:
+                raise ParameterError(f"calibration.hold.{ch}: unknown channel; allowed: "
+                                     f"{', '.join(c for c, s in CHANNELS.items() if s.as_input)}")
+            if h not in HOLD_VALUES:
+                raise ParameterError(f"calibration.hold.{ch} = {h!r}; allowed: "
+                                     f"{', '.join(HOLD_VALUES)}")
         if not 0.0 < self.held_out_fraction < 1.0:
             bad("held_out_fraction", "0 < f < 1")
         if self.split_by not in ("auto", "cycles", "segments", "tail"):
@@ -232,6 +247,7 @@ class Calibration:
         self.record_flags = [f.message for f in findings if f.severity == "flag"]
         self.t = np.asarray(data.time_s, dtype=float)
         self.inputs = {c: np.asarray(data.channels[c], dtype=float) for c in input_names}
+        self._declare_holds(data, options)
         if "fluid_temperature_k" in data.inputs:
             self.inputs["fluid_temperature_k"] = np.asarray(
                 data.channels["fluid_temperature_k"], dtype=float)
@@ -376,6 +392,25 @@ class Calibration:
     def _residual_vector(self, out: Mapping[str, np.ndarray], idx: np.ndarray) -> np.ndarray:
         return np.concatenate([(out[c][idx] - self.meas[c][idx]) / self.scale[c]
                                for c in self.outputs])
+
+    def _declare_holds(self, data: MeasuredData, options: CalibrationOptions) -> None:
+        """Hold each replayed command as declared (the scenario's ``[calibration.hold]`` over
+        the sidecar's ``[hold]``), else as the replay's default; check each against its data
+        (:func:`afo_mj.calibration.sampling.check_holds`): a contradiction is a record flag
+        (the declaration is kept). Sets :attr:`input_hold` and :attr:`hold_warnings`."""
+        sources = {c: "declared in the record's sidecar [hold]" for c in data.hold}
+        declared = dict(data.hold)
+        for c, h in options.hold:
+            declared[c] = h
+            sources[c] = "declared in the scenario's [calibration.hold]"
+        replayed = {c: h for c, h in declared.items() if c in self.inputs}
+        self.replay.set_hold(replayed, key="hold")
+        default = ("the replay's default for a described circuit" if self.kind == "circuit"
+                   else "the replay's default for a preset")
+        used = {c: self.replay.hold_of(c) for c in self.inputs if c in HELD_CHANNELS}
+        self.input_hold, self.hold_warnings = check_holds(
+            self.inputs, used, {c: sources.get(c, default) for c in used})
+        self.record_flags.extend(self.hold_warnings)
 
     def train_residuals(self, effects, x) -> np.ndarray:
         try:
@@ -924,6 +959,7 @@ class Calibration:
             list(self.test_window), "settle_s": self.options.settle_s,
             "noise_sigma": dict(self.noise),
             "record_flags": list(self.record_flags),
+            "input_hold": self.input_hold, "hold_warnings": list(self.hold_warnings),
             "declared_effects": [e.name for e in self.declared_effects],
             "error_preset": preset_err,
             "error_before": before_err, "error_after": after_err,

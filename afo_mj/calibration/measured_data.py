@@ -38,6 +38,9 @@ Two files side by side:
       cycle_starts_s = [0.52, 1.61, 2.70]   # or: period_s = 1.09 (and phase_s = 0.52)
       boundaries_s = [0.0, 12.0, 24.0]      # starts of separate experiments
 
+      [hold]                  # optional: how each input was produced between its samples
+      motor_voltage_v = "zero_order"        # a digital command, stepped and held; or "linear"
+
 Every column must be a channel of :data:`CHANNELS` (its name carries its SI unit).
 
 Decisions on ambiguous cases (documented in ``docs/measured_data.md``)
@@ -84,7 +87,7 @@ import numpy as np
 
 __all__ = ["FORMAT", "MIN_SAMPLES", "ChannelSpec", "CHANNELS", "MeasuredDataError",
            "MeasuredDataWarning", "UnitWarning", "MeasuredData", "load_measured",
-           "write_measured", "describe"]
+           "write_measured", "describe", "HOLD_VALUES"]
 
 #: The ``format`` string of the sidecar this module reads and writes.
 FORMAT = "afo_mj measured data v1"
@@ -102,7 +105,11 @@ MAX_ANKLE_ANGLE_RAD = 1.5
 ATMOSPHERE_PA = 101325.0
 ABSOLUTE_PRESSURE_BAND_PA = (0.8e5, 1.1e5)
 
-_TOP_KEYS = ("format", "source", "inputs", "outputs", "noise", "segments")
+_TOP_KEYS = ("format", "source", "inputs", "outputs", "noise", "segments", "hold")
+#: the values of a sidecar's ``[hold]`` table: ``"zero_order"`` (the input is a digital command
+#: that steps at the sample instants and is held between them), ``"linear"`` (a sampled
+#: continuous signal, interpolated between the samples)
+HOLD_VALUES = ("zero_order", "linear")
 _SOURCE_KEYS = ("scenario", "preset", "description", "licence", "origin")
 _SEGMENT_KEYS = ("cycle_starts_s", "period_s", "phase_s", "boundaries_s")
 
@@ -384,6 +391,24 @@ def _check_noise(path, noise, channels: dict) -> dict[str, float]:
     return out
 
 
+def _check_hold(path, hold, inputs) -> dict[str, str]:
+    """The sidecar's ``[hold]`` table: input channel → one of :data:`HOLD_VALUES`."""
+    if not isinstance(hold, Mapping):
+        raise MeasuredDataError(path, "hold", f"a table input channel = "
+                                f"{' | '.join(repr(v) for v in HOLD_VALUES)}, got {hold!r}")
+    out = {}
+    for name, v in hold.items():
+        _check_channel_name(path, "hold", name)
+        if name not in inputs:
+            raise MeasuredDataError(path, f"hold.{name}", f"hold declared for a channel that is "
+                                    f"not an input; inputs: {', '.join(inputs) or '(none)'}")
+        if v not in HOLD_VALUES:
+            raise MeasuredDataError(path, f"hold.{name}", f"{v!r}; allowed: "
+                                    f"{', '.join(repr(h) for h in HOLD_VALUES)}")
+        out[name] = v
+    return out
+
+
 def _float_list(path, key, v) -> list[float]:
     if not isinstance(v, (list, tuple)) or not v or not all(
             isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a)
@@ -440,7 +465,9 @@ class MeasuredData:
     ``channels``: every data column but ``time_s``; ``inputs``/``outputs``: channel names
     (a subset of ``channels``); ``noise``: channel → σ in its unit; ``source``: the sidecar's
     ``[source]`` table; ``sample_period_s``: the median interval; ``segments``: the validated
-    ``[segments]`` table; ``path``: the data file (``None`` for a record made in memory).
+    ``[segments]`` table; ``path``: the data file (``None`` for a record made in memory);
+    ``hold``: the sidecar's ``[hold]`` table, input channel → ``"zero_order"`` or
+    ``"linear"`` (how the input was produced between its samples; undeclared channels absent).
     """
 
     time_s: np.ndarray
@@ -452,6 +479,7 @@ class MeasuredData:
     sample_period_s: float
     segments: Mapping[str, object]
     path: Path | None = None
+    hold: Mapping[str, str] = dataclasses.field(default_factory=lambda: MappingProxyType({}))
 
     @property
     def n_samples(self) -> int:
@@ -582,6 +610,7 @@ def _build(path, side, table: dict[str, np.ndarray], meta: Mapping, csv: bool,
     noise = _check_noise(side, meta.get("noise", {}), channels)
     segments = _check_segments(side, meta.get("segments", {}), t, dt)
     source = _check_source(side, meta.get("source"))
+    hold = _check_hold(side, meta.get("hold", {}), list(inputs))
     if unit_checks:
         for name, x in channels.items():
             _unit_check(path, CHANNELS[name], x)
@@ -593,7 +622,8 @@ def _build(path, side, table: dict[str, np.ndarray], meta: Mapping, csv: bool,
         time_s=_ro(t), channels=MappingProxyType({k: _ro(v) for k, v in channels.items()}),
         inputs=tuple(inputs), outputs=tuple(outputs), noise=MappingProxyType(noise),
         source=MappingProxyType(source), sample_period_s=dt,
-        segments=MappingProxyType(segments), path=None if path is None else Path(path))
+        segments=MappingProxyType(segments), path=None if path is None else Path(path),
+        hold=MappingProxyType(hold))
 
 
 def _check_source(path, source) -> dict[str, str]:
@@ -746,11 +776,11 @@ def _toml_value(v) -> str:
     raise TypeError(f"cannot write {v!r} to TOML")
 
 
-def _sidecar_text(inputs, outputs, source, noise, segments) -> str:
+def _sidecar_text(inputs, outputs, source, noise, segments, hold=None) -> str:
     lines = [f"format = {_toml_value(FORMAT)}", f"inputs = {_toml_value(list(inputs))}",
              f"outputs = {_toml_value(list(outputs))}", "", "[source]"]
     lines += [f"{k} = {_toml_value(v)}" for k, v in source.items()]
-    for name, table in (("noise", noise), ("segments", segments)):
+    for name, table in (("noise", noise), ("segments", segments), ("hold", hold)):
         if table:
             lines += ["", f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]
     return "\n".join(lines) + "\n"
@@ -760,12 +790,14 @@ def write_measured(path, data_dict: Mapping[str, Sequence[float]], inputs: Seque
                    outputs: Sequence[str], source: Mapping[str, str],
                    noise: Mapping[str, float] | None = None,
                    segments: Mapping[str, object] | None = None, fmt: str | None = None,
-                   *, unit_checks: bool = True) -> MeasuredData:
+                   *, unit_checks: bool = True,
+                   hold: Mapping[str, str] | None = None) -> MeasuredData:
     """Write a measured record: the data file ``path`` and its sidecar (same stem, ``.toml``).
 
     ``data_dict``: ``time_s`` and channels → 1-D arrays of equal length (written in this
     order, ``time_s`` first); ``fmt``: ``"csv"`` or ``"parquet"``, by default from the suffix
-    of ``path`` (which must agree). Everything is validated exactly as :func:`load_measured`
+    of ``path`` (which must agree); ``hold``: the sidecar's ``[hold]`` table (input channel →
+    ``"zero_order"`` or ``"linear"``). Everything is validated exactly as :func:`load_measured`
     would before a byte is written; both files are written to temporary names and moved into
     place with :func:`os.replace`, so a failure leaves no half-written file. Returns the
     validated record.
@@ -788,12 +820,13 @@ def write_measured(path, data_dict: Mapping[str, Sequence[float]], inputs: Seque
     if len(set(lengths.values())) != 1:
         raise MeasuredDataError(path, "data_dict", f"channels differ in length: {lengths}")
     meta = {"inputs": list(inputs), "outputs": list(outputs), "source": dict(source),
-            "noise": dict(noise or {}), "segments": dict(segments or {})}
+            "noise": dict(noise or {}), "segments": dict(segments or {}),
+            "hold": dict(hold or {})}
     side = path.with_suffix(".toml")
     data = _build(path, side, table, meta, kind == "csv", unit_checks)
     text = _sidecar_text(data.inputs, data.outputs, data.source, data.noise,
                          {k: list(v) if isinstance(v, tuple) else v
-                          for k, v in data.segments.items()})
+                          for k, v in data.segments.items()}, dict(data.hold))
     tmp_data = path.with_name(f".{path.name}.tmp{os.getpid()}")
     tmp_side = side.with_name(f".{side.name}.tmp{os.getpid()}")
     try:
@@ -842,6 +875,7 @@ def describe(data: MeasuredData) -> str:
         role = ("in+out" if name in data.inputs and name in data.outputs else
                 "in" if name in data.inputs else "out" if name in data.outputs else "unused")
         noise = f", σ {data.noise[name]:.3g}" if name in data.noise else ""
+        noise += f", hold {data.hold[name]}" if name in data.hold else ""
         lines.append(f"  {name:<{width}}  {role:<6} [{spec.unit}] "
                      f"{float(np.min(x)):.4g} … {float(np.max(x)):.4g}{noise}")
     return "\n".join(lines)

@@ -27,8 +27,16 @@ Inputs (channel names of :data:`afo_mj.calibration.measured_data.CHANNELS`):
   (Walther, ASTM D341). Without it the temperature is prescribed as ``T_0 + ṫ (t − t_0)``
   (``temperature_rate_k_s``, 0 by default: isothermal at the preset's ambient temperature).
 
-Samples are zero-order held over the step; the step is the record's sample period, split into
-equal sub-steps of at most 0.5 ms (:attr:`BenchReplay.max_step_s`). Output sample ``k`` is
+The step is the record's sample period, split into equal sub-steps of at most 0.5 ms
+(:attr:`BenchReplay.max_step_s`). The imposed angle, its velocity and the oil temperature are
+interpolated linearly over the sub-steps (measured continuous quantities). The command is held
+as declared per channel (:attr:`BenchReplay.hold`, :data:`HOLDS`): ``"zero_order"`` (a digital
+command that steps at the sample instants and is held between them, as a DAC or a PWM driver
+updated at the record's rate produces it) or ``"linear"`` (a sampled continuous signal, e.g. an
+analog voltage: each sub-step holds the linear interpolation at its midpoint). Undeclared, a
+preset holds its command zero-order (the presets' records are digital commands) and a
+described circuit linearly (:attr:`BenchReplay.default_hold`); the calibration checks the
+choice against the data (:mod:`afo_mj.calibration.sampling`). Output sample ``k`` is
 the state at ``t_k``; sample 0 is the device's initial state (every pressure node at the
 reservoir pressure; the valve circuits' supply at its initial pressure).
 
@@ -54,7 +62,8 @@ from afo_mj.devices.valve_afo import (
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.transmission import play_operator
 
-__all__ = ["BenchReplay", "REPLAY_OUTPUTS", "REPLAY_INPUTS", "ReplayError", "kind_of_preset"]
+__all__ = ["BenchReplay", "HOLDS", "HELD_CHANNELS", "REPLAY_OUTPUTS", "REPLAY_INPUTS",
+           "ReplayError", "kind_of_preset"]
 
 
 class ReplayError(RuntimeError):
@@ -77,6 +86,11 @@ REPLAY_INPUTS = {"hafo": ("motor_voltage_v", "ankle_angle_rad"),
 #: the torque reference of the device's own low-level torque controller (closed loop)
 REPLAY_COMMANDS = {"hafo": ("motor_voltage_v", "commanded_torque_nm"),
                    "valve": ("valve_command", "commanded_torque_nm")}
+#: how an input channel is held over a sample interval (see the module docstring)
+HOLDS = ("zero_order", "linear")
+#: the channels whose hold the replay applies: the command channels (the imposed angle, its
+#: velocity and the oil temperature are always interpolated linearly)
+HELD_CHANNELS = ("motor_voltage_v", "valve_command", "commanded_torque_nm")
 #: the circuit signal behind each output channel (a state label, a probe, or a replay-log
 #: column); a tuple lists alternatives, the first the circuit has is read
 _SIGNALS = {
@@ -182,13 +196,17 @@ class BenchReplay:
     def __init__(self, preset: str | None = None,
                  overrides: Mapping[str, object] | None = None, kind: str | None = None, *,
                  circuit: Circuit | None = None, load: JointLoad | None = None,
-                 signals: Mapping[str, str] | None = None):
+                 signals: Mapping[str, str] | None = None,
+                 hold: Mapping[str, str] | None = None):
         self.load = load
         self._signal_overrides = dict(signals or {})
-        #: how the command is held over a sample interval: ``"sample"`` (zero-order hold: a
+        #: how an undeclared command is held over a sample interval: ``"zero_order"`` (a
         #: digital command, the presets' records) or ``"linear"`` (a sampled continuous
         #: signal, a described rig's default: interpolated between the samples)
-        self.command_hold = "linear" if circuit is not None else "sample"
+        self.default_hold = "linear" if circuit is not None else "zero_order"
+        #: declared hold per command channel (:meth:`set_hold`); others use default_hold
+        self.hold: dict[str, str] = {}
+        self.set_hold(hold or {})
         if circuit is not None:
             self._init_circuit(circuit, load)
             return
@@ -225,6 +243,33 @@ class BenchReplay:
         self.max_step_s = 5e-4
         self._columns = {name: self._signal(name) for name in self.outputs
                          if name != "fluid_temperature_k"}
+
+    def set_hold(self, hold: Mapping[str, str], key: str = "hold") -> None:
+        """Declare how command channels are held (channel → one of :data:`HOLDS`); ``key``
+        names where the declaration came from in the error. Channels not named keep what
+        they had. Only :data:`HELD_CHANNELS` are held by the replay; ``"linear"`` for the
+        imposed angle or the oil temperature is accepted (it is what the replay does),
+        ``"zero_order"`` for them is refused."""
+        for ch, h in hold.items():
+            if h not in HOLDS:
+                raise ParameterError(f"{key}.{ch} = {h!r}; allowed: {', '.join(HOLDS)}")
+            if ch in ("ankle_angle_rad", "fluid_temperature_k"):
+                if h != "linear":
+                    raise ParameterError(
+                        f"{key}.{ch} = {h!r}: the replay interpolates the imposed angle and "
+                        f"the oil temperature linearly (measured continuous quantities); "
+                        f"allowed: linear (zero_order applies to the command channels "
+                        f"{', '.join(HELD_CHANNELS)})")
+                continue
+            if ch not in HELD_CHANNELS:
+                ok = HELD_CHANNELS + ("ankle_angle_rad", "fluid_temperature_k")
+                raise ParameterError(f"{key}.{ch}: not a replayed input channel; allowed: "
+                                     f"{', '.join(ok)}")
+            self.hold[ch] = h
+
+    def hold_of(self, channel: str) -> str:
+        """How ``channel`` is held: its declaration, else :attr:`default_hold`."""
+        return self.hold.get(channel, self.default_hold)
 
     def _init_circuit(self, circuit: Circuit, load: JointLoad | None) -> None:
         """A described circuit (the user's rig): outputs are the channels its signals
@@ -378,7 +423,7 @@ class BenchReplay:
         for label, v in changes.items():
             dev.P[0, self.index(label)] = v
         cmd, run_sub, take = u[:-1], sub, slice(None)
-        if self.command_hold == "linear" and sub > 1:
+        if self.hold_of(cmd_name) == "linear" and sub > 1:
             # a sampled continuous command (an analog voltage): each sub-step holds the
             # linear interpolation at its midpoint, so the replay has no half-sample lag
             n = len(t)
