@@ -209,6 +209,25 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
     return led
 
 
+def preset_config(preset: str, sides, profile: np.ndarray | None = None,
+                  key: str = "device.preset") -> DeviceConfig:
+    """The device of a scenario's ``[device] preset = <preset>, sides = <sides>`` (no
+    ``params`` overrides) with ``profile`` (torque vs stride phase, N·m) as its ``assist``
+    condition, for a tool that wears a circuit preset without a scenario file (the
+    environment's ``mode="hafo"``, the muscle walker's assistance conditions); build it with
+    :func:`make_device`. ``preset``: a HAFO or valve preset (the ideal device is no circuit);
+    ``key`` names the option in the error."""
+    from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
+    from afo_mj.devices.valve_afo import VALVE_PRESETS
+    from afo_mj.scenarios.device_scenario import device_params
+    if preset not in HAFO_PRESETS and preset not in VALVE_PRESETS:
+        raise ValueError(f"{key} = {preset!r}; allowed: "
+                         f"{', '.join(list(HAFO_PRESETS) + list(VALVE_PRESETS))}")
+    preset, params, _ = device_params({"preset": preset}, key)
+    return DeviceConfig(preset, params, tuple(sides),
+                        ("assist",) if profile is not None else ("transparent",), profile)
+
+
 def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int,
                 torque_fn=None):
     """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled), a valve /

@@ -11,13 +11,16 @@ entries of :data:`afo_mj.gait.walkers.WALKER_MODELS`, the one place they are tol
 apart:
 
 * **action** (2,): per side (right, left), either the ankle torque itself (``mode="torque"``,
-  N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device), the torque
-  command of a HAFO worn on both ankles (``mode="hafo"``, preset ``hafo_preset``: the command
-  goes through its pump, hoses and cylinders, which deliver what they can), or the torque
-  command of the scenario's own device (``mode="device"``: its ``[device]`` preset, any HAFO
-  or valve preset, or its ``[circuit]`` description, built as ``afo-mj run`` builds a
-  condition, :func:`afo_mj.experiments.device_walk.make_device`, on its ``device.sides``; an
-  unworn side's action is not used). The command is the torque reference of the circuit's
+  N·m, + dorsiflexion, within ±``max_torque_nm``: an ideal, massless device) or the torque
+  command of a worn device, built as ``afo-mj run`` builds a condition
+  (:func:`afo_mj.experiments.device_walk.make_device`; the command goes through its pump or
+  valves, hoses and cylinders, which deliver what they can): with ``mode="device"`` the
+  scenario's own device (its ``[device]`` preset, any HAFO or valve preset, or its
+  ``[circuit]`` description, on its ``device.sides``; an unworn side's action is not used),
+  with ``mode="hafo"`` the HAFO preset ``hafo_preset`` on both ankles whatever the scenario
+  wears (the case of ``mode="device"`` whose scenario says ``[device] preset = hafo_preset,
+  sides = ["right", "left"]``; it differs only in the energy term below). The command is the
+  torque reference of the circuit's
   controller (``torque_fn`` of :class:`afo_mj.circuits.device.CircuitDevice`, the input the
   assistance profile drives in ``afo-mj run``); the scenario's ``[assistance]`` is not used.
   A device without that input is refused: the ideal preset (no circuit) and a circuit whose
@@ -37,14 +40,18 @@ apart:
   human ankle moment: the record's ``joint_moment_nm``, actuators or muscles; the
   first two at the end of the control step; ``L`` = 0.53 × stature, ``v`` the pelvis speed,
   at least 0.3 m/s) with ``P`` the mean over the control step of the device's electrical
-  power (``hafo``: battery current × bus voltage, drawn only; ``device``: the energy drawn
-  from the circuit's source, the ledger's ``input_drawn_j`` — a battery's chemical energy or
-  an ideal supply's — over the control step's duration) or of the action's positive
+  power (``device``: the energy drawn from the circuit's source, the ledger's
+  ``input_drawn_j`` — a battery's chemical energy or an ideal supply's — over the control
+  step's duration; ``hafo``: the power at the bus, battery current × bus voltage summed over
+  both sides and counted when positive, kept as it was before ``device`` existed: it leaves
+  out the battery's internal loss and nets one side's regeneration against the other's
+  draw, so it reads about 11 % less than the ledger's drawn energy, 24.8 J against 28.0 J over
+  1.5 s of random commands on ``gait_assist_hafo.toml``) or of the action's positive
   mechanical power (ideal); the terms of the last step are in :attr:`AnkleAssistEnv.last`;
   with a worn device the step's ``info`` adds the commanded and delivered torque per walker
   side (``device_commanded_torque_nm``, ``device_delivered_torque_nm``, N·m, zero where not
-  worn) and :attr:`AnkleAssistEnv.device` is the device itself (its ``log`` in ``device``
-  mode, its ``ledger(side)``);
+  worn) and :attr:`AnkleAssistEnv.device` is the device itself (its ``log``, its
+  ``ledger(side)``);
 * **termination** on a fall, **truncation** when the walk is over (torque walker: the
   scenario's strides done; muscle walker: ``afo-mj run``'s duration walked,
   :func:`afo_mj.gait.muscle_scenario.muscle_walk_duration_s`).
@@ -108,6 +115,7 @@ class AnkleAssistEnv(gym.Env):
     """The assistance environment (module docstring). ``scenario``: a walking scenario file
     (its walker, reference, strides; its ``[device]`` or ``[circuit]`` is worn only in
     ``mode="device"``, which needs one; the env's ``mode`` says what the action drives);
+    ``hafo_preset``: ``mode="hafo"``'s HAFO preset (:data:`afo_mj.devices.hafo.PRESETS`);
     ``control_rate_hz``: actions per second (the MuJoCo step
     must divide its period); ``overrides``: ``--set``-style scenario overrides. The walker is
     the one the scenario names (:data:`afo_mj.gait.walkers.WALKER_MODELS`)."""
@@ -134,7 +142,8 @@ class AnkleAssistEnv(gym.Env):
         self.substeps = int(round(sub))
         self.mode, self.max_torque_nm, self.hafo_preset = mode, float(max_torque_nm), hafo_preset
         self._command = np.zeros(2)        # the commanded torque per walker side (N·m)
-        self.device_config = self._device_config(scenario) if mode == "device" else None
+        self.device_config = (self._device_config(scenario) if mode == "device"
+                              else self._hafo_config(hafo_preset) if mode == "hafo" else None)
         self._device_states: tuple[str, ...] = ()
         if self.device_config is not None:
             self._device_states = tuple(f"{side}_device.{n}" for side in self.device_config.sides
@@ -160,17 +169,10 @@ class AnkleAssistEnv(gym.Env):
         sc = self.scenario
         self._command[:] = 0.0
         worn, self.device = (), None
-        if self.mode == "hafo":
-            from afo_mj.devices.hafo import HafoDevice, hafo_params
-            sides = ("right", "left")
-            self.device = HafoDevice(hafo_params(preset=self.hafo_preset), sides=sides,
-                                     timestep_s=sc.walker.timestep_s,
-                                     torque_fn=_command_fn(self._command, sides))
-        elif self.mode == "device":
+        if self.device_config is not None:
             steps = int(self.walker_entry.duration(sc, self.reference)
                         / sc.walker.timestep_s) + 4
             self.device = self._make_device(steps)
-        if self.device is not None:
             # a circuit description has no worn-mass layout (its parts' masses are metadata)
             wm = getattr(self.device, "worn_masses", None)
             worn = tuple(wm()) if wm is not None else ()
@@ -200,12 +202,11 @@ class AnkleAssistEnv(gym.Env):
             else:
                 w.step(a)
             n += 1
-            if self.mode == "hafo":
-                d = self.device
+            d = self.device
+            if self.mode == "hafo":     # the bus power (module docstring: not the ledger's)
                 energy += max(float(np.sum(d.W[:, d.k.W_I_BAT] * d.W[:, d.k.W_U + d.k.U_VBUS])),
                               0.0)
-            elif self.mode == "device":
-                d = self.device
+            elif d is not None:
                 drawn = float(np.sum(d.W[:, d.k.W_E_IN_DRAWN]))
                 energy += (drawn - self._drawn_j) / d.timestep_s
                 self._drawn_j = drawn
@@ -230,20 +231,25 @@ class AnkleAssistEnv(gym.Env):
 
     @property
     def observation_names(self) -> tuple[str, ...]:
-        """The observation's entries: :data:`OBSERVATION_NAMES`, then in ``mode="hafo"``
-        each side's circuit states (pressures in Pa, shaft speed, motor current; the
-        circuit's state names), in ``mode="device"`` each worn side's circuit states
-        (``<side>_device.<state name>``, SI)."""
-        if self.mode == "device":
-            return OBSERVATION_NAMES + self._device_states
-        if self.mode != "hafo":
-            return OBSERVATION_NAMES
-        from afo_mj.devices.hafo import HafoDevice, hafo_params
-        names = HafoDevice(hafo_params(preset=self.hafo_preset)).cc.state_names
-        return OBSERVATION_NAMES + tuple(f"{side}_device.{n}" for side in ("right", "left")
-                                         for n in names)
+        """The observation's entries: :data:`OBSERVATION_NAMES`, then with a worn device
+        (``mode="hafo"`` or ``"device"``) each worn side's circuit states
+        (``<side>_device.<state name>``, SI; the HAFO's: line and chamber pressures in Pa,
+        shaft speed, motor current)."""
+        return OBSERVATION_NAMES + self._device_states
 
-    # -- the scenario's device -------------------------------------------------------------
+    # -- the worn device -------------------------------------------------------------------
+    @staticmethod
+    def _hafo_config(preset: str):
+        """``mode="hafo"``'s device: the HAFO preset ``preset`` on both ankles, as a scenario's
+        ``[device] preset = <preset>, sides = ["right", "left"]`` (no ``params``) wears it
+        (:func:`afo_mj.experiments.device_walk.preset_config`)."""
+        from afo_mj.devices.hafo import PRESETS
+        from afo_mj.experiments.device_walk import preset_config
+        if preset not in PRESETS:
+            raise ValueError(f"hafo_preset = {preset!r}; allowed: {', '.join(PRESETS)} (a "
+                             "valve preset: mode = 'device' with a scenario that wears it)")
+        return preset_config(preset, ("right", "left"), key="hafo_preset")
+
     def _device_config(self, path):
         """The scenario's device (:func:`afo_mj.scenarios.device_scenario.device_config`),
         refused where ``mode="device"`` cannot command it."""
@@ -269,8 +275,8 @@ class AnkleAssistEnv(gym.Env):
         return cfg
 
     def _make_device(self, max_steps: int):
-        """The scenario's device with the action as its commanded torque (a log of
-        ``max_steps`` steps)."""
+        """The worn device (:attr:`device_config`) with the action as its commanded torque (a
+        log of ``max_steps`` steps), built as ``afo-mj run`` builds a condition."""
         from afo_mj.experiments.device_walk import make_device
         cfg = self.device_config
         self._drawn_j = 0.0
