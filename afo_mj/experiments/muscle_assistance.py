@@ -1,12 +1,13 @@
 """Assistance on the muscle-driven walker: what a device does to the wearer's metabolic cost.
 
 No rule of the wearer's response is written in: the device's torque, its worn masses and (for
-the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller and muscles
+a worn circuit) its hydraulic dynamics act on the skeleton, and the reflex controller and muscles
 (:mod:`afo_mj.gait.muscle_walk`) respond. A condition is an :class:`Assistance`:
 
 * ``none`` — the walker alone;
-* ``worn_mass`` — the HAFO's worn masses (:meth:`afo_mj.devices.hafo.HafoDevice.worn_masses`,
-  3.58 kg of which 0.97 kg at the ankle for ``hafo_gait``) and no torque;
+* ``worn_mass`` — the worn masses of the ``hafo`` condition's device
+  (:meth:`afo_mj.devices.hafo.HafoDevice.worn_masses`, 3.58 kg of which 0.97 kg at the ankle
+  for ``hafo_gait``) and no torque;
 * ``zhang`` — an ideal ankle torque following the profile of Zhang et al. (2017, *Science*
   356:1280; :func:`afo_mj.control.assistance.zhang_profile`, published timing: peak at
   52.9 %, rise 26.2 %, fall 9.8 % of the stride) against the gait phase estimated from each
@@ -19,9 +20,15 @@ the HAFO) its hydraulic dynamics act on the skeleton, and the reflex controller 
   ``spring_nm_per_rad`` and returns the energy in push-off, and opens at toe off or at
   ``spring_release_phase``, free in swing (both ideal conditions are the command of
   :class:`afo_mj.devices.ideal.IdealDevice`, which scenarios wear as ``preset = "ideal"``);
-* ``hafo`` — the HAFO (preset ``hafo_gait``) worn on the right ankle, its pump, hoses,
-  cylinders and controller stepped with MuJoCo, commanding the Zhang profile of
-  ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result.
+* ``hafo`` — a circuit device worn on the right ankle, its pump or valves, hoses, cylinders
+  and controller stepped with MuJoCo, commanding the Zhang profile of
+  ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result. The device is the
+  preset ``hafo_preset``: the HAFO ``hafo_gait`` by default, or any HAFO or valve preset
+  (:data:`afo_mj.devices.hafo.PRESETS`, :data:`afo_mj.devices.valve_afo.VALVE_PRESETS`),
+  built as ``afo-mj run`` builds a scenario's ``assist`` condition with ``[device] preset =
+  hafo_preset, sides = ["right"]`` (:func:`afo_mj.experiments.device_walk.preset_config`,
+  :func:`~afo_mj.experiments.device_walk.make_device`). The kind and field names keep the
+  HAFO's (stored reflex sets name them).
 
 The wearer is reported with the controller it walked with before (*naive*: the same reflex
 set) or re-optimised with the device worn (*adapted*: a warm-started CMA-ES run of
@@ -40,26 +47,32 @@ import re
 import numpy as np
 
 from afo_mj.control import assistance as asst
-from afo_mj.devices.hafo import HafoDevice, hafo_params
+from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
 from afo_mj.devices.ideal import ClutchedSpring, IdealDevice
+from afo_mj.devices.valve_afo import VALVE_PRESETS
+from afo_mj.experiments.device_walk import make_device, preset_config
 from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams
 
-__all__ = ["KINDS", "Assistance", "assistance_walk", "assistance_summary", "assistance_comparison"]
+__all__ = ["KINDS", "DEVICE_PRESETS", "Assistance", "assistance_device", "assistance_walk",
+           "assistance_summary", "assistance_comparison"]
 
 #: the conditions :class:`Assistance` knows
 KINDS = ("none", "worn_mass", "zhang", "clutched_spring", "hafo")
 #: Zhang et al. (2017) published timing (% of stride): peak, rise, fall
 ZHANG_TIMING_PCT = (52.9, 26.2, 9.8)
 SIDE_INDEX = {"right": 0, "left": 1}
+#: the presets the ``hafo`` condition can wear: every circuit preset, HAFO or valve
+DEVICE_PRESETS = (*HAFO_PRESETS, *VALVE_PRESETS)
 
 
 @dataclasses.dataclass(frozen=True)
 class Assistance:
     """One assistance condition (module docstring). ``sides``: the assisted ankles of the
-    ideal conditions (the HAFO is worn on the right); ``ramp_strides``: the ideal torque's
-    linear ramp-on over the first strides the phase estimator has measured.
+    ideal conditions (the ``hafo`` condition's device is worn on the right); ``hafo_preset``:
+    that device's preset (:data:`DEVICE_PRESETS`, HAFO or valve); ``ramp_strides``: the ideal
+    torque's linear ramp-on over the first strides the phase estimator has measured.
 
     Defaults: Zhang peak 0.5 N·m/kg (a moderate torque chosen here, about a third of the
     1.6 N·m/kg biological ankle moment peak); spring 180 N·m/rad engaged at 10 % of the
@@ -89,6 +102,9 @@ class Assistance:
             raise ValueError(f"assistance.sides = {list(self.sides)!r}; allowed: a non-empty "
                              "subset of ['right', 'left']")
         object.__setattr__(self, "sides", sides)
+        if self.hafo_preset not in DEVICE_PRESETS:
+            raise ValueError(f"assistance.hafo_preset = {self.hafo_preset!r}; allowed: "
+                             f"{', '.join(DEVICE_PRESETS)}")
         if isinstance(self.ramp_strides, bool) or not isinstance(self.ramp_strides, int) \
                 or not 0 <= self.ramp_strides <= 100:
             raise ValueError(f"assistance.ramp_strides = {self.ramp_strides!r}; allowed: an "
@@ -110,7 +126,8 @@ class Assistance:
         if self.kind == "clutched_spring":
             return f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
         if self.kind == "hafo":
-            return f"HAFO ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
+            name = "HAFO" if self.hafo_preset in HAFO_PRESETS else "valve AFO"
+            return f"{name} ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
         return self.kind
 
 
@@ -136,11 +153,18 @@ class _IdealTorque:
         return force2
 
 
-def hafo_device(a: Assistance, timestep_s: float, max_steps: int = 0) -> HafoDevice:
-    """The HAFO of a ``hafo`` condition, on the right ankle, commanding the Zhang profile."""
-    return HafoDevice(hafo_params(preset=a.hafo_preset), sides=("right",),
-                      profile=asst.zhang_profile(a.hafo_peak_torque_nm, *ZHANG_TIMING_PCT),
-                      timestep_s=timestep_s, max_steps=max_steps)
+def assistance_device(a: Assistance, timestep_s: float, max_steps: int = 0):
+    """The device of a ``hafo`` condition (module docstring): the preset ``a.hafo_preset`` on
+    the right ankle commanding the Zhang profile of ``a.hafo_peak_torque_nm``, built as
+    ``afo-mj run`` builds an ``assist`` condition (a log of ``max_steps`` steps)."""
+    cfg = preset_config(a.hafo_preset, ("right",),
+                        asst.zhang_profile(a.hafo_peak_torque_nm, *ZHANG_TIMING_PCT),
+                        key="assistance.hafo_preset")
+    return make_device(cfg, "assist", timestep_s, max_steps)
+
+
+#: the former name of :func:`assistance_device` (the HAFO was its only device)
+hafo_device = assistance_device
 
 
 def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
@@ -148,7 +172,7 @@ def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
                     max_force_scale: dict | None = None, worn_masses=()):
     """Walk the muscle walker under one condition (with ``worn_masses`` besides the
     device's). Returns ``(walk, device)`` (the :class:`~afo_mj.gait.muscle_walk.MuscleWalk`
-    and the HAFO device, or None)."""
+    and the ``hafo`` condition's device, or None)."""
     w = walker or WalkerParams()
     a = assistance
     extra = tuple(worn_masses)
@@ -159,7 +183,7 @@ def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
         return run_muscle_walk(w, params, duration_s, worn_masses=extra,
                                max_force_scale=max_force_scale,
                                device_torque=_IdealTorque(a, w.body_mass_kg)), None
-    dev = hafo_device(a, w.timestep_s, int(duration_s / w.timestep_s) + 4)
+    dev = assistance_device(a, w.timestep_s, int(duration_s / w.timestep_s) + 4)
     worn = tuple(dev.worn_masses()) + extra
     if a.kind == "worn_mass":
         return run_muscle_walk(w, params, duration_s, worn_masses=worn,
@@ -176,7 +200,7 @@ def assistance_summary(walk: MuscleWalk, settle_s: float = 3.0, device=None) -> 
     transport (J/(kg m), Umberger), per stride on the right ankle the muscles' positive and
     net work and the device's net work (J; + into the body), the peak of the right ankle
     power of muscles plus device averaged over the strides (W/kg, 101 phase points), and
-    with a HAFO its ledger (input, mechanical output, every loss). Rates are means over the
+    with a worn device its ledger (input, mechanical output, every loss). Rates are means over the
     scored strides; the cost of transport is given by both metabolic models."""
     r = walk.record
     out = {"fell_s": r.events.fall_time_s, "duration_s": float(r.time_s[-1])}
