@@ -17,12 +17,17 @@ Protocols (``period_s`` = 1 s cycles, so the calibration holds out whole cycles)
 
 * HAFO (open loop, motor voltage): the ankle is imposed on ``0.12 sin(2πt) + 0.03 sin(6πt)`` rad;
   the voltage is a flow feedforward (the pump follows the ankle, ``v = K d⁻¹ A_e r θ̇``) plus
-  steps of ±1…4 V that hold for 0.2…0.6 s (each spread over 5 ms) and a 2.3 Hz sine,
+  steps of ±1…4 V that hold for 0.2…0.6 s and a 2.3 Hz sine,
   faded in over the first 0.5 s: pressures 0.5…12 MPa, the
   motor current up to its limit, the pistons through velocity reversals under load.
 * Valve (open loop, spool command): the ankle on ``0.04 sin(2πt)`` rad; the command is the flow
   feedforward of the valve controller plus steps of ±0.03…0.15 held 0.1…0.4 s (the spool never
   rests near centre while the ankle moves, which would lock the chambers).
+
+The command's hold (issue 41) is what the record really has and its sidecar declares it
+(``[hold]``): by default a digital command held zero-order between updates (sharp steps), or,
+with ``command_hold = "linear"``, a band-limited continuous command (each step a 5 ms
+raised-cosine rise) simulated at a finer internal step than the record's sampling.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ from afo_mj.hydraulics.params import ParameterError
 from afo_mj.experiments.bench_replay import BenchReplay
 
 __all__ = ["bench_protocol", "generate_record", "DEFAULT_NOISE", "RECORD_OUTPUTS",
-           "DEFAULT_PRESET"]
+           "DEFAULT_PRESET", "COMMAND_HOLDS"]
 
 #: sensor noise σ (SI) of a good bench: 0.1 % FS pressure transducers (20 MPa), a 200 N·m
 #: torque cell at 0.1 %, a current sense amplifier, a Hall speed estimate
@@ -60,25 +65,44 @@ DEFAULT_PRESET = {"hafo": "hafo", "valve": "valve"}
 ANGLE_NOISE_RAD = 2e-5
 
 
-def _steps(t, rng, lo, hi, hold_lo, hold_hi):
-    """Piecewise-constant levels of random sign and magnitude in [lo, hi], held for random
-    durations in [hold_lo, hold_hi] s."""
-    out = np.zeros_like(t)
-    k = 0
-    while k < len(t):
+#: how a synthetic record's command is produced between its samples (its sidecar's ``[hold]``)
+COMMAND_HOLDS = ("zero_order", "linear")
+#: internal steps per record sample of a continuous (``"linear"``) command's simulation
+LINEAR_OVERSAMPLE = 4
+#: rise time of a continuous command's steps (a raised-cosine transition, a driver's command
+#: filter)
+LINEAR_RISE_S = 0.005
+
+
+def _step_schedule(n, fs_hz, rng, lo, hi, hold_lo, hold_hi):
+    """``(switch_times_s, levels)``: levels of random sign and magnitude in [lo, hi], each
+    held for a random duration in [hold_lo, hold_hi] s rounded down to whole samples (the
+    draws of the original sample-by-sample generator, so records keep their seeds)."""
+    times, levels, k = [], [], 0
+    while k < n:
         hold = rng.uniform(hold_lo, hold_hi)
-        n = max(1, int(hold / (t[1] - t[0])))
-        out[k:k + n] = rng.choice((-1.0, 1.0)) * rng.uniform(lo, hi)
-        k += n
+        m = max(1, int(hold / (1.0 / fs_hz)))
+        times.append(k / fs_hz)
+        levels.append(rng.choice((-1.0, 1.0)) * rng.uniform(lo, hi))
+        k += m
+    return np.asarray(times), np.asarray(levels)
+
+
+def _steps_at(t, schedule, rise_s=0.0):
+    """The step schedule at times ``t``: sharp steps (``rise_s`` = 0, a command held between
+    its updates) or each step a raised-cosine transition ``½(1 − cos(π τ/rise_s))`` over
+    ``rise_s`` after its switch time (C¹, band-limited: a continuous command)."""
+    times, levels = schedule
+    k = np.searchsorted(times, t + 1e-12, side="right") - 1
+    out = levels[np.clip(k, 0, None)]
+    if rise_s <= 0.0:
+        return out
+    d = np.diff(levels)
+    for ts, dl in zip(times[1:], d):
+        sel = (t >= ts) & (t < ts + rise_s)
+        tau = (t[sel] - ts) / rise_s
+        out[sel] -= dl * 0.5 * (1.0 + np.cos(np.pi * tau))
     return out
-
-
-def _slew(x, fs_hz, rise_s=0.005):
-    """A command through a rate limit: each step of ``x`` spread over ``rise_s`` (a driver's
-    command filter; a record's ideal steps would be the one thing no real bench produces)."""
-    n = max(1, int(round(rise_s * fs_hz)))
-    kernel = np.ones(n) / n
-    return np.convolve(np.concatenate([np.full(n - 1, x[0]), x]), kernel, mode="valid")
 
 
 def _fade_in(t, t_ramp=0.5):
@@ -86,34 +110,94 @@ def _fade_in(t, t_ramp=0.5):
     return s * s * (3.0 - 2.0 * s)
 
 
+def _fade_in_rate(t, t_ramp=0.5):
+    s = np.clip(t / t_ramp, 0.0, 1.0)
+    return np.where((t > 0.0) & (t < t_ramp), 6.0 * s * (1.0 - s) / t_ramp, 0.0)
+
+
+def _check_hold_options(command_hold, command_update_s, fs_hz) -> int:
+    """Validate the command's hold options; return the DAC update period in samples."""
+    if command_hold not in COMMAND_HOLDS:
+        raise ParameterError(f"command_hold = {command_hold!r}; allowed: "
+                             f"{', '.join(repr(h) for h in COMMAND_HOLDS)}")
+    if command_update_s is None:
+        return 1
+    m = float(command_update_s) * fs_hz
+    if command_hold != "zero_order":
+        raise ParameterError(f"command_update_s = {command_update_s!r} with command_hold = "
+                             f"{command_hold!r}; allowed: only with \"zero_order\"")
+    if not (1.0 - 1e-9 <= m <= 100.0 and abs(m - round(m)) < 1e-6):
+        raise ParameterError(f"command_update_s = {command_update_s!r}; allowed: a whole "
+                             f"number (1 … 100) of sample intervals (1/fs = {1 / fs_hz:g} s)")
+    return int(round(m))
+
+
+class _Protocol:
+    """The bench protocol as functions of time (so a command can be evaluated between the
+    record's samples)."""
+
+    def __init__(self, replay: BenchReplay, n: int, fs_hz: float, seed: int):
+        rng = np.random.default_rng(seed)
+        self.kind, self.p = replay.kind, replay.params
+        if self.kind == "hafo":
+            self.schedule = _step_schedule(n, fs_hz, rng, 1.0, 4.0, 0.2, 0.6)
+        else:
+            self.schedule = _step_schedule(n, fs_hz, rng, 0.03, 0.15, 0.1, 0.4)
+
+    def angle(self, t):
+        """``(θ, θ̇)`` of the imposed ankle (analytic derivative)."""
+        env, denv = _fade_in(t), _fade_in_rate(t)
+        w = 2 * np.pi
+        if self.kind == "hafo":
+            s = 0.12 * np.sin(w * t) + 0.03 * np.sin(3 * w * t)
+            ds = 0.12 * w * np.cos(w * t) + 0.09 * w * np.cos(3 * w * t)
+        else:
+            s, ds = 0.04 * np.sin(w * t), 0.04 * w * np.cos(w * t)
+        return env * s, denv * s + env * ds
+
+    def command(self, t, rise_s=0.0):
+        """The command at times ``t`` (motor voltage or valve command)."""
+        p = self.p
+        ktp = p.torque_per_pressure_m3      # joint torque per pascal of p_a − p_b (n A r)
+        env = _fade_in(t)
+        thd = self.angle(t)[1]
+        steps = env * _steps_at(t, self.schedule, rise_s)
+        if self.kind == "hafo":
+            w_ff = -ktp * thd / (p.pump.displacement_m3_rev / (2.0 * math.pi))
+            return (p.motor.torque_constant_nm_a * w_ff + steps
+                    + env * np.sin(2 * np.pi * 2.3 * t))
+        dpe = 0.5 * (p.initial_supply_pressure_pa - p.reservoir_pressure_pa)
+        u_ff = -ktp * thd / (p.servo_valve.discharge_coefficient * p.servo_full_area_m2
+                             * math.sqrt(2 * dpe / p.fluid.density_kg_m3))
+        return np.clip(u_ff + steps, -1.0, 1.0)
+
+    @property
+    def command_name(self) -> str:
+        return "motor_voltage_v" if self.kind == "hafo" else "valve_command"
+
+
 def bench_protocol(replay: BenchReplay, duration_s: float = 20.0, fs_hz: float = 1000.0,
-                   seed: int = 0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """``(time_s, inputs)`` of the open-loop bench protocol of the module docstring."""
+                   seed: int = 0, command_hold: str = "zero_order",
+                   command_update_s: float | None = None
+                   ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """``(time_s, inputs)`` of the open-loop bench protocol of the module docstring, sampled
+    at ``fs_hz``: the command as a DAC holds it (``command_hold = "zero_order"``: sharp steps,
+    updated every ``command_update_s``, default every sample) or a band-limited continuous
+    command sampled (``"linear"``: steps with a 5 ms raised-cosine rise)."""
     if not 2.0 <= duration_s <= 600.0:
         raise ParameterError(f"duration_s = {duration_s!r}; allowed: 2 … 600 s")
     if not 200.0 <= fs_hz <= 10000.0:
         raise ParameterError(f"fs_hz = {fs_hz!r}; allowed: 200 … 10000 Hz")
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(round(duration_s * fs_hz))) / fs_hz
-    p = replay.params
-    ktp = p.torque_per_pressure_m3      # joint torque per pascal of p_a − p_b (n A r)
-    if replay.kind == "hafo":
-        env = _fade_in(t)
-        theta = env * (0.12 * np.sin(2 * np.pi * t) + 0.03 * np.sin(6 * np.pi * t))
-        thd = np.gradient(theta, t)
-        w_ff = -ktp * thd / (p.pump.displacement_m3_rev / (2.0 * math.pi))
-        volt = (p.motor.torque_constant_nm_a * w_ff
-                + env * _slew(_steps(t, rng, 1.0, 4.0, 0.2, 0.6), fs_hz)
-                + env * np.sin(2 * np.pi * 2.3 * t))
-        return t, {"motor_voltage_v": volt, "ankle_angle_rad": theta}
-    env = _fade_in(t)
-    theta = env * 0.04 * np.sin(2 * np.pi * t)
-    thd = np.gradient(theta, t)
-    dpe = 0.5 * (p.initial_supply_pressure_pa - p.reservoir_pressure_pa)
-    u_ff = -ktp * thd / (p.servo_valve.discharge_coefficient * p.servo_full_area_m2
-                         * math.sqrt(2 * dpe / p.fluid.density_kg_m3))
-    u = np.clip(u_ff + env * _slew(_steps(t, rng, 0.03, 0.15, 0.1, 0.4), fs_hz), -1.0, 1.0)
-    return t, {"valve_command": u, "ankle_angle_rad": theta}
+    every = _check_hold_options(command_hold, command_update_s, fs_hz)
+    n = int(round(duration_s * fs_hz))
+    t = np.arange(n) / fs_hz
+    proto = _Protocol(replay, n, fs_hz, seed)
+    theta = proto.angle(t)[0]
+    if command_hold == "linear":
+        u = proto.command(t, LINEAR_RISE_S)
+    else:
+        u = proto.command(t[(np.arange(n) // every) * every])
+    return t, {proto.command_name: u, "ankle_angle_rad": theta}
 
 
 def _resonance(t, y, f_hz, zeta):
@@ -130,19 +214,31 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
                     mismatch: Mapping[str, float] = {}, noise_scale: float = 1.0,
                     duration_s: float = 20.0, fs_hz: float = 1000.0, seed: int = 0,
                     preset: str | None = None, torque_sensor_resonance_hz: float = 0.0,
-                    resonance_damping: float = 0.05, outputs=None, fmt: str | None = None):
+                    resonance_damping: float = 0.05, outputs=None, fmt: str | None = None,
+                    command_hold: str = "zero_order", command_update_s: float | None = None):
     """Write a synthetic bench record to ``path`` (CSV or Parquet, plus its TOML sidecar) and
     return it as :class:`~afo_mj.calibration.measured_data.MeasuredData`.
 
     ``effects``: effect name → {parameter name → SI value} (names of
     :mod:`afo_mj.calibration.effect_library`; parameters left out take their typical value);
-    ``mismatch``: declared parameter name → factor on the preset's value."""
+    ``mismatch``: declared parameter name → factor on the preset's value.
+
+    ``command_hold``: how the command really is produced between the record's samples, written
+    to the sidecar's ``[hold]`` (so the calibration replays it as produced):
+
+    * ``"zero_order"`` (default): a digital command (a DAC or PWM duty) with sharp steps, held
+      between updates every ``command_update_s`` (default: every sample; a whole number of
+      sample intervals). The model integrates it at the replay's sub-steps with the command
+      held, exactly what the record's samples show;
+    * ``"linear"``: a band-limited continuous command (steps with a 5 ms raised-cosine rise),
+      simulated at :data:`LINEAR_OVERSAMPLE` internal steps per record sample (each holding the
+      command at its midpoint, second order in the step) and sampled at ``fs_hz``."""
     preset = preset or DEFAULT_PRESET.get(kind)
     replay = BenchReplay(preset)
     if replay.kind != kind:
         raise ParameterError(f"preset = {preset!r} is a {replay.kind} preset; kind = {kind!r}")
     outputs = tuple(outputs or RECORD_OUTPUTS[kind])
-    t, inputs = bench_protocol(replay, duration_s, fs_hz, seed)
+    t, inputs = bench_protocol(replay, duration_s, fs_hz, seed, command_hold, command_update_s)
     available = set(replay.param_labels)
     setting = lean_setting(kind, available)
     declared = {d.name: d for d in declared_parameters(kind)}
@@ -174,7 +270,18 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
             vals.append(v)
         e.apply(setting, vals, context)
         truth.append(f"{name}(" + ", ".join(f"{n}={v:g}" for n, v in zip(names, vals)) + ")")
-    out = model_outputs(replay, t, inputs, setting, outputs)
+    if command_hold == "linear":
+        # the continuous command between the samples: simulated on a finer grid, each internal
+        # step holding the command at its midpoint, then sampled at the record's rate
+        os_ = LINEAR_OVERSAMPLE
+        t_f = np.arange((len(t) - 1) * os_ + 1) / (fs_hz * os_)
+        proto = _Protocol(replay, len(t), fs_hz, seed)
+        fine = {proto.command_name: proto.command(t_f + 0.5 / (fs_hz * os_), LINEAR_RISE_S),
+                "ankle_angle_rad": proto.angle(t_f)[0]}
+        out = {c: v[::os_] for c, v in model_outputs(replay, t_f, fine, setting,
+                                                      outputs).items()}
+    else:
+        out = model_outputs(replay, t, inputs, setting, outputs)
     if torque_sensor_resonance_hz > 0.0 and "ankle_torque_nm" in out:
         out["ankle_torque_nm"] = _resonance(t, out["ankle_torque_nm"],
                                             torque_sensor_resonance_hz, resonance_damping)
@@ -191,9 +298,13 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
     for c in outputs:
         table[c] = out[c] + rng.normal(0.0, noise[c], len(t)) if noise[c] > 0 else out[c]
     desc = ("synthetic bench record (afo_mj.calibration.synthetic_records), truth: "
-            + ("; ".join(truth) if truth else "lean model, no effect") + f"; seed {seed}")
+            + ("; ".join(truth) if truth else "lean model, no effect") + f"; seed {seed}; "
+            + (f"command held zero-order, updated every "
+               f"{(command_update_s or 1.0 / fs_hz) * 1e3:g} ms" if command_hold == "zero_order"
+               else "continuous command (5 ms raised-cosine steps)"))
+    cmd = next(c for c in inputs if c != "ankle_angle_rad")
     return write_measured(
         Path(path), table, inputs=list(inputs), outputs=list(outputs),
         source={"preset": preset, "description": desc, "origin": "afo_mj synthetic"},
         noise={c: s for c, s in noise.items() if s > 0},
-        segments={"period_s": 1.0, "phase_s": 0.0}, fmt=fmt)
+        segments={"period_s": 1.0, "phase_s": 0.0}, fmt=fmt, hold={cmd: command_hold})
