@@ -261,6 +261,9 @@ class Rig:
         self.voltage = voltage or (lambda t: 0.0)
         self.locked = locked
         self.hoses_closed = hoses_closed
+        #: the voltage held over the segment being integrated (:meth:`simulate` with a hold
+        #: period), else ``None`` (the voltage is read from ``voltage(t)``)
+        self._held_v: float | None = None
         p, fx = self.p, self.fx
         self.A = p.area_m2
         self.R_h = laminar_hose_resistance(p.oil_viscosity_pa_s, p.hose_length_m, p.hose_bore_m)
@@ -318,7 +321,7 @@ class Rig:
     def algebraic(self, t: float, y: np.ndarray) -> dict:
         """Everything the derivatives and the sensors need at (t, y)."""
         p, fx, ix = self.p, self.fx, self.ix
-        v_cmd = self.voltage(t)
+        v_cmd = self.voltage(t) if self._held_v is None else self._held_v
         p_pa, p_pb, p_a, p_b = y[ix["p_pa"]], y[ix["p_pb"]], y[ix["p_a"]], y[ix["p_b"]]
         w = y[ix["omega_m"]]
         theta, wf = y[ix["theta"]], y[ix["omega_f"]]
@@ -462,18 +465,51 @@ class Rig:
         return e
 
     def simulate(self, duration_s: float, *, rtol: float = 1e-7, y0=None,
-                 sample_rate_hz: float = SAMPLE_RATE_HZ, method: str = "Radau"):
+                 sample_rate_hz: float = SAMPLE_RATE_HZ, method: str = "Radau",
+                 hold_period_s: float | None = None):
         """Integrate over ``[0, duration_s]``; return ``(t, Y)`` sampled at ``sample_rate_hz``
-        (``Y`` shape (n_states, n_samples))."""
+        (``Y`` shape (n_states, n_samples)).
+
+        ``hold_period_s``: the voltage is a digital command held between updates at
+        ``k · hold_period_s``: each hold interval is integrated on its own with the voltage
+        frozen at ``voltage(k · hold_period_s)`` and the state carried over (the right-hand side
+        is smooth within an interval; a jump inside a solver step would cost it its order)."""
         y0 = self.initial_state() if y0 is None else np.asarray(y0, dtype=float)
         n = int(round(duration_s * sample_rate_hz)) + 1
         t = np.arange(n) / sample_rate_hz
+        if hold_period_s is not None:
+            return t, self._simulate_held(t, y0, rtol, hold_period_s, method)
         with np.errstate(over="ignore"):    # scipy's numerical-Jacobian step factors
             sol = solve_ivp(self.rhs, (0.0, t[-1]), y0, method=method, t_eval=t, rtol=rtol,
                             atol=self.atol(), max_step=5e-3)
         if not sol.success:
             raise RuntimeError(f"independent rig: solver failed: {sol.message}")
         return sol.t, sol.y
+
+    def _simulate_held(self, t: np.ndarray, y0: np.ndarray, rtol: float, period: float,
+                       method: str) -> np.ndarray:
+        """:meth:`simulate` for a command held over ``period``: one solve per hold interval."""
+        Y = np.empty((len(y0), len(t)))
+        Y[:, 0] = y0
+        y = y0
+        n_seg = int(math.ceil(t[-1] / period - 1e-9))
+        atol = self.atol()
+        try:
+            for k in range(n_seg):
+                a, b = k * period, min((k + 1) * period, t[-1])
+                self._held_v = float(self.voltage(a))
+                inside = np.flatnonzero((t > a + 1e-12) & (t <= b + 1e-12))
+                with np.errstate(over="ignore"):
+                    sol = solve_ivp(self.rhs, (a, b), y, method=method, rtol=rtol, atol=atol,
+                                    max_step=5e-3, dense_output=inside.size > 0)
+                if not sol.success:
+                    raise RuntimeError(f"independent rig: solver failed: {sol.message}")
+                y = sol.y[:, -1]
+                if inside.size:
+                    Y[:, inside] = sol.sol(np.minimum(t[inside], b))
+        finally:
+            self._held_v = None
+        return Y
 
 
 def energy_balance(rig: Rig, Y: np.ndarray) -> dict[str, float]:
@@ -523,6 +559,23 @@ def default_voltage_profile(duration_s: float = 20.0, amplitude_v: float = 4.0,
         phase = 2 * math.pi * (f0 * tc + 0.5 * (f1 - f0) / t_chirp * tc * tc)
         env = min(tc / 0.05, 1.0)
         return 0.75 * amplitude_v * env * math.sin(phase)
+
+    return u
+
+
+def stepped_voltage_profile(duration_s: float = 20.0, amplitude_v: float = 4.0,
+                            update_s: float = 2.0e-3) -> Callable[[float], float]:
+    """A digital voltage command: :func:`default_voltage_profile` without its ramps, as a
+    controller computes it at each update ``k · update_s`` and a DAC (or a PWM driver's duty
+    register) holds it until the next one (zero-order hold, Franklin, Powell & Workman,
+    *Digital Control of Dynamic Systems*, 3rd ed., §4.3.2: ``u(t) = u(kT)`` for
+    ``kT ≤ t < (k+1)T``). Steps are sharp."""
+    if not update_s > 0.0:
+        raise ValueError(f"update_s = {update_s!r}; allowed: > 0")
+    base = default_voltage_profile(duration_s, amplitude_v, ramp_s=0.0)
+
+    def u(t: float) -> float:
+        return base(math.floor(t / update_s + 1e-9) * update_s)
 
     return u
 
@@ -592,27 +645,45 @@ def measure(rig: Rig, t: np.ndarray, Y: np.ndarray, seed: int) -> dict[str, np.n
 
 def simulate_record(duration_s: float, effects=None, seed: int = 0, *,
                     params: RigParams | None = None, voltage=None, rtol: float = 1e-7,
-                    amplitude_v: float = 4.0):
-    """Simulate and measure; return ``(rig, channels)``."""
+                    amplitude_v: float = 4.0, command_update_s: float | None = None):
+    """Simulate and measure; return ``(rig, channels)``. ``command_update_s``: a stepped
+    digital command (:func:`stepped_voltage_profile`) updated at this period instead of the
+    continuous default profile (ignored when ``voltage`` is given)."""
+    period = None
+    if voltage is None and command_update_s is not None:
+        voltage = stepped_voltage_profile(duration_s, amplitude_v, command_update_s)
+        period = command_update_s
     voltage = voltage or default_voltage_profile(duration_s, amplitude_v)
     rig = Rig(params, effects, voltage)
-    t, Y = rig.simulate(duration_s, rtol=rtol)
+    t, Y = rig.simulate(duration_s, rtol=rtol, hold_period_s=period)
     return rig, measure(rig, t, Y, seed)
 
 
 def write_record(path, duration_s: float = 20.0, effects=None, seed: int = 0, *,
                  params: RigParams | None = None, voltage=None, rtol: float = 1e-7,
-                 amplitude_v: float = 4.0):
+                 amplitude_v: float = 4.0, command_update_s: float | None = None,
+                 hold: str | None = None):
     """Simulate the rig and write the record (afo_mj measured-data v1: CSV + TOML sidecar).
-    Returns the validated :class:`~afo_mj.calibration.measured_data.MeasuredData`."""
+    Returns the validated :class:`~afo_mj.calibration.measured_data.MeasuredData`.
+
+    The sidecar's ``[hold]`` declares how the voltage was produced between samples: ``hold``
+    if given (a caller's own ``voltage``), else ``"zero_order"`` for the stepped command
+    (``command_update_s``) and ``"linear"`` for the continuous default profile."""
     rig, ch = simulate_record(duration_s, effects, seed, params=params, voltage=voltage,
-                              rtol=rtol, amplitude_v=amplitude_v)
+                              rtol=rtol, amplitude_v=amplitude_v,
+                              command_update_s=command_update_s)
+    if hold is None:
+        hold = "zero_order" if (voltage is None and command_update_s is not None) else "linear"
     on = ", ".join(f"{k}={v:g}" for k, v in rig.fx.items()) or "none"
+    cmd = ("continuous voltage profile" if hold == "linear" and command_update_s is None
+           else f"voltage held {hold}" + (f", updated every {command_update_s * 1e3:g} ms"
+                                          if command_update_s else ""))
     source = {"preset": "hafo",
               "description": (f"independent lab ankle rig (tests/independent_rig.py, textbook "
                               f"equations, scipy Radau rtol={rtol:g}), not afo_mj's model; "
-                              f"{duration_s:g} s, seed {seed}; effects on: {on}"),
+                              f"{duration_s:g} s, seed {seed}; {cmd}; effects on: {on}"),
               "origin": "afo_mj tests/independent_rig.py"}
     outputs = [k for k in CHANNEL_UNITS if k != "motor_voltage_v"]
     return write_measured(Path(path), ch, inputs=["motor_voltage_v"], outputs=outputs,
-                          source=source, noise=noise_sigmas(rig.p))
+                          source=source, noise=noise_sigmas(rig.p),
+                          hold={"motor_voltage_v": hold})
