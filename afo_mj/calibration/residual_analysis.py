@@ -71,7 +71,8 @@ from scipy import stats
 __all__ = ["nrmse", "noise_sigma_estimate", "ljung_box", "whiteness", "cross_correlation",
            "peak_cross_correlation", "signature_correlations", "phase_average",
            "residual_spectrum", "dominant_frequency", "analyse_channel", "locate_structure",
-           "WHITE_P_VALUE", "STRUCTURE_EXCESS_RATIO"]
+           "WHITE_P_VALUE", "STRUCTURE_EXCESS_RATIO", "windowed_drift", "line_pairs",
+           "line_pair_drifts", "step_times", "step_transients", "resonance", "where_findings"]
 
 #: Ljung–Box p-value above which a residual counts as white.
 WHITE_P_VALUE = 0.01
@@ -479,7 +480,10 @@ def analyse_channel(name: str, time_s, measured, model, inputs: Mapping[str, np.
     ``signature_correlations`` (:func:`signature_correlations`), ``peak_phase`` and
     ``peak_value`` (:func:`phase_average` with 50 bins; None without cycles) and
     ``dominant_frequency_hz`` (:func:`dominant_frequency` above 0.5 Hz; None for a constant
-    residual). ValueErrors name the channel.
+    residual), ``drift`` (:func:`windowed_drift`), ``transient`` (:func:`step_transients`
+    on the input whose steps leave the largest named transient, with its name under
+    ``"input"``; None without inputs) and ``resonance`` (:func:`resonance`). ValueErrors
+    name the channel.
     """
     if not isinstance(name, str) or not name:
         raise ValueError(f"name = {name!r}; allowed: a non-empty str (the channel name)")
@@ -530,6 +534,14 @@ def _analyse_channel(name, time_s, measured, model, inputs, states, signatures, 
         pa = phase_average(res, t, cycles, bins=50)
         peak_phase, peak_value = pa["peak_phase"], pa["peak_value"]
 
+    transient = None
+    for iname, u in ins.items():
+        tr = step_transients(res, u, fs, sigma)
+        tr["input"] = iname
+        if transient is None or (tr["transient"], tr["ratio"] or 0.0, tr["n_steps"]) > (
+                transient["transient"], transient["ratio"] or 0.0, transient["n_steps"]):
+            transient = tr
+
     return {"channel": name, "n_samples": int(t.size), "fs_hz": float(fs),
             "nrmse": e, "rms": w["rms"], "mean": float(np.mean(res)),
             "noise_sigma": float(sigma), "noise_sigma_source": source,
@@ -538,7 +550,9 @@ def _analyse_channel(name, time_s, measured, model, inputs, states, signatures, 
             "cross_correlations": xc[:3],
             "signature_correlations": signature_correlations(res, sigs),
             "peak_phase": peak_phase, "peak_value": peak_value,
-            "dominant_frequency_hz": None if constant else dominant_frequency(res, fs, 0.5)}
+            "dominant_frequency_hz": None if constant else dominant_frequency(res, fs, 0.5),
+            "drift": windowed_drift(res, fs, sigma), "transient": transient,
+            "resonance": resonance(res, fs, sigma)}
 
 
 def _num(summary: dict, key: str, where: str, optional: bool = False):
@@ -564,7 +578,10 @@ def locate_structure(channel_summaries: Mapping[str, dict]) -> str:
     25.0 Hz"``. Channels are separated by "; ". Without a structured channel: "no structured
     residual: every channel is within 1.2× its noise and white" when that is so, otherwise a
     sentence naming the channels that are white but larger than the noise, or not white but
-    within it.
+    within it. When :func:`where_findings` names slow drifts (a line pair's common-mode or
+    differential drift), transients after input steps or resonances, they follow as
+    ``"; named, largest against the noise first: …"``, each with its size against σ in the
+    channel's units.
     """
     if not isinstance(channel_summaries, Mapping):
         raise ValueError(f"channel_summaries is a {type(channel_summaries).__name__}; "
@@ -589,6 +606,9 @@ def locate_structure(channel_summaries: Mapping[str, dict]) -> str:
                      _num(s, "excess_ratio", where), where))
 
     structured = sorted((r for r in rows if r[2]), key=lambda r: -r[4])
+    findings = where_findings({ch: s for ch, s, *_ in rows})
+    named = ("; named, largest against the noise first: "
+             + "; ".join(f["text"] for f in findings)) if findings else ""
     if not structured:
         notes = []
         for ch, s, _, white, ex, where in rows:
@@ -599,11 +619,12 @@ def locate_structure(channel_summaries: Mapping[str, dict]) -> str:
             elif not white:
                 notes.append(f"{ch}: residual not white but within "
                              f"{STRUCTURE_EXCESS_RATIO:g}× the noise ({ex:.2f}×)")
-        if not notes:
+        if not notes and not findings:
             return (f"no structured residual: every channel is within "
                     f"{STRUCTURE_EXCESS_RATIO:g}× its noise and white")
         return ("no structured residual (no channel is both non-white and above "
-                f"{STRUCTURE_EXCESS_RATIO:g}× its noise); " + "; ".join(notes))
+                f"{STRUCTURE_EXCESS_RATIO:g}× its noise)" + "".join("; " + n for n in notes)
+                + named)
 
     parts = []
     for ch, s, _, _, ex, where in structured:
@@ -624,4 +645,330 @@ def locate_structure(channel_summaries: Mapping[str, dict]) -> str:
             k = max(sig, key=lambda n: abs(float(sig[n])))
             bits.append(f"closest signature {k} (r = {float(sig[k]):.2f})")
         parts.append(", ".join(bits))
-    return "; ".join(parts)
+    return "; ".join(parts) + named
+
+
+# --------------------------------------------------------------------------- where, in rig terms
+#
+# Three kinds of structure a missing effect leaves, each measured against the channel's sensor
+# noise σ (the white-noise level of the residual when nothing is missing):
+#
+# * slow drift (:func:`windowed_drift`): the record is cut into ``n`` equal consecutive windows
+#   of ``m`` samples and the residual's mean taken in each. For white noise each window mean
+#   has SD σ/√m, so the change between the first and the last window has SD σ·√(2/m). A drift
+#   is named when ``|last − first| > DRIFT_K·σ·√(2/m)`` (DRIFT_K = 5: a 5-SD event of white
+#   noise) **and** ``|last − first| > DRIFT_MIN_FRACTION·σ`` (0.5: smaller than half the noise
+#   floor it cannot move a channel's ratio to its floor), **and** the least-squares line through
+#   the window means rises the same way (a trend, not one odd window).
+# * common-mode vs differential (:func:`line_pair_drifts`): for a line pair (pressures at ports
+#   A and B), ``(r_a + r_b)/2`` and ``r_a − r_b`` are judged by the same rule with
+#   σ_cm = √(σ_a² + σ_b²)/2 and σ_dm = √(σ_a² + σ_b²) (independent sensor noise). A common-mode
+#   drift with a flat differential is the signature of oil made up or lost through the charge
+#   circuit (both lines move together), not of a leakage across the piston (which moves them
+#   apart); issue 41.
+# * transients after input steps (:func:`step_transients`): an input's step is a change over
+#   ``STEP_SPAN_S`` larger than a quarter of its robust range (0.5–99.5 percentile) and than 8×
+#   its own noise (:func:`noise_sigma_estimate`, √2 for the difference); the residual's RMS in
+#   the ``window_s`` after each step is compared with σ and with the RMS elsewhere. Named when
+#   ``RMS_in > 2σ`` (twice the floor, the acceptance's bound) and ``RMS_in > 1.5·RMS_out``
+#   (localised) and the windows hold at most half the record. The ringing frequency there is
+#   the peak of the summed, Hann-windowed, zero-padded periodograms of the windows above
+#   ``2/window_s`` (at least two periods inside the window).
+# * resonance (:func:`resonance`): the Welch peak of :func:`dominant_frequency`, its RMS
+#   amplitude from the PSD within ±3 bins of the peak less the white-noise floor (the median
+#   PSD), named when the peak stands 10× above the median PSD and its RMS exceeds 0.5σ.
+
+#: Significance of a windowed-mean change, in SDs of white noise's window-mean difference.
+DRIFT_K = 5.0
+#: A drift smaller than this fraction of σ is not named.
+DRIFT_MIN_FRACTION = 0.5
+#: Number of windows a residual is cut into for its drift.
+DRIFT_WINDOWS = 5
+#: Span over which an input's change is judged a step [s].
+STEP_SPAN_S = 0.01
+#: Window after a step in which the residual's transient is measured [s].
+TRANSIENT_WINDOW_S = 0.2
+#: RMS in the windows after steps / σ above which a transient is named.
+TRANSIENT_MIN_RATIO = 2.0
+#: RMS in the windows after steps / RMS elsewhere above which a transient is named.
+TRANSIENT_LOCALISATION = 1.5
+#: Peak PSD / median PSD above which a spectral peak is a resonance.
+RESONANCE_PROMINENCE = 10.0
+#: Resonance RMS / σ above which it is named.
+RESONANCE_MIN_RATIO = 0.5
+
+_UNITS = (("_rad_s", "rad/s", 1.0), ("_pa", "MPa", 1e-6), ("_nm", "N·m", 1.0),
+          ("_rad", "rad", 1.0), ("_a", "A", 1.0), ("_v", "V", 1.0), ("_k", "K", 1.0),
+          ("_m", "m", 1.0), ("_n", "N", 1.0))
+
+
+def _unit(channel: str) -> tuple[str, float]:
+    """Display unit and SI→display factor of a channel from its name's unit suffix."""
+    for suffix, unit, f in _UNITS:
+        if channel.endswith(suffix):
+            return unit, f
+    return "", 1.0
+
+
+def _q(channel: str, value: float) -> str:
+    unit, f = _unit(channel)
+    return f"{value * f:.3g}" + (f" {unit}" if unit else "")
+
+
+def windowed_drift(residual, fs_hz: float, noise_sigma: float,
+                   n_windows: int = DRIFT_WINDOWS) -> dict:
+    """Slow drift of a residual: its mean over ``n_windows`` equal consecutive windows.
+
+    Returns ``{"window_s", "window_samples", "window_centres_s" (from the first sample),
+    "window_means", "change" (last − first window mean), "slope_per_s" (least-squares line
+    through the window means), "threshold" (the rule of the module's "where" notes:
+    max(DRIFT_K·σ·√(2/m), DRIFT_MIN_FRACTION·σ)), "ratio" (|change|/σ), "drift" (named)}``.
+    """
+    r = _array("residual", residual, min_n=_MIN_WHITENESS_SAMPLES)
+    fs = _positive("fs_hz", fs_hz)
+    sigma = _positive("noise_sigma", noise_sigma)
+    nw = _integer("n_windows", n_windows, 2)
+    m = r.size // nw
+    if m < 2:
+        raise ValueError(f"n_windows = {nw} leaves {m} samples per window of {r.size}; "
+                         "allowed: at least 2 samples per window")
+    means = r[: m * nw].reshape(nw, m).mean(axis=1)
+    centres = (np.arange(nw) + 0.5) * m / fs
+    slope = float(np.polyfit(centres, means, 1)[0])
+    change = float(means[-1] - means[0])
+    thr = max(DRIFT_K * sigma * math.sqrt(2.0 / m), DRIFT_MIN_FRACTION * sigma)
+    trend = slope * float(centres[-1] - centres[0])
+    drift = bool(abs(change) > thr and np.sign(trend) == np.sign(change)
+                 and abs(trend) > 0.5 * thr)
+    return {"window_s": m / fs, "window_samples": int(m),
+            "window_centres_s": [float(c) for c in centres],
+            "window_means": [float(v) for v in means], "change": change,
+            "slope_per_s": slope, "threshold": float(thr), "noise_sigma": sigma,
+            "ratio": abs(change) / sigma, "drift": drift}
+
+
+def _drift_of_means(means, centres, m: int, sigma: float) -> dict:
+    means = np.asarray(means, dtype=float)
+    centres = np.asarray(centres, dtype=float)
+    change = float(means[-1] - means[0])
+    slope = float(np.polyfit(centres, means, 1)[0])
+    trend = slope * float(centres[-1] - centres[0])
+    thr = max(DRIFT_K * sigma * math.sqrt(2.0 / m), DRIFT_MIN_FRACTION * sigma)
+    return {"first": float(means[0]), "last": float(means[-1]), "change": change,
+            "slope_per_s": slope, "noise_sigma": sigma, "ratio": abs(change) / sigma,
+            "threshold": float(thr),
+            "drift": bool(abs(change) > thr and np.sign(trend) == np.sign(change)
+                          and abs(trend) > 0.5 * thr)}
+
+
+def line_pairs(channels: Iterable[str]) -> list[tuple[str, str]]:
+    """Pairs of channels that are the two lines of one actuator: names equal but for
+    ``_a_`` ↔ ``_b_`` (``pressure_a_pa``/``pressure_b_pa``, ``chamber_a_pa``/``chamber_b_pa``)."""
+    names = list(channels)
+    out = []
+    for c in names:
+        if "_a_" in c:
+            other = c.replace("_a_", "_b_", 1)
+            if other in names:
+                out.append((c, other))
+    return out
+
+
+def line_pair_drifts(drift_a: Mapping, drift_b: Mapping) -> dict:
+    """Common-mode ``(r_a + r_b)/2`` and differential ``r_a − r_b`` drift of a line pair, from
+    the two channels' :func:`windowed_drift` (window means are linear, so the pair's window
+    means are the same combinations of theirs). σ_cm = √(σ_a² + σ_b²)/2, σ_dm = √(σ_a² + σ_b²).
+    Returns ``{"common_mode": …, "differential": …}`` with ``first``, ``last``, ``change``,
+    ``slope_per_s``, ``noise_sigma``, ``ratio``, ``threshold`` and ``drift`` each."""
+    ma = np.asarray(drift_a["window_means"], dtype=float)
+    mb = np.asarray(drift_b["window_means"], dtype=float)
+    if ma.size != mb.size or drift_a["window_samples"] != drift_b["window_samples"]:
+        raise ValueError(f"line pair windows differ ({ma.size} vs {mb.size} windows); allowed: "
+                         "two channels of the same record")
+    m = int(drift_a["window_samples"])
+    s = math.hypot(float(drift_a["noise_sigma"]), float(drift_b["noise_sigma"]))
+    c = drift_a["window_centres_s"]
+    return {"common_mode": _drift_of_means(0.5 * (ma + mb), c, m, 0.5 * s),
+            "differential": _drift_of_means(ma - mb, c, m, s)}
+
+
+def step_times(command, fs_hz: float, span_s: float = STEP_SPAN_S,
+               min_gap_s: float = TRANSIENT_WINDOW_S) -> np.ndarray:
+    """Sample indices of an input's steps (reversals included): where its change over
+    ``span_s`` exceeds a quarter of its robust range (0.5–99.5 percentile) and 8·√2 × its
+    noise (:func:`noise_sigma_estimate`); each step placed at its largest one-sample change,
+    steps closer than ``min_gap_s`` merged. Empty for a constant or smooth input."""
+    u = _array("command", command, min_n=_MIN_NOISE_SAMPLES)
+    fs = _positive("fs_hz", fs_hz)
+    w = max(1, int(round(span_s * fs)))
+    if u.size <= w + 1 or _is_constant(u):
+        return np.zeros(0, dtype=int)
+    lo, hi = np.percentile(u, [0.5, 99.5])
+    thr = max(0.25 * float(hi - lo), 8.0 * math.sqrt(2.0) * noise_sigma_estimate(u))
+    if not thr > 0:
+        return np.zeros(0, dtype=int)
+    jump = np.abs(u[w:] - u[:-w]) > thr
+    d1 = np.abs(np.diff(u))
+    out: list[int] = []
+    gap = max(1, int(round(min_gap_s * fs)))
+    k = np.flatnonzero(jump)
+    if k.size == 0:
+        return np.zeros(0, dtype=int)
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(k) > 1) + 1))
+    ends = np.concatenate((starts[1:], [k.size]))
+    for s, e in zip(starts, ends):
+        a, b = int(k[s]), int(k[e - 1]) + w
+        j = a + int(np.argmax(d1[a:b]))
+        if not out or j - out[-1] >= gap:
+            out.append(j)
+    return np.asarray(out, dtype=int)
+
+
+def _ringing_hz(segments: list[np.ndarray], fs: float, f_min: float) -> float | None:
+    n = max(s.size for s in segments)
+    nfft = 1 << int(math.ceil(math.log2(max(8 * n, 1024))))
+    p = np.zeros(nfft // 2 + 1)
+    for s in segments:
+        if s.size < 8:
+            continue
+        x = (s - s.mean()) * np.hanning(s.size)
+        p += np.abs(np.fft.rfft(x, nfft)) ** 2
+    f = np.fft.rfftfreq(nfft, 1.0 / fs)
+    idx = np.flatnonzero(f >= f_min)
+    if idx.size < 3 or not np.any(p[idx] > 0):
+        return None
+    k = int(idx[np.argmax(p[idx])])
+    fk = float(f[k])
+    if 0 < k < f.size - 1 and min(p[k - 1], p[k], p[k + 1]) > 0:
+        a, b, c = np.log(p[k - 1]), np.log(p[k]), np.log(p[k + 1])
+        den = a - 2 * b + c
+        if den < 0:
+            fk += float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) * float(f[1] - f[0])
+    return fk
+
+
+def step_transients(residual, command, fs_hz: float, noise_sigma: float,
+                    window_s: float = TRANSIENT_WINDOW_S) -> dict:
+    """The residual in the ``window_s`` after each step of ``command`` (:func:`step_times`)
+    against the noise σ and against the residual elsewhere (rule in the module's "where"
+    notes). Returns ``{"n_steps", "step_times_s", "window_s", "rms_in", "peak_in", "rms_out",
+    "ratio" (rms_in/σ), "localisation" (rms_in/rms_out), "ringing_hz", "noise_sigma",
+    "transient" (named)}``; without steps ``n_steps`` is 0 and ``transient`` False."""
+    r = _array("residual", residual, min_n=_MIN_WHITENESS_SAMPLES)
+    u = _array("command", command, r.size, "residual")
+    fs = _positive("fs_hz", fs_hz)
+    sigma = _positive("noise_sigma", noise_sigma)
+    win = _positive("window_s", window_s)
+    ks = step_times(u, fs, min_gap_s=win)
+    n_w = max(2, int(round(win * fs)))
+    mask = np.zeros(r.size, dtype=bool)
+    segs = []
+    for k in ks:
+        mask[k: k + n_w] = True
+        segs.append(r[k: k + n_w])
+    out = {"n_steps": int(ks.size), "step_times_s": [float(k / fs) for k in ks],
+           "window_s": n_w / fs, "noise_sigma": sigma, "rms_in": None, "peak_in": None,
+           "rms_out": None, "ratio": None, "localisation": None, "ringing_hz": None,
+           "transient": False}
+    if ks.size == 0 or mask.all():
+        return out
+    rms_in = float(np.sqrt(np.mean(r[mask] ** 2)))
+    rms_out = float(np.sqrt(np.mean(r[~mask] ** 2)))
+    loc = rms_in / rms_out if rms_out > 0 else math.inf
+    named = bool(rms_in > TRANSIENT_MIN_RATIO * sigma and loc > TRANSIENT_LOCALISATION
+                 and mask.mean() <= 0.5)
+    out.update({"rms_in": rms_in, "peak_in": float(np.max(np.abs(r[mask]))),
+                "rms_out": rms_out, "ratio": rms_in / sigma,
+                "localisation": loc if math.isfinite(loc) else None, "transient": named,
+                "ringing_hz": _ringing_hz(segs, fs, 2.0 / win) if named else None})
+    return out
+
+
+def resonance(residual, fs_hz: float, noise_sigma: float, f_min_hz: float = 0.5) -> dict:
+    """The residual's largest spectral peak (:func:`dominant_frequency`) with its RMS
+    amplitude: the Welch PSD within ±3 bins of the peak, less the white floor (median PSD),
+    integrated. Returns ``{"frequency_hz", "rms", "ratio" (rms/σ), "prominence" (peak PSD /
+    median PSD), "resonance" (named: prominence > 10 and ratio > 0.5)}``."""
+    r = _array("residual", residual, min_n=_MIN_SPECTRUM_SAMPLES)
+    fs = _positive("fs_hz", fs_hz)
+    sigma = _positive("noise_sigma", noise_sigma)
+    if _is_constant(r):
+        return {"frequency_hz": None, "rms": 0.0, "ratio": 0.0, "prominence": 0.0,
+                "resonance": False}
+    f, p = residual_spectrum(r, fs)
+    fk = dominant_frequency(r, fs, f_min_hz)
+    k = int(np.argmin(np.abs(f - fk)))
+    floor = float(np.median(p[1:])) if p.size > 2 else 0.0
+    band = slice(max(1, k - 3), min(p.size, k + 4))
+    df = float(f[1] - f[0])
+    power = float(np.sum(np.maximum(p[band] - floor, 0.0)) * df)
+    rms = math.sqrt(power)
+    prom = float(p[k] / floor) if floor > 0 else math.inf
+    return {"frequency_hz": fk, "rms": rms, "ratio": rms / sigma,
+            "prominence": prom if math.isfinite(prom) else None,
+            "resonance": bool(prom > RESONANCE_PROMINENCE and rms / sigma > RESONANCE_MIN_RATIO)}
+
+
+def where_findings(channel_summaries: Mapping[str, dict]) -> list[dict]:
+    """The named findings of :func:`analyse_channel` summaries, largest against the noise
+    first: ``{"kind": "common_mode_drift" | "differential_drift" | "drift" | "step_transient"
+    | "resonance", "channels", "ratio" (size/σ), "text"}``. A line pair's common-mode or
+    differential drift replaces the drifts of its two channels. Summaries without the keys
+    ``drift``/``transient``/``resonance`` contribute nothing."""
+    out: list[dict] = []
+    covered: set[str] = set()
+    for a, b in line_pairs(channel_summaries):
+        da, db = channel_summaries[a].get("drift"), channel_summaries[b].get("drift")
+        if not (isinstance(da, Mapping) and isinstance(db, Mapping)):
+            continue
+        pair = line_pair_drifts(da, db)
+        cm, dm = pair["common_mode"], pair["differential"]
+        w = float(da["window_s"])
+        for kind, d, other, oname in (("common_mode", cm, dm, "differential"),
+                                      ("differential", dm, cm, "common mode")):
+            if not d["drift"]:
+                continue
+            flat = "" if other["drift"] else f"; {oname} flat ({other['ratio']:.1f}×)"
+            label = "common-mode" if kind == "common_mode" else "differential"
+            what = "pressure" if a.endswith("_pa") else "line"
+            out.append({"kind": f"{kind}_drift", "channels": [a, b], "ratio": d["ratio"],
+                        "change": d["change"], "noise_sigma": d["noise_sigma"],
+                        "text": f"{a}/{b}: {label} {what} drift, residual mean "
+                                f"{_q(a, d['first'])} in the first {w:.3g} s → "
+                                f"{_q(a, d['last'])} in the last {w:.3g} s, "
+                                f"{d['ratio']:.1f}× the noise σ {_q(a, d['noise_sigma'])}"
+                                + flat})
+            covered.update((a, b))
+    for ch, s in channel_summaries.items():
+        d = s.get("drift")
+        if isinstance(d, Mapping) and d.get("drift") and ch not in covered:
+            m = d["window_means"]
+            out.append({"kind": "drift", "channels": [ch], "ratio": float(d["ratio"]),
+                        "change": float(d["change"]), "noise_sigma": float(d["noise_sigma"]),
+                        "text": f"{ch}: slow drift, residual mean {_q(ch, m[0])} in the first "
+                                f"{float(d['window_s']):.3g} s → {_q(ch, m[-1])} in the last, "
+                                f"{float(d['ratio']):.1f}× the noise σ "
+                                f"{_q(ch, float(d['noise_sigma']))}"})
+        t = s.get("transient")
+        if isinstance(t, Mapping) and t.get("transient"):
+            ring = (f", ringing at ~{t['ringing_hz']:.0f} Hz" if t.get("ringing_hz") else "")
+            out.append({"kind": "step_transient", "channels": [ch], "ratio": float(t["ratio"]),
+                        "input": t.get("input"), "window_s": float(t["window_s"]),
+                        "ringing_hz": t.get("ringing_hz"),
+                        "text": f"{ch}: transient in the {float(t['window_s']):.3g} s after "
+                                f"{t['n_steps']} step(s) of {t.get('input', 'the input')}, "
+                                f"RMS {_q(ch, float(t['rms_in']))} (peak "
+                                f"{_q(ch, float(t['peak_in']))}) against σ "
+                                f"{_q(ch, float(t['noise_sigma']))}: "
+                                f"{float(t['ratio']):.1f}× the noise, "
+                                f"{float(t['localisation'] or math.inf):.1f}× the residual "
+                                f"elsewhere" + ring})
+        rz = s.get("resonance")
+        if isinstance(rz, Mapping) and rz.get("resonance"):
+            out.append({"kind": "resonance", "channels": [ch], "ratio": float(rz["ratio"]),
+                         "frequency_hz": float(rz["frequency_hz"]),
+                         "text": f"{ch}: resonance at {float(rz['frequency_hz']):.1f} Hz, "
+                                 f"RMS {_q(ch, float(rz['rms']))}, "
+                                 f"{float(rz['ratio']):.1f}× the noise"})
+    out.sort(key=lambda d: -d["ratio"])
+    return out
