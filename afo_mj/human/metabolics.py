@@ -45,11 +45,13 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 __all__ = ["AEROBIC_SCALE", "BASAL_W_PER_KG", "MIN_HEAT_W_PER_KG",
            "umberger2010_rate_w", "bhargava2004_rate_w", "bhargava_fibre_excitations",
            "bhargava2004_rate_from_fibres_w", "bhargava_length_factor",
-           "basal_rate_w"]
+           "basal_rate_w", "umberger2010_terms_w", "bhargava2004_terms_w",
+           "UMBERGER_TERMS", "BHARGAVA_TERMS"]
 
 #: Umberger's S for aerobic activity (2003, p. 104)
 AEROBIC_SCALE = 1.5
@@ -166,3 +168,109 @@ def basal_rate_w(body_mass_kg: float) -> float:
     if not (body_mass_kg > 0 and math.isfinite(body_mass_kg)):
         raise ValueError(f"body_mass_kg = {body_mass_kg!r}; allowed: finite > 0")
     return BASAL_W_PER_KG * body_mass_kg
+
+
+# --- the models' terms, for analysis (not used by the compiled reflex law) -------------------
+
+#: :func:`umberger2010_terms_w`'s terms, in order (their sum is the muscle's rate)
+UMBERGER_TERMS = ("activation_maintenance", "shortening", "lengthening", "nonnegative_raise",
+                  "heat_floor", "work_positive", "work_negative")
+#: :func:`bhargava2004_terms_w`'s terms, in order (their sum is the muscle's rate)
+BHARGAVA_TERMS = ("activation", "maintenance", "shortening", "heat_floor", "work")
+
+
+def umberger2010_terms_w(u, a, l_norm, v_lopt_s, f_active_n, f_length, v_max_lopt_s,
+                         l_opt_m, mass_kg, slow_twitch) -> dict[str, np.ndarray]:
+    """:func:`umberger2010_rate_w` split into its terms (W each), for arrays of muscle states
+    (the arguments broadcast; :func:`umberger2010_rate_w`'s meanings). An analysis path, not
+    the reflex law's: the terms' sum is that function's total to rounding.
+
+    With ``S = 1.5``, ``A = u`` if ``u > a`` else ``(u + a)/2`` (Umberger et al. 2003, p. 104;
+    Umberger 2010, eqs. A1–A6), per kg of muscle:
+
+    * ``activation_maintenance``: ``Ḣ_AM = S A^0.6 (128 (1 − f_ST) + 25)``, beyond ``l_opt``
+      ``S A^0.6 (0.4 + 0.6 f_L)(128 (1 − f_ST) + 25)``;
+    * ``shortening`` (``v ≤ 0``): ``S A² [min(−α_ST v, 100) f_ST − α_FT v (1 − f_ST)]``,
+      ``α_ST = 250/v_max``, ``α_FT = 153/v_max``; ``lengthening`` (``v > 0``):
+      ``S A 4 α_ST v``; either × ``f_L`` beyond ``l_opt``;
+    * ``nonnegative_raise``: what the shortening/lengthening heat is raised by where
+      ``Ḣ_AM + Ḣ_SL + Ẇ`` would be negative (so the total is 0 before the floor; Umberger
+      2010 counts negative work, and this keeps the total non-negative);
+    * ``heat_floor``: what lifts the heat ``Ḣ_AM + Ḣ_SL`` to 1 W/kg where it is below
+      (Umberger et al. 2003, p. 104);
+    * ``work_positive``, ``work_negative``: ``Ẇ = −F_CE,active v_CE`` (``F_active`` at
+      least 0) where positive (shortening) and where negative (lengthening: counted,
+      Umberger 2010, unlike the 2003 model's ``Ẇ ≥ 0``).
+
+    Each term × ``mass_kg`` (W). Returns ``{name: array}`` in :data:`UMBERGER_TERMS` order.
+    """
+    u, a, ln, v, fa, fl, vmax, lopt, m, fst = np.broadcast_arrays(*(
+        np.asarray(x, dtype=float) for x in (u, a, l_norm, v_lopt_s, f_active_n, f_length,
+                                             v_max_lopt_s, l_opt_m, mass_kg, slow_twitch)))
+    A = np.maximum(np.where(u > a, u, 0.5 * (u + a)), 0.0)
+    am0 = 128.0 * (1.0 - fst) + 25.0
+    with np.errstate(divide="ignore"):
+        a06 = np.exp(0.6 * np.log(A))
+    am = np.where(ln <= 1.0, AEROBIC_SCALE * a06 * am0,
+                  AEROBIC_SCALE * a06 * (0.4 * am0 + 0.6 * am0 * fl))
+    inv_v_max = 1.0 / vmax
+    a_st = 250.0 * inv_v_max
+    a_ft = 153.0 * inv_v_max
+    short = v <= 0.0
+    st = np.minimum(-a_st * v, 100.0)
+    sl = np.where(short, AEROBIC_SCALE * A * A * (st * fst - a_ft * v * (1.0 - fst)),
+                  AEROBIC_SCALE * A * (4.0 * a_st * v))
+    sl = np.where(ln > 1.0, sl * fl, sl)
+    w = -np.maximum(fa, 0.0) * v * lopt / m
+    raw = am + sl + w
+    sl2 = np.where(raw < 0.0, sl - raw, sl)
+    raise_ = sl2 - sl
+    floor = np.maximum(MIN_HEAT_W_PER_KG - (am + sl2), 0.0)
+    zero = np.zeros_like(sl)
+    return {"activation_maintenance": am * m,
+            "shortening": np.where(short, sl, zero) * m,
+            "lengthening": np.where(short, zero, sl) * m,
+            "nonnegative_raise": raise_ * m,
+            "heat_floor": floor * m,
+            "work_positive": np.maximum(w, 0.0) * m,
+            "work_negative": np.minimum(w, 0.0) * m}
+
+
+def bhargava2004_terms_w(u, l_norm, v_m_s, f_fiber_n, f_active_n, mass_kg,
+                         slow_twitch) -> dict[str, np.ndarray]:
+    """:func:`bhargava2004_rate_w` split into its terms (W each), for arrays of muscle states
+    (the arguments broadcast; :func:`bhargava2004_rate_w`'s meanings). An analysis path, not
+    the reflex law's: the terms' sum is that function's total to rounding.
+
+    Bhargava, Pandy & Anderson (2004, eqs. 3–11), fibre excitations ``u_ST = f_ST sin(π u/2)``,
+    ``u_FT = (1 − f_ST)(1 − cos(π u/2))`` (``u`` clipped to [0, 1];
+    :func:`bhargava_fibre_excitations`' form):
+
+    * ``activation``: ``m (40 u_ST + 133 u_FT)``;
+    * ``maintenance``: ``m g(l_CE/l_opt) (74 u_ST + 111 u_FT)`` (:func:`bhargava_length_factor`);
+    * ``shortening``: ``−0.25 F_CE v_CE`` while shortening (fibre force, active and passive),
+      0 lengthening;
+    * ``heat_floor``: what lifts the heat (the three above) to 1 W per kg of muscle where it
+      is below;
+    * ``work``: ``−F_CE,active v_CE`` while shortening, 0 lengthening (negative work is not
+      counted).
+
+    Returns ``{name: array}`` in :data:`BHARGAVA_TERMS` order.
+    """
+    u, ln, v, ff, fa, m, fst = np.broadcast_arrays(*(
+        np.asarray(x, dtype=float) for x in (u, l_norm, v_m_s, f_fiber_n, f_active_n, mass_kg,
+                                             slow_twitch)))
+    uu = np.minimum(np.maximum(u, 0.0), 1.0)
+    s4 = np.sin(0.25 * math.pi * uu)
+    u_st = fst * (2.0 * s4 * np.sqrt(1.0 - s4 * s4))
+    u_ft = (1.0 - fst) * (2.0 * s4 * s4)
+    g = np.where(ln <= 0.5, 0.5, np.where(ln <= 1.0, 0.5 + (ln - 0.5),
+                                          np.where(ln <= 1.5, 1.0 - 2.0 * (ln - 1.0), 0.0)))
+    act = m * (40.0 * u_st + 133.0 * u_ft)
+    main = m * g * (74.0 * u_st + 111.0 * u_ft)
+    short = v <= 0.0
+    sh = np.where(short, -0.25 * ff * v, 0.0)
+    w = np.where(short, -fa * v, 0.0)
+    floor = np.maximum(MIN_HEAT_W_PER_KG * m - (act + main + sh), 0.0)
+    return {"activation": act, "maintenance": main, "shortening": sh, "heat_floor": floor,
+            "work": w}
