@@ -60,7 +60,7 @@ from numba.core import types
 from numba.extending import intrinsic
 
 from afo_mj.gait.native_step import call_mj_step
-from afo_mj.gait.walk_loop import _call_begin, _call_end
+from afo_mj.gait.walk_loop import _call_begin, device_end_step, record_raw_state
 from afo_mj.numba_cache import cached_njit
 
 __all__ = ["STEP_SIGNATURE", "N_OUT", "OUT_EVENT", "OUT_STANCE", "OUT_DAMP", "OUT_TAU",
@@ -187,8 +187,6 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
     p_ctrl = ctrl.ctypes.data
     nq = qpos.shape[0]
     nv = qvel.shape[0]
-    ns = sens.shape[0]
-    nc = contact.shape[0]
     nrun = signal_runs.shape[0]
     nstate = state.shape[0]
     ank_r = dlim[0, 1]
@@ -237,26 +235,16 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
         if time1[0] < t:
             return DIVERGED, k
         if dev_end != 0:
-            dev_io[2] = qvel[ank_r]
-            dev_io[3] = qvel[ank_l]
             n_dev = loop_index[LI_DEV_STEPS]
-            code_d = _call_end(dev_end, p_io + 16, p_buf, p_meta, p_log, log_n, log_f, log_s,
-                               n_dev, t + dev_dt)
+            code_d = device_end_step(dev_end, dev_io, qvel, ank_r, ank_l, p_io, p_buf,
+                                     p_meta, p_log, log_n, log_f, log_s, n_dev, t + dev_dt,
+                                     dev_delivered2, b_dev, k)
             loop_index[LI_DEV_STEPS] = n_dev + 1
             if code_d == 0:
                 return DEVICE_NON_FINITE, k
-            b_dev[k, 0] = dev_delivered2[0]
-            b_dev[k, 1] = dev_delivered2[1]
         # --- record ---------------------------------------------------------------------
-        b_time[k] = time1[0]
-        for j in range(nq):
-            b_qpos[k, j] = qpos[j]
-        for j in range(nv):
-            b_qvel[k, j] = qvel[j]
-        for j in range(ns):
-            b_sens[k, j] = sens[j]
-        for j in range(nc):
-            b_cz[k, j] = gxpos[contact[j], 2]
+        record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact, b_time, b_qpos, b_qvel,
+                         b_sens, b_cz)
         if out[OUT_MOMENT_SOURCE] == 1.0:
             for s in range(2):
                 b_tau[k, s, 0] = out[OUT_TAU + 3 * s]

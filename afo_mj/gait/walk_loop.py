@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
@@ -104,6 +105,39 @@ def _call_end(typingctx, fn, p_velocity, p_buf, p_meta, p_log, n_log, n_fields, 
 
 
 # cached on disk with the sources of the law and the native step it compiles in (afo_mj.numba_cache)
+@numba.njit(inline="always", _nrt=False)
+def device_end_step(dev_end, dev_io, qvel, dank_r, dank_l, p_io, p_buf, p_meta, p_log, log_n,
+                    log_f, log_s, n_dev, t_end, dev_delivered2, b_dev, k):  # pragma: no cover
+    """A coupled device's ``end`` entry point after ``mj_step``, shared by the compiled walk
+    loops: the new ankle velocities into its input block, the end of its step ``n_dev`` at
+    ``t_end``, its delivered torque into row ``k`` of ``b_dev``; returns its code (0: its
+    state went non-finite, nothing recorded)."""
+    dev_io[2] = qvel[dank_r]
+    dev_io[3] = qvel[dank_l]
+    code = _call_end(dev_end, p_io + 16, p_buf, p_meta, p_log, log_n, log_f, log_s, n_dev,
+                     t_end)
+    if code != 0:
+        b_dev[k, 0] = dev_delivered2[0]
+        b_dev[k, 1] = dev_delivered2[1]
+    return code
+
+
+@numba.njit(inline="always", _nrt=False)
+def record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact, b_time, b_qpos, b_qvel,
+                     b_sens, b_cz):  # pragma: no cover
+    """Row ``k`` of the raw-state buffers every compiled walk loop keeps: the time, ``qpos``,
+    ``qvel``, the sensors and the contact geoms' heights."""
+    b_time[k] = time1[0]
+    for j in range(qpos.shape[0]):
+        b_qpos[k, j] = qpos[j]
+    for j in range(qvel.shape[0]):
+        b_qvel[k, j] = qvel[j]
+    for j in range(sens.shape[0]):
+        b_sens[k, j] = sens[j]
+    for j in range(contact.shape[0]):
+        b_cz[k, j] = gxpos[contact[j], 2]
+
+
 @cached_njit(depends_on=(law, "afo_mj.gait.native_step"), fastmath=False, _nrt=False)
 def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_step, const,
                index, ctrl, actfrc, qfrc_actuator, actuator_force, contact_geoms,
@@ -130,8 +164,6 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
     nq = qpos.shape[0]
     nv = qvel.shape[0]
     nu = actuator_force.shape[0]
-    ns = sens.shape[0]
-    nc = contact_geoms.shape[0]
     dev_begin = loop_index[LI_DEV_BEGIN]
     dev_end = loop_index[LI_DEV_END]
     p_io = loop_index[LI_P_IO]
@@ -193,29 +225,20 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
                 ctrl[ff_l] -= adapt * (f_l - d_l * dev_io[3])
         call_mj_step(fn, m_addr, d_addr)
         if dev_end != 0:
-            dev_io[2] = qvel[dank_r]
-            dev_io[3] = qvel[dank_l]
             n_dev = loop_index[LI_DEV_STEPS]
-            code = _call_end(dev_end, p_io + 16, p_buf, p_meta, p_log, log_n, log_f, log_s,
-                             n_dev, t + dev_dt)
+            code = device_end_step(dev_end, dev_io, qvel, dank_r, dank_l, p_io, p_buf, p_meta,
+                                   p_log, log_n, log_f, log_s, n_dev, t + dev_dt,
+                                   dev_delivered2, b_dev, k)
             loop_index[LI_DEV_STEPS] = n_dev + 1
             if code == 0:
                 return DEVICE_NON_FINITE, k
-            b_dev[k, 0] = dev_delivered2[0]
-            b_dev[k, 1] = dev_delivered2[1]
         # --- record the raw state --------------------------------------------------------
-        b_time[k] = time1[0]
-        for j in range(nq):
-            b_qpos[k, j] = qpos[j]
+        record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact_geoms, b_time, b_qpos,
+                         b_qvel, b_sens, b_cz)
         for j in range(nv):
-            b_qvel[k, j] = qvel[j]
             b_qfrc[k, j] = qfrc_actuator[j]
         for j in range(nu):
             b_act[k, j] = actuator_force[j]
-        for j in range(ns):
-            b_sens[k, j] = sens[j]
-        for j in range(nc):
-            b_cz[k, j] = gxpos[contact_geoms[j], 2]
         b_phase[k, 0] = state[law.S_PHASE]
         b_phase[k, 1] = state[law.S_PHASE + 1]
         k += 1
