@@ -29,7 +29,8 @@ def walk_record():
 def test_files_read_back_equal_the_record(walk_record, tmp_path):
     r = walk_record
     paths = write_opensim(r, tmp_path, "walk")
-    assert {p.name for p in paths.values()} == {"walk_ik.mot", "walk_id.sto", "walk_grf.mot"}
+    assert {p.name for p in paths.values()} == {"walk_ik.mot", "walk_id.sto", "walk_grf.mot",
+                                                 "walk_grf.xml"}
     hdr, labels, data = read_opensim_storage(paths["ik"])
     assert hdr["inDegrees"] == "yes" and hdr["source"] == "afo_mj"
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
@@ -92,7 +93,7 @@ def test_output_opensim_writes_every_run_into_the_results(tmp_path):
                  overrides=["gait.strides=3", "gait.analyse_strides=[2, 3]",
                             "output.opensim=true"])
     assert sorted(p.name for p in (out / "opensim").iterdir()) == [
-        "walk_grf.mot", "walk_id.sto", "walk_ik.mot"]
+        "walk_grf.mot", "walk_grf.xml", "walk_id.sto", "walk_ik.mot"]
     from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
     with pytest.raises(ScenarioError, match="output.opensim = 'yes'"):
         parse_scenario('[output]\nopensim = "yes"')
@@ -111,7 +112,7 @@ def test_a_device_walk_on_the_muscle_walker_exports_every_condition(tmp_path):
                                   'device.conditions=["no_device", "assist"]'])
     names = sorted(p.name for p in (out / "opensim").iterdir())
     assert names == sorted(f"{c}_{k}" for c in ("no_device", "assist")
-                           for k in ("grf.mot", "id.sto", "ik.mot"))
+                           for k in ("grf.mot", "grf.xml", "id.sto", "ik.mot"))
     rec = res.results["assist"][0]
     _, labels, data = read_opensim_storage(out / "opensim" / "assist_ik.mot")
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
