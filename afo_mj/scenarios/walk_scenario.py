@@ -58,8 +58,9 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # the command line writes one anywhere)
     signal_rate_hz = 500.0           # recording: scalar signals sample rate, 1..100000 Hz
     transform_rate_hz = 50.0         # recording: 3D body transforms sample rate, 1..10000 Hz
-    opensim = false                  # true: opensim/<run>_ik.mot, _id.sto, _grf.mot in the
-                                     # results directory (afo_mj.outputs.opensim_export)
+    opensim = false                  # true: opensim/<run>_ik.mot, _id.sto, _grf.mot and
+                                     # _grf.xml (ExternalLoads) in the results directory
+                                     # (afo_mj.outputs.opensim_export)
 
 Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
 file) raises one :class:`ScenarioError` naming the file, the dotted key, the value and what
