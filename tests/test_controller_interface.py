@@ -102,16 +102,16 @@ def test_a_third_controller_runs_from_a_scenario_through_afo_mj_run(tmp_path, cl
     assert s["cadence_steps_per_min"]["sd"] < 1.0
 
 
-def test_a_third_controller_wears_the_hafo_from_a_scenario(tmp_path, clock_registered):
-    src = (ROOT / "scenarios" / "gait_assist_hafo.toml").read_text(encoding="utf-8")
-    rc, out, err = run_cli(["run", str(ROOT / "scenarios" / "gait_assist_hafo.toml"),
-                            "--set", f"walker.model={NAME}", "--set", "gait.strides=3",
-                            "--set", "gait.analyse_strides=[2, 3]",
-                            "--set", 'device.conditions=["no_device", "assist"]',
-                            "--out", str(tmp_path / "out")])
-    assert "preset" in src
-    assert rc == 0, err
-    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+def test_a_third_controller_wears_the_hafo_from_a_scenario(clock_registered):
+    """The device scenario's own path (afo_mj.app.run.run_scenario, what afo-mj run calls;
+    nothing written, no figures) with walker.model naming the registered controller."""
+    from afo_mj.app.run import run_scenario
+    res = run_scenario(ROOT / "scenarios" / "gait_assist_hafo.toml",
+                       overrides=[f"walker.model={NAME}", "gait.strides=3",
+                                  "gait.analyse_strides=[2, 3]",
+                                  'device.conditions=["no_device", "assist"]'],
+                       figures=False)
+    s = res.summary
     assert s["scenario"]["walker_model"] == NAME
     assist = s["device_conditions"]["assist"]
     # the device's ledger closes (electrical in = every named loss + work out + stored)
