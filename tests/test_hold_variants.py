@@ -86,12 +86,12 @@ STEP_UPDATE_S = 2e-3
 
 @pytest.fixture(scope="module")
 def stepped_record(tmp_path_factory):
-    """A clean 3 s record of the independent rig whose voltage is a digital command updated
+    """A clean 2 s record of the independent rig whose voltage is a digital command updated
     every 2 ms and held (logged at 1 kHz)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import independent_rig
     return independent_rig.write_record(tmp_path_factory.mktemp("stepped") / "clean.csv",
-                                        duration_s=3.0, seed=3,
+                                        duration_s=2.0, seed=3,
                                         command_update_s=STEP_UPDATE_S)
 
 
