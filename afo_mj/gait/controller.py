@@ -90,12 +90,13 @@ class ControllerError(ValueError):
 @dataclasses.dataclass(frozen=True)
 class ControllerSetup:
     """What a controller is built for: the walker (:class:`afo_mj.human.walker.WalkerParams`),
-    the reference gait (:class:`afo_mj.gait.reference.ReferenceGait`), the gait cycle time the
-    scenario asks for (s) and the number of strides."""
+    the reference gait (:class:`afo_mj.gait.reference.ReferenceGait`; None for a controller
+    that tracks none), the gait cycle time the scenario asks for (s; None: none asked) and
+    the number of strides."""
 
     walker: Any
-    reference: Any
-    cycle_time_s: float
+    reference: Any = None
+    cycle_time_s: float | None = None
     strides: int = 10
 
 

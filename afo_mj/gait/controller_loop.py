@@ -53,14 +53,12 @@ walker walks). Per step ``k`` (``t`` the time MuJoCo holds):
 
 from __future__ import annotations
 
-import math
-
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
 from afo_mj.gait.native_step import call_mj_step
-from afo_mj.gait.walk_loop import _call_begin, device_end_step, record_raw_state
+from afo_mj.gait.walk_loop import _call_begin, all_finite, device_end_step, record_raw_state
 from afo_mj.numba_cache import cached_njit
 
 __all__ = ["STEP_SIGNATURE", "N_OUT", "OUT_EVENT", "OUT_STANCE", "OUT_DAMP", "OUT_TAU",
@@ -185,10 +183,7 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
     p_sens = sens.ctypes.data
     p_gxpos = gxpos.ctypes.data
     p_ctrl = ctrl.ctypes.data
-    nq = qpos.shape[0]
-    nv = qvel.shape[0]
     nrun = signal_runs.shape[0]
-    nstate = state.shape[0]
     ank_r = dlim[0, 1]
     ank_l = dlim[1, 1]
     lim_was = loop_index[LI_LIM_WAS] != 0
@@ -265,17 +260,7 @@ def controller_steps(k, k_end, time1, qpos, qvel, sens, gxpos, ctrl, qfrc_applie
             for j in range(signal_runs[r, 2]):
                 b_sig[k, dst + j] = state[src + j]
         k += 1
-        finite = True
-        for j in range(nq):
-            if not math.isfinite(qpos[j]):
-                finite = False
-        for j in range(nv):
-            if not math.isfinite(qvel[j]):
-                finite = False
-        for j in range(nstate):
-            if not math.isfinite(state[j]):
-                finite = False
-        if not finite:
+        if not (all_finite(qpos) and all_finite(qvel) and all_finite(state)):
             return NON_FINITE, k
         if qpos[pz] < fall_z or abs(qpos[pt]) > fall_tilt:
             return FELL, k

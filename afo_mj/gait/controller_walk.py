@@ -137,14 +137,18 @@ class ControllerWalk(SteppedWalk):
         why = None
         if cs is None:
             why = f"the controller {ctl.name or type(ctl).__name__} has no compiled step"
-        elif device is not None and not (self._coupled and hasattr(device, "native_coupling")):
-            why = ("the device has no compiled entry points (a device whose torque is a "
-                   "Python callback runs in the Python loop)")
+        elif device is not None and not self._coupled:
+            why = (f"the device {type(device).__name__} is a Python callback of its torque "
+                   f"(torque_nm), stepped in the Python loop")
+        elif device is not None and not hasattr(device, "native_coupling"):
+            why = (f"the device {type(device).__name__} has no compiled entry points "
+                   f"(native_coupling); it steps in Python")
         nc = None
         if why is None and device is not None:
             nc = device.native_coupling()
             if nc is None:
-                why = "the device has no compiled entry points"
+                why = (f"the device {type(device).__name__} has no compiled entry points "
+                       f"(native_coupling() gave none)")
         if why is not None:
             if self.loop == "compiled":
                 raise ValueError(f"loop = 'compiled' cannot be honoured: {why}; allowed: "

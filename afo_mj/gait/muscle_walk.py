@@ -235,16 +235,11 @@ class MuscleWalkStepper(ControllerWalk):
         if loop == "compiled" and device_torque is not None:
             raise ValueError("loop = 'compiled' needs no device_torque: a Python callable's "
                              "torque runs in the Python loop; allowed: 'auto', 'python'")
-        if (loop == "compiled" and device is not None
-                and getattr(device, "native_coupling", None) is None):
-            raise ValueError("loop = 'compiled' needs a device with compiled entry points "
-                             "(native_coupling); this device steps in Python (e.g. a "
-                             "Python torque_fn); allowed: 'auto', 'python'")
         self.walker, self.params = w, P
         ctl = ReflexController(
             ReflexControllerParams(gains=tuple(P), initial_speed_m_s=initial_speed_m_s,
                                    max_force_scale=tuple((max_force_scale or {}).items())),
-            ControllerSetup(walker=w, reference=None, cycle_time_s=1.0))
+            ControllerSetup(walker=w))
         dev = device if device_torque is None else _TorqueCallback(device_torque)
         super().__init__(ctl, duration_s, None, worn_masses, dev, loop)
 

@@ -143,7 +143,7 @@ class ReflexController(HumanController):
         return z0 - FALL_DROP_M * self.walker_params().height_m / 1.75, FALL_TILT_RAD
 
     def compiled(self, phys) -> CompiledStep:
-        """The same step compiled (:func:`_reflex_cfunc`): the law on this controller's own
+        """The same step compiled (:func:`_reflex_cstep`): the law on this controller's own
         arrays (``X``, the ring, ``P``, ``T``), so the Python and the compiled step can take
         turns within one walk."""
         F = np.concatenate(([self._h, self._mg], self._P))
@@ -166,7 +166,7 @@ class ReflexController(HumanController):
             ("excitation", rl.X_U), ("activation", rl.X_ACT), ("force_n", rl.X_F),
             ("ce_velocity_m_s", rl.X_VCE), ("metabolic_umberger_w", rl.X_EDOT_U),
             ("metabolic_bhargava_w", rl.X_EDOT_B))}
-        return CompiledStep(_reflex_cfunc().address, block, X, index, moments_from_out=True,
+        return CompiledStep(_reflex_cstep.address, block, X, index, moments_from_out=True,
                             keep=(F, idx, T, X, ring))
 
     def signal_values(self):
@@ -175,12 +175,6 @@ class ReflexController(HumanController):
             ("excitation", rl.X_U), ("activation", rl.X_ACT), ("force_n", rl.X_F),
             ("ce_velocity_m_s", rl.X_VCE), ("metabolic_umberger_w", rl.X_EDOT_U),
             ("metabolic_bhargava_w", rl.X_EDOT_B))}
-
-
-def _reflex_cfunc():
-    """The reflex controller's compiled step (:func:`_reflex_cstep`, compiled or loaded from
-    numba's cache on first use)."""
-    return _reflex_cstep
 
 
 @cached_cfunc(cl.STEP_SIGNATURE, depends_on=(rl, cl), error_model="numpy")
@@ -215,4 +209,4 @@ def _reflex_cstep(t, qpos_p, qvel_p, sens_p, gxpos_p, blk, ctrl_p, out):  # prag
 
 def reflex_setup(walker=None) -> ControllerSetup:
     """A setup for the reflex controller (it needs no reference or cycle time)."""
-    return ControllerSetup(walker=walker, reference=None, cycle_time_s=1.0)
+    return ControllerSetup(walker=walker)

@@ -123,6 +123,15 @@ def device_end_step(dev_end, dev_io, qvel, dank_r, dank_l, p_io, p_buf, p_meta, 
 
 
 @numba.njit(inline="always", _nrt=False)
+def all_finite(a):  # pragma: no cover
+    """Every entry of the 1-D array ``a`` finite (no NaN, no ±inf)."""
+    for j in range(a.shape[0]):
+        if not math.isfinite(a[j]):
+            return False
+    return True
+
+
+@numba.njit(inline="always", _nrt=False)
 def record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact, b_time, b_qpos, b_qvel,
                      b_sens, b_cz):  # pragma: no cover
     """Row ``k`` of the raw-state buffers every compiled walk loop keeps: the time, ``qpos``,
@@ -161,7 +170,6 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
     fn = loop_index[LI_FN]
     m_addr = loop_index[LI_MODEL]
     d_addr = loop_index[LI_DATA]
-    nq = qpos.shape[0]
     nv = qvel.shape[0]
     nu = actuator_force.shape[0]
     dev_begin = loop_index[LI_DEV_BEGIN]
@@ -242,14 +250,7 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
         b_phase[k, 0] = state[law.S_PHASE]
         b_phase[k, 1] = state[law.S_PHASE + 1]
         k += 1
-        finite = True
-        for j in range(nq):
-            if not math.isfinite(qpos[j]):
-                finite = False
-        for j in range(nv):
-            if not math.isfinite(qvel[j]):
-                finite = False
-        if not finite:
+        if not (all_finite(qpos) and all_finite(qvel)):
             return NON_FINITE, k
         if qpos[pz] < fall_dz or abs(qpos[pt]) > fall_tilt:
             return FELL, k
