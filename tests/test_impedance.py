@@ -74,7 +74,7 @@ def test_hafo_emulates_a_spring_on_the_stand():
 def test_scenarios_give_impedance_to_any_torque_controlled_device(tmp_path):
     """``profile = "impedance"`` on the pump-controlled HAFO builds a HAFO device emulating the
     rows; on a [circuit] with the open-loop controller it is refused, naming the key."""
-    from afo_mj.devices.hafo import HafoDevice
+    from afo_mj.devices.hafo import HAFO_GAIT
     from afo_mj.experiments.device_walk import make_device
     from afo_mj.scenarios.device_scenario import device_config
     from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
@@ -83,7 +83,7 @@ def test_scenarios_give_impedance_to_any_torque_controlled_device(tmp_path):
                     'stiffness_nm_per_deg = 2.0\n')
     cfg = device_config(load_scenario(path))
     dev = make_device(cfg, "assist", 1e-3, 0)
-    assert isinstance(dev, HafoDevice) and not dev.transparent
+    assert dev.spec.name == "hafo_gait" and dev.params == HAFO_GAIT and not dev.transparent
     table = dev.profile
     assert impedance_torque(table, 0.5, 0.1, 0.0) == pytest.approx(-2.0 * 180 / math.pi * 0.1)
     assert make_device(cfg, "transparent", 1e-3, 0).transparent

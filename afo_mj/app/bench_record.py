@@ -22,11 +22,11 @@ def make_bench_record(out_path, kind: str = "hafo", effects: Mapping[str, Mappin
     :class:`~afo_mj.app.errors.InvalidInput` naming what is not allowed."""
     from afo_mj.calibration.measured_data import MeasuredDataError
     from afo_mj.calibration.synthetic_records import generate_record
-    from afo_mj.experiments.bench_replay import kind_of_preset
+    from afo_mj.devices.registry import device_entry
     from afo_mj.hydraulics.params import ParameterError
     try:
         if preset is not None:
-            kind_of_preset(preset, key="--preset")
+            device_entry(preset, key="--preset")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return generate_record(out_path, kind, dict(effects or {}), dict(mismatch or {}),

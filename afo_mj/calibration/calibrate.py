@@ -1241,11 +1241,11 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
     import tomllib
     from pathlib import Path
 
-    from afo_mj.experiments.bench_replay import kind_of_preset
+    from afo_mj.devices.registry import device_entry
 
     path = Path(scenario)
     if not path.suffix == ".toml":
-        kind_of_preset(scenario, key="--scenario")    # raises with the allowed presets
+        device_entry(scenario, key="--scenario")    # raises with the allowed presets
         return scenario, {}, CalibrationOptions()
     if not path.is_file():
         raise ParameterError(f"--scenario {scenario!r}: no such file (allowed: a .toml scenario "
@@ -1258,7 +1258,7 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
     if not isinstance(dev, dict) or "preset" not in dev:
         raise ParameterError(f"{path}: device.preset is missing; allowed: a device preset name")
     preset = dev["preset"]
-    kind_of_preset(preset, key=f"{path}: device.preset")
+    device_entry(preset, key=f"{path}: device.preset")
     overrides = dict(dev.get("params", {}))
     cal = doc.get("calibration", {})
     if not isinstance(cal, dict):

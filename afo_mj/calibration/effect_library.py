@@ -445,7 +445,7 @@ def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
 
 
 #: The broad declared set of a described circuit (labels by role,
-#: :func:`afo_mj.experiments.bench_replay.circuit_roles`): every datasheet value a record of
+#: :func:`afo_mj.circuits.device_spec.circuit_roles`): every datasheet value a record of
 #: the rig may or may not be able to estimate. The calibration's identifiability analysis
 #: (:func:`afo_mj.calibration.identifiability.select_parameters`) decides which are fitted;
 #: the rest stay at the description's values and are reported. A parameter whose label the

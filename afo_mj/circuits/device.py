@@ -20,6 +20,7 @@ from afo_mj.circuits import stepper
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import CompiledCircuit, build
 from afo_mj.circuits.components import CircuitError
+from afo_mj.circuits.device_spec import DeviceSpec, regroup
 
 SIDE_NAMES = ("right", "left")
 
@@ -82,18 +83,40 @@ class CircuitDevice:
     :func:`afo_mj.control.impedance.impedance_table`) with the phase estimated from the foot
     switch, or 0 (transparent). ``initial_state`` maps state labels to their values at t = 0
     (else the circuit's: pressures at ``options.initial_pressure_pa``, the rest at 0).
-    ``max_steps`` > 0 keeps a device log of that many steps."""
+    ``max_steps`` > 0 keeps a device log of that many steps.
+
+    ``circuit`` is a :class:`~afo_mj.circuits.device_spec.DeviceSpec` (a registered device,
+    :mod:`afo_mj.devices.registry`: its initial state, log names, named ledger and mass budget
+    come with it) or a bare description (compiled or not: the ledger by component, no
+    masses). ``open_loop``: ``torque_fn`` gives the device's open-loop command (the motor
+    voltage, a valve command) instead of a torque (:meth:`DeviceSpec.circuit_for`)."""
 
     coupled = True
-    #: log column renames (generic name → the name a subclass's consumers read); the
-    #: columns are the same, only their keys in :meth:`CircuitLog.arrays` change
-    log_names: dict = {}
 
-    def __init__(self, circuit: Circuit | CompiledCircuit, sides=("right",),
+    def __init__(self, circuit: Circuit | CompiledCircuit | DeviceSpec, sides=("right",),
                  timestep_s: float = 1e-3, torque_fn=None, profile=None, max_steps: int = 0,
                  min_stride_s: float = 0.4, max_stride_s: float = 3.0, impedance=None,
-                 initial_state: dict | None = None):
-        cc = circuit if isinstance(circuit, CompiledCircuit) else build(circuit)
+                 initial_state: dict | None = None, open_loop: bool = False):
+        if isinstance(circuit, DeviceSpec):
+            spec = circuit
+            cc = build(spec.circuit_for(open_loop))
+            if initial_state is None:
+                initial_state = dict(spec.initial_state)
+        else:
+            cc = circuit if isinstance(circuit, CompiledCircuit) else build(circuit)
+            spec = DeviceSpec.from_circuit(cc.circuit)
+            if open_loop:
+                spec.circuit_for(True)       # refused unless the controller is open loop
+        if open_loop and torque_fn is None:
+            raise CircuitError(f"device {spec.name!r}: open_loop needs a torque_fn giving the "
+                               f"{spec.open_loop_channel} command")
+        #: what the tools know about this device (:class:`DeviceSpec`)
+        self.spec = spec
+        self.params = spec.params
+        self.open_loop = bool(open_loop)
+        #: log column renames (generic name → the name consumers read); the columns are the
+        #: same, only their keys in :meth:`CircuitLog.arrays` change
+        self.log_names = dict(spec.log_names)
         bad = [s for s in sides if s not in SIDE_NAMES]
         if bad or not sides or len(set(sides)) != len(sides):
             raise CircuitError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
@@ -165,6 +188,51 @@ class CircuitDevice:
                           else np.zeros((0, len(self.log_fields), ns)))
         self.steps = 0
         self.t_s = 0.0
+        if open_loop and spec.open_loop_switch is not None:
+            self.P[:, cc.param_labels.index(spec.open_loop_switch)] = 1.0
+
+    # -- masses ------------------------------------------------------------------------------
+    def worn_masses(self) -> list:
+        """:class:`afo_mj.human.walker.WornMass` items for the walker: the spec's mass budget
+        on each worn side (ankle parts at the side's sites, the supply at the waist, a
+        tethered supply not worn); none when the spec models no masses."""
+        from afo_mj.human.walker import WornMass
+        out = []
+        for side in self.sides:
+            suf = "r" if side == "right" else "l"
+            for it in self.spec.masses or ():
+                if it.site == "off_body":
+                    continue
+                site = "waist" if it.site == "waist" else f"{it.site}_{suf}"
+                out.append(WornMass(site, it.mass_kg, f"{self.spec.mass_label}_{side}_{it.name}"))
+        return out
+
+    @property
+    def mass_total_kg(self) -> float | None:
+        """Worn mass, every worn side (a tethered supply is not counted); None when the spec
+        models no masses."""
+        if self.spec.masses is None:
+            return None
+        return len(self.sides) * sum(i.mass_kg for i in self.spec.masses
+                                     if i.site != "off_body")
+
+    @property
+    def mass_at_ankle_kg(self) -> float | None:
+        """Mass worn at one ankle (what the published 0.97 kg of the HAFO refers to)."""
+        if self.spec.masses is None:
+            return None
+        return sum(i.mass_kg for i in self.spec.masses if i.site not in ("waist", "off_body"))
+
+    # -- state by name -----------------------------------------------------------------------
+    def state(self, name: str) -> np.ndarray:
+        """The present value of state ``name`` (a circuit state label or its log name, e.g.
+        ``"chamber_a_pa"``) on each worn side (a view)."""
+        generic = {v: k for k, v in self.log_names.items()}.get(name, name)
+        if generic not in self.cc.state_names:
+            raise CircuitError(f"state = {name!r}; allowed: "
+                               + ", ".join(self.log_names.get(n, n)
+                                           for n in self.cc.state_names))
+        return self.Y[:, self.cc.state_names.index(generic)]
 
     # -- coupled protocol --------------------------------------------------------------------
     def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
@@ -231,6 +299,38 @@ class CircuitDevice:
 
     # -- ledger ----------------------------------------------------------------------------
     def ledger(self, j: int = 0) -> dict:
+        """Energy ledger of worn side ``j`` (J): :meth:`component_ledger`, with, for a spec
+        that names its ledger (:class:`~afo_mj.circuits.device_spec.LedgerGroups`), the
+        losses and stores grouped by name, the electrical input drawn and regenerated, the
+        hydraulic energy the pump delivered (the input less the upstream losses and store
+        changes), the peak motor current, the oil temperature rise, the battery's state of
+        charge, the sub-stepped step count and the spec's extra figures."""
+        g = self.component_ledger(j)
+        groups = self.spec.ledger
+        if groups is None:
+            return g
+        W, kk = self.W[j], self.k
+        what = f"device {self.spec.name!r}"
+        losses = regroup(g["losses_j"], groups.losses, f"{what} losses")
+        stored = regroup(g["stored_change_j"], groups.stores, f"{what} stores")
+        e_in, drawn = g["input_j"], g["input_drawn_j"]
+        hydraulic = (e_in - sum(losses[n] for n in groups.upstream_losses)
+                     - sum(stored[n] for n in groups.upstream_stores))
+        ilim = self.spec.current_limit_a
+        g.update({
+            "electrical_in_j": e_in, "electrical_drawn_j": drawn,
+            "electrical_regenerated_j": drawn - e_in, "hydraulic_j": hydraulic,
+            "losses_j": losses, "stored_change_j": stored,
+            "peak_current_a": (g["monitors"]["motor.current_over_limit"] * ilim
+                               if ilim is not None else None),
+            "temperature_rise_k": float(W[kk.W_TEMP_K]
+                                        - self.cc.circuit.thermal.ambient_temperature_k),
+            "soc": float(W[kk.W_SOC]), "substeps": int(W[kk.W_SUBSTEPS])})
+        for key, (section, entry) in self.spec.ledger_extras.items():
+            g[key] = g[section][entry]
+        return g
+
+    def component_ledger(self, j: int = 0) -> dict:
         """Energy ledger of worn side ``j`` (J): input, mechanical output, every loss and
         store by component instance (and ``cavitation``: the void opened where a pressure was
         clipped at the vapour floor, :mod:`afo_mj.circuits.stepper`; ``battery_overload``: the

@@ -52,6 +52,7 @@ import numpy as np
 
 from afo_mj.circuits.controllers import PumpTorqueGains
 from afo_mj.circuits.device import CircuitDevice
+from afo_mj.circuits.device_spec import DeviceSpec, LedgerGroups, MassItem
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
 from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
@@ -61,11 +62,11 @@ from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_
 from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL, PumpParams
 from afo_mj.hydraulics.relief_valve import ReliefValveParams
 from afo_mj.hydraulics.seal import OringSealParams
-from afo_mj.human.walker import WornMass
 
 __all__ = ["PumpAnkleParams", "HafoMassItem", "HAFO", "HAFO_MASSES",
            "HafoDevice", "mass_budget", "hafo_params",
-           "HAFO_GAIT", "PRESETS"]
+           "HAFO_GAIT", "PRESETS", "hafo_spec", "HAFO_LOG_NAMES", "HAFO_LEDGER",
+           "HAFO_OUTPUTS"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,12 +164,8 @@ class PumpAnkleParams(Parameters):
 HAFO_ACTUATOR = PumpAnkleParams()
 
 
-@dataclasses.dataclass(frozen=True)
-class HafoMassItem:
-    name: str
-    mass_kg: float
-    site: str          # walker site stem: waist, shank_cuff, foot_plate, ankle_axis
-    note: str = ""
+#: a part of the mass budget (the circuits' :class:`~afo_mj.circuits.device_spec.MassItem`)
+HafoMassItem = MassItem
 
 
 def _hose_mass_kg(p: PumpAnkleParams, wall_kg_m: float = 0.045) -> float:
@@ -307,32 +304,63 @@ def hafo_circuit(p: PumpAnkleParams = HAFO_ACTUATOR, mode: str = "torque",
 
 SIDE_NAMES = ("right", "left")
 
+#: the HAFO's names for the log columns the gait, recording and signal code read
+HAFO_LOG_NAMES = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
+                  "shaft": "motor_speed_rad_s", "line_a": "pressure_a_pa",
+                  "line_b": "pressure_b_pa", "chamber_a": "chamber_a_pa",
+                  "chamber_b": "chamber_b_pa"}
+#: the HAFO's ledger: named losses (chain order) and stores, each a sum of component entries
+HAFO_LEDGER = LedgerGroups(
+    losses={
+        "battery_internal": ("battery.internal",), "driver": ("motor.driver",),
+        "motor_copper": ("motor.copper",), "motor_friction": ("motor.friction",),
+        "pump_volumetric": ("pump.volumetric",), "pump_mechanical": ("pump.mechanical",),
+        "line": ("hose_a.line", "hose_b.line"),
+        "charge_valves": ("flushing.throttling", "makeup_a.throttling",
+                          "makeup_b.throttling"),
+        "relief": ("relief_ab.throttling", "relief_ba.throttling"),
+        "seal_friction": ("cylinders.seal_friction",), "leakage": ("cylinders.leakage",)},
+    stores={
+        "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
+        "oil": ("oil.line_a", "oil.line_b", "oil.chamber_a", "oil.chamber_b"),
+        # the reservoir gives energy when it feeds the lines: its store falls
+        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
+        # the cable between pulley and pistons (zero with the rigid cable)
+        "series_spring": ("cylinders.series_spring",),
+        # the void opened where a pressure was clipped at the vapour floor (zero without)
+        "cavitation": ("cavitation",),
+        # the bus energy beyond the battery's matched-load power (zero without; negative)
+        "battery_overload": ("battery_overload",)},
+    # the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
+    # input less their losses and the change of their stores (energy balance of that part)
+    upstream_losses=("battery_internal", "driver", "motor_copper", "motor_friction",
+                     "pump_volumetric", "pump_mechanical"),
+    upstream_stores=("inductance", "rotor", "battery_overload"))
+#: the output channels of a HAFO bench replay (:mod:`afo_mj.experiments.bench_replay`)
+HAFO_OUTPUTS = ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
+                "ankle_torque_nm", "motor_current_a", "motor_speed_rad_s",
+                "fluid_temperature_k", "battery_current_a", "bus_voltage_v")
 
-def regroup(values: dict, table: dict, what: str) -> dict:
-    """Sum the generic per-component entries ``values`` (component-instance names) into the
-    named groups of ``table`` (group → tuple of generic names, in the order of the result).
-    Every generic name must belong to exactly one group, so a component added to a circuit
-    without a place in its device's ledger is an error rather than a silent omission."""
-    out, used = {}, set()
-    for group, names in table.items():
-        out[group] = 0.0
-        for n in names:
-            if n in values:
-                out[group] += values[n]
-                used.add(n)
-    missing = sorted(set(values) - used)
-    if missing:
-        raise ParameterError(f"{what}: {missing} belong to no ledger entry; allowed: "
-                             + ", ".join(f"{g} ← {list(ns)}" for g, ns in table.items()))
-    return out
+
+def hafo_spec(params: PumpAnkleParams = HAFO_ACTUATOR, name: str = "hafo",
+              initial_pressure_pa: float | None = None) -> DeviceSpec:
+    """The pump-controlled orthosis of ``params`` as a device spec: :func:`hafo_circuit` with
+    its torque loop (and the motor-voltage variant for open-loop use), the motor voltage as
+    the open-loop command, the HAFO's log names, ledger and mass budget."""
+    return DeviceSpec(
+        name=name, params=params,
+        circuit=hafo_circuit(params, "torque", initial_pressure_pa),
+        open_loop_circuit=hafo_circuit(params, "voltage", initial_pressure_pa),
+        summary="pump-controlled hydraulic AFO (battery, motor, reversible pump, "
+                "piston-cable cylinders)",
+        open_loop_channel="motor_voltage_v", outputs=HAFO_OUTPUTS, log_names=HAFO_LOG_NAMES,
+        ledger=HAFO_LEDGER, current_limit_a=params.driver.current_limit_a,
+        masses=mass_budget(params), mass_label="hafo")
 
 
 class HafoDevice(CircuitDevice):
-    """HAFO worn on one or both ankles, stepped with MuJoCo (coupled-device protocol).
-
-    The device is :func:`hafo_circuit` of ``params`` compiled by :mod:`afo_mj.circuits`
-    and stepped by :class:`~afo_mj.circuits.device.CircuitDevice`; this class adds the
-    mass budget and the HAFO's names for the log columns and the ledger entries.
+    """HAFO worn on one or both ankles, stepped with MuJoCo (coupled-device protocol): a
+    :class:`~afo_mj.circuits.device.CircuitDevice` of :func:`hafo_spec` (``params``).
 
     ``begin_step(t, angle, velocity, stance)`` → ``(joint_force, joint_damping)`` per walker
     side (zeros where not worn); MuJoCo steps; ``end_step(velocity_new)`` → delivered torque.
@@ -343,39 +371,6 @@ class HafoDevice(CircuitDevice):
     with ``mode="voltage"`` it returns the motor voltage instead (open-loop bench tests).
     """
 
-    #: generic log columns under the names the gait, recording and signal code read
-    log_names = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
-                 "shaft": "motor_speed_rad_s", "line_a": "pressure_a_pa",
-                 "line_b": "pressure_b_pa", "chamber_a": "chamber_a_pa",
-                 "chamber_b": "chamber_b_pa"}
-    #: ledger losses: each named loss the sum of these component losses, chain order
-    loss_table = {
-        "battery_internal": ("battery.internal",), "driver": ("motor.driver",),
-        "motor_copper": ("motor.copper",), "motor_friction": ("motor.friction",),
-        "pump_volumetric": ("pump.volumetric",), "pump_mechanical": ("pump.mechanical",),
-        "line": ("hose_a.line", "hose_b.line"),
-        "charge_valves": ("flushing.throttling", "makeup_a.throttling",
-                          "makeup_b.throttling"),
-        "relief": ("relief_ab.throttling", "relief_ba.throttling"),
-        "seal_friction": ("cylinders.seal_friction",), "leakage": ("cylinders.leakage",)}
-    #: ledger stores: each the sum of these generic stores (oil: every pressure node)
-    store_table = {
-        "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
-        "oil": ("oil.line_a", "oil.line_b", "oil.chamber_a", "oil.chamber_b"),
-        # the reservoir gives energy when it feeds the lines: its store falls
-        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
-        # the cable between pulley and pistons (zero with the rigid cable)
-        "series_spring": ("cylinders.series_spring",),
-        # the void opened where a pressure was clipped at the vapour floor (zero without)
-        "cavitation": ("cavitation",),
-        # the bus energy beyond the battery's matched-load power (zero without; negative)
-        "battery_overload": ("battery_overload",)}
-    #: the parts upstream of the pump's ports: the hydraulic energy the pump delivered is the
-    #: input less their losses and the change of their stores (energy balance of that part)
-    upstream_losses = ("battery_internal", "driver", "motor_copper", "motor_friction",
-                       "pump_volumetric", "pump_mechanical")
-    upstream_stores = ("inductance", "rotor", "battery_overload")
-
     def __init__(self, params: PumpAnkleParams = HAFO_ACTUATOR, sides=("right",),
                  profile: np.ndarray | None = None, timestep_s: float = 1e-3,
                  max_steps: int = 0, mode: str = "torque", torque_fn=None,
@@ -383,78 +378,18 @@ class HafoDevice(CircuitDevice):
                  max_stride_s: float = 3.0, impedance=None):
         if mode not in ("torque", "voltage"):
             raise ParameterError(f"device.mode = {mode!r}; allowed: torque, voltage")
-        self.params = params
+        check_sides(sides)
         self.mode = mode
-        self._setup(self._circuit(params, mode, initial_pressure_pa), sides, profile,
-                    timestep_s, max_steps, torque_fn, min_stride_s, max_stride_s,
-                    impedance=impedance)
-
-    def _circuit(self, params, mode: str, initial_pressure_pa):
-        """The circuit description this device steps."""
-        return hafo_circuit(params, mode=mode, initial_pressure_pa=initial_pressure_pa)
-
-    def _setup(self, circuit, sides, profile, timestep_s, max_steps, torque_fn, min_stride_s,
-               max_stride_s, **kw) -> None:
-        bad = [s for s in sides if s not in SIDE_NAMES]
-        if bad or not sides or len(set(sides)) != len(sides):
-            raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
-                                 "of ['right', 'left']")
-        super().__init__(circuit, sides=sides, timestep_s=timestep_s, torque_fn=torque_fn,
+        super().__init__(hafo_spec(params, initial_pressure_pa=initial_pressure_pa),
+                         sides=sides, timestep_s=timestep_s, torque_fn=torque_fn,
                          profile=profile, max_steps=max_steps, min_stride_s=min_stride_s,
-                         max_stride_s=max_stride_s, **kw)
+                         max_stride_s=max_stride_s, impedance=impedance,
+                         open_loop=mode == "voltage")
 
-    # -- masses ----------------------------------------------------------------------------
-    def worn_masses(self) -> list[WornMass]:
-        """:class:`WornMass` items for the walker: ankle parts on each worn side, one power
-        supply per worn side at the waist."""
-        out = []
-        for side in self.sides:
-            suf = "r" if side == "right" else "l"
-            for it in mass_budget(self.params):
-                site = "waist" if it.site == "waist" else f"{it.site}_{suf}"
-                out.append(WornMass(site, it.mass_kg, f"hafo_{side}_{it.name}"))
-        return out
 
-    @property
-    def mass_total_kg(self) -> float:
-        return len(self.sides) * sum(i.mass_kg for i in mass_budget(self.params))
-
-    @property
-    def mass_at_ankle_kg(self) -> float:
-        """Per worn side (what the published 0.97 kg refers to)."""
-        return sum(i.mass_kg for i in mass_budget(self.params) if i.site != "waist")
-
-    # -- state by name -----------------------------------------------------------------------
-    def state(self, name: str) -> np.ndarray:
-        """The present value of state ``name`` (a circuit state label or its log name, e.g.
-        ``"chamber_a_pa"``) on each worn side (a view)."""
-        generic = {v: k for k, v in self.log_names.items()}.get(name, name)
-        if generic not in self.cc.state_names:
-            raise ParameterError(f"state = {name!r}; allowed: "
-                                 + ", ".join(self.log_names.get(n, n)
-                                             for n in self.cc.state_names))
-        return self.Y[:, self.cc.state_names.index(generic)]
-
-    # -- results ---------------------------------------------------------------------------
-    def ledger(self, k: int = 0) -> dict:
-        """Energy ledger of worn side ``k`` (J), with the balance residual: the generic
-        circuit ledger with its losses and stores grouped by :attr:`loss_table` and
-        :attr:`store_table`, the battery's figures, and the hydraulic energy the pump
-        delivered (see :attr:`upstream_losses`)."""
-        g = super().ledger(k)
-        W, kk = self.W[k], self.k
-        losses = regroup(g["losses_j"], self.loss_table, f"{type(self).__name__} losses")
-        stored = regroup(g["stored_change_j"], self.store_table,
-                         f"{type(self).__name__} stores")
-        e_in, drawn = g["input_j"], g["input_drawn_j"]
-        hydraulic = (e_in - sum(losses[n] for n in self.upstream_losses)
-                     - sum(stored[n] for n in self.upstream_stores))
-        ilim = self.params.driver.current_limit_a
-        g.update({
-            "electrical_in_j": e_in, "electrical_drawn_j": drawn,
-            "electrical_regenerated_j": drawn - e_in, "hydraulic_j": hydraulic,
-            "losses_j": losses, "stored_change_j": stored,
-            "peak_current_a": g["monitors"]["motor.current_over_limit"] * ilim,
-            "temperature_rise_k": float(W[kk.W_TEMP_K] - self.params.ambient_temperature_k),
-            "soc": float(W[kk.W_SOC]), "substeps": int(W[kk.W_SUBSTEPS])})
-        return g
+def check_sides(sides) -> None:
+    """Refuse a ``device.sides`` that is not a non-empty subset of :data:`SIDE_NAMES`."""
+    bad = [s for s in sides if s not in SIDE_NAMES]
+    if bad or not sides or len(set(sides)) != len(sides):
+        raise ParameterError(f"device.sides = {list(sides)!r}; allowed: a non-empty subset "
+                             "of ['right', 'left']")

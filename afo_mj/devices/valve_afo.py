@@ -61,8 +61,10 @@ from afo_mj.circuits import valve_controllers as _vc
 from afo_mj.circuits import valves as _cv
 from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
 from afo_mj.circuits.components import CircuitError
-from afo_mj.devices.hafo import (HAFO_GAIT, HafoDevice, HafoMassItem, PumpAnkleParams,
-                                 _hose_mass_kg)
+from afo_mj.circuits.device import CircuitDevice
+from afo_mj.circuits.device_spec import DeviceSpec, LedgerGroups
+from afo_mj.devices.hafo import (HAFO_GAIT, HAFO_LEDGER, HafoMassItem, PumpAnkleParams,
+                                 _hose_mass_kg, check_sides)
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
@@ -501,11 +503,68 @@ DIGITAL_LOSS_TABLE = {
     "leakage": ("cylinders.leakage",), "valve_actuators": ("switching.coil", "release.coil")}
 
 
-class ValveAfoDevice(HafoDevice):
-    """A :class:`ValveAnkleParams` orthosis worn on one or both ankles: :func:`valve_circuit`
-    compiled and stepped by :class:`~afo_mj.circuits.device.CircuitDevice` (the coupled-device
-    protocol of :class:`~afo_mj.devices.hafo.HafoDevice`, whose ledger grouping it shares),
-    started from :func:`valve_initial_state`.
+#: the valve circuits' names for the log columns
+VALVE_LOG_NAMES = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
+                   "shaft": "motor_speed_rad_s", "pump_out": "pump_pa", "rail": "supply_pa",
+                   "port_a": "port_a_pa", "port_b": "port_b_pa",
+                   "chamber_a": "chamber_a_pa", "chamber_b": "chamber_b_pa",
+                   "servo.spool": "valve_position",
+                   "unloading.position": "unloading_valve_position",
+                   # the digital circuit: the PWM switching valve unloads the pump, the
+                   # release valve meters the flow out of line A
+                   "switching.position": "unloading_valve_position",
+                   "release.position": "valve_position",
+                   "controller.valve_command": "valve_command"}
+#: the valve circuits' ledger stores
+VALVE_STORE_TABLE = {
+    "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
+    "oil": ("oil.pump_out", "oil.rail", "oil.port_a", "oil.port_b", "oil.chamber_a",
+            "oil.chamber_b"),
+    "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
+    "series_spring": ("cylinders.series_spring",),
+    # the void opened where a pressure was clipped at the vapour floor (zero without)
+    "cavitation": ("cavitation",),
+    # the bus energy beyond the battery's matched-load power (zero without; negative)
+    "battery_overload": ("battery_overload",)}
+#: the valves' coils draw from the bus too: the hydraulic energy the pump delivered is the
+#: input less the drive train's losses and the coils' power
+VALVE_UPSTREAM_LOSSES = HAFO_LEDGER.upstream_losses + ("valve_actuators",)
+#: the output channels of a valve circuit's bench replay
+VALVE_OUTPUTS = ("pump_pressure_pa", "supply_pressure_pa", "pressure_a_pa", "pressure_b_pa",
+                 "chamber_a_pa", "chamber_b_pa", "valve_position", "ankle_torque_nm",
+                 "motor_current_a", "motor_speed_rad_s", "fluid_temperature_k")
+
+
+def valve_spec(params: ValveAnkleParams = None, name: str = "valve") -> DeviceSpec:
+    """The valve orthosis of ``params`` as a device spec: :func:`valve_circuit` started from
+    :func:`valve_initial_state`, the valve command as its open-loop command (the controller's
+    ``valve_command_on`` switch hands the metering valve to it), the servo or digital
+    circuit's ledger, the rail's peak pressure and the pumped volume as extra ledger
+    figures, and the mass budget."""
+    params = VALVE_PRESETS["valve"] if params is None else params
+    if not isinstance(params, ValveAnkleParams):
+        raise ParameterError(f"device params = {type(params).__name__}; allowed: "
+                             "ValveAnkleParams")
+    losses = SERVO_LOSS_TABLE if params.circuit == "servo" else DIGITAL_LOSS_TABLE
+    return DeviceSpec(
+        name=name, params=params, circuit=valve_circuit(params),
+        summary=f"valve-controlled AFO ({params.circuit} circuit, {params.supply_mode} "
+                "supply)",
+        open_loop_channel="valve_command", open_loop_switch="controller.valve_command_on",
+        initial_state=valve_initial_state(params), outputs=VALVE_OUTPUTS,
+        log_names=VALVE_LOG_NAMES,
+        ledger=LedgerGroups(losses=losses, stores=VALVE_STORE_TABLE,
+                            upstream_losses=VALVE_UPSTREAM_LOSSES,
+                            upstream_stores=HAFO_LEDGER.upstream_stores),
+        ledger_extras={"peak_supply_pressure_pa": ("state_peaks", "rail"),
+                       "pump_volume_m3": ("probe_integrals", "pump.flow_m3_s")},
+        current_limit_a=params.driver.current_limit_a,
+        masses=valve_mass_budget(params), mass_label="valve_afo")
+
+
+class ValveAfoDevice(CircuitDevice):
+    """A :class:`ValveAnkleParams` orthosis worn on one or both ankles: a
+    :class:`~afo_mj.circuits.device.CircuitDevice` of :func:`valve_spec` (``params``).
 
     ``profile``: assistance torque vs stride phase, or ``impedance``: rows of
     :func:`afo_mj.control.impedance.impedance_table` (passive-AFO emulation, clutched spring,
@@ -514,37 +573,10 @@ class ValveAfoDevice(HafoDevice):
     ``valve_command_on`` switch); none of them: transparent (zero torque commanded).
     """
 
-    log_names = {"actuated_input": "motor_command_v", "motor.current_a": "motor_current_a",
-                 "shaft": "motor_speed_rad_s", "pump_out": "pump_pa", "rail": "supply_pa",
-                 "port_a": "port_a_pa", "port_b": "port_b_pa",
-                 "chamber_a": "chamber_a_pa", "chamber_b": "chamber_b_pa",
-                 "servo.spool": "valve_position", "unloading.position": "unloading_valve_position",
-                 # the digital circuit: the PWM switching valve unloads the pump, the release
-                 # valve meters the flow out of line A
-                 "switching.position": "unloading_valve_position",
-                 "release.position": "valve_position",
-                 "controller.valve_command": "valve_command"}
-    #: the valves' coils draw from the bus too: the hydraulic energy the pump delivered is
-    #: the input less the drive train's losses and the coils' power
-    upstream_losses = HafoDevice.upstream_losses + ("valve_actuators",)
-    store_table = {
-        "inductance": ("state.motor.current_a",), "rotor": ("rotor.shaft",),
-        "oil": ("oil.pump_out", "oil.rail", "oil.port_a", "oil.port_b", "oil.chamber_a",
-                "oil.chamber_b"),
-        "reservoir": ("reservoir.tank",), "end_stops": ("cylinders.end_stops",),
-        "series_spring": ("cylinders.series_spring",),
-        # the void opened where a pressure was clipped at the vapour floor (zero without)
-        "cavitation": ("cavitation",),
-        # the bus energy beyond the battery's matched-load power (zero without; negative)
-        "battery_overload": ("battery_overload",)}
-
     def __init__(self, params: ValveAnkleParams = VALVE_PRESETS["valve"], sides=("right",),
                  profile=None, impedance=None, timestep_s: float = 1e-3, max_steps: int = 0,
                  torque_fn=None, min_stride_s: float = 0.4, max_stride_s: float = 3.0,
                  mode: str = "torque"):
-        if not isinstance(params, ValveAnkleParams):
-            raise ParameterError(f"device params = {type(params).__name__}; allowed: "
-                                 "ValveAnkleParams")
         if mode not in ("torque", "valve_command"):
             raise ParameterError(f"device.mode = {mode!r}; allowed: torque, valve_command "
                                  "(torque_fn returns the valve command u in [-1, 1])")
@@ -552,43 +584,10 @@ class ValveAfoDevice(HafoDevice):
             raise ParameterError("device.mode = 'valve_command' needs a torque_fn giving u")
         if impedance is not None and profile is not None:
             raise ParameterError("device: both profile and impedance given; allowed: one")
-        self.params = params
+        spec = valve_spec(params)
+        check_sides(sides)
         self.mode = mode
-        self.loss_table = (SERVO_LOSS_TABLE if params.circuit == "servo"
-                           else DIGITAL_LOSS_TABLE)
-        self._setup(valve_circuit(params), sides, profile, timestep_s, max_steps, torque_fn,
-                    min_stride_s, max_stride_s, impedance=impedance,
-                    initial_state=valve_initial_state(params))
-        if mode == "valve_command":
-            self.P[:, self.cc.param_labels.index("controller.valve_command_on")] = 1.0
-
-    def worn_masses(self):
-        from afo_mj.human.walker import WornMass
-        out = []
-        for side in self.sides:
-            suf = "r" if side == "right" else "l"
-            for it in valve_mass_budget(self.params):
-                if it.site == "off_body":
-                    continue
-                site = "waist" if it.site == "waist" else f"{it.site}_{suf}"
-                out.append(WornMass(site, it.mass_kg, f"valve_afo_{side}_{it.name}"))
-        return out
-
-    @property
-    def mass_total_kg(self) -> float:
-        """Worn mass, both sides (a tethered supply is not counted)."""
-        return len(self.sides) * sum(i.mass_kg for i in valve_mass_budget(self.params)
-                                     if i.site != "off_body")
-
-    @property
-    def mass_at_ankle_kg(self) -> float:
-        return sum(i.mass_kg for i in valve_mass_budget(self.params)
-                   if i.site not in ("waist", "off_body"))
-
-    def ledger(self, k: int = 0) -> dict:
-        """:meth:`HafoDevice.ledger` with the rail's peak pressure (``peak_supply_pressure_pa``,
-        gauge) and the volume the pump delivered (``pump_volume_m3``)."""
-        out = super().ledger(k)
-        out["peak_supply_pressure_pa"] = out["state_peaks"]["rail"]
-        out["pump_volume_m3"] = out["probe_integrals"]["pump.flow_m3_s"]
-        return out
+        super().__init__(spec, sides=sides, timestep_s=timestep_s, torque_fn=torque_fn,
+                         profile=profile, max_steps=max_steps, min_stride_s=min_stride_s,
+                         max_stride_s=max_stride_s, impedance=impedance,
+                         open_loop=mode == "valve_command")

@@ -56,36 +56,19 @@ from scipy.signal import savgol_filter
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.circuits.codegen import build
 from afo_mj.circuits.device import CircuitDevice, JointLoad
-from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS, hafo_circuit, hafo_params
-from afo_mj.devices.valve_afo import (
-    VALVE_PRESETS, valve_circuit, valve_initial_state, valve_params)
+from afo_mj.circuits.device_spec import TORQUE_CHANNEL, DeviceSpec, circuit_roles
+from afo_mj.devices.registry import device_spec
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.transmission import play_operator
 
-__all__ = ["BenchReplay", "HOLDS", "HELD_CHANNELS", "REPLAY_OUTPUTS", "REPLAY_INPUTS",
-           "ReplayError", "kind_of_preset"]
+__all__ = ["BenchReplay", "HOLDS", "HELD_CHANNELS", "CIRCUIT_OUTPUTS", "ReplayError",
+           "circuit_geometry", "circuit_roles"]
 
 
 class ReplayError(RuntimeError):
     """The model could not be replayed (a state became non-finite, or inputs are missing)."""
 
 
-#: output channels each kind of replay produces
-REPLAY_OUTPUTS = {
-    "hafo": ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa",
-             "ankle_torque_nm", "motor_current_a", "motor_speed_rad_s", "fluid_temperature_k",
-             "battery_current_a", "bus_voltage_v"),
-    "valve": ("pump_pressure_pa", "supply_pressure_pa", "pressure_a_pa", "pressure_b_pa",
-              "chamber_a_pa", "chamber_b_pa", "valve_position", "ankle_torque_nm",
-              "motor_current_a", "motor_speed_rad_s", "fluid_temperature_k"),
-}
-#: the open-loop command input of each kind (besides the imposed ankle angle)
-REPLAY_INPUTS = {"hafo": ("motor_voltage_v", "ankle_angle_rad"),
-                 "valve": ("valve_command", "ankle_angle_rad")}
-#: the command channels each kind accepts, in order of preference: the open-loop command, or
-#: the torque reference of the device's own low-level torque controller (closed loop)
-REPLAY_COMMANDS = {"hafo": ("motor_voltage_v", "commanded_torque_nm"),
-                   "valve": ("valve_command", "commanded_torque_nm")}
 #: how an input channel is held over a sample interval (see the module docstring)
 HOLDS = ("zero_order", "linear")
 #: the channels whose hold the replay applies: the command channels (the imposed angle, its
@@ -125,50 +108,6 @@ def circuit_geometry(circuit: Circuit):
     return None
 
 
-#: component kinds that play the presets' roles (label prefixes of the calibration's
-#: parameters and effects)
-_ROLE_KINDS = {"cylinders": ("pulley_cylinders",), "pump": ("pump", "variable_pump"),
-               "motor": ("motor",), "hose_a": ("hose",), "hose_b": ("hose",),
-               "charge": ("reservoir",), "check_a": ("check_valve",),
-               "check_b": ("check_valve",), "servo": ("servo_valve",)}
-
-
-def circuit_roles(circuit: Circuit) -> dict[str, str]:
-    """Role → component name of a described circuit: the first ``pulley_cylinders`` plays
-    ``cylinders``, the first and second hoses ``hose_a`` and ``hose_b``, and so on (a
-    component whose name already is the role's keeps it)."""
-    names = {c.name: c.kind for c in circuit.components}
-    used: set = set()
-    roles: dict[str, str] = {}
-    for role, kinds in _ROLE_KINDS.items():
-        if names.get(role) in kinds:
-            roles[role] = role
-            used.add(role)
-    for role, kinds in _ROLE_KINDS.items():
-        if role in roles:
-            continue
-        for c in circuit.components:
-            if c.kind in kinds and c.name not in used:
-                roles[role] = c.name
-                used.add(c.name)
-                break
-    return roles
-
-
-def kind_of_preset(preset: str, key: str = "source.preset") -> str:
-    """``"hafo"`` for a pump-controlled preset, ``"valve"`` for a valve circuit's; ``key``
-    names where the preset came from in the error (a record's ``source.preset``, a command's
-    ``--scenario`` option, ...)."""
-    if preset in HAFO_PRESETS:
-        return "hafo"
-    if preset in VALVE_PRESETS:
-        return "valve"
-    from afo_mj.scenarios.walk_scenario import did_you_mean
-    names = list(HAFO_PRESETS) + list(VALVE_PRESETS)
-    raise ParameterError(f"{key} = {preset!r} is not a device preset{did_you_mean(preset, names)}"
-                         f"; allowed: {', '.join(names)}")
-
-
 def ankle_velocity(theta_rad: np.ndarray, dt_s: float) -> np.ndarray:
     """Savitzky–Golay (1964) derivative of the imposed angle: a cubic fitted over 21 samples
     (fewer for short records), evaluated at the window centre."""
@@ -180,59 +119,72 @@ def ankle_velocity(theta_rad: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 class BenchReplay:
-    """A device preset (with dotted-name ``overrides``) ready to replay records.
+    """A device ready to replay records: a registered device by name (``preset``, with its
+    ``overrides``: :func:`afo_mj.devices.registry.device_spec`), a described ``circuit`` (a
+    user's rig, optionally with a simulated ``load``), or a ``spec``
+    (:class:`~afo_mj.circuits.device_spec.DeviceSpec`). Everything the replay needs to know
+    about the device comes from its spec: the command channels it accepts (the open-loop
+    command, and a torque reference for a torque-controlled device), how an open-loop command
+    takes over (a switch parameter, or imposed on the circuit's ``command`` input), the state
+    it starts from, its output channels, and the roles of its parts.
 
-    ``kind`` is ``"hafo"`` or ``"valve"`` (default: from the preset). The generated circuit's
-    packed parameter row is :attr:`base_row`, its entries named by :attr:`param_labels`
-    (``component.key``, :attr:`afo_mj.circuits.codegen.CompiledCircuit.param_labels`);
-    :meth:`simulate` takes per-run changes to it by label, which is how the calibration sets
-    fitted parameters and switches effects on without rebuilding or recompiling the device.
-    The HAFO is built with its torque controller: a measured motor voltage is imposed on the
-    motor's input (open loop), a torque reference runs the controller (closed loop). The valve
-    circuits read a measured valve command through their controller's
-    ``controller.valve_command_on`` switch.
+    The generated circuit's packed parameter row is :attr:`base_row`, its entries named by
+    :attr:`param_labels` (``component.key``,
+    :attr:`afo_mj.circuits.codegen.CompiledCircuit.param_labels`); :meth:`simulate` takes
+    per-run changes to it by label, which is how the calibration sets fitted parameters and
+    switches effects on without rebuilding or recompiling the device.
     """
 
     def __init__(self, preset: str | None = None,
-                 overrides: Mapping[str, object] | None = None, kind: str | None = None, *,
+                 overrides: Mapping[str, object] | None = None, *,
                  circuit: Circuit | None = None, load: JointLoad | None = None,
                  signals: Mapping[str, str] | None = None,
-                 hold: Mapping[str, str] | None = None):
+                 hold: Mapping[str, str] | None = None, spec: DeviceSpec | None = None):
+        given = [k for k, v in (("preset", preset), ("circuit", circuit), ("spec", spec))
+                 if v is not None]
+        if len(given) != 1:
+            raise ParameterError(f"BenchReplay: {given or 'nothing'} given; allowed: one of "
+                                 "preset, circuit, spec")
+        if circuit is not None:
+            spec = DeviceSpec.from_circuit(circuit)
+        elif preset is not None:
+            spec = device_spec(preset, overrides, key="source.preset")
+        if load is not None and spec.params is not None:
+            raise ParameterError("a simulated load is available for a described circuit "
+                                 "([circuit] with [load]); the presets replay the imposed angle")
+        #: the device (:class:`~afo_mj.circuits.device_spec.DeviceSpec`)
+        self.spec = spec
         self.load = load
         self._signal_overrides = dict(signals or {})
+        #: a description given directly (a user's rig): its parameters are declared in its
+        #: own names and it holds an undeclared command linearly
+        self.described = spec.params is None
         #: how an undeclared command is held over a sample interval: ``"zero_order"`` (a
         #: digital command, the presets' records) or ``"linear"`` (a sampled continuous
         #: signal, a described rig's default: interpolated between the samples)
-        self.default_hold = "linear" if circuit is not None else "zero_order"
+        self.default_hold = "linear" if self.described else "zero_order"
         #: declared hold per command channel (:meth:`set_hold`); others use default_hold
         self.hold: dict[str, str] = {}
         self.set_hold(hold or {})
-        if circuit is not None:
-            self._init_circuit(circuit, load)
-            return
-        if load is not None:
-            raise ParameterError("a simulated load is available for a described circuit "
-                                 "([circuit] with [load]); the presets replay the imposed angle")
-        self.preset = preset
-        self.kind = kind or kind_of_preset(preset)
-        if self.kind == "hafo":
-            params = hafo_params(dict(overrides or {}), preset)
-            circuit = hafo_circuit(params, mode="torque")
-            self.initial_state = {}
-        elif self.kind == "valve":
-            params = valve_params(dict(overrides or {}), preset)
-            circuit = valve_circuit(params)
-            self.initial_state = valve_initial_state(params)
-        else:
-            raise ParameterError(f"kind = {self.kind!r}; allowed: hafo, valve")
-        self.params = params
-        self.cc = build(circuit)
+        self.preset = spec.name
+        self.circuit = spec.circuit
+        #: the preset's parameter set, or a description's cylinder geometry (what the record
+        #: checks compare the angle with; :func:`circuit_geometry`)
+        self.params = spec.params if not self.described else circuit_geometry(spec.circuit)
+        #: compatibility name of the calibration's per-family choices: ``"circuit"`` for a
+        #: description given directly, else the open-loop command's family
+        self.kind = ("circuit" if self.described
+                     else "valve" if spec.open_loop_switch else "hafo")
+        self.cc = build(spec.circuit)
+        self.initial_state = dict(spec.initial_state)
         self.base_row = self.cc.P.copy()
-        self.param_labels = self.cc.param_labels
+        #: role → component name (a described circuit answers to the presets' part names)
+        self.roles = dict(spec.roles)
+        self.param_labels = tuple(self.cc.param_labels) + (LOAD_LABELS if load else ())
         self._label_index = {lab: i for i, lab in enumerate(self.param_labels)}
-        self.outputs = REPLAY_OUTPUTS[self.kind]
-        self.inputs = REPLAY_INPUTS[self.kind]
-        self.ambient_temperature_k = float(params.ambient_temperature_k)
+        self.commands = spec.commands
+        self.inputs = self.commands[:1] + (() if load else ("ankle_angle_rad",))
+        self.ambient_temperature_k = float(spec.circuit.thermal.ambient_temperature_k)
         # 0.5 ms, not the stand's 1 ms: a 1 ms backward-Euler step through a fast valve event
         # (the flushing valve shuttling while the pump reverses the lines) lands up to 160 kPa
         # away from the same interval taken in sub-steps, and whether the stepper falls back to
@@ -241,8 +193,24 @@ class BenchReplay:
         # record: pressure_b residual 1.26× the noise at 1 ms, 1.016× at 0.5 ms, 1.009× at
         # 0.25 ms; the old kernel's 1.01× at 1 ms)
         self.max_step_s = 5e-4
-        self._columns = {name: self._signal(name) for name in self.outputs
-                         if name != "fluid_temperature_k"}
+        if spec.outputs is not None:
+            self._columns = {name: self._signal(name) for name in spec.outputs
+                             if name != "fluid_temperature_k"}
+            self.outputs = tuple(spec.outputs)
+        else:
+            cols = {}
+            for name in CIRCUIT_OUTPUTS:
+                try:
+                    cols[name] = self._signal(name)
+                except ReplayError:
+                    continue
+            self._columns = cols
+            self.outputs = tuple(cols) + ("fluid_temperature_k",) + (
+                ("ankle_angle_rad",) if load else ())
+        self._piston_zero = 0.0
+        geo = circuit_geometry(spec.circuit)
+        if geo is not None:
+            self._piston_zero = 0.5 * float(geo.cylinder.stroke_m)
 
     def set_hold(self, hold: Mapping[str, str], key: str = "hold") -> None:
         """Declare how command channels are held (channel → one of :data:`HOLDS`); ``key``
@@ -271,37 +239,6 @@ class BenchReplay:
         """How ``channel`` is held: its declaration, else :attr:`default_hold`."""
         return self.hold.get(channel, self.default_hold)
 
-    def _init_circuit(self, circuit: Circuit, load: JointLoad | None) -> None:
-        """A described circuit (the user's rig): outputs are the channels its signals
-        produce; with ``load`` the joint is simulated and the angle is an output."""
-        self.kind = "circuit"
-        self.preset = circuit.name
-        self.circuit = circuit
-        self.params = circuit_geometry(circuit)
-        self.cc = build(circuit)
-        self.initial_state = {}
-        self.base_row = self.cc.P.copy()
-        self.roles = circuit_roles(circuit)
-        self.param_labels = tuple(self.cc.param_labels) + (LOAD_LABELS if load else ())
-        self._label_index = {lab: i for i, lab in enumerate(self.param_labels)}
-        self.open_loop = circuit.controller.kind == "open_loop"
-        self.inputs = ("motor_voltage_v",) if self.open_loop else ("commanded_torque_nm",)
-        self.ambient_temperature_k = float(circuit.thermal.ambient_temperature_k)
-        self.max_step_s = 5e-4
-        cols = {}
-        for name in CIRCUIT_OUTPUTS:
-            try:
-                cols[name] = self._signal(name)
-            except ReplayError:
-                continue
-        self._columns = cols
-        self.outputs = tuple(cols) + ("fluid_temperature_k",) + (
-            ("ankle_angle_rad",) if load else ())
-        self._piston_zero = 0.0
-        cyl = self.params
-        if cyl is not None:
-            self._piston_zero = 0.5 * float(cyl.cylinder.stroke_m)
-
     def _signal(self, channel: str) -> str:
         names = set(self.cc.state_names) | set(self.cc.probe_names) | {
             "torque_nm", "battery_current_a", "bus_voltage_v"}
@@ -315,7 +252,7 @@ class BenchReplay:
         if channel not in _SIGNALS:
             raise ReplayError(f"no default signal for {channel}")
         alts = _SIGNALS[channel]
-        roles = getattr(self, "roles", {})
+        roles = self.roles
         for a in (alts if isinstance(alts, tuple) else (alts,)):
             comp, _, key = a.partition(".")
             if key and comp in roles:
@@ -329,7 +266,7 @@ class BenchReplay:
         """The circuit's own label of ``label``: a described circuit answers to the presets'
         component names by role (``cylinders.seal_fc`` is its ``pulley_cylinders``
         component's, ``hose_a.wall_inv`` its first hose's; :func:`circuit_roles`)."""
-        roles = getattr(self, "roles", None)
+        roles = self.roles
         if roles and label not in self._label_index and "." in label:
             comp, key = label.split(".", 1)
             if comp in roles:
@@ -359,24 +296,20 @@ class BenchReplay:
             return float(getattr(self.load, label.split(".", 1)[1]))
         return float(self.base_row[self.index(label)])
 
-    def check_inputs(self, channels) -> tuple[str, str]:
-        """The record's command channel and the imposed angle: ``(command, "ankle_angle_rad")``
-        (the open-loop command when the record has it, else ``commanded_torque_nm``)."""
-        if self.kind == "circuit":
-            cmd = self.inputs[0]
-            if cmd not in channels or (self.load is None and "ankle_angle_rad" not in channels):
-                need = [cmd] + ([] if self.load else ["ankle_angle_rad"])
-                raise ReplayError(f"the {self.preset!r} circuit replay needs {need} (its "
-                                  f"{self.circuit.controller.kind} controller"
-                                  + ("" if self.load else "; the joint angle is imposed")
-                                  + f"); the record has {sorted(channels)}")
-            return (cmd,) if self.load else (cmd, "ankle_angle_rad")
-        cmds = [c for c in REPLAY_COMMANDS[self.kind] if c in channels]
-        if not cmds or "ankle_angle_rad" not in channels:
-            raise ReplayError(f"the {self.kind} bench replay needs ankle_angle_rad and one of "
-                              f"{list(REPLAY_COMMANDS[self.kind])}; the record has "
-                              f"{sorted(channels)}")
-        return cmds[0], "ankle_angle_rad"
+    def check_inputs(self, channels) -> tuple[str, ...]:
+        """The record's command channel and, unless the load is simulated, the imposed angle:
+        ``(command, "ankle_angle_rad")`` (the first of the device's command channels the
+        record has: the open-loop command, else the torque reference)."""
+        cmds = [c for c in self.commands if c in channels]
+        need_angle = self.load is None
+        if not cmds or (need_angle and "ankle_angle_rad" not in channels):
+            ctrl = self.circuit.controller.kind
+            raise ReplayError(
+                f"the {self.preset!r} replay needs one of {list(self.commands)} (its {ctrl} "
+                f"controller)" + (" and ankle_angle_rad (the joint angle is imposed)"
+                                  if need_angle else "")
+                + f"; the record has {sorted(channels)}")
+        return (cmds[0], "ankle_angle_rad") if need_angle else (cmds[0],)
 
     def simulate(self, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
                  row_changes: Mapping[str, float] | None = None, backlash_rad: float = 0.0,
@@ -414,10 +347,10 @@ class BenchReplay:
         dev = CircuitDevice(self.cc, timestep_s=dt / sub)
         for label, v in self.initial_state.items():
             dev.Y[0, self.cc.index(label)] = v
-        open_loop = cmd_name != "commanded_torque_nm"
+        open_loop = cmd_name != TORQUE_CHANNEL
         imposed = None
-        if open_loop and self.kind == "valve":
-            changes["controller.valve_command_on"] = 1.0
+        if open_loop and self.spec.open_loop_switch is not None:
+            changes[self.spec.open_loop_switch] = 1.0
         elif open_loop:
             imposed = {"command": u[:-1]}
         for label, v in changes.items():
@@ -443,7 +376,7 @@ class BenchReplay:
                                   temperature_k=temp_run, substeps=run_sub, load=load)
             log = {key: v[take] for key, v in log.items()}
         except FloatingPointError as exc:
-            raise ReplayError(f"{self.kind} replay ({self.preset}) became non-finite: {exc}; "
+            raise ReplayError(f"replay of {self.preset!r} became non-finite: {exc}; "
                               f"parameters {dict(row_changes or {})}") from None
         out = {}
         for name in self.outputs:
@@ -463,6 +396,6 @@ class BenchReplay:
                 out[name] = out[name] - self._piston_zero
         bad = [k for k, v in out.items() if not np.all(np.isfinite(v))]
         if bad:
-            raise ReplayError(f"{self.kind} replay ({self.preset}) became non-finite in "
+            raise ReplayError(f"replay of {self.preset!r} became non-finite in "
                               f"{bad}; parameters {dict(row_changes or {})}")
         return out

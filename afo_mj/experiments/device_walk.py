@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from afo_mj.hydraulics.params import ParameterError
+
 from afo_mj.metrics.gait_metrics import PUSH_OFF_WINDOW
 from afo_mj.scenarios.device_scenario import DeviceConfig
 
@@ -183,24 +185,25 @@ def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n
 
 
 def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
-    """The ledger terms the summary reads, for a preset device (its own ledger) or a circuit
-    (:meth:`afo_mj.circuits.device.CircuitDevice.ledger`, generic keys mapped: drawn =
+    """The ledger terms the summary reads: the device's own ledger, with, for a device whose
+    spec names no ledger groups (a description: the generic ledger of
+    :meth:`afo_mj.circuits.device.CircuitDevice.ledger`), the generic keys mapped (drawn =
     ``input_drawn_j``, regenerated = ``input_drawn_j − input_j``, the oil temperature rise
-    from the device log, the battery energy from the circuit's battery component)."""
+    from the device log), and the battery energy from the circuit's battery component
+    (None without one). A device that is no circuit reports its own (the ideal source)."""
     led = dict(device.ledger(k))
-    if cfg.circuit is None and "battery_energy_wh" in led:
-        return led              # a device that reports its own (the ideal source: None)
-    if cfg.circuit is None:
-        from afo_mj.hydraulics.battery import Battery
-        led["battery_energy_wh"] = Battery(cfg.params.battery).energy_wh
+    spec = getattr(device, "spec", None)
+    if spec is None:
         return led
-    temp = L["oil_temperature_k"][:, k]
-    led["electrical_drawn_j"] = led["input_drawn_j"]
-    led["electrical_regenerated_j"] = led["input_drawn_j"] - led["input_j"]
-    led["hydraulic_j"] = None
-    led["temperature_rise_k"] = (float(temp[-1] - cfg.circuit.circuit.thermal
-                                       .ambient_temperature_k) if temp.size else 0.0)
-    bats = [c for c in cfg.circuit.circuit.components if c.kind == "battery"]
+    circuit = device.cc.circuit
+    if spec.ledger is None:
+        temp = L["oil_temperature_k"][:, k]
+        led["electrical_drawn_j"] = led["input_drawn_j"]
+        led["electrical_regenerated_j"] = led["input_drawn_j"] - led["input_j"]
+        led["hydraulic_j"] = None
+        led["temperature_rise_k"] = (float(temp[-1] - circuit.thermal.ambient_temperature_k)
+                                     if temp.size else 0.0)
+    bats = [c for c in circuit.components if c.kind == "battery"]
     wh = None
     if bats:
         from afo_mj.hydraulics.battery import Battery
@@ -213,16 +216,17 @@ def preset_config(preset: str, sides, profile: np.ndarray | None = None,
                   key: str = "device.preset") -> DeviceConfig:
     """The device of a scenario's ``[device] preset = <preset>, sides = <sides>`` (no
     ``params`` overrides) with ``profile`` (torque vs stride phase, N·m) as its ``assist``
-    condition, for a tool that wears a circuit preset without a scenario file (the
+    condition, for a tool that wears a registered device without a scenario file (the
     environment's ``mode="hafo"``, the muscle walker's assistance conditions); build it with
-    :func:`make_device`. ``preset``: a HAFO or valve preset (the ideal device is no circuit);
-    ``key`` names the option in the error."""
-    from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
-    from afo_mj.devices.valve_afo import VALVE_PRESETS
+    :func:`make_device`. ``preset``: a registered circuit device
+    (:mod:`afo_mj.devices.registry`; the ideal device is no circuit); ``key`` names the
+    option in the error."""
+    from afo_mj.devices.registry import device_entry
     from afo_mj.scenarios.device_scenario import device_params
-    if preset not in HAFO_PRESETS and preset not in VALVE_PRESETS:
-        raise ValueError(f"{key} = {preset!r}; allowed: "
-                         f"{', '.join(list(HAFO_PRESETS) + list(VALVE_PRESETS))}")
+    try:
+        device_entry(preset, key)
+    except ParameterError as exc:
+        raise ValueError(str(exc)) from None
     preset, params, _ = device_params({"preset": preset}, key)
     return DeviceConfig(preset, params, tuple(sides),
                         ("assist",) if profile is not None else ("transparent",), profile)
@@ -230,37 +234,32 @@ def preset_config(preset: str, sides, profile: np.ndarray | None = None,
 
 def make_device(cfg: DeviceConfig, condition: str, timestep_s: float, max_steps: int,
                 torque_fn=None):
-    """The orthosis of ``cfg`` for one condition: the HAFO (pump-controlled), a valve /
-    digital / stiffness-emulating device (:mod:`afo_mj.devices.valve_afo`) or a described
-    circuit, with the assistance profile or the impedance rows (any torque-controlled
-    device emulates them) when the condition is ``assist`` or a stiffness condition.
-    ``torque_fn(t, angle, velocity)``, when given, is the command instead (the circuit's
-    controller input, :class:`afo_mj.circuits.device.CircuitDevice`; asked once per worn
+    """The orthosis of ``cfg`` for one condition: a registered device or a described
+    circuit (:meth:`DeviceConfig.device_spec`, stepped by
+    :class:`~afo_mj.circuits.device.CircuitDevice`) or the ideal source, with the assistance
+    profile or the impedance rows (any torque-controlled device emulates them) when the
+    condition is ``assist`` or a stiffness condition. ``torque_fn(t, angle, velocity)``,
+    when given, is the command instead (the circuit's controller input; asked once per worn
     side in ``cfg.sides`` order each step): the environment's action
     (:mod:`afo_mj.experiments.walk_env`)."""
-    from afo_mj.devices.hafo import HafoDevice
-    from afo_mj.devices.valve_afo import ValveAfoDevice, ValveAnkleParams
     active = condition == "assist" or condition in cfg.impedance_conditions
     imp = cfg.impedance_conditions.get(condition, cfg.impedance) if active else None
     prof = cfg.profile if active and cfg.impedance is None else None
     kw = dict(sides=cfg.sides, profile=prof, impedance=imp, timestep_s=timestep_s,
               max_steps=max_steps)
+    spec = cfg.device_spec()
     if torque_fn is not None:
-        if cfg.preset == "ideal":
-            raise ValueError("device.preset = 'ideal' takes no torque command: it is no "
-                             "circuit (it delivers its profile exactly); allowed: a circuit "
-                             "device (a HAFO or valve preset, or a [circuit])")
+        if spec is None:
+            raise ValueError(f"device.preset = {cfg.preset!r} takes no torque command: it is "
+                             "no circuit (it delivers its profile exactly); allowed: a circuit "
+                             "device (a registered device or a [circuit])")
         kw.update(profile=None, impedance=None, torque_fn=torque_fn)
-    if cfg.preset == "ideal":   # exactly its command (afo_mj.devices.ideal)
+    if spec is None:   # exactly its command (afo_mj.devices.ideal)
         from afo_mj.devices.ideal import IdealDevice
         return IdealDevice(cfg.params, spring=cfg.spring if active else None,
                            ramp_strides=cfg.ramp_strides, **kw)
-    if cfg.circuit is not None:
-        from afo_mj.circuits.device import CircuitDevice
-        return CircuitDevice(cfg.circuit, **kw)
-    if isinstance(cfg.params, ValveAnkleParams):
-        return ValveAfoDevice(cfg.params, **kw)
-    return HafoDevice(cfg.params, **kw)
+    from afo_mj.circuits.device import CircuitDevice
+    return CircuitDevice(spec, **kw)
 
 
 #: What the ``human_response`` block says of each walker model (:func:`human_response`).

@@ -24,7 +24,7 @@ a worn circuit) its hydraulic dynamics act on the skeleton, and the reflex contr
   and controller stepped with MuJoCo, commanding the Zhang profile of
   ``hafo_peak_torque_nm``; its ledger (every loss) comes with the result. The device is the
   preset ``hafo_preset``: the HAFO ``hafo_gait`` by default, or any HAFO or valve preset
-  (:data:`afo_mj.devices.hafo.PRESETS`, :data:`afo_mj.devices.valve_afo.VALVE_PRESETS`),
+  (:func:`afo_mj.devices.registry.preset_names`),
   built as ``afo-mj run`` builds a scenario's ``assist`` condition with ``[device] preset =
   hafo_preset, sides = ["right"]`` (:func:`afo_mj.experiments.device_walk.preset_config`,
   :func:`~afo_mj.experiments.device_walk.make_device`). The kind and field names keep the
@@ -47,9 +47,8 @@ import re
 import numpy as np
 
 from afo_mj.control import assistance as asst
-from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
 from afo_mj.devices.ideal import ClutchedSpring, IdealDevice
-from afo_mj.devices.valve_afo import VALVE_PRESETS
+from afo_mj.devices.registry import device_entry, preset_names
 from afo_mj.experiments.device_walk import make_device, preset_config
 from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
@@ -63,8 +62,9 @@ KINDS = ("none", "worn_mass", "zhang", "clutched_spring", "hafo")
 #: Zhang et al. (2017) published timing (% of stride): peak, rise, fall
 ZHANG_TIMING_PCT = (52.9, 26.2, 9.8)
 SIDE_INDEX = {"right": 0, "left": 1}
-#: the presets the ``hafo`` condition can wear: every circuit preset, HAFO or valve
-DEVICE_PRESETS = (*HAFO_PRESETS, *VALVE_PRESETS)
+#: the presets the ``hafo`` condition can wear: every registered preset device
+#: (:func:`afo_mj.devices.registry.preset_names`)
+DEVICE_PRESETS = preset_names()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,7 +126,7 @@ class Assistance:
         if self.kind == "clutched_spring":
             return f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
         if self.kind == "hafo":
-            name = "HAFO" if self.hafo_preset in HAFO_PRESETS else "valve AFO"
+            name = device_entry(self.hafo_preset).label
             return f"{name} ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
         return self.kind
 

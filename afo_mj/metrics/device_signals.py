@@ -2,8 +2,8 @@
 chain and the running efficiency, in SI units, per worn side.
 
 The devices log states and a few outputs (their generated circuits' log under the names of
-:attr:`~afo_mj.devices.hafo.HafoDevice.log_names` and
-:attr:`~afo_mj.devices.valve_afo.ValveAfoDevice.log_names`); what follows from them
+:data:`~afo_mj.devices.hafo.HAFO_LOG_NAMES` and
+:data:`~afo_mj.devices.valve_afo.VALVE_LOG_NAMES`); what follows from them
 and the device's parameters is computed here, after the run, so the hot loop stays lean.
 
 Stages of the power chain (HAFO, Neubauer ch. 2; the valve circuit the same up to the pump):

@@ -76,26 +76,52 @@ class DeviceConfig:
     #: this many strides measured by the phase estimator, 0 = at once
     ramp_strides: int = 0
 
+    def device_spec(self):
+        """The worn device's :class:`~afo_mj.circuits.device_spec.DeviceSpec`: the
+        ``[circuit]`` description's, or the registered device's built from :attr:`params`
+        (a variant's, when :attr:`params` was replaced); None for the ideal source (no
+        circuit)."""
+        from afo_mj.circuits.device_spec import DeviceSpec
+        from afo_mj.devices.ideal import PRESETS as IDEAL_PRESETS
+        if self.circuit is not None:
+            return DeviceSpec.from_circuit(self.circuit.circuit)
+        if self.preset in IDEAL_PRESETS:
+            return None
+        from afo_mj.devices.registry import spec_of_params
+        return spec_of_params(self.preset, self.params)
+
 
 def device_params(dev: dict, origin: str):
-    """``(preset, params, overrides)`` from a scenario's ``[device]`` table: the preset
-    (:data:`afo_mj.devices.hafo.PRESETS`) with its ``params`` dotted overrides, validated."""
-    from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS, hafo_params
+    """``(preset, params, overrides)`` from a scenario's ``[device]`` table: a registered
+    device (:mod:`afo_mj.devices.registry`) or the ideal source
+    (:data:`afo_mj.devices.ideal.PRESETS`) with its ``params`` dotted overrides, validated. A
+    library circuit is worn through ``[circuit] library = "<name>"`` (its overrides are a
+    description's)."""
     from afo_mj.devices.ideal import PRESETS as IDEAL_PRESETS, ideal_params
-    from afo_mj.devices.valve_afo import VALVE_PRESETS, valve_params
-    DEVICE_PRESETS = {**HAFO_PRESETS, **VALVE_PRESETS, **IDEAL_PRESETS}
+    from afo_mj.devices.registry import ALIASES, device_entry, device_names
     preset = dev.get("preset", "hafo")
-    if preset not in DEVICE_PRESETS:
-        raise ScenarioError(f"{origin}: device.preset = {preset!r} is not allowed; allowed: "
-                            + " | ".join(DEVICE_PRESETS))
     overrides = dev.get("params", {})
     if not isinstance(overrides, dict):
         raise ScenarioError(f"{origin}: device.params = {overrides!r} is not allowed; allowed: "
                             "a table of dotted parameter names")
+    if preset in IDEAL_PRESETS:
+        try:
+            return preset, ideal_params(overrides, preset), overrides
+        except ParameterError as exc:
+            raise ScenarioError(f"{origin}: device.params: {exc}") from None
+    presets = [n for n in device_names() if device_entry(n).from_params is not None]
+    allowed = presets + list(ALIASES) + list(IDEAL_PRESETS)
     try:
-        params = (hafo_params(overrides, preset) if preset in HAFO_PRESETS
-                  else ideal_params(overrides, preset) if preset in IDEAL_PRESETS
-                  else valve_params(overrides, preset))
+        entry = device_entry(preset)
+    except ParameterError:
+        raise ScenarioError(f"{origin}: device.preset = {preset!r} is not allowed; allowed: "
+                            + " | ".join(allowed)) from None
+    if entry.from_params is None:
+        raise ScenarioError(f"{origin}: device.preset = {preset!r} is a library circuit; "
+                            f"allowed: [circuit] library = {preset!r} (with the description's "
+                            "overrides), or a preset: " + " | ".join(allowed))
+    try:
+        params = entry.make(overrides).params
     except ParameterError as exc:
         raise ScenarioError(f"{origin}: device.params: {exc}") from None
     return preset, params, overrides
