@@ -257,6 +257,16 @@ def _design(args) -> int:
     return 0 if out["feasible"] else 1
 
 
+def _schematic(args) -> int:
+    """``afo-mj schematic SCENARIO --out FILE.svg``: exit 0 written, 2 invalid input
+    (nothing written)."""
+    from afo_mj.app.schematic import write_circuit_schematic
+    info = write_circuit_schematic(args.scenario, args.out)
+    print(f"afo_mj schematic: {info['path']}: circuit {info['circuit']!r}, "
+          f"{info['components']} components, {info['nodes']} nodes")
+    return 0
+
+
 def _version() -> str:
     """The installed package's version (the source tree's when not installed)."""
     from importlib.metadata import PackageNotFoundError, version
@@ -270,7 +280,8 @@ def _version() -> str:
 _ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
 
 _COMMANDS = ("demo", "run", "view", "render", "compare", "calibrate", "make_bench_record",
-             "sweep", "study", "optimize", "optimize_gait", "design", "build_models")
+             "sweep", "study", "optimize", "optimize_gait", "design", "build_models",
+             "schematic")
 
 
 def main(argv: list[str] | None = None) -> int:

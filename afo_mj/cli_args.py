@@ -201,6 +201,14 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                     help="skip the design-guideline studies")
     de.add_argument("--top", type=int, default=10, help="designs to list (default 10)")
     de.set_defaults(func=handlers["design"])
+    sch = sub.add_parser("schematic", help="draw a circuit as an ISO 1219-1-style schematic "
+                         "(SVG; PNG where cairosvg is installed)")
+    sch.add_argument("scenario", help="a scenario file with [circuit] or [device], a device "
+                     "preset (hafo, valve, digital, phafo, ...) or a library circuit "
+                     "(lab_bench, pump_accumulator, spring_return, ...)")
+    sch.add_argument("--out", required=True, metavar="FILE.svg",
+                     help="the drawing to write (.svg, or .png)")
+    sch.set_defaults(func=handlers["schematic"])
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=handlers["build_models"])
     for p in sub.choices.values():
