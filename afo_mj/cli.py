@@ -267,6 +267,23 @@ def _schematic(args) -> int:
     return 0
 
 
+def _export_fmu(args) -> int:
+    """Exit 0 written, 1 the library could not be built, 2 invalid scenario or option."""
+    from afo_mj.app.fmu import export_fmu
+    info = export_fmu(args.scenario, args.out, args.set or (), timestep_s=args.timestep_s,
+                      step_size_s=args.step_size_s)
+    kinds = {}
+    for v in info["variables"]:
+        kinds[v["causality"]] = kinds.get(v["causality"], 0) + 1
+    print(f"afo_mj export-fmu: {info['path']}: FMI 2.0 co-simulation FMU of {info['origin']} "
+          f"({kinds.get('input', 0)} inputs, {kinds.get('output', 0)} outputs, "
+          f"{kinds.get('parameter', 0)} parameters; kernel {info['kernel']})")
+    print("  the importing host needs Linux x86-64, this Python "
+          f"({info['libpython'] or 'a Python host: this build has no shared libpython'}) and "
+          "afo_mj importable in it (README: FMU export)")
+    return 0
+
+
 def _version() -> str:
     """The installed package's version (the source tree's when not installed)."""
     from importlib.metadata import PackageNotFoundError, version
@@ -281,7 +298,7 @@ _ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
 
 _COMMANDS = ("demo", "run", "view", "render", "compare", "calibrate", "make_bench_record",
              "sweep", "study", "optimize", "optimize_gait", "design", "build_models",
-             "schematic")
+             "schematic", "export_fmu")
 
 
 def main(argv: list[str] | None = None) -> int:

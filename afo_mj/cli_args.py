@@ -209,6 +209,20 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     sch.add_argument("--out", required=True, metavar="FILE.svg",
                      help="the drawing to write (.svg, or .png)")
     sch.set_defaults(func=handlers["schematic"])
+    fmu = sub.add_parser("export-fmu", help="write a scenario's circuit as an FMI 2.0 "
+                         "co-simulation FMU (inputs: command, joint angle and velocity)")
+    fmu.add_argument("scenario", help="a scenario file with a [circuit] or a [device] preset "
+                     "(e.g. scenarios/gait_lab_bench.toml), or a preset name (hafo, valve, ...)")
+    fmu.add_argument("--out", required=True, metavar="FILE.fmu", help="the FMU to write")
+    fmu.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario value by its dotted key, as for run "
+                          "(repeatable)")
+    fmu.add_argument("--timestep-s", type=float, default=5e-4, dest="timestep_s",
+                     help="longest internal step, s: each communication step is split into "
+                          "equal sub-steps no longer than this (default 0.0005)")
+    fmu.add_argument("--step-size-s", type=float, default=1e-3, dest="step_size_s",
+                     help="the default experiment's communication step, s (default 0.001)")
+    fmu.set_defaults(func=handlers["export_fmu"])
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=handlers["build_models"])
     for p in sub.choices.values():
