@@ -133,3 +133,33 @@ def test_a_scenario_names_a_library_circuit_through_its_circuit_table(tmp_path):
         device_params({"preset": "lab_bench"}, "s.toml")
     preset, params, _ = device_params({"preset": "hafo_prototype"}, "s.toml")
     assert params == hafo.HAFO
+
+
+def test_a_source_is_a_device_name_or_the_device_a_scenario_wears():
+    """``device_source`` (schematic, export-fmu): names and scenario files of every sort give
+    the spec the tools would build; what wears no circuit is refused naming why."""
+    from pathlib import Path
+
+    from afo_mj.scenarios.device_source import device_source
+    from afo_mj.scenarios.walk_scenario import ScenarioError
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    spec, origin = device_source("digital")
+    assert spec.params == valve_afo.VALVE_PRESETS["digital"] and origin == "digital"
+    spec, _ = device_source("hafo", ["device.params.hose.length_m=2.0"])
+    assert spec.params.hose.length_m == 2.0
+    spec, _ = device_source(str(root / "gait_assist_hafo.toml"))
+    assert spec.name == "hafo_gait"
+    spec, _ = device_source(str(root / "bench_hafo.toml"))
+    assert spec.params == hafo.HAFO
+    spec, _ = device_source(str(root / "gait_lab_bench.toml"))
+    assert spec.params is None and spec.circuit.name
+    spec, _ = device_source(str(root / "calibration" / "lab_rig.toml"))
+    assert spec.params is None and spec.commands
+    with pytest.raises(ScenarioError, match="wears no device"):
+        device_source(str(root / "walk_healthy.toml"))
+    with pytest.raises(ScenarioError, match="'ideal' is not a circuit"):
+        device_source(str(root / "gait_muscle_ideal_zhang.toml"))
+    with pytest.raises(ScenarioError, match="is not a registered device"):
+        device_source("no_such_device")
+    with pytest.raises(ScenarioError, match="allowed: device.params.NAME=VALUE"):
+        device_source("hafo", ["gait.strides=3"])

@@ -2,15 +2,15 @@
 (:mod:`afo_mj.outputs.fmu_export`).
 
 The scenario is a walking or bench scenario file with a ``[circuit]`` description or a
-``[device]`` preset that is a circuit (the pump-controlled HAFO presets, the valve presets),
-or the bare name of such a preset. A preset is exported as the bench replay builds it
-(:class:`afo_mj.experiments.bench_replay.BenchReplay`): the HAFO with its torque controller,
-a valve circuit with its initial rail charge.
+``[device]`` preset that is a circuit, or the name of a registered device
+(:func:`afo_mj.scenarios.device_source.device_source`). The device is exported as its spec
+describes it (:class:`afo_mj.circuits.device_spec.DeviceSpec`), as the bench replay builds it:
+the circuit as worn (the HAFO with its torque controller) from its initial state (a valve
+circuit's charged rail).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Sequence
 
 from afo_mj.app.errors import InvalidInput, RunFailed
@@ -18,81 +18,21 @@ from afo_mj.app.errors import InvalidInput, RunFailed
 __all__ = ["export_fmu", "scenario_circuit"]
 
 
-def _preset_circuit(preset: str, params, key: str):
-    """``(circuit, initial state)`` of a device preset's parameters."""
-    from afo_mj.devices.hafo import PumpAnkleParams, hafo_circuit
-    from afo_mj.devices.valve_afo import ValveAnkleParams, valve_circuit, valve_initial_state
-    if isinstance(params, ValveAnkleParams):      # (a PumpAnkleParams subclass: first)
-        return valve_circuit(params), valve_initial_state(params)
-    if isinstance(params, PumpAnkleParams):
-        return hafo_circuit(params, mode="torque"), {}
-    raise InvalidInput(f"{key} = {preset!r} is not a circuit (nothing to export as an FMU); "
-                       f"allowed: {', '.join(_circuit_presets())} or a [circuit] description")
-
-
-def _circuit_presets() -> list[str]:
-    from afo_mj.devices.hafo import PRESETS as HAFO_PRESETS
-    from afo_mj.devices.valve_afo import VALVE_PRESETS
-    return list(HAFO_PRESETS) + list(VALVE_PRESETS)
-
-
 def scenario_circuit(scenario: str, overrides: Sequence[str] = ()):
-    """``(circuit, initial state, origin)`` of a scenario file or preset name (see the module
-    docstring); :class:`InvalidInput` naming what is wrong."""
-    from afo_mj.scenarios.bench_scenario import is_bench_document, load_bench_scenario
-    from afo_mj.scenarios.device_scenario import device_config, device_params
-    from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario
-    path = Path(scenario)
-    if not path.is_file():
-        if scenario in _circuit_presets():
-            ov = {}
-            for item in overrides:
-                k, sep, v = item.partition("=")
-                if not sep or not k.startswith("device.params."):
-                    raise InvalidInput(f"--set {item!r} with preset {scenario!r}; allowed: "
-                                       "device.params.NAME=VALUE")
-                ov[k[len("device.params."):]] = float(v) if _is_number(v) else v
-            try:
-                preset, params, _ = device_params({"preset": scenario, "params": ov},
-                                                  "export-fmu")
-            except ScenarioError as exc:
-                raise InvalidInput(str(exc)) from None
-            c, init = _preset_circuit(preset, params, "SCENARIO")
-            return c, init, f"preset {scenario}"
-        raise InvalidInput(f"SCENARIO = {scenario!r}: no such file; allowed: a scenario file "
-                           "with a [circuit] or a [device] preset, or a preset name ("
-                           f"{', '.join(_circuit_presets())})")
+    """``(circuit, initial state, origin)`` of a scenario file or a registered device's name
+    (:func:`afo_mj.scenarios.device_source.device_source`); :class:`InvalidInput` naming what
+    is wrong."""
+    from afo_mj.circuits.components import CircuitError
+    from afo_mj.hydraulics.params import ParameterError
+    from afo_mj.scenarios.device_source import device_source
+    from afo_mj.scenarios.walk_scenario import ScenarioError
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"SCENARIO = {scenario!r}: cannot read it ({exc})") from None
-    try:
-        if is_bench_document(text):
-            bs = load_bench_scenario(path, overrides=overrides)
-            if bs.circuit is not None:
-                return bs.circuit.circuit, {}, str(path)
-            c, init = _preset_circuit(bs.preset, bs.params, f"{path}: device.preset")
-            return c, init, str(path)
-        sc = load_scenario(path, overrides=overrides)
-        cfg = device_config(sc)
-    except ScenarioError as exc:
+        spec, origin = device_source(scenario, overrides)
+    except (ScenarioError, CircuitError, ParameterError) as exc:
         raise InvalidInput(f"invalid scenario: {exc}") from None
-    if cfg is None:
-        raise InvalidInput(f"{path}: no [circuit] and no [device]: nothing to export as an "
-                           "FMU; allowed: a scenario with a [circuit] description or a "
-                           f"[device] preset ({', '.join(_circuit_presets())})")
-    if cfg.circuit is not None:
-        return cfg.circuit.circuit, {}, str(path)
-    c, init = _preset_circuit(cfg.preset, cfg.params, f"{path}: device.preset")
-    return c, init, str(path)
-
-
-def _is_number(v: str) -> bool:
-    try:
-        float(v)
-        return True
-    except ValueError:
-        return False
+    if origin == spec.name:
+        origin = f"device {spec.name}"
+    return spec.circuit, dict(spec.initial_state), origin
 
 
 def export_fmu(scenario: str, out, overrides: Sequence[str] = (), timestep_s: float = 5e-4,
