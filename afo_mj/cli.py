@@ -145,28 +145,10 @@ def _calibrate(args) -> int:
     return 0
 
 
-def _pairs(items, what: str) -> dict:
-    """``NAME=VALUE`` strings as a dict of floats (InvalidInput naming the bad one)."""
-    from afo_mj.app.errors import InvalidInput
-    out = {}
-    for it in items or []:
-        k, sep, v = it.partition("=")
-        try:
-            out[k.strip()] = float(v) if sep else None
-        except ValueError:
-            raise InvalidInput(f"{what} {it!r}: {v!r} is not a number") from None
-        if not sep:
-            raise InvalidInput(f"{what} {it!r}; allowed: NAME=VALUE")
-    return out
-
-
 def _make_bench_record(args) -> int:
-    from afo_mj.app.bench_record import make_bench_record
-    effects = {}
-    for spec in args.effect or []:
-        name, _, rest = spec.partition(":")
-        effects[name.strip()] = _pairs([p for p in rest.split(",") if p], "--effect")
-    data = make_bench_record(args.out, args.kind, effects, _pairs(args.mismatch, "--mismatch"),
+    from afo_mj.app.bench_record import make_bench_record, parse_effects, parse_pairs
+    data = make_bench_record(args.out, args.kind, parse_effects(args.effect),
+                             parse_pairs(args.mismatch, "--mismatch"),
                              preset=args.preset, noise_scale=args.noise_scale,
                              duration_s=args.duration_s, fs_hz=args.fs_hz, seed=args.seed,
                              resonance_hz=args.resonance_hz)
@@ -181,23 +163,12 @@ def _sweep(args) -> int:
     from afo_mj.app.study_runs import run_sweep
 
     def start(study, points, sw):
-        where = (f"Dask scheduler {args.scheduler}" if args.scheduler not in (None, "local")
-                 else f"a local Dask cluster of {sw.workers} workers" if args.scheduler
-                 else f"{sw.workers} local worker process(es)")
-        print(f"afo-mj sweep: {study.name}: {len(points)} runs ({study.design} design over "
-              f"{', '.join(p.key for p in study.parameters)}) on {where}")
+        _print(console.sweep_start_lines(study, points, sw.workers, args.scheduler))
     res = run_sweep(args.study, args.out, args.workers, args.scheduler, args.format,
                     args.keep_runs, progress=not args.quiet, on_start=start)
     rows, failed, table = res.rows, res.failed, res.table_path
-    print(f"  {len(rows)} runs, {len(failed)} failed, {res.wall_time_s:.1f} s wall; "
-          f"table: {table}")
-    for r in failed[:5]:
-        print(f"  failed {r['run_id']}: {r['error']}")
     # falls, end-stop contact, braking, poor tracking: outcomes, each said
-    _print(console.sweep_outcome_lines(rows))
-    flagged = {k: len(v) for k, v in console.sweep_outcome_counts(rows).items()}
-    print(json.dumps({"runs": len(rows), "failed": len(failed), "outcomes": flagged,
-                      "table": str(table)}))
+    _print(console.sweep_result_lines(rows, failed, res.wall_time_s, table))
     if rows and len(failed) == len(rows):
         _err("sweep", f"every run failed ({len(rows)} of {len(rows)}), e.g. "
              f"{failed[0]['error']}; see {table}")
@@ -258,29 +229,18 @@ def _design(args) -> int:
 
 
 def _schematic(args) -> int:
-    """``afo-mj schematic SCENARIO --out FILE.svg``: exit 0 written, 2 invalid input
-    (nothing written)."""
+    """Exit 0 written, 2 invalid input (nothing written)."""
     from afo_mj.app.schematic import write_circuit_schematic
-    info = write_circuit_schematic(args.scenario, args.out)
-    print(f"afo_mj schematic: {info['path']}: circuit {info['circuit']!r}, "
-          f"{info['components']} components, {info['nodes']} nodes")
+    _print(console.schematic_lines(write_circuit_schematic(args.scenario, args.out)))
     return 0
 
 
 def _export_fmu(args) -> int:
     """Exit 0 written, 1 the library could not be built, 2 invalid scenario or option."""
     from afo_mj.app.fmu import export_fmu
-    info = export_fmu(args.scenario, args.out, args.set or (), timestep_s=args.timestep_s,
-                      step_size_s=args.step_size_s)
-    kinds = {}
-    for v in info["variables"]:
-        kinds[v["causality"]] = kinds.get(v["causality"], 0) + 1
-    print(f"afo_mj export-fmu: {info['path']}: FMI 2.0 co-simulation FMU of {info['origin']} "
-          f"({kinds.get('input', 0)} inputs, {kinds.get('output', 0)} outputs, "
-          f"{kinds.get('parameter', 0)} parameters; kernel {info['kernel']})")
-    print("  the importing host needs Linux x86-64, this Python "
-          f"({info['libpython'] or 'a Python host: this build has no shared libpython'}) and "
-          "afo_mj importable in it (README: FMU export)")
+    _print(console.fmu_lines(export_fmu(args.scenario, args.out, args.set or (),
+                                        timestep_s=args.timestep_s,
+                                        step_size_s=args.step_size_s)))
     return 0
 
 

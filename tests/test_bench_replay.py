@@ -259,7 +259,7 @@ def test_every_effect_writes_packed_parameters_of_the_circuit(preset):
     rep = BenchReplay(preset)
     labels = set(rep.param_labels)
     module = rep.cc.module
-    lib = effects_for(rep.kind, ["chamber_a_pa"], available=labels)
+    lib = effects_for(["chamber_a_pa"], available=labels)
     hydraulic = [e for e in lib if e.labels]
     assert all(lab in labels for e in hydraulic for lab in e.labels)
     names = {e.name for e in hydraulic}
@@ -269,11 +269,11 @@ def test_every_effect_writes_packed_parameters_of_the_circuit(preset):
     # the servo valve's lap and lag exist in the servo circuit only
     assert ({"valve_overlap", "spool_lag"} <= names) == (preset == "valve")
     t = np.arange(600) * 1e-3
-    if rep.kind == "hafo":
+    if rep.commands[0] == "motor_voltage_v":
         ins = {"motor_voltage_v": 3.0 * np.sin(8 * t), "ankle_angle_rad": 0.1 * np.sin(8 * t)}
     else:
         ins = {"valve_command": 0.1 * np.sin(8 * t), "ankle_angle_rad": 0.04 * np.sin(8 * t)}
-    lean = lean_setting(rep.kind, labels)
+    lean = lean_setting(labels)
     chans = [c for c in rep.outputs if c != "fluid_temperature_k"]
     base = model_outputs(rep, t, ins, lean, chans)
     for e in hydraulic:

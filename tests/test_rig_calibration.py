@@ -115,7 +115,7 @@ def test_rig_scenario_declares_circuit_load_and_sensors(tmp_path):
     assert setup.circuit is not None and setup.load.inertia_kg_m2 == 0.05
     assert setup.options.uncalibrated_channels == ("motor_current_a",)
     rp = setup.replay()
-    assert rp.kind == "circuit" and "ankle_angle_rad" in rp.outputs
+    assert rp.described and "ankle_angle_rad" in rp.outputs
     assert rp.check_inputs({"motor_voltage_v": 0, "time_s": 0}) == ("motor_voltage_v",)
     assert rp.has("cylinders.seal_fc")          # the role answers to the rig's "cylinder"
 
@@ -257,7 +257,7 @@ def test_effect_at_a_library_bound_does_not_earn_its_name():
     range over decades) is flagged; a lower bound of 0 ("off") is not."""
     from afo_mj.calibration.calibrate import Calibration
     from afo_mj.calibration.effect_library import effects_for
-    lib = {e.name: e for e in effects_for("circuit", ["ankle_torque_nm"])}
+    lib = {e.name: e for e in effects_for(["ankle_torque_nm"], described=True)}
     st = lib["stribeck_friction"]
     x = lambda *vals: np.array([v / p.scale for v, p in zip(vals, st.parameters)])  # noqa: E731
     assert Calibration.at_bound(None, st, x(40.0, 1.6e-3)) == []       # 2 mm/s-ish: fine
@@ -296,7 +296,7 @@ def test_declared_value_beyond_tolerance_names_its_equivalent_effects():
 
     from afo_mj.calibration.calibrate import Calibration
     from afo_mj.calibration.effect_library import declared_parameters
-    by = {d.name: d for d in declared_parameters("circuit")}
+    by = {d.name: d for d in declared_parameters("motor_voltage_v", described=True)}
     names = ["charge_pressure_pa", "pump_slip_coefficient", "motor_resistance_ohm"]
     values = {"charge.pressure": 5e5, "pump.slip": 7e-8, "motor.R": 0.6}
     fake = SimpleNamespace(declared=[by[n] for n in names],

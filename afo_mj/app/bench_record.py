@@ -12,6 +12,30 @@ from afo_mj.app.errors import InvalidInput
 __all__ = ["make_bench_record"]
 
 
+def parse_pairs(items, what: str) -> dict:
+    """``NAME=VALUE`` strings as a dict of floats (:class:`InvalidInput` naming the bad one;
+    ``what`` names the option)."""
+    out = {}
+    for it in items or []:
+        k, sep, v = it.partition("=")
+        if not sep:
+            raise InvalidInput(f"{what} {it!r}; allowed: NAME=VALUE")
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise InvalidInput(f"{what} {it!r}: {v!r} is not a number") from None
+    return out
+
+
+def parse_effects(items) -> dict:
+    """``NAME[:PARAM=VALUE,...]`` strings (``--effect``) as effect name → parameters."""
+    effects = {}
+    for spec in items or []:
+        name, _, rest = spec.partition(":")
+        effects[name.strip()] = parse_pairs([p for p in rest.split(",") if p], "--effect")
+    return effects
+
+
 def make_bench_record(out_path, kind: str = "hafo", effects: Mapping[str, Mapping] = (),
                       mismatch: Mapping[str, float] = (), preset: str | None = None,
                       noise_scale: float = 1.0, duration_s: float = 20.0,

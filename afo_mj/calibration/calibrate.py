@@ -223,7 +223,11 @@ class Calibration:
             raise CalibrationError("the record's sidecar names no source.preset and none was "
                                    "given (--preset)")
         self.replay = replay or BenchReplay(preset)
-        self.kind = self.replay.kind
+        #: the model is the user's own description (its declared model is as described, its
+        #: switched-off effects the candidates), not a preset's lean model
+        self.described = self.replay.described
+        #: the device's preferred command channel (a preset's open-loop command)
+        self.command = self.replay.commands[0]
         try:
             input_names = self.replay.check_inputs(data.channels)
         except ReplayError as exc:
@@ -232,7 +236,8 @@ class Calibration:
         skipped = [c for c in data.outputs if c not in self.replay.outputs]
         if not self.outputs:
             raise CalibrationError(f"none of the record's outputs {list(data.outputs)} is "
-                                   f"produced by the {self.kind} bench replay (allowed: "
+                                   f"produced by the {self.replay.preset!r} bench replay "
+                                   f"(allowed: "
                                    f"{', '.join(self.replay.outputs)})")
         self.skipped_outputs = skipped
         findings = check_record(data.channels, self.replay.params, data.noise,
@@ -284,10 +289,10 @@ class Calibration:
             sig = data.noise.get(c)
             self.noise[c] = float(sig) if sig else ra.noise_sigma_estimate(self.meas[c])
         self.context = {}
-        self.declared = declared_parameters(self.kind)
-        self.available = (set(self.replay.param_labels) if self.kind != "circuit"
+        self.declared = declared_parameters(self.command, self.described)
+        self.available = (set(self.replay.param_labels) if not self.described
                           else _Resolving(self.replay))
-        if self.kind == "circuit":
+        if self.described:
             self.declared = tuple(d for d in self.declared
                                   if any(self.replay.has(lab) for lab in d.labels))
         #: the identifiability analysis of a described rig (None for the presets)
@@ -300,8 +305,9 @@ class Calibration:
         # per-channel gain must not absorb structure on a channel the user vouches for)
         uncal = options.uncalibrated_channels or ()
         self.library = effects_for(
-            self.kind, self.outputs, spread, self.available,
-            is_off=lambda e: described_off(e, self.replay.value), uncalibrated=uncal)
+            self.outputs, spread, self.available,
+            is_off=lambda e: described_off(e, self.replay.value), uncalibrated=uncal,
+            described=self.described)
         names = [e.name for e in self.library]
         for n in options.declared_effects + options.candidates:
             if n not in names:
@@ -312,7 +318,7 @@ class Calibration:
             pool = [e for e in pool if e.name in options.candidates]
         self.candidates = pool
         self.min_refit_score = (options.min_refit_score if options.min_refit_score is not None
-                                else 0.05 if self.kind == "circuit" else 1e-4)
+                                else 0.05 if self.described else 1e-4)
         noise_norm = [self.noise[c] / self.scale[c] for c in self.outputs]
         self.f_scale = 3.0 * float(np.median(noise_norm))
         self.evaluations = 0
@@ -337,7 +343,7 @@ class Calibration:
 
     def setting(self, effects: Sequence[Effect], x: np.ndarray) -> ModelSetting:
         """The :class:`ModelSetting` of a structure at normalised parameters ``x``."""
-        s = lean_setting(self.kind, self.available)
+        s = lean_setting(self.available, self.described)
         for labels, f in zip(self.declared_labels, x):
             for lab in labels:
                 s.row[lab] = self.replay.value(lab) * float(f)
@@ -405,7 +411,7 @@ class Calibration:
             sources[c] = "declared in the scenario's [calibration.hold]"
         replayed = {c: h for c, h in declared.items() if c in self.inputs}
         self.replay.set_hold(replayed, key="hold")
-        default = ("the replay's default for a described circuit" if self.kind == "circuit"
+        default = ("the replay's default for a described circuit" if self.described
                    else "the replay's default for a preset")
         used = {c: self.replay.hold_of(c) for c in self.inputs if c in HELD_CHANNELS}
         self.input_hold, self.hold_warnings = check_holds(
@@ -545,7 +551,7 @@ class Calibration:
                 v[0] = float(np.clip(typ[0] * (0.7 + 0.3 * f), e.parameters[0].lo,
                                      e.parameters[0].hi))
             probes.append(v)
-        if self.kind == "circuit":
+        if self.described:
             # a described rig: the shape parameters' other plausible values too
             for j, p in enumerate(e.parameters[1:], start=1):
                 for alt in p.probe_values:
@@ -659,7 +665,7 @@ class Calibration:
         """A described rig: replay once per declared parameter (1 % steps of its factor),
         select what the record can estimate (:func:`select_parameters`), hold the rest at
         the description's values. Sets :attr:`identifiability_table`."""
-        if self.kind != "circuit" or not self.declared:
+        if not self.described or not self.declared:
             return
         k = len(self.declared)
         lo, hi = self._bounds([])
@@ -787,7 +793,7 @@ class Calibration:
         opts = self.options
         self.held_declared: dict[str, float] = {}
         self.select_declared()
-        if self.kind == "circuit":
+        if self.described:
             # an effect writing a fitted declared parameter is that parameter, not a candidate
             fitted = {self.replay.resolve(lab) for labels in self.declared_labels
                       for lab in labels}
@@ -861,7 +867,7 @@ class Calibration:
                 pays = bool(d_bic < -opts.bic_margin and drop >= opts.min_error_drop
                             and identifiable)
                 earned = {}
-                if self.kind == "circuit":
+                if self.described:
                     # a described rig: the effect must also be physically plausible (no
                     # parameter pinned at a library bound) and beat a generic per-channel
                     # correction with as many parameters
@@ -917,19 +923,19 @@ class Calibration:
         structured_before = [c for c, s in channels_before.items() if s["structured"]]
         if steps:
             verdict = "effect_found"
-        elif self.kind == "circuit" and not baseline["reaches_noise"]:
+        elif self.described and not baseline["reaches_noise"]:
             verdict = "structure_wrong"
-        elif structured_before and not (self.kind == "circuit" and baseline["reaches_noise"]):
+        elif structured_before and not (self.described and baseline["reaches_noise"]):
             verdict = "unexplained_residual"
         else:
             verdict = "no_missing_effect"
-        if self.kind == "circuit" and not baseline["reaches_noise"]:
+        if self.described and not baseline["reaches_noise"]:
             where_base = ra.locate_structure(channels_before) if structured_before else None
             baseline["structure_wrong_where"] = where_base
         where = ra.locate_structure(channels_after) if structured_after else None
         discrepancy = None
         if verdict in ("unexplained_residual", "structure_wrong") or (
-                self.kind == "circuit" and not steps and structured_after):
+                self.described and not steps and structured_after):
             discrepancy = self.data_driven_discrepancy(after_out)
         ident = self.identifiability(current)
         params = self.physical(current.effects, current.x)
@@ -952,7 +958,8 @@ class Calibration:
             entry["best_score"] = max(entry["scores"]) if entry["scores"] else 0.0
             entry["selected"] = any(s["effect"] == name for s in steps)
         return {
-            "kind": self.kind, "preset": self.replay.preset,
+            "described": self.described, "command_channel": self.command,
+            "preset": self.replay.preset,
             "outputs": list(self.outputs), "skipped_outputs": self.skipped_outputs,
             "inputs": list(self.inputs), "split_by": self.split_by,
             "train_window_s": list(self.train_window), "held_out_window_s":

@@ -119,7 +119,9 @@ class Effect:
     reference: str
     parameters: tuple[EffectParameter, ...]
     setter: Callable[[ModelSetting, Sequence[float], dict], None]
-    kinds: tuple[str, ...] = ("hafo", "valve")
+    #: offered only for a described rig (an effect of the description's own parts that the
+    #: presets' lean model keeps on: check-valve cracking, motor friction)
+    described_only: bool = False
     signature: str = ""
     channel: str = ""
     labels: tuple[str, ...] = ()
@@ -277,7 +279,7 @@ def _common_effects() -> list[Effect]:
                "flow G (p_c − p_crack − p)₊: the charge check valves open only past p_crack",
                "afo_mj.hydraulics.laws (check valve with cracking pressure; Manring §4.5)",
                (P("cracking_pa", "Pa", 0.0, 3e5, 3e4, "cracking pressure p_crack"),),
-               _row(_CHECK_CRACK), kinds=("circuit",),
+               _row(_CHECK_CRACK), described_only=True,
                signature="the low line sags below the charge pressure before the check "
                          "valve feeds it", labels=_flat(_CHECK_CRACK)),
         Effect("motor_friction", "motor",
@@ -285,7 +287,7 @@ def _common_effects() -> list[Effect]:
                "afo_mj.hydraulics.laws.motor_friction_torque_nm (Armstrong-Hélouvry 1994)",
                (P("coulomb_torque_nm", "N m", 0.0, 0.1, 5e-3, "T_c"),
                 P("viscous_nm_s_rad", "N m s/rad", 0.0, 1e-3, 1e-5, "b")),
-               _row(*_MOTOR_FRICTION), kinds=("circuit",),
+               _row(*_MOTOR_FRICTION), described_only=True,
                signature="current residual ∝ sign(ω) and ω", labels=_flat(*_MOTOR_FRICTION)),
         Effect("sensor_delay", "sensors",
                "every output read late: y_meas(t) = y(t − d)",
@@ -332,14 +334,14 @@ def _valve_effects() -> list[Effect]:
                "edge area w x_max ramp(|x| − x_0): no flow inside the lap x_0 (dead band)",
                "afo_mj.hydraulics.servo_valve (Merritt §3.4, overlapped spool)",
                (P("overlap", "-", 0.0, 0.4, 0.05, "lap x_0 as a fraction of the stroke"),),
-               _row(_LAP), kinds=("valve",),
+               _row(_LAP),
                signature="flow missing at small commands: residual where |u| < x_0",
                labels=(_LAP,)),
         Effect("spool_lag", "servo valve",
                "τ ẋ = u − x (the spool's first-order lag)",
                "afo_mj.hydraulics.servo_valve (bandwidth f = 1/(2πτ))",
                (P("spool_time_constant_s", "s", 1e-4, 0.1, 0.01, "τ"),),
-               _row(_SPOOL_TAU), kinds=("valve",),
+               _row(_SPOOL_TAU),
                signature="pressure residual ∝ −τ du/dt", labels=(_SPOOL_TAU,)),
     ]
 
@@ -365,32 +367,31 @@ def _offered(e: Effect, available, is_off=None) -> bool:
     return is_off is None or is_off(e)
 
 
-def effects_for(kind: str, outputs: Sequence[str],
+def effects_for(outputs: Sequence[str],
                 output_spread: dict[str, float] | None = None,
                 available: Collection[str] | None = None,
                 is_off: Callable[[Effect], bool] | None = None,
-                uncalibrated: Collection[str] | None = None) -> list[Effect]:
-    """The candidate effects for a ``kind`` (``"hafo"``/``"valve"``) replay whose record has
-    the output channels ``outputs`` (one gain/offset effect per output). ``available``: the
-    circuit's packed parameter labels; an effect writing a label the circuit has not (the
-    servo valve's lap in the digital circuit) is left out. ``kind`` ``"circuit"`` (a
-    described rig): ``is_off(effect)`` tells whether the description has the effect switched
-    off (an effect the user described is part of the declared model, not a candidate), and a
-    sensor gain/offset is offered only for the channels in ``uncalibrated`` (those the user
-    marks so; every channel when ``None``)."""
-    if kind not in ("hafo", "valve", "circuit"):
-        raise ParameterError(f"kind = {kind!r}; allowed: hafo, valve, circuit")
-    out = [e for e in _common_effects() if kind in e.kinds or kind == "circuit"]
-    if kind in ("valve", "circuit"):
-        out += _valve_effects()
-    out = [e for e in out if e.labels or kind != "circuit" or e.name in _CIRCUIT_OTHER]
-    out = [e for e in out if _offered(e, available, is_off if kind == "circuit" else None)]
+                uncalibrated: Collection[str] | None = None,
+                described: bool = False) -> list[Effect]:
+    """The candidate effects for a replay whose record has the output channels ``outputs``
+    (one gain/offset effect per output). ``available``: the circuit's packed parameter
+    labels; an effect writing a label the circuit has not (the servo valve's lap in the
+    digital circuit and in the pump-controlled HAFO) is left out. ``described`` (a described
+    rig, :attr:`afo_mj.experiments.bench_replay.BenchReplay.described`): ``is_off(effect)``
+    tells whether the description has the effect switched off (an effect the user described
+    is part of the declared model, not a candidate), a sensor gain/offset is offered only for
+    the channels in ``uncalibrated`` (those the user marks so; every channel when ``None``),
+    and a first-order lag per output besides."""
+    out = [e for e in _common_effects() + _valve_effects()
+           if described or not e.described_only]
+    out = [e for e in out if e.labels or not described or e.name in _CIRCUIT_OTHER]
+    out = [e for e in out if _offered(e, available, is_off if described else None)]
     spread = output_spread or {}
     for ch in outputs:
         if uncalibrated is not None and ch not in uncalibrated:
             continue
         out.append(_gain_offset_effect(ch, float(spread.get(ch, 1.0))))
-    if kind == "circuit":
+    if described:
         out += [_lag_effect(ch) for ch in outputs]
     return out
 
@@ -413,32 +414,40 @@ def described_off(e: Effect, value: Callable[[str], float]) -> bool:
 _CIRCUIT_OTHER = ("viscosity_drift", "sensor_delay")
 
 
-def lean_setting(kind: str, available: Collection[str] | None = None) -> ModelSetting:
+def lean_setting(available: Collection[str] | None = None,
+                 described: bool = False) -> ModelSetting:
     """The lean model: every effect of the library off (the entries of ``available`` labels
-    only, when given). A described circuit (``kind`` ``"circuit"``) is its own declared
-    model: nothing is switched off (its effects that are off are the candidates)."""
-    if kind == "circuit":
+    only, when given: a circuit without a servo valve has no lap to close). A described
+    circuit is its own declared model: nothing is switched off (its effects that are off
+    are the candidates)."""
+    if described:
         return ModelSetting(row={})
     row = dict(_LEAN_ROW)
-    if kind == "valve":
-        row.update(_LEAN_VALVE)
+    row.update(_LEAN_VALVE)
     if available is not None:
         row = {k: v for k, v in row.items() if k in available}
     return ModelSetting(row=row)
 
 
-def declared_parameters(kind: str) -> tuple[DeclaredParameter, ...]:
-    """The declared model's parameters the calibration fits before looking for effects."""
+def declared_parameters(command: str, described: bool = False
+                        ) -> tuple[DeclaredParameter, ...]:
+    """The declared model's parameters the calibration fits before looking for effects: a
+    described rig's broad set (:data:`_CIRCUIT_DECLARED`); else the oil and seal values and
+    those of the element the open-loop ``command`` drives (the motor for a motor voltage,
+    the metering valve for a valve command)."""
     D = DeclaredParameter
-    if kind == "circuit":
+    if described:
         return _CIRCUIT_DECLARED
     common = (D("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 20.0,
                 "Coulomb friction of one cylinder's seals"),
               D("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
                 "oil bulk modulus"))
-    if kind == "hafo":
+    if command == "motor_voltage_v":
         return (D("motor_resistance_ohm", "ohm", ("motor.R",), 0.5, 2.0, "winding resistance"),
                 D("torque_constant_nm_a", "N m/A", ("motor.K",), 0.7, 1.4, "motor K")) + common
+    if command != "valve_command":
+        raise ParameterError(f"command = {command!r}; allowed: motor_voltage_v, "
+                             "valve_command (the open-loop command of a preset)")
     # the servo valve's metering area, or the digital circuit's open edges sized like it
     return (D("valve_full_area_m2", "m^2", ("servo.full_area", "edge_pa.area", "edge_bt.area"),
               0.5, 2.0, "servo valve metering area at full stroke"),) + common

@@ -43,6 +43,7 @@ from afo_mj.calibration.effect_library import (
     declared_parameters, effect_by_name, effects_for, lean_setting)
 from afo_mj.calibration.calibrate import declared_labels, model_outputs
 from afo_mj.calibration.measured_data import write_measured
+from afo_mj.devices.registry import device_spec
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.experiments.bench_replay import BenchReplay
 
@@ -56,10 +57,12 @@ DEFAULT_NOISE = {"pressure_a_pa": 2.0e4, "pressure_b_pa": 2.0e4, "chamber_a_pa":
                  "pump_pressure_pa": 2.0e4, "ankle_torque_nm": 0.2, "motor_current_a": 0.03,
                  "motor_speed_rad_s": 2.0, "valve_position": 0.002,
                  "fluid_temperature_k": 0.05}
-#: the outputs each kind of synthetic bench record carries
-RECORD_OUTPUTS = {"hafo": ("pressure_a_pa", "pressure_b_pa", "ankle_torque_nm",
-                           "motor_current_a", "motor_speed_rad_s"),
-                  "valve": ("chamber_a_pa", "chamber_b_pa", "ankle_torque_nm")}
+#: the outputs a synthetic bench record carries, by the device's open-loop command (a
+#: pump-driven bench logs its line pressures and motor, a valve bench its chambers)
+RECORD_OUTPUTS = {"motor_voltage_v": ("pressure_a_pa", "pressure_b_pa", "ankle_torque_nm",
+                                      "motor_current_a", "motor_speed_rad_s"),
+                  "valve_command": ("chamber_a_pa", "chamber_b_pa", "ankle_torque_nm")}
+#: ``kind`` (``make-bench-record --kind``) → the preset it records by default
 DEFAULT_PRESET = {"hafo": "hafo", "valve": "valve"}
 #: encoder noise on the imposed angle (rad)
 ANGLE_NOISE_RAD = 2e-5
@@ -138,8 +141,8 @@ class _Protocol:
 
     def __init__(self, replay: BenchReplay, n: int, fs_hz: float, seed: int):
         rng = np.random.default_rng(seed)
-        self.kind, self.p = replay.kind, replay.params
-        if self.kind == "hafo":
+        self.channel, self.p = replay.commands[0], replay.params
+        if self.channel == "motor_voltage_v":
             self.schedule = _step_schedule(n, fs_hz, rng, 1.0, 4.0, 0.2, 0.6)
         else:
             self.schedule = _step_schedule(n, fs_hz, rng, 0.03, 0.15, 0.1, 0.4)
@@ -148,7 +151,7 @@ class _Protocol:
         """``(θ, θ̇)`` of the imposed ankle (analytic derivative)."""
         env, denv = _fade_in(t), _fade_in_rate(t)
         w = 2 * np.pi
-        if self.kind == "hafo":
+        if self.channel == "motor_voltage_v":
             s = 0.12 * np.sin(w * t) + 0.03 * np.sin(3 * w * t)
             ds = 0.12 * w * np.cos(w * t) + 0.09 * w * np.cos(3 * w * t)
         else:
@@ -162,7 +165,7 @@ class _Protocol:
         env = _fade_in(t)
         thd = self.angle(t)[1]
         steps = env * _steps_at(t, self.schedule, rise_s)
-        if self.kind == "hafo":
+        if self.channel == "motor_voltage_v":
             w_ff = -ktp * thd / (p.pump.displacement_m3_rev / (2.0 * math.pi))
             return (p.motor.torque_constant_nm_a * w_ff + steps
                     + env * np.sin(2 * np.pi * 2.3 * t))
@@ -173,7 +176,7 @@ class _Protocol:
 
     @property
     def command_name(self) -> str:
-        return "motor_voltage_v" if self.kind == "hafo" else "valve_command"
+        return self.channel
 
 
 def bench_protocol(replay: BenchReplay, duration_s: float = 20.0, fs_hz: float = 1000.0,
@@ -233,15 +236,21 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
     * ``"linear"``: a band-limited continuous command (steps with a 5 ms raised-cosine rise),
       simulated at :data:`LINEAR_OVERSAMPLE` internal steps per record sample (each holding the
       command at its midpoint, second order in the step) and sampled at ``fs_hz``."""
-    preset = preset or DEFAULT_PRESET.get(kind)
+    if kind not in DEFAULT_PRESET:
+        raise ParameterError(f"kind = {kind!r}; allowed: {', '.join(DEFAULT_PRESET)}")
+    want = device_spec(DEFAULT_PRESET[kind]).open_loop_channel
+    preset = preset or DEFAULT_PRESET[kind]
     replay = BenchReplay(preset)
-    if replay.kind != kind:
-        raise ParameterError(f"preset = {preset!r} is a {replay.kind} preset; kind = {kind!r}")
-    outputs = tuple(outputs or RECORD_OUTPUTS[kind])
+    if replay.described or replay.commands[0] != want:
+        raise ParameterError(f"preset = {preset!r} (command {replay.commands[0]}) for kind = "
+                             f"{kind!r}; allowed: a preset whose open-loop command is {want} "
+                             "(a preset's lean model is what the synthetic record varies)")
+    command = replay.commands[0]
+    outputs = tuple(outputs or RECORD_OUTPUTS[command])
     t, inputs = bench_protocol(replay, duration_s, fs_hz, seed, command_hold, command_update_s)
     available = set(replay.param_labels)
-    setting = lean_setting(kind, available)
-    declared = {d.name: d for d in declared_parameters(kind)}
+    setting = lean_setting(available)
+    declared = {d.name: d for d in declared_parameters(command)}
     for name, f in mismatch.items():
         if name not in declared:
             raise ParameterError(f"mismatch key {name!r}; allowed: {', '.join(declared)}")
@@ -251,7 +260,7 @@ def generate_record(path, kind: str = "hafo", effects: Mapping[str, Mapping[str,
                                  f"{d.hi_factor}")
         for lab in declared_labels(replay, d):
             setting.row[lab] = replay.value(lab) * float(f)
-    library = effects_for(kind, outputs, {c: 1e9 for c in outputs}, available)
+    library = effects_for(outputs, {c: 1e9 for c in outputs}, available)
     context = {}
     truth = []
     for name, values in effects.items():

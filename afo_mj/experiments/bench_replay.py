@@ -171,10 +171,6 @@ class BenchReplay:
         #: the preset's parameter set, or a description's cylinder geometry (what the record
         #: checks compare the angle with; :func:`circuit_geometry`)
         self.params = spec.params if not self.described else circuit_geometry(spec.circuit)
-        #: compatibility name of the calibration's per-family choices: ``"circuit"`` for a
-        #: description given directly, else the open-loop command's family
-        self.kind = ("circuit" if self.described
-                     else "valve" if spec.open_loop_switch else "hafo")
         self.cc = build(spec.circuit)
         self.initial_state = dict(spec.initial_state)
         self.base_row = self.cc.P.copy()

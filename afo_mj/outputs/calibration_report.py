@@ -165,20 +165,28 @@ def _suffix_unit(name: str) -> str:
 
 def _parameter_units(report: Mapping) -> dict[str, str]:
     """Parameter name (``declared`` or ``effect.parameter``) → SI unit, from the effect
-    library where it knows the kind; other names by their suffix (:func:`_suffix_unit`)."""
+    library where it knows the device's command; other names by their suffix
+    (:func:`_suffix_unit`)."""
     units: dict[str, str] = {}
     try:
         from afo_mj.calibration.effect_library import declared_parameters, effects_for
-        kind = report.get("kind")
+        described = bool(report.get("described"))
         outputs = list(report.get("outputs") or [])
-        for d in declared_parameters(kind):
+        for d in declared_parameters(report.get("command_channel"), described):
             units[d.name] = _UNIT_PRETTY.get(d.unit, d.unit)
-        for e in effects_for(kind, outputs):
+        for e in effects_for(outputs, described=described):
             for p in e.parameters:
                 units[f"{e.name}.{p.name}"] = _UNIT_PRETTY.get(p.unit, p.unit)
-    except Exception:          # unknown kind, or a hand-made report: fall back to names
+    except Exception:          # unknown command, or a hand-made report: fall back to names
         pass
     return units
+
+
+def _replay_kind(report: Mapping) -> str:
+    """What was replayed, in words: a described circuit, or a preset and its command."""
+    if report.get("described"):
+        return "described circuit"
+    return f"preset, {report.get('command_channel', '?')} command"
 
 
 def _unit_of(name: str, units: Mapping[str, str]) -> str:
@@ -271,7 +279,7 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
     outputs = list(report.get("outputs") or [])
     L: list[str] = []
     L.append(f"# Calibration report: {report.get('preset', '?')} "
-             f"({report.get('kind', '?')} bench replay)\n")
+             f"({_replay_kind(report)} bench replay)\n")
     L.append(verdict_sentence(report) + "\n")
     meta = []
     if report.get("data") is not None:

@@ -13,7 +13,8 @@ from typing import Mapping
 __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_lines",
            "device_walk_lines", "human_response_line", "device_warnings", "sweep_outcome_counts",
            "sweep_outcome_lines", "bench_lines", "circuit_bench_lines",
-           "format_stiffness_summary", "calibration_lines"]
+           "format_stiffness_summary", "calibration_lines", "schematic_lines", "fmu_lines",
+           "sweep_start_lines", "sweep_result_lines"]
 
 
 def fmt_stat(entry, fmt: str = ".2f") -> str:
@@ -464,3 +465,45 @@ def reflex_set_lines(doc: Mapping, out) -> list[str]:
         path = target.as_posix()
         head = "  to walk a muscle scenario with this set, put in its [walker]:"
     return [head, f"reflex_set = {json.dumps(path)}"]
+
+
+def schematic_lines(info: Mapping) -> list[str]:
+    """What ``afo-mj schematic`` wrote."""
+    return [f"afo_mj schematic: {info['path']}: circuit {info['circuit']!r}, "
+            f"{info['components']} components, {info['nodes']} nodes"]
+
+
+def fmu_lines(info: Mapping) -> list[str]:
+    """What ``afo-mj export-fmu`` wrote, and what the importing host needs."""
+    kinds: dict = {}
+    for v in info["variables"]:
+        kinds[v["causality"]] = kinds.get(v["causality"], 0) + 1
+    return [f"afo_mj export-fmu: {info['path']}: FMI 2.0 co-simulation FMU of {info['origin']} "
+            f"({kinds.get('input', 0)} inputs, {kinds.get('output', 0)} outputs, "
+            f"{kinds.get('parameter', 0)} parameters; kernel {info['kernel']})",
+            "  the importing host needs Linux x86-64, this Python "
+            f"({info['libpython'] or 'a Python host: this build has no shared libpython'}) "
+            "and afo_mj importable in it (README: FMU export)"]
+
+
+def sweep_start_lines(study, points, workers: int, scheduler) -> list[str]:
+    """What ``afo-mj sweep`` is about to run, and where."""
+    where = (f"Dask scheduler {scheduler}" if scheduler not in (None, "local")
+             else f"a local Dask cluster of {workers} workers" if scheduler
+             else f"{workers} local worker process(es)")
+    return [f"afo-mj sweep: {study.name}: {len(points)} runs ({study.design} design over "
+            f"{', '.join(p.key for p in study.parameters)}) on {where}"]
+
+
+def sweep_result_lines(rows, failed, wall_time_s: float, table) -> list[str]:
+    """The sweep's counts, its first failures, its outcomes (falls, end-stop contact,
+    braking, poor tracking: each said) and a JSON line of the counts."""
+    import json
+    out = [f"  {len(rows)} runs, {len(failed)} failed, {wall_time_s:.1f} s wall; "
+           f"table: {table}"]
+    out += [f"  failed {r['run_id']}: {r['error']}" for r in failed[:5]]
+    out += sweep_outcome_lines(rows)
+    flagged = {k: len(v) for k, v in sweep_outcome_counts(rows).items()}
+    out.append(json.dumps({"runs": len(rows), "failed": len(failed), "outcomes": flagged,
+                           "table": str(table)}))
+    return out
