@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -256,16 +257,30 @@ def _version() -> str:
 
 _ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
 
-_COMMANDS = ("demo", "run", "view", "render", "compare", "calibrate", "make_bench_record",
-             "sweep", "study", "optimize", "optimize_gait", "design", "build_models",
-             "schematic", "export_fmu")
+# every command of ``afo-mj``, as typed, and its handler (``args -> exit code``); the parser
+# (:func:`afo_mj.cli_args.build_parser`) declares the same commands
+COMMANDS: dict[str, Callable[..., int]] = {
+    "hydraulics-demo": _demo,
+    "run": _run,
+    "view": _view,
+    "render": _render,
+    "compare": _compare,
+    "calibrate": _calibrate,
+    "make-bench-record": _make_bench_record,
+    "sweep": _sweep,
+    "study": _study,
+    "optimize": _optimize,
+    "optimize-gait": _optimize_gait,
+    "design": _design,
+    "schematic": _schematic,
+    "export-fmu": _export_fmu,
+    "build-models": _build_models,
+}
 
 
 def main(argv: list[str] | None = None) -> int:
     from afo_mj.cli_args import build_parser
-    handlers = {name[1:]: f for name, f in globals().items()
-                if name.startswith("_") and callable(f) and name[1:] in _COMMANDS}
-    args = build_parser(handlers, _version()).parse_args(argv)
+    args = build_parser(COMMANDS, _version()).parse_args(argv)
     from afo_mj import progress
     from afo_mj.app.errors import AppError
     # progress (stage lines, time left) on stderr only: stdout carries the results

@@ -1,7 +1,8 @@
 """The grammar of ``afo-mj``: every command, its arguments, defaults and help text (argparse).
 
 :func:`build_parser` is used by :func:`afo_mj.cli.main`, which gives the handler of each
-command (a function ``args -> exit code``) by the command's name.
+command (a function ``args -> exit code``) by the command's name as typed
+(``hydraulics-demo``, ``run``, ...): its table :data:`afo_mj.cli.COMMANDS`.
 """
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ __all__ = ["build_parser"]
 
 
 def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.ArgumentParser:
-    """The ``afo-mj`` parser; ``handlers``: command function by name (``run``, ``view``, ...),
-    set as each sub-command's ``func``; ``version``: what ``--version`` prints."""
+    """The ``afo-mj`` parser; ``handlers``: command function by the command's name as typed
+    (``hydraulics-demo``, ``run``, ``make-bench-record``, ...), set as each sub-command's
+    ``func``; ``version``: what ``--version`` prints."""
     parser = argparse.ArgumentParser(
         prog="afo-mj", description="Simulate human walking in MuJoCo with a hydraulic ankle "
         "orthosis: walks, device benches, comparisons, calibration, studies and design.")
@@ -25,7 +27,7 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     demo.add_argument("--duration-s", type=float, default=1.0, dest="duration_s")
     demo.add_argument("--substeps", type=int, default=4)
     demo.add_argument("--json", action="store_true", help="also print a JSON summary line")
-    demo.set_defaults(func=handlers["demo"])
+    demo.set_defaults(func=handlers["hydraulics-demo"])
     run = sub.add_parser("run", help="simulate a walking scenario (TOML) and write its results")
     run.add_argument("scenario", help="scenario file, e.g. scenarios/walk_healthy.toml")
     run.add_argument("--out", required=True, help="output directory: a new path, an empty "
@@ -104,7 +106,7 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     mk.add_argument("--seed", type=int, default=0)
     mk.add_argument("--out", required=True, metavar="FILE.csv",
                     help="data file (.csv or .parquet); the sidecar goes beside it")
-    mk.set_defaults(func=handlers["make_bench_record"])
+    mk.set_defaults(func=handlers["make-bench-record"])
     sw = sub.add_parser("sweep", help="run a parameter study (TOML) in parallel: local "
                         "processes or a Dask cluster; resumable")
     sw.add_argument("study", help="study file, e.g. scenarios/studies/hafo_peak_torque_timing.toml")
@@ -184,7 +186,7 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                     help="also walk with body mass -15 %% and +15 %%, 1 kg at the right ankle "
                          "and the HAFO's worn masses (each fall penalised)")
     og.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    og.set_defaults(func=handlers["optimize_gait"])
+    og.set_defaults(func=handlers["optimize-gait"])
     de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "
                         "requirements and write it as scenarios afo-mj run accepts")
     de.add_argument("requirements", help="requirements file, e.g. "
@@ -222,9 +224,9 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                           "equal sub-steps no longer than this (default 0.0005)")
     fmu.add_argument("--step-size-s", type=float, default=1e-3, dest="step_size_s",
                      help="the default experiment's communication step, s (default 0.001)")
-    fmu.set_defaults(func=handlers["export_fmu"])
+    fmu.set_defaults(func=handlers["export-fmu"])
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
-    build.set_defaults(func=handlers["build_models"])
+    build.set_defaults(func=handlers["build-models"])
     for p in sub.choices.values():
         if "--quiet" not in p._option_string_actions:
             p.add_argument("--quiet", action="store_true",
