@@ -58,17 +58,45 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from afo_mj.scenarios.device_scenario import device_params
-from afo_mj.scenarios.walk_scenario import ScenarioError, apply_overrides
+from afo_mj.scenarios.device_scenario import DEVICE as WALK_DEVICE, device_params
+from afo_mj.scenarios.schema import Key, ScenarioError, Table, check_table
+from afo_mj.scenarios.walk_scenario import apply_overrides
 
-TOP_KEYS = ("name", "description", "device", "bench", "circuit")
-DEVICE_KEYS = ("preset", "params")
-BENCH_KEYS = ("tests", "timestep_s", "body_mass_kg", "height_m")
+#: the top level of a bench scenario file
+TOP = Table("", (
+    Key("name", "string", doc="letters, digits, _ . -; default: the file name without .toml"),
+    Key("description", "string", default=""),
+    Key("device", "table", doc="the device on the stand (its preset and params)"),
+    Key("bench", "table", doc="the tests and the stand"),
+    Key("circuit", "table", doc="a circuit description on the stand instead of [device]")),
+    note="(a bench scenario has no walker or gait)")
+#: ``[device]`` of a bench: the walking scenario's preset and params
+DEVICE = WALK_DEVICE.only("preset", "params")
 #: ``bench.kind`` values: the HAFO tests, the stiffness rig
 BENCH_KINDS = ("hafo", "stiffness")
-STIFFNESS_BENCH_KEYS = ("kind", "stiffnesses_nm_per_deg", "amplitude_deg", "frequency_hz",
-                        "cycles", "damping_nm_s_per_deg", "rest_angle_deg", "timestep_s",
-                        "body_mass_kg", "height_m")
+#: ``[bench]`` of ``bench.kind = "hafo"``
+HAFO_BENCH = Table("bench", (
+    Key("kind", "string", default="hafo", doc=" | ".join(BENCH_KINDS)),
+    Key("tests", "list", doc="HAFO bench protocols (default: all of them)"),
+    Key("timestep_s", "number", (1e-5, 2e-3), unit="s", doc="default: each test's own"),
+    Key("body_mass_kg", "number", (10.0, 200.0), 75.0, "kg", "the stand's foot is sized for "
+        "this wearer"),
+    Key("height_m", "number", (0.8, 2.2), 1.75, "m")))
+#: ``[bench]`` of ``bench.kind = "stiffness"`` (``amplitude_deg``'s range is open at 0)
+STIFFNESS_BENCH = Table("bench", (
+    Key("kind", "string", doc='"stiffness"'),
+    Key("stiffnesses_nm_per_deg", "list", (0.0, 20.0), (1.0, 2.5, 4.6), "N*m/deg",
+        "commanded springs, one sweep each, (0, 20]"),
+    Key("amplitude_deg", "number", (0.0, 30.0), 12.0, "deg", "imposed sinusoid about "
+        "neutral, (0, 30]"),
+    Key("frequency_hz", "number", (0.01, 5.0), 0.25, "Hz"),
+    Key("cycles", "integer", (2, 20), 3, doc="whole cycles (the first is dropped)"),
+    Key("damping_nm_s_per_deg", "number", (0.0, 5.0), 0.0, "N*m*s/deg"),
+    Key("rest_angle_deg", "number", (-20.0, 20.0), 0.0, "deg"),
+    Key("timestep_s", "number", (1e-5, 2e-3), 5e-4, "s"),
+    Key("body_mass_kg", "number", (10.0, 200.0), 25.8, "kg", "the stand's foot"),
+    Key("height_m", "number", (0.8, 2.2), 1.28, "m")),
+    note='(bench.kind = "stiffness")')
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 
@@ -147,14 +175,11 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{origin}: not valid TOML: {exc}") from None
     apply_overrides(doc, overrides, origin)
-    for k in doc:
-        if k not in TOP_KEYS:
-            raise fail(k, doc[k], "top-level keys " + ", ".join(TOP_KEYS)
-                       + " (a bench scenario has no walker or gait)")
+    check_table(doc, TOP, origin)
     name = doc.get("name", default_name)
     if not isinstance(name, str) or not _NAME_RE.match(name):
         raise fail("name", name, "letters, digits, _ . - (non-empty)")
-    description = doc.get("description", "")
+    description = doc.get("description", TOP.default("description"))
     if not isinstance(description, str):
         raise fail("description", description, "a string")
     dev = doc.get("device", {})
@@ -164,19 +189,16 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
     if "circuit" in doc:
         return _parse_circuit_bench(doc, bench, name, description, origin, fail, source_path,
                                     text)
-    kind = bench.get("kind", "hafo")
+    kind = bench.get("kind", HAFO_BENCH.default("kind"))
     if kind not in BENCH_KINDS:
         raise fail("bench.kind", kind, " | ".join(f'"{k}"' for k in BENCH_KINDS))
     if kind == "stiffness":
         return _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail,
                                       source_path, text)
-    for tbl, keys, label in ((dev, DEVICE_KEYS, "device"),
-                             (bench, ("kind",) + BENCH_KEYS, "bench")):
+    for tbl, schema in ((dev, DEVICE), (bench, HAFO_BENCH)):
         if not isinstance(tbl, dict):
-            raise fail(label, tbl, "a table")
-        for k in tbl:
-            if k not in keys:
-                raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys))
+            raise fail(schema.name, tbl, "a table")
+        check_table(tbl, schema, origin)
     preset, params, ov = device_params(dev, origin)
     from afo_mj.devices.valve_afo import ValveAnkleParams
     if isinstance(params, ValveAnkleParams):
@@ -192,8 +214,9 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
             or any(t not in BENCH_TESTS for t in tests)):
         raise fail("bench.tests", tests, "a non-empty list of distinct " + ", ".join(BENCH_TESTS))
 
-    def number(key, lo, hi, default):
-        v = bench.get(key, default)
+    def number(key):
+        lo, hi = HAFO_BENCH[key].range
+        v = bench.get(key, HAFO_BENCH.default(key))
         if v is None:
             return None
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
@@ -203,9 +226,8 @@ def parse_bench_scenario(text: str, origin: str = "<bench>", default_name: str =
 
     return BenchScenario(name=name, description=description, preset=preset, params=params,
                          overrides=MappingProxyType(dict(ov)), tests=tuple(tests),
-                         timestep_s=number("timestep_s", 1e-5, 2e-3, None),
-                         body_mass_kg=number("body_mass_kg", 10.0, 200.0, 75.0),
-                         height_m=number("height_m", 0.8, 2.2, 1.75),
+                         timestep_s=number("timestep_s"),
+                         body_mass_kg=number("body_mass_kg"), height_m=number("height_m"),
                          source_path=source_path, text=text)
 
 
@@ -215,21 +237,18 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
     units the user writes (deg, N·m/deg), then converted to SI."""
     from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAnkleParams
     from afo_mj.scenarios.bench_protocols import StiffnessBenchError, sweep_config
-    for tbl, keys, label in ((dev, DEVICE_KEYS, "device"),
-                             (bench, STIFFNESS_BENCH_KEYS, "bench")):
+    for tbl, schema in ((dev, DEVICE), (bench, STIFFNESS_BENCH)):
         if not isinstance(tbl, dict):
-            raise fail(label, tbl, "a table")
-        for k in tbl:
-            if k not in keys:
-                raise fail(f"{label}.{k}", tbl[k], "keys " + ", ".join(keys)
-                           + (' (bench.kind = "stiffness")' if label == "bench" else ""))
+            raise fail(schema.name, tbl, "a table")
+        check_table(tbl, schema, origin)
     preset, params, ov = device_params(dev, origin)
     if not isinstance(params, ValveAnkleParams):
         raise fail("device.preset", preset, "a valve-circuit preset that emulates springs "
                    '(bench.kind = "stiffness"): ' + " | ".join(VALVE_PRESETS))
 
-    def number(key, lo, hi, default, unit, lo_open=False):
-        v = bench.get(key, default)
+    def number(key, lo_open=False):
+        (lo, hi), unit = STIFFNESS_BENCH[key].range, " " + STIFFNESS_BENCH[key].unit
+        v = bench.get(key, STIFFNESS_BENCH.default(key))
         bad_lo = (v <= lo if lo_open else v < lo) if isinstance(v, (int, float)) else True
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                 or bad_lo or v > hi:
@@ -237,27 +256,31 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
                        f"{hi:g}]{unit}")
         return float(v)
 
-    ks = bench.get("stiffnesses_nm_per_deg", [1.0, 2.5, 4.6])
+    ks = bench.get("stiffnesses_nm_per_deg",
+                   list(STIFFNESS_BENCH.default("stiffnesses_nm_per_deg")))
+    k_lo, k_hi = STIFFNESS_BENCH["stiffnesses_nm_per_deg"].range
     if (not isinstance(ks, list) or not ks or len(set(ks)) != len(ks)
             or any(isinstance(k, bool) or not isinstance(k, (int, float))
-                   or not math.isfinite(k) or not 0.0 < k <= 20.0 for k in ks)):
+                   or not math.isfinite(k) or not k_lo < k <= k_hi for k in ks)):
         raise fail("bench.stiffnesses_nm_per_deg", ks,
-                   "a non-empty list of distinct numbers in (0, 20] N*m/deg")
-    amp = number("amplitude_deg", 0.0, 30.0, 12.0, " deg", lo_open=True)
-    f = number("frequency_hz", 0.01, 5.0, 0.25, " Hz")
-    cycles = bench.get("cycles", 3)
-    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 2 <= cycles <= 20:
-        raise fail("bench.cycles", cycles, "an integer in 2 … 20 (the first cycle is dropped "
-                   "as start-up)")
-    damping = number("damping_nm_s_per_deg", 0.0, 5.0, 0.0, " N*m*s/deg")
-    rest = number("rest_angle_deg", -20.0, 20.0, 0.0, " deg")
-    dt = number("timestep_s", 1e-5, 2e-3, 5e-4, " s")
+                   f"a non-empty list of distinct numbers in ({k_lo:g}, {k_hi:g}] N*m/deg")
+    amp = number("amplitude_deg", lo_open=True)
+    f = number("frequency_hz")
+    cycles = bench.get("cycles", STIFFNESS_BENCH.default("cycles"))
+    c_lo, c_hi = STIFFNESS_BENCH["cycles"].range
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not c_lo <= cycles <= c_hi:
+        raise fail("bench.cycles", cycles, f"an integer in {c_lo} … {c_hi} (the first cycle "
+                   "is dropped as start-up)")
+    damping = number("damping_nm_s_per_deg")
+    rest = number("rest_angle_deg")
+    dt = number("timestep_s")
     if f * dt > 1.0 / 200.0:
-        raise fail("bench.timestep_s", bench.get("timestep_s", 5e-4),
+        raise fail("bench.timestep_s", bench.get("timestep_s",
+                                                 STIFFNESS_BENCH.default("timestep_s")),
                    f"at most 1 / (200 x frequency_hz) = {1.0 / (200.0 * f):g} s (200 steps a "
                    "cycle)")
-    mass = number("body_mass_kg", 10.0, 200.0, 25.8, " kg")
-    height = number("height_m", 0.8, 2.2, 1.28, " m")
+    mass = number("body_mass_kg")
+    height = number("height_m")
     # beyond the device's torque limit the sweep measures the saturation, not the spring
     peak = max(ks) * (amp + abs(rest)) + damping * 2.0 * math.pi * f * amp
     if peak > params.max_torque_nm:
@@ -281,25 +304,32 @@ def _parse_stiffness_bench(doc, dev, bench, name, description, origin, fail, sou
                          bench_kind="stiffness", stiffness=cfg)
 
 
-#: ``[bench]`` keys of a circuit bench (``[circuit]`` given): the protocols and the settings
-#: of :class:`afo_mj.experiments.circuit_bench.CircuitBenchConfig`, with their ranges
-CIRCUIT_BENCH_RANGES = {
-    "timestep_s": (1e-5, 1e-3), "load_inertia_kg_m2": (1e-4, 1.0),
-    "load_stiffness_nm_rad": (0.0, 1e4), "load_damping_nm_s_rad": (0.0, 100.0),
-    "step_duration_s": (0.1, 5.0), "freq_min_hz": (0.1, 100.0),
-    "freq_max_hz": (1.0, 2000.0), "voltage_amplitude_v": (0.1, 100.0),
-    "position_step_rad": (-0.6, 0.6), "position_kp_nm_rad": (0.0, 1e4),
-    "position_kd_nm_s_rad": (0.0, 100.0), "torque_limit_nm": (1.0, 500.0),
-    "position_duration_s": (0.1, 10.0), "stiffness_amplitude_rad": (0.01, 0.5),
-    "stiffness_frequency_hz": (0.05, 10.0), "tracking_peak_torque_nm": (0.0, 200.0),
-    "tracking_amplitude_rad": (0.0, 0.5), "tracking_frequency_hz": (0.1, 5.0),
-    "flow_bias_pressure_pa": (0.0, 2e7), "flow_damping_nm_s_rad": (0.0, 100.0),
-    "flow_inertia_kg_m2": (1e-4, 1.0), "flow_max_duration_s": (0.1, 20.0)}
-CIRCUIT_BENCH_INTS = {"freq_points": (15, 200), "freq_refine_points": (0, 100),
-                      "tv_points": (2, 40),
-                      "tracking_cycles": (2, 50)}
-CIRCUIT_BENCH_LISTS = {"step_torques_nm": (0.5, 200.0), "stiffnesses_nm_rad": (0.5, 1e4),
-                       "duties": (0.01, 1.0)}
+#: ``[bench]`` of a circuit bench (``[circuit]`` given): the protocols and the settings of
+#: :class:`afo_mj.experiments.circuit_bench.CircuitBenchConfig` (numbers, then integers,
+#: then lists of numbers), with their ranges; absent keys take the config's defaults
+CIRCUIT_BENCH = Table("bench", (
+    Key("kind", "string", default="circuit", doc='"circuit"'),
+    Key("tests", "list", default=("torque_velocity", "frequency_response"),
+        doc="protocols of afo_mj.experiments.circuit_bench")) + tuple(
+    Key(name, "number", rng) for name, rng in (
+        ("timestep_s", (1e-5, 1e-3)), ("load_inertia_kg_m2", (1e-4, 1.0)),
+        ("load_stiffness_nm_rad", (0.0, 1e4)), ("load_damping_nm_s_rad", (0.0, 100.0)),
+        ("step_duration_s", (0.1, 5.0)), ("freq_min_hz", (0.1, 100.0)),
+        ("freq_max_hz", (1.0, 2000.0)), ("voltage_amplitude_v", (0.1, 100.0)),
+        ("position_step_rad", (-0.6, 0.6)), ("position_kp_nm_rad", (0.0, 1e4)),
+        ("position_kd_nm_s_rad", (0.0, 100.0)), ("torque_limit_nm", (1.0, 500.0)),
+        ("position_duration_s", (0.1, 10.0)), ("stiffness_amplitude_rad", (0.01, 0.5)),
+        ("stiffness_frequency_hz", (0.05, 10.0)), ("tracking_peak_torque_nm", (0.0, 200.0)),
+        ("tracking_amplitude_rad", (0.0, 0.5)), ("tracking_frequency_hz", (0.1, 5.0)),
+        ("flow_bias_pressure_pa", (0.0, 2e7)), ("flow_damping_nm_s_rad", (0.0, 100.0)),
+        ("flow_inertia_kg_m2", (1e-4, 1.0)), ("flow_max_duration_s", (0.1, 20.0)))) + tuple(
+    Key(name, "integer", rng) for name, rng in (
+        ("freq_points", (15, 200)), ("freq_refine_points", (0, 100)), ("tv_points", (2, 40)),
+        ("tracking_cycles", (2, 50)))) + tuple(
+    Key(name, "list", rng) for name, rng in (
+        ("step_torques_nm", (0.5, 200.0)), ("stiffnesses_nm_rad", (0.5, 1e4)),
+        ("duties", (0.01, 1.0)))),
+    note="(a [circuit] bench)")
 
 
 def _parse_circuit_bench(doc, bench, name, description, origin, fail, source_path,
@@ -312,17 +342,12 @@ def _parse_circuit_bench(doc, bench, name, description, origin, fail, source_pat
     if doc.get("device"):
         raise fail("device", doc["device"], "nothing: the bench runs the [circuit] "
                    "description (give either [circuit] or [device])")
-    keys = (("kind", "tests") + tuple(CIRCUIT_BENCH_RANGES) + tuple(CIRCUIT_BENCH_INTS)
-            + tuple(CIRCUIT_BENCH_LISTS))
-    for k in bench:
-        if k not in keys:
-            raise fail(f"bench.{k}", bench[k], "keys " + ", ".join(keys) + " (a [circuit] "
-                       "bench)")
-    if bench.get("kind", "circuit") != "circuit":
+    check_table(bench, CIRCUIT_BENCH, origin)
+    if bench.get("kind", CIRCUIT_BENCH.default("kind")) != "circuit":
         raise fail("bench.kind", bench["kind"], '"circuit" (the bench of a [circuit] '
                    "description)")
     spec, cc = load_circuit(doc["circuit"], origin)
-    tests = bench.get("tests", ["torque_velocity", "frequency_response"])
+    tests = bench.get("tests", list(CIRCUIT_BENCH.default("tests")))
     if (not isinstance(tests, list) or not tests or len(set(tests)) != len(tests)
             or any(t not in PROTOCOLS for t in tests)):
         raise fail("bench.tests", tests, "a non-empty list of distinct "
@@ -333,22 +358,21 @@ def _parse_circuit_bench(doc, bench, name, description, origin, fail, source_pat
             raise fail("bench.tests", tests, f"protocols circuit {cc.circuit.name!r} can run; "
                        f"{why}")
     kw = {}
-    for k, (lo, hi) in CIRCUIT_BENCH_RANGES.items():
-        if k in bench:
-            v = bench[k]
+    for key in CIRCUIT_BENCH.keys:
+        k = key.name
+        if k in ("kind", "tests") or k not in bench:    # the config's settings only
+            continue
+        v, (lo, hi) = bench[k], key.range
+        if key.kind == "number":
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                     or not lo <= v <= hi:
                 raise fail(f"bench.{k}", v, f"a number in [{lo:g}, {hi:g}]")
             kw[k] = float(v)
-    for k, (lo, hi) in CIRCUIT_BENCH_INTS.items():
-        if k in bench:
-            v = bench[k]
+        elif key.kind == "integer":
             if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
                 raise fail(f"bench.{k}", v, f"an integer in [{lo}, {hi}]")
             kw[k] = v
-    for k, (lo, hi) in CIRCUIT_BENCH_LISTS.items():
-        if k in bench:
-            v = bench[k]
+        else:
             if (not isinstance(v, list) or not v or any(
                     isinstance(x, bool) or not isinstance(x, (int, float))
                     or not lo <= x <= hi for x in v)):

@@ -43,10 +43,20 @@ from __future__ import annotations
 
 import copy
 
-from afo_mj.scenarios.walk_scenario import ScenarioError
+from afo_mj.scenarios.schema import Key, ScenarioError, Table, check_table
 
-CIRCUIT_KEYS = ("library", "name", "components", "nodes", "controller", "fluid", "thermal",
-                "options")
+#: ``[circuit]``: a description (afo_mj.circuits.circuit.Circuit.from_dict), or a library
+#: circuit with overrides of it
+CIRCUIT = Table("circuit", (
+    Key("library", "string", doc="a shipped circuit (afo_mj.circuits.library.LIBRARY) the "
+        "other keys override"),
+    Key("name", "string"),
+    Key("components", "table", doc="name -> {kind, params}"),
+    Key("nodes", "table", doc="name -> the component ports it joins"),
+    Key("controller", "table", doc="{kind, params}"),
+    Key("fluid", "table"),
+    Key("thermal", "table"),
+    Key("options", "table")))
 
 
 def _flat(d: dict, prefix: str = "") -> dict:
@@ -92,10 +102,7 @@ def circuit_spec(table, origin: str) -> dict:
         raise ScenarioError(f"{origin}: circuit = {table!r} is not allowed; allowed: a "
                             "[circuit] table (a description, or library = "
                             f"{' | '.join(repr(k) for k in LIBRARY)} with overrides)")
-    for k, v in table.items():
-        if k not in CIRCUIT_KEYS:
-            raise ScenarioError(f"{origin}: unknown key 'circuit.{k}' (= {v!r}); allowed keys "
-                                f"in [circuit]: {', '.join(CIRCUIT_KEYS)}")
+    check_table(table, CIRCUIT, origin)
     over = _flatten_params({k: v for k, v in table.items() if k != "library"})
     if "library" not in table:
         return over

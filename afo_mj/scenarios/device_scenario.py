@@ -32,22 +32,50 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from afo_mj.control import assistance as asst
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.scenarios.walk_scenario import ScenarioError, did_you_mean
+from afo_mj.scenarios.schema import Key, ScenarioError, Table, check_table
 
-DEVICE_KEYS = ("preset", "sides", "conditions", "params", "variants")
-ASSIST_KEYS = ("profile", "peak_torque_nm", "peak_time_pct", "rise_time_pct", "fall_time_pct",
-               "points", "stiffness_nm_per_deg", "damping_nm_s_per_deg", "rest_angle_deg",
-               "clutched", "phases", "stiffnesses_nm_per_deg", "spring_nm_per_rad",
-               "engage_pct", "release_pct", "ramp_strides")
-#: the [assistance] keys of profile = "clutched_spring"
-SPRING_KEYS = ("spring_nm_per_rad", "engage_pct", "release_pct")
 CONDITIONS = ("no_device", "transparent", "assist")
+#: ``[device]`` of a walking scenario (a bench's is its preset and params)
+DEVICE = Table("device", (
+    Key("preset", "string", default="hafo", doc="a registered device or the ideal source"),
+    Key("sides", "list", default=("right",), doc='worn on: ["right"], ["left"] or both'),
+    Key("conditions", "list", default=CONDITIONS, doc="run in this order; the last is the "
+        "headline result"),
+    Key("params", "table", default=MappingProxyType({}),
+        doc="dotted overrides of the preset's parameters"),
+    Key("variants", "table", default=MappingProxyType({}),
+        doc="named tables of dotted overrides (one compare row each)")))
+#: ``[assistance]``; ``group``: the profile a key belongs to (see :func:`device_config`)
+ASSISTANCE = Table("assistance", (
+    Key("profile", "string", default="zhang",
+        doc='"zhang" | "spline" | "impedance" | "clutched_spring"'),
+    Key("peak_torque_nm", "number", default=40.0, unit="N*m", group="zhang"),
+    Key("peak_time_pct", "number", default=52.9, unit="% stride", group="zhang"),
+    Key("rise_time_pct", "number", default=26.2, unit="% stride", group="zhang"),
+    Key("fall_time_pct", "number", default=9.8, unit="% stride", group="zhang"),
+    Key("points", "list", doc="[[phase_pct, torque_nm], ...]", group="spline"),
+    Key("stiffness_nm_per_deg", "number", (0.0, 20.0), 2.5, "N*m/deg", group="impedance"),
+    Key("damping_nm_s_per_deg", "number", (0.0, 5.0), 0.0, "N*m*s/deg", group="impedance"),
+    Key("rest_angle_deg", "number", (-40.0, 40.0), 0.0, "deg", group="impedance"),
+    Key("clutched", "bool", default=False, doc="engaged only past the rest angle in "
+        "dorsiflexion", group="impedance"),
+    Key("phases", "list", doc="[[end_pct, stiffness_nm_per_deg, damping_nm_s_per_deg, "
+        "rest_angle_deg], ...]", group="impedance"),
+    Key("stiffnesses_nm_per_deg", "list", doc="one condition assist_k<K> per stiffness",
+        group="impedance"),
+    Key("spring_nm_per_rad", "number", (0.0, 2000.0), 180.0, "N*m/rad",
+        group="clutched_spring"),
+    Key("engage_pct", "number", (0.0, 50.0), 10.0, "% stride", group="clutched_spring"),
+    Key("release_pct", "number", (30.0, 100.0), 62.0, "% stride", group="clutched_spring"),
+    Key("ramp_strides", "integer", (0, 100), 0, doc="the ideal device: strides over which "
+        "the torque ramps on")))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,8 +127,8 @@ def device_params(dev: dict, origin: str):
     description's)."""
     from afo_mj.devices.ideal import PRESETS as IDEAL_PRESETS, ideal_params
     from afo_mj.devices.registry import ALIASES, device_entry, device_names
-    preset = dev.get("preset", "hafo")
-    overrides = dev.get("params", {})
+    preset = dev.get("preset", DEVICE.default("preset"))
+    overrides = dev.get("params", dict(DEVICE.default("params")))
     if not isinstance(overrides, dict):
         raise ScenarioError(f"{origin}: device.params = {overrides!r} is not allowed; allowed: "
                             "a table of dotted parameter names")
@@ -140,17 +168,13 @@ def device_config(scenario) -> DeviceConfig | None:
     def fail(key, value, allowed):
         return ScenarioError(f"{origin}: {key} = {value!r} is not allowed; allowed: {allowed}")
 
-    for table, doc, keys in (("device", dev, DEVICE_KEYS), ("assistance", ass, ASSIST_KEYS)):
-        for k in doc:
-            if k not in keys:
-                raise ScenarioError(f"{origin}: unknown key '{table}.{k}' (= {doc[k]!r})"
-                                    f"{did_you_mean(k, keys, f'{table}.')}; allowed keys in "
-                                    f"[{table}]: " + ", ".join(keys))
-    sides = dev.get("sides", ["right"])
+    check_table(dev, DEVICE, origin)
+    check_table(ass, ASSISTANCE, origin)
+    sides = dev.get("sides", list(DEVICE.default("sides")))
     if (not isinstance(sides, list) or not sides or len(set(sides)) != len(sides)
             or any(s not in ("right", "left") for s in sides)):
         raise fail("device.sides", sides, '["right"], ["left"] or ["right", "left"]')
-    conds = dev.get("conditions", ["no_device", "transparent", "assist"])
+    conds = dev.get("conditions", list(DEVICE.default("conditions")))
     if (not isinstance(conds, list) or not conds or any(c not in CONDITIONS for c in conds)
             or len(set(conds)) != len(conds)):
         raise fail("device.conditions", conds, "a list of distinct " + ", ".join(CONDITIONS))
@@ -172,7 +196,7 @@ def device_config(scenario) -> DeviceConfig | None:
     else:
         preset, params, base_overrides = device_params(dev, origin)
     impedance, sweep = None, []
-    variants_doc = dev.get("variants", {})
+    variants_doc = dev.get("variants", dict(DEVICE.default("variants")))
     if not isinstance(variants_doc, dict) or any(not isinstance(v, dict)
                                                  for v in variants_doc.values()):
         raise fail("device.variants", variants_doc,
@@ -184,14 +208,15 @@ def device_config(scenario) -> DeviceConfig | None:
                                       f"{origin}: device.variants.{vname}")
         variants[vname] = vparams
     profile = spring = None
-    kind = ass.get("profile", "zhang")
-    stray = [k for k in SPRING_KEYS if k in ass]
+    kind = ass.get("profile", ASSISTANCE.default("profile"))
+    stray = [k for k in ASSISTANCE.group("clutched_spring") if k in ass]
     if stray and kind != "clutched_spring":
         raise fail(f"assistance.{stray[0]}", ass[stray[0]],
                    'nothing unless assistance.profile = "clutched_spring"')
-    ramp = ass.get("ramp_strides", 0)
-    if isinstance(ramp, bool) or not isinstance(ramp, int) or not 0 <= ramp <= 100:
-        raise fail("assistance.ramp_strides", ramp, "an integer 0 … 100")
+    ramp = ass.get("ramp_strides", ASSISTANCE.default("ramp_strides"))
+    lo, hi = ASSISTANCE["ramp_strides"].range
+    if isinstance(ramp, bool) or not isinstance(ramp, int) or not lo <= ramp <= hi:
+        raise fail("assistance.ramp_strides", ramp, f"an integer {lo} … {hi}")
     if ramp and preset != "ideal":
         raise fail("assistance.ramp_strides", ramp, f"0 with device.preset = {preset!r} (its "
                    "compiled controller has no ramp; the ideal device, preset \"ideal\", "
@@ -199,10 +224,8 @@ def device_config(scenario) -> DeviceConfig | None:
     if "assist" in conds:
         try:
             if kind == "zhang":
-                profile = asst.zhang_profile(ass.get("peak_torque_nm", 40.0),
-                                             ass.get("peak_time_pct", 52.9),
-                                             ass.get("rise_time_pct", 26.2),
-                                             ass.get("fall_time_pct", 9.8))
+                profile = asst.zhang_profile(*(ass.get(k, ASSISTANCE.default(k))
+                                               for k in ASSISTANCE.group("zhang")))
             elif kind == "spline":
                 pts = ass.get("points")
                 if not isinstance(pts, list) or any(not isinstance(p, list) or len(p) != 2
@@ -249,14 +272,14 @@ def _clutched_spring(ass: dict, preset: str, fail):
                    f"ideal device; {preset!r} cannot latch the ankle angle at engagement: "
                    "emulate a spring on it with profile = \"impedance\", clutched = true)")
     vals = {}
-    for key, default in zip(SPRING_KEYS, (180.0, 10.0, 62.0)):
-        v = ass.get(key, default)
+    for key in ASSISTANCE.group("clutched_spring"):
+        v = ass.get(key, ASSISTANCE.default(key))
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise fail(f"assistance.{key}", v, "a finite number")
         vals[key] = float(v)
     k, eng, rel = vals["spring_nm_per_rad"], vals["engage_pct"], vals["release_pct"]
-    for key, v, lo, hi in (("spring_nm_per_rad", k, 0.0, 2000.0),
-                           ("engage_pct", eng, 0.0, 50.0), ("release_pct", rel, 30.0, 100.0)):
+    for key, v in vals.items():
+        lo, hi = ASSISTANCE[key].range
         if not lo <= v <= hi:
             raise fail(f"assistance.{key}", v, f"{lo:g} … {hi:g}")
     if eng >= rel:
@@ -276,19 +299,24 @@ def _impedance_rows(ass: dict, fail):
     the last ending at 100), and ``stiffnesses_nm_per_deg = [1, 2.5, 4.6]``: one condition
     ``assist_k<K>`` per stiffness instead of ``assist``."""
     deg = math.pi / 180.0
-    clutched = ass.get("clutched", False)
+    clutched = ass.get("clutched", ASSISTANCE.default("clutched"))
     if not isinstance(clutched, bool):
         raise fail("assistance.clutched", clutched, "true | false")
-    damping = ass.get("damping_nm_s_per_deg", 0.0)
-    rest = ass.get("rest_angle_deg", 0.0)
+    damping = ass.get("damping_nm_s_per_deg", ASSISTANCE.default("damping_nm_s_per_deg"))
+    rest = ass.get("rest_angle_deg", ASSISTANCE.default("rest_angle_deg"))
+    (k_lo, k_hi), (b_lo, b_hi), (r_lo, r_hi) = (
+        ASSISTANCE[k].range for k in ("stiffness_nm_per_deg", "damping_nm_s_per_deg",
+                                      "rest_angle_deg"))
 
     def single(k):
-        if not isinstance(k, (int, float)) or not 0.0 <= k <= 20.0:
-            raise fail("assistance.stiffness_nm_per_deg", k, "a number in 0 … 20 N*m/deg")
-        if not isinstance(damping, (int, float)) or not 0.0 <= damping <= 5.0:
-            raise fail("assistance.damping_nm_s_per_deg", damping, "a number in 0 … 5")
-        if not isinstance(rest, (int, float)) or not -40.0 <= rest <= 40.0:
-            raise fail("assistance.rest_angle_deg", rest, "a number in -40 … 40 deg")
+        if not isinstance(k, (int, float)) or not k_lo <= k <= k_hi:
+            raise fail("assistance.stiffness_nm_per_deg", k,
+                       f"a number in {k_lo:g} … {k_hi:g} N*m/deg")
+        if not isinstance(damping, (int, float)) or not b_lo <= damping <= b_hi:
+            raise fail("assistance.damping_nm_s_per_deg", damping,
+                       f"a number in {b_lo:g} … {b_hi:g}")
+        if not isinstance(rest, (int, float)) or not r_lo <= rest <= r_hi:
+            raise fail("assistance.rest_angle_deg", rest, f"a number in {r_lo:g} … {r_hi:g} deg")
         return [(1e9, k / deg, damping / deg, rest * deg, 1.0 if clutched else 0.0)]
 
     if "phases" in ass:
@@ -301,7 +329,7 @@ def _impedance_rows(ass: dict, fail):
                  1.0 if clutched else 0.0) for i, r in enumerate(ph)]
         base = rows
     else:
-        base = single(ass.get("stiffness_nm_per_deg", 2.5))
+        base = single(ass.get("stiffness_nm_per_deg", ASSISTANCE.default("stiffness_nm_per_deg")))
     sweep = []
     if "stiffnesses_nm_per_deg" in ass:
         ks = ass["stiffnesses_nm_per_deg"]

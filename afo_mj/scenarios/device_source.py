@@ -16,7 +16,7 @@ from typing import Sequence
 
 from afo_mj.circuits.device_spec import DeviceSpec
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.scenarios.walk_scenario import ScenarioError
+from afo_mj.scenarios.schema import Key, ScenarioError, Table, check_table
 
 __all__ = ["device_source", "preset_overrides"]
 
@@ -37,9 +37,17 @@ def preset_overrides(overrides: Sequence[str], name: str) -> dict:
     return out
 
 
-#: the tables of a calibration rig file (``afo-mj calibrate --scenario``): a described
-#: circuit with its load, sensors and calibration options
-RIG_KEYS = ("name", "description", "circuit", "load", "sensors", "calibration")
+#: the top level of a calibration rig file (``afo-mj calibrate --scenario``): a described
+#: circuit with its load, sensors and calibration options (those three tables are declared
+#: and checked by afo_mj.calibration.calibrate)
+RIG = Table("", (
+    Key("name", "string"),
+    Key("description", "string"),
+    Key("circuit", "table", doc="the rig's circuit (afo_mj.scenarios.circuit_scenario)"),
+    Key("load", "table", doc="the load the joint drives"),
+    Key("sensors", "table", doc="the measured signals"),
+    Key("calibration", "table", doc="calibration options")),
+    note="(a calibration rig file)")
 
 
 def _rig_circuit(text: str, src: str, overrides: Sequence[str]):
@@ -55,10 +63,7 @@ def _rig_circuit(text: str, src: str, overrides: Sequence[str]):
         raise ScenarioError(f"{src}: not valid TOML ({exc})") from None
     if "circuit" not in doc or not any(k in doc for k in ("load", "sensors", "calibration")):
         return None
-    bad = [k for k in doc if k not in RIG_KEYS]
-    if bad:
-        raise ScenarioError(f"{src}: unknown key {bad[0]!r}; allowed in a rig file: "
-                            + ", ".join(RIG_KEYS))
+    check_table(doc, RIG, src)
     if overrides:
         raise ScenarioError(f"--set {list(overrides)!r} with the rig file {src}; allowed: "
                             "none (edit its [circuit])")

@@ -70,7 +70,6 @@ is allowed. ``afo-mj run`` maps it to exit code 2 and writes nothing.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import re
 import tomllib
@@ -80,9 +79,10 @@ from typing import Any, Mapping
 
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.human.walker import WalkerParams
+from afo_mj.scenarios.schema import Key, ScenarioError, Table, check_table, did_you_mean
 
 __all__ = ["ScenarioError", "WalkScenario", "load_scenario", "parse_scenario",
-           "REFERENCES", "IMPAIRMENT_KEYS", "did_you_mean", "strides_overrides"]
+           "REFERENCES", "TOP", "GAIT", "IMPAIRMENT", "OUTPUT", "did_you_mean", "strides_overrides"]
 
 REFERENCES: dict[str, tuple[str, ...]] = {
     "winter": ("normal",),
@@ -113,19 +113,49 @@ _UNWALKABLE_INSTEAD = (
 #: Free 1.25 m/s on the adult): started at Winter's 1.0 m/s, VerySlow fell at 2.5 s.
 START_SPEED_OVER_NO_SLIP = 1.0 / 0.9036
 
-IMPAIRMENT_KEYS = ("plantarflexor_strength_fraction", "dorsiflexor_strength_fraction",
-                   "ankle_passive_stiffness_nm_per_rad", "ankle_passive_damping_nm_s_per_rad")
-"""Keys of ``[impairment]``: the WalkerParams fields of the same names."""
-
-_TOP_KEYS = ("name", "description", "walker", "gait", "impairment", "controller", "device",
-             "assistance", "output", "circuit")
-_OUTPUT_KEYS = ("record", "signal_rate_hz", "transform_rate_hz", "opensim")
-_GAIT_KEYS = ("reference", "condition", "reference_path", "cadence_steps_per_min", "strides",
-              "analyse_strides", "band_references", "reference_id_path",
-              "reference_grf_path")
+#: the top level of a walking scenario file
+TOP = Table("", (
+    Key("name", "string", doc="letters, digits, _ . -; default: the file name without .toml"),
+    Key("description", "string", default=""),
+    Key("walker", "table", doc="body size and model (WalkerParams fields, body_preset, model, "
+        "reflex_set)"),
+    Key("gait", "table", doc="the reference gait, cadence and strides"),
+    Key("impairment", "table", doc="WalkerParams impairment fields"),
+    Key("controller", "table", doc="overrides of the walker model's controller parameters"),
+    Key("device", "table", doc="an orthosis (afo_mj.scenarios.device_scenario)"),
+    Key("assistance", "table", doc="its assistance profile (device_scenario)"),
+    Key("output", "table", doc="what a run writes besides summary.json and figures"),
+    Key("circuit", "table", doc="a circuit description worn instead of device.preset")))
+#: ``[gait]``
+GAIT = Table("gait", (
+    Key("reference", "string", default="winter", doc=" | ".join(REFERENCES)),
+    Key("condition", "string", doc="a condition of the reference (DEFAULT_CONDITION)"),
+    Key("reference_path", "string", doc="a user's cycle: .csv, .sto or .mot, relative to the "
+        "file"),
+    Key("cadence_steps_per_min", "number", (30.0, 200.0), unit="steps/min",
+        doc="default: the reference's own cadence"),
+    Key("strides", "integer", (1, 1000), default=10, doc="right-leg cycles to simulate"),
+    Key("analyse_strides", "list", doc="[first, last] stride analysed (1-based, inclusive)"),
+    Key("band_references", "list", default=(), doc="'source:condition' bands to judge "
+        "against"),
+    Key("reference_id_path", "string", doc="OpenSim inverse dynamics beside reference_path"),
+    Key("reference_grf_path", "string", doc="OpenSim ground reaction forces: reference_path "
+        "is a trial")))
+#: ``[impairment]``: the WalkerParams fields of the same names (which validate them)
+IMPAIRMENT = Table("impairment", (
+    Key("plantarflexor_strength_fraction", "number", (0.0, 1.0)),
+    Key("dorsiflexor_strength_fraction", "number", (0.0, 1.0)),
+    Key("ankle_passive_stiffness_nm_per_rad", "number", (0.0, 2000.0), unit="N*m/rad"),
+    Key("ankle_passive_damping_nm_s_per_rad", "number", (0.0, 100.0), unit="N*m*s/rad")))
+#: ``[output]``
+OUTPUT = Table("output", (
+    Key("record", "bool", default=False, doc="a rerun recording in the results directory"),
+    Key("signal_rate_hz", "number", (1.0, 1e5), 500.0, "Hz", "recording: scalar signals"),
+    Key("transform_rate_hz", "number", (1.0, 1e4), 50.0, "Hz", "recording: 3D transforms"),
+    Key("opensim", "bool", default=False, doc="OpenSim storage files of the run(s)")))
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
-CADENCE_RANGE = (30.0, 200.0)
-STRIDES_RANGE = (1, 1000)
+CADENCE_RANGE = GAIT["cadence_steps_per_min"].range
+STRIDES_RANGE = GAIT["strides"].range
 #: body mass index [kg/m^2] of the bodies the walker stands for: de Leva's (1996) adult
 #: segment fractions scaled by mass and stature, shipped bodies from the CDC 2000 medians
 #: (4-year-olds 15.4) to adults (21.8-22.6); outside it a scenario is noted, not refused
@@ -133,17 +163,6 @@ BMI_RANGE_KG_M2 = (13.0, 40.0)
 #: ``--set`` keys that change the walker's body: a file's description stating its mass or
 #: height is then marked as the file's, with the body that runs
 _BODY_OVERRIDE_KEYS = ("walker", "walker.body_mass_kg", "walker.height_m", "walker.body_preset")
-
-
-class ScenarioError(ValueError):
-    """An invalid scenario: names the file, the dotted key, the value and what is allowed."""
-
-
-def did_you_mean(key: str, allowed, prefix: str = "", suffix: str = "") -> str:
-    """`` (did you mean 'prefix' + x + 'suffix'?)`` for the closest ``x`` of ``allowed`` to
-    ``key`` (difflib, cutoff 0.6), or ''."""
-    near = difflib.get_close_matches(str(key), [str(a) for a in allowed], n=1, cutoff=0.6)
-    return f" (did you mean {prefix + near[0] + suffix!r}?)" if near else ""
 
 
 def strides_overrides(n: int) -> list[str]:
@@ -333,15 +352,8 @@ class _Ctx:
             raise self.fail(key, v, "is not a table", f"a [{key}] section")
         return v
 
-    def unknown(self, section: str, table: Mapping, allowed: tuple[str, ...] | list[str]) -> None:
-        for k, v in table.items():
-            if k not in allowed:
-                dotted = f"{section}.{k}" if section else k
-                raise ScenarioError(f"{self.origin}: unknown key {dotted!r} (= {v!r})"
-                                    f"{did_you_mean(k, allowed, f'{section}.' if section else '')}"
-                                    "; allowed "
-                                    f"keys{' in [' + section + ']' if section else ''}: "
-                                    f"{', '.join(allowed)}")
+    def unknown(self, schema: Table, table: Mapping) -> None:
+        check_table(table, schema, self.origin)
 
     def string(self, key: str, v: Any, allowed: str = "a string") -> str:
         if not isinstance(v, str):
@@ -387,8 +399,8 @@ def _walker(ctx: _Ctx, walker_tbl: dict, imp_tbl: dict) -> WalkerParams:
     from afo_mj.human.body_presets import (SMALL_BODY_HEIGHT_M, body_preset,
                                            default_timestep_s, preset_names)
     fields = [f.name for f in dataclasses.fields(WalkerParams)]
-    ctx.unknown("walker", walker_tbl, ["body_preset"] + fields)
-    ctx.unknown("impairment", imp_tbl, IMPAIRMENT_KEYS)
+    ctx.unknown(Table.of_names("walker", ["body_preset"] + fields), walker_tbl)
+    ctx.unknown(IMPAIRMENT, imp_tbl)
     walker_tbl = dict(walker_tbl)
     preset = None
     if "body_preset" in walker_tbl:
@@ -502,7 +514,8 @@ def _registered_controller(ctx: _Ctx, model: str, tbl: dict) -> dict[str, Any]:
             raise ctx.fail("controller", dict(tbl), f"is given, but the {model!r} controller "
                            "takes no parameters", "no [controller] table")
         return {}
-    ctx.unknown("controller", tbl, [f.name for f in dataclasses.fields(cls.Params)])
+    ctx.unknown(Table.of_names("controller", [f.name for f in dataclasses.fields(cls.Params)]),
+                tbl)
     try:
         cls.Params(**tbl)
     except (ValueError, TypeError) as exc:
@@ -520,7 +533,7 @@ def _controller(ctx: _Ctx, tbl: dict, model: str = "torque") -> dict[str, float]
         for k, v in tbl.items():
             out[k] = ctx.number(f"controller.{k}", v, -math.inf, math.inf, "SI")
         return out
-    ctx.unknown("controller", tbl, list(fields))
+    ctx.unknown(Table.of_names("controller", fields), tbl)
     from afo_mj.gait.walk import ControllerParams
     for k, v in tbl.items():
         md = fields[k].metadata
@@ -615,13 +628,14 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                     f"[circuit] table), so device keys do not apply; allowed: device.* keys on "
                     f"a scenario with a [device] table, e.g. scenarios/gait_assist_hafo.toml")
     file_gait = doc.get("gait") if isinstance(doc.get("gait"), dict) else {}
-    file_strides, file_window = file_gait.get("strides", 10), file_gait.get("analyse_strides")
+    file_strides = file_gait.get("strides", GAIT.default("strides"))
+    file_window = file_gait.get("analyse_strides")
     apply_overrides(doc, overrides, origin)
-    ctx.unknown("", doc, _TOP_KEYS)
+    ctx.unknown(TOP, doc)
     name = ctx.string("name", doc.get("name", default_name), "a name of letters, digits, _ . -")
     if not _NAME_RE.match(name):
         raise ctx.fail("name", name, "is not a valid name", "letters, digits, _ . - (non-empty)")
-    description = ctx.string("description", doc.get("description", ""))
+    description = ctx.string("description", doc.get("description", TOP.default("description")))
 
     walker_tbl = dict(ctx.table(doc, "walker"))
     model = walker_tbl.pop("model", "torque")
@@ -635,7 +649,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
                        f"made the walker {walker.body_mass_kg:g} kg, {walker.height_m:g} m]")
 
     gait = ctx.table(doc, "gait")
-    ctx.unknown("gait", gait, _GAIT_KEYS)
+    ctx.unknown(GAIT, gait)
     reference_path = None
     if "reference_path" in gait:
         raw = ctx.string("gait.reference_path", gait["reference_path"],
@@ -693,7 +707,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
             raise ctx.fail("gait.reference_id_path", gait["reference_id_path"],
                            "is given without gait.reference_path",
                            "an OpenSim ID file beside an OpenSim gait.reference_path")
-        reference = ctx.string("gait.reference", gait.get("reference", "winter"),
+        reference = ctx.string("gait.reference", gait.get("reference", GAIT.default("reference")),
                                " | ".join(repr(r) for r in REFERENCES))
         if reference not in REFERENCES:
             raise ctx.fail("gait.reference", reference, "is not a known reference",
@@ -714,7 +728,8 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
     if "cadence_steps_per_min" in gait:
         cadence = ctx.number("gait.cadence_steps_per_min", gait["cadence_steps_per_min"],
                              *CADENCE_RANGE, "steps/min")
-    strides = ctx.integer("gait.strides", gait.get("strides", 10), *STRIDES_RANGE)
+    strides = ctx.integer("gait.strides", gait.get("strides", GAIT.default("strides")),
+                          *STRIDES_RANGE)
     raw_an = gait.get("analyse_strides", [min(4, strides), strides])
     notes = []
     bmi = walker.body_mass_kg / walker.height_m ** 2
@@ -748,7 +763,7 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
 
     bands = []
     allowed_bands = "a list of 'source:condition' strings, e.g. ['schwartz2008:Free']"
-    raw_bands = gait.get("band_references", [])
+    raw_bands = gait.get("band_references", list(GAIT.default("band_references")))
     if not isinstance(raw_bands, list):
         raise ctx.fail("gait.band_references", raw_bands, "has the wrong type", allowed_bands)
     for item in raw_bands:
@@ -760,15 +775,14 @@ def parse_scenario(text: str, origin: str = "<scenario>", base_dir: Path | None 
 
     controller = _controller(ctx, ctx.table(doc, "controller"), model)
     out_tbl = ctx.table(doc, "output")
-    ctx.unknown("output", out_tbl, _OUTPUT_KEYS)
-    record = out_tbl.get("record", False)
+    ctx.unknown(OUTPUT, out_tbl)
+    record = out_tbl.get("record", OUTPUT.default("record"))
     if not isinstance(record, bool):
         raise ctx.fail("output.record", record, "has the wrong type", "true | false")
-    sig_hz = ctx.number("output.signal_rate_hz", out_tbl.get("signal_rate_hz", 500.0),
-                        1.0, 1e5, "Hz")
-    tf_hz = ctx.number("output.transform_rate_hz", out_tbl.get("transform_rate_hz", 50.0),
-                       1.0, 1e4, "Hz")
-    opensim = out_tbl.get("opensim", False)
+    sig_hz, tf_hz = (ctx.number(f"output.{k}", out_tbl.get(k, OUTPUT.default(k)),
+                                *OUTPUT[k].range, OUTPUT[k].unit)
+                     for k in ("signal_rate_hz", "transform_rate_hz"))
+    opensim = out_tbl.get("opensim", OUTPUT.default("opensim"))
     if not isinstance(opensim, bool):
         raise ctx.fail("output.opensim", opensim, "has the wrong type", "true | false")
     return WalkScenario(record=record, record_signal_rate_hz=sig_hz, opensim=opensim,
