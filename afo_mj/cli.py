@@ -260,22 +260,11 @@ _ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
 # every command of ``afo-mj``, as typed, and its handler (``args -> exit code``); the parser
 # (:func:`afo_mj.cli_args.build_parser`) declares the same commands
 COMMANDS: dict[str, Callable[..., int]] = {
-    "hydraulics-demo": _demo,
-    "run": _run,
-    "view": _view,
-    "render": _render,
-    "compare": _compare,
-    "calibrate": _calibrate,
-    "make-bench-record": _make_bench_record,
-    "sweep": _sweep,
-    "study": _study,
-    "optimize": _optimize,
-    "optimize-gait": _optimize_gait,
-    "design": _design,
-    "schematic": _schematic,
-    "export-fmu": _export_fmu,
-    "build-models": _build_models,
-}
+    "hydraulics-demo": _demo, "run": _run, "view": _view, "render": _render,
+    "compare": _compare, "calibrate": _calibrate, "make-bench-record": _make_bench_record,
+    "sweep": _sweep, "study": _study, "optimize": _optimize, "optimize-gait": _optimize_gait,
+    "design": _design, "schematic": _schematic, "export-fmu": _export_fmu,
+    "build-models": _build_models}
 
 
 def main(argv: list[str] | None = None) -> int:
