@@ -30,7 +30,7 @@ def test_files_read_back_equal_the_record(walk_record, tmp_path):
     r = walk_record
     paths = write_opensim(r, tmp_path, "walk")
     assert {p.name for p in paths.values()} == {"walk_ik.mot", "walk_id.sto", "walk_grf.mot",
-                                                 "walk_grf.xml"}
+                                                 "walk_grf.xml", "walk.osim"}
     hdr, labels, data = read_opensim_storage(paths["ik"])
     assert hdr["inDegrees"] == "yes" and hdr["source"] == "afo_mj"
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
@@ -43,11 +43,15 @@ def test_files_read_back_equal_the_record(walk_record, tmp_path):
                                atol=1e-10)
     _, labels, data = read_opensim_storage(paths["id"])
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
-    np.testing.assert_allclose(col["ankle_angle_r_moment"], r.joint_moment_nm[:, 0, 2],
+    # forces one step earlier than their row (the export's Timing): row k at time_s[k − 1]
+    np.testing.assert_allclose(col["time"], r.time_s[:-1], rtol=1e-9)
+    np.testing.assert_allclose(col["ankle_angle_r_moment"], r.joint_moment_nm[1:, 0, 2],
                                rtol=1e-8, atol=1e-8)
     _, labels, data = read_opensim_storage(paths["grf"])
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
-    np.testing.assert_allclose(col["ground_force_l_vy"], r.grf_n[:, 1, 1], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(col["time"], r.time_s[:-1], rtol=1e-9)
+    np.testing.assert_allclose(col["ground_force_l_vy"], r.grf_n[1:, 1, 1], rtol=1e-8,
+                               atol=1e-8)
 
 
 def test_the_written_trial_gives_back_the_walks_events(walk_record, tmp_path):
@@ -76,6 +80,16 @@ def test_the_written_trial_gives_back_the_walks_events(walk_record, tmp_path):
     assert len(hs) >= 5
 
 
+def test_a_record_not_sampled_every_step_is_refused(walk_record, tmp_path):
+    """The force files are shifted by one MuJoCo step; a record whose rows are not one per
+    step (here: claimed at 2 ms on a 1 ms model) cannot be shifted and is refused."""
+    import dataclasses
+    bad = dataclasses.replace(walk_record, sample_period_s=2 * walk_record.sample_period_s)
+    with pytest.raises(ValueError, match="sample_period_s = 0.002.*one per MuJoCo step"):
+        write_opensim(bad, tmp_path / "x", "walk")
+    assert not (tmp_path / "x").exists()
+
+
 def test_write_storage_refuses_bad_data(tmp_path):
     with pytest.raises(ValueError, match="'time' first"):
         write_storage(tmp_path / "x.sto", ["a", "time"], np.zeros((3, 2)), name="x",
@@ -93,7 +107,7 @@ def test_output_opensim_writes_every_run_into_the_results(tmp_path):
                  overrides=["gait.strides=3", "gait.analyse_strides=[2, 3]",
                             "output.opensim=true"])
     assert sorted(p.name for p in (out / "opensim").iterdir()) == [
-        "walk_grf.mot", "walk_grf.xml", "walk_id.sto", "walk_ik.mot"]
+        "walk.osim", "walk_grf.mot", "walk_grf.xml", "walk_id.sto", "walk_ik.mot"]
     from afo_mj.scenarios.walk_scenario import ScenarioError, parse_scenario
     with pytest.raises(ScenarioError, match="output.opensim = 'yes'"):
         parse_scenario('[output]\nopensim = "yes"')
@@ -111,8 +125,9 @@ def test_a_device_walk_on_the_muscle_walker_exports_every_condition(tmp_path):
                                   "output.opensim=true",
                                   'device.conditions=["no_device", "assist"]'])
     names = sorted(p.name for p in (out / "opensim").iterdir())
-    assert names == sorted(f"{c}_{k}" for c in ("no_device", "assist")
-                           for k in ("grf.mot", "grf.xml", "id.sto", "ik.mot"))
+    assert names == sorted([f"{c}_{k}" for c in ("no_device", "assist")
+                            for k in ("grf.mot", "grf.xml", "id.sto", "ik.mot")]
+                           + ["no_device.osim", "assist.osim"])
     rec = res.results["assist"][0]
     _, labels, data = read_opensim_storage(out / "opensim" / "assist_ik.mot")
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
@@ -121,5 +136,15 @@ def test_a_device_walk_on_the_muscle_walker_exports_every_condition(tmp_path):
                                rtol=1e-8, atol=1e-10)
     _, labels, data = read_opensim_storage(out / "opensim" / "assist_id.sto")
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
-    np.testing.assert_allclose(col["ankle_angle_r_moment"], rec.joint_moment_nm[:, 0, 2],
+    # the force files one row fewer: row k's forces at time_s[k − 1] (the export's Timing)
+    np.testing.assert_allclose(col["time"], rec.time_s[:-1], rtol=1e-9)
+    np.testing.assert_allclose(col["ankle_angle_r_moment"], rec.joint_moment_nm[1:, 0, 2],
                                rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(col["ankle_angle_r_device_moment"], rec.device_moment_nm[1:, 0],
+                               rtol=1e-8, atol=1e-8)
+    # the assist condition's model carries the orthosis's worn masses (body + device)
+    import xml.etree.ElementTree as ET
+    model = ET.parse(out / "opensim" / "assist.osim").getroot()
+    mass = sum(float(b.findtext("mass")) for b in model.iter("Body"))
+    assert mass == pytest.approx(rec.body_mass_kg + sum(w.mass_kg for w in
+                                                         res.results["assist"][2].worn_masses()))

@@ -66,7 +66,8 @@ def test_header_holds_only_key_value_lines(walk):
         assert all(ln.count("=") == 1 for ln in header), [ln for ln in header
                                                           if ln.count("=") != 1]
         kv = dict(ln.split("=") for ln in header)
-        assert int(kv["nRows"]) == data.shape[0] == len(rec.time_s)
+        # the force files one row fewer (forces at the state before their row's: Timing)
+        assert int(kv["nRows"]) == data.shape[0] == len(rec.time_s) - (kind != "ik")
         assert int(kv["nColumns"]) == data.shape[1] == len(labels)
 
 
@@ -77,20 +78,24 @@ def test_grf_columns_forces_and_centre_of_pressure(walk, contact_points):
     expected |= {f"ground_torque_{s}_{a}" for s in FEET for a in "xyz"}
     assert set(labels) == expected and len(labels) == len(expected)
     col = {lab: data[:, i] for i, lab in enumerate(labels)}
-    np.testing.assert_allclose(col["time"], rec.time_s, rtol=1e-9)
-    normal = rec.contact_force_n
+    np.testing.assert_allclose(col["time"], rec.time_s[:-1], rtol=1e-9)
+    # row k of the record: forces computed at the state of row k − 1, written at its time
+    # and applied at its contact points
+    normal = rec.contact_force_n[1:]
+    grf = rec.grf_n[1:]
+    points = contact_points[:-1]
     seen = {"both": 0, "heel_only": 0, "unloaded": 0}
     for s, side in enumerate(FEET):
-        np.testing.assert_allclose(col[f"ground_force_{side}_vy"], rec.grf_n[:, s, 1],
+        np.testing.assert_allclose(col[f"ground_force_{side}_vy"], grf[:, s, 1],
                                    rtol=1e-8, atol=1e-8)
-        np.testing.assert_allclose(col[f"ground_force_{side}_vx"], rec.grf_n[:, s, 0],
+        np.testing.assert_allclose(col[f"ground_force_{side}_vx"], grf[:, s, 0],
                                    rtol=1e-8, atol=1e-8)
         for a in "xyz":
             assert np.all(col[f"ground_torque_{side}_{a}"] == 0.0)
         assert np.all(col[f"ground_force_{side}_vz"] == 0.0)
         assert np.all(col[f"ground_force_{side}_py"] == 0.0)      # on the floor
         px, pz = col[f"ground_force_{side}_px"], col[f"ground_force_{side}_pz"]
-        heel_x, ball_x = contact_points[:, s, 0, 0], contact_points[:, s, 1, 0]
+        heel_x, ball_x = points[:, s, 0, 0], points[:, s, 1, 0]
         n_heel, n_ball = normal[:, s, 0], normal[:, s, 1]
         loaded = n_heel + n_ball > 0
         unloaded = ~loaded
@@ -105,7 +110,7 @@ def test_grf_columns_forces_and_centre_of_pressure(walk, contact_points):
         moment = n_heel * (heel_x - px) + n_ball * (ball_x - px)
         assert np.max(np.abs(moment[both])) < 1e-6 * max(1.0, np.max(n_heel + n_ball))
         # lateral: OpenSim Z (right) is minus the walker's y; the right foot is on the right
-        np.testing.assert_allclose(pz[loaded], -contact_points[loaded, s, 0, 1], atol=1e-8)
+        np.testing.assert_allclose(pz[loaded], -points[loaded, s, 0, 1], atol=1e-8)
         assert (np.all(pz[loaded] > 0) if side == "r" else np.all(pz[loaded] < 0))
         seen["both"] += int(both.sum())
         seen["heel_only"] += int(heel_only.sum())
@@ -147,6 +152,7 @@ def test_opensim_reads_the_grf_back(walk):
     opensim = pytest.importorskip(
         "opensim", reason="opensim is not installed (pip install opensim): OpenSim read-back "
                           "skipped")
+    opensim.Logger.removeFileSink()     # no opensim.log in the working directory
     _, paths = walk
     table = opensim.TimeSeriesTable(str(paths["grf"]))
     labels = list(table.getColumnLabels())

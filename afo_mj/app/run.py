@@ -140,7 +140,8 @@ def _recording_writer(scenario, runs, reference):
 
 
 def _opensim_writer(scenario, runs):
-    """Writer of ``opensim/<run>_{ik,id,grf}`` files (:mod:`afo_mj.outputs.opensim_export`)
+    """Writer of ``opensim/<run>_{ik,id,grf}`` files, ``<run>_grf.xml`` and the model
+    ``<run>.osim`` (:mod:`afo_mj.outputs.opensim_export`)
     for every run (a walk, or each condition of a device walk) when the scenario's
     ``[output] opensim`` is true."""
     if not getattr(scenario, "opensim", False):

@@ -58,8 +58,9 @@ Schema (every section and key optional except where said; unknown keys are error
                                      # the command line writes one anywhere)
     signal_rate_hz = 500.0           # recording: scalar signals sample rate, 1..100000 Hz
     transform_rate_hz = 50.0         # recording: 3D body transforms sample rate, 1..10000 Hz
-    opensim = false                  # true: opensim/<run>_ik.mot, _id.sto, _grf.mot and
-                                     # _grf.xml (ExternalLoads) in the results directory
+    opensim = false                  # true: opensim/<run>_ik.mot, _id.sto, _grf.mot,
+                                     # _grf.xml (ExternalLoads) and <run>.osim (the model)
+                                     # in the results directory
                                      # (afo_mj.outputs.opensim_export)
 
 Any problem (TOML syntax, unknown key, wrong type, value out of range, missing reference
@@ -223,7 +224,7 @@ class WalkScenario:
     record: bool = False
     record_signal_rate_hz: float = 500.0
     record_transform_rate_hz: float = 50.0
-    #: ``[output] opensim``: write the run(s) as OpenSim storage files
+    #: ``[output] opensim``: write the run(s) as OpenSim storage files and models
     opensim: bool = False
     #: ``walker.model``: "torque" or "muscle"; ``walker.reflex_set``: the muscle model's
     #: reflex parameter file (absolute path; None for the torque model)
