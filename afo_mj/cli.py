@@ -245,6 +245,13 @@ def _export_fmu(args) -> int:
     return 0
 
 
+def _export_osim(args) -> int:
+    """Exit 0 written, 1 a file could not be written, 2 invalid scenario (nothing written)."""
+    from afo_mj.app.osim import export_osim
+    _print(console.osim_lines(export_osim(args.scenario, args.out, args.set or ())))
+    return 0
+
+
 def _version() -> str:
     """The installed package's version (the source tree's when not installed)."""
     from importlib.metadata import PackageNotFoundError, version
@@ -264,7 +271,7 @@ COMMANDS: dict[str, Callable[..., int]] = {
     "compare": _compare, "calibrate": _calibrate, "make-bench-record": _make_bench_record,
     "sweep": _sweep, "study": _study, "optimize": _optimize, "optimize-gait": _optimize_gait,
     "design": _design, "schematic": _schematic, "export-fmu": _export_fmu,
-    "build-models": _build_models}
+    "export-osim": _export_osim, "build-models": _build_models}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -225,6 +225,16 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     fmu.add_argument("--step-size-s", type=float, default=1e-3, dest="step_size_s",
                      help="the default experiment's communication step, s (default 0.001)")
     fmu.set_defaults(func=handlers["export-fmu"])
+    osm = sub.add_parser("export-osim", help="write a walking scenario's walker as OpenSim "
+                         "models (<run>.osim per run, for OpenSim's tools on the run's "
+                         "[output] opensim files)")
+    osm.add_argument("scenario", help="a walking scenario file, e.g. scenarios/walk_healthy.toml "
+                     "(a device scenario gives one model per condition, with its worn masses)")
+    osm.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    osm.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario value by its dotted key, as for run "
+                          "(repeatable)")
+    osm.set_defaults(func=handlers["export-osim"])
     build = sub.add_parser("build-models", help="write the default MJCF models to models/mjcf/")
     build.set_defaults(func=handlers["build-models"])
     for p in sub.choices.values():

@@ -14,7 +14,7 @@ __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_li
            "device_walk_lines", "human_response_line", "device_warnings", "sweep_outcome_counts",
            "sweep_outcome_lines", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines", "schematic_lines", "fmu_lines",
-           "sweep_start_lines", "sweep_result_lines"]
+           "sweep_start_lines", "sweep_result_lines", "osim_lines"]
 
 
 def fmt_stat(entry, fmt: str = ".2f") -> str:
@@ -506,4 +506,14 @@ def sweep_result_lines(rows, failed, wall_time_s: float, table) -> list[str]:
     flagged = {k: len(v) for k, v in sweep_outcome_counts(rows).items()}
     out.append(json.dumps({"runs": len(rows), "failed": len(failed), "outcomes": flagged,
                            "table": str(table)}))
+    return out
+
+
+def osim_lines(models) -> list[str]:
+    """What ``afo-mj export-osim`` wrote: one OpenSim model per run."""
+    out = []
+    for m in models:
+        worn = f", {m['worn_mass_kg']:.2f} kg worn" if m["worn_mass_kg"] else ""
+        out.append(f"afo_mj export-osim: {m['path']}: OpenSim model of run {m['run']!r} "
+                   f"({m['mass_kg']:.2f} kg{worn})")
     return out
