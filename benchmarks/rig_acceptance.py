@@ -1,6 +1,7 @@
 """Blind acceptance of ``afo-mj calibrate`` on the independent lab rig (issue 20).
 
-Run: ``MUJOCO_GL=egl .venv/bin/python benchmarks/rig_acceptance.py [case ...]`` (default: all).
+Run: ``MUJOCO_GL=egl .venv/bin/python benchmarks/rig_acceptance.py [case ...]`` (default: all),
+or ``... rig_acceptance.py --matrix [--quick] [--duration-s S]`` (below).
 
 Each case simulates a 20 s, 1 kHz record of the independent rig (``tests/independent_rig.py``:
 its own textbook equations, scipy's Radau, 12-bit encoder and lab sensor noise; no afo_mj
@@ -23,6 +24,16 @@ indistinguishable from), the worst channel's held-out NRMSE over its noise floor
 * wall time of one calibration ≤ 120 s.
 
 The last line is a JSON object.
+
+``--matrix [--quick] [--duration-s S]``: instead, the matrix rig × effect × verdict ×
+final/floor (issue 41, item 5) over two blind rigs, each from its own textbook: rig 1's
+stepped variant (``tests/independent_rig.py`` with its voltage held between 2 ms digital
+updates, declared zero-order; ``lab_rig.toml``) and the second rig (``tests/second_rig.py``,
+a 200 Hz command held zero-order; ``second_rig.toml``), each on its clean record and with
+one effect on at a time (default records of 20 s; ``--quick``: clean and three effects per
+rig, 8 s records). Per row: the verdict, what was named, the worst channel's held-out NRMSE
+over its noise floor at the baseline and at the end (``final/floor``), whether the named
+effect is the one switched on ("hit"), the wall time. The last line is a JSON object.
 """
 
 from __future__ import annotations
@@ -72,7 +83,107 @@ def named(report: dict) -> list[str]:
     return out
 
 
+#: the second rig's cases: rig effect → the library names that count as naming it (an
+#: empty tuple: nothing in the library describes it)
+RIG2_TRUTH = {
+    "internal_leakage": ("piston_leakage",),
+    "sensor_delay": ("sensor_delay",),
+    "stribeck": ("stribeck_friction",),
+    "entrained_air": ("entrained_air",),
+    "viscosity_drift": ("viscosity_drift",),
+    "current_limit": ("motor_current_limit",),
+    "softer_cable": ("series_compliance",),
+    "backlash": ("backlash",),
+    "seal_pressure_friction": ("pressure_friction",),
+    "charge_loss": (),
+}
+QUICK = {"rig1_stepped": ["clean", "current_limit", "pressure_friction", "cable_compliance"],
+         "rig2": ["clean", "current_limit", "seal_pressure_friction", "backlash"]}
+
+
+def _row(rep: dict, truth, wall: float) -> dict:
+    floor = rep["baseline"]["noise_floor"]
+    final = {c: rep["error_after"][c] / floor[c] for c in floor}
+    worst = max(final, key=final.get)
+    names = named(rep)
+    return {"verdict": rep["verdict"], "named": names[:3],
+            "baseline_max": round(max(rep["baseline"]["ratio"].values()), 2),
+            "final_max": round(final[worst], 2), "worst_channel": worst,
+            "hit": bool(truth) and bool(names) and names[0] in truth,
+            "wall_s": round(wall, 1)}
+
+
+def matrix(argv: list[str]) -> None:
+    """The rig × effect matrix (``--matrix``)."""
+    import independent_rig as rig1
+    import second_rig as rig2
+    from afo_mj.calibration.calibrate import calibrate_setup, load_calibration_scenario
+    from afo_mj.calibration.measured_data import load_measured
+
+    warnings.simplefilter("ignore")
+    quick = "--quick" in argv
+    duration = 8.0 if quick else 20.0
+    if "--duration-s" in argv:
+        k = argv.index("--duration-s")
+        try:
+            duration = float(argv[k + 1])
+        except (IndexError, ValueError):
+            raise SystemExit("--duration-s needs a number of seconds (>= 4)") from None
+        if not duration >= 4.0:
+            raise SystemExit(f"--duration-s = {duration!r}; allowed: >= 4")
+    bad = [a for a in argv if a.startswith("--") and a not in ("--matrix", "--quick",
+                                                               "--duration-s")]
+    if bad:
+        raise SystemExit(f"unknown option {bad[0]!r}; allowed: --matrix, --quick, --duration-s")
+    rig1_cases = {c: CASES[c] for c in ["clean"] + SINGLES}
+    rig2_cases = {"clean": ({}, ())} | {e: ({e: True}, t) for e, t in RIG2_TRUTH.items()}
+    plan = {"rig1_stepped": rig1_cases, "rig2": rig2_cases}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for rig_name, cases in plan.items():
+            setup = load_calibration_scenario(str(ROOT / "scenarios/calibration" / (
+                "lab_rig.toml" if rig_name == "rig1_stepped" else "second_rig.toml")))
+            picks = QUICK[rig_name] if quick else list(cases)
+            for k, case in enumerate(picks):
+                fx, truth = cases[case]
+                path = Path(tmp) / f"{rig_name}_{case}.csv"
+                if rig_name == "rig1_stepped":
+                    data = rig1.write_record(path, duration, fx, seed=10 + k,
+                                             command_update_s=2e-3)
+                else:
+                    data = load_measured(rig2.write_record(path, duration, fx, seed=10 + k))
+                if k == 0:      # compile the kernel outside the timing
+                    r = setup.replay()
+                    r.simulate(data.time_s[:50], {c: data.channels[c][:50]
+                                                  for c in r.check_inputs(data.channels)})
+                t0 = time.perf_counter()
+                rep = calibrate_setup(data, setup)
+                row = {"rig": rig_name, "effect": case, **_row(rep, truth,
+                                                               time.perf_counter() - t0)}
+                rows.append(row)
+                print(f"{rig_name:13s} {case:22s} {row['verdict']:18s} "
+                      f"named {row['named']!s:45s} baseline {row['baseline_max']:5.2f}x "
+                      f"final {row['final_max']:5.2f}x the floor ({row['worst_channel']}) "
+                      f"{'hit' if row['hit'] else '-':3s} {row['wall_s']:.0f} s", flush=True)
+    summary = {}
+    for rig_name in plan:
+        rr = [r for r in rows if r["rig"] == rig_name]
+        clean = next((r for r in rr if r["effect"] == "clean"), None)
+        singles = [r for r in rr if r["effect"] != "clean"]
+        summary[rig_name] = {
+            "clean_ok": None if clean is None else (clean["verdict"] == "no_missing_effect"
+                                                    and clean["final_max"] <= 2.0),
+            "singles_hit": f"{sum(r['hit'] for r in singles)}/{len(singles)}",
+            "singles_within_2x": f"{sum(r['final_max'] <= 2.0 for r in singles)}/"
+                                 f"{len(singles)}"}
+        print(f"{rig_name}: {summary[rig_name]}")
+    print(json.dumps({"benchmark": "rig_acceptance_matrix", "quick": quick,
+                      "duration_s": duration, "rows": rows, "summary": summary}))
+
+
 def main() -> None:
+    if any(a in ("--matrix", "--quick") for a in sys.argv[1:]):
+        return matrix(sys.argv[1:])
     import independent_rig as rig
     from afo_mj.calibration.calibrate import calibrate_setup, load_calibration_scenario
 
