@@ -221,7 +221,7 @@ def _calibrate(tmp_path, rigid_cable: bool):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
-    "measured 2026-12 on a 6 s record (seed 5): structure_wrong, nothing named; final/floor "
+    "measured 2026-11 on a 6 s record (seed 5): structure_wrong, nothing named; final/floor "
     "angle 2.29x, chambers 1.54x, current 1.43x, torque 1.16x, speed 1.09x; the bulk modulus "
     "fitted at its bound (3.2 GPa, +100 %). The rig's seal friction (20 N) stretches the "
     "1.5 MN/m cable, 0.76 mrad at the ankle at each reversal (7x the encoder's sigma); the "
