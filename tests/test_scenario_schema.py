@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -190,3 +191,30 @@ def test_impairment_and_circuit_bench_keys_are_their_parameter_fields():
     assert {k.name for k in settings} <= {f.name for f in dataclasses.fields(default)}
     for k in settings:
         assert _within(getattr(default, k.name), k.range), k
+
+
+@pytest.mark.parametrize("edit,key,table", [
+    (lambda t: t.replace("[load]", "[load]\ninertia_kg_m3 = 1.0", 1), "load.inertia_kg_m3",
+     "[load]"),
+    (lambda t: t + "\n[calibration]\nsettle = 1.0\n", "calibration.settle", "[calibration]"),
+    (lambda t: t + "\n[sensors.ankle_torque_nm]\nsignl = \"torque_nm\"\n",
+     "sensors.ankle_torque_nm.signl", "[sensors.ankle_torque_nm]"),
+])
+def test_a_rig_file_table_refuses_an_unknown_key_in_the_common_format(tmp_path, edit, key,
+                                                                      table):
+    """The calibration rig file's [load], [calibration] and [sensors.<channel>] are declared
+    in the schema layer too: one message format, with the closest key suggested."""
+    from afo_mj.calibration.calibrate import load_calibration_scenario
+    from afo_mj.hydraulics.params import ParameterError
+    src = (Path(__file__).resolve().parents[1] / "scenarios" / "calibration"
+           / "lab_rig.toml").read_text(encoding="utf-8")
+    if "[calibration]" in src and "calibration.settle" in key:
+        src = src.replace("[calibration]", "[calibration]\nsettle = 1.0", 1)
+    else:
+        src = edit(src)
+    path = tmp_path / "rig.toml"
+    path.write_text(src, encoding="utf-8")
+    with pytest.raises(ParameterError, match=rf"unknown key '{re.escape(key)}' \(= .*\) "
+                                             rf"\(did you mean .*allowed keys in "
+                                             rf"{re.escape(table)}: "):
+        load_calibration_scenario(str(path))

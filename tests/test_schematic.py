@@ -190,3 +190,19 @@ def test_cli_draws_a_scenario_and_refuses_bad_input(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("afo-mj schematic: "), err
     assert not (tmp_path / "x.svg").exists() and not (tmp_path / "x.pdf").exists()
+
+
+def test_a_device_run_writes_the_schematic_of_the_circuit_it_wore(tmp_path):
+    """``afo-mj run`` of a device scenario writes ``circuit.svg``: the worn circuit (here the
+    lab bench under the scenario's pump_torque override, read from the TOML text), drawn and
+    read back to its description."""
+    from afo_mj.app.run import run_scenario
+    rel = ROOT / "scenarios" / "gait_lab_bench.toml"
+    run_scenario(rel, overrides=["gait.strides=2", "gait.analyse_strides=[1, 2]",
+                                 'device.conditions=["transparent"]'],
+                 out_dir=tmp_path / "r", figures=False)
+    got = read_schematic_topology((tmp_path / "r" / "circuit.svg").read_text(encoding="utf-8"))
+    lab = LIBRARY["lab_bench"]()
+    assert got == _described(lab)
+    ctrl = tomllib.loads(rel.read_text(encoding="utf-8"))["circuit"]["controller"]["kind"]
+    assert ctrl == "pump_torque"

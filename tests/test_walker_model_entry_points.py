@@ -271,6 +271,8 @@ SCENARIO_LOADERS = {
     "afo_mj/design/system_design.py",                # its own device scenario, no walk run
     "afo_mj/studies/gait_optimization.py",           # optimize-gait --scenario: muscle only
     "afo_mj/scenarios/walk_scenario.py",
+    "afo_mj/app/osim.py",                            # export-osim: the walker model, no walk
+    "afo_mj/scenarios/device_source.py",             # schematic / export-fmu: the device only
 }
 
 

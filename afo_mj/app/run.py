@@ -341,6 +341,19 @@ def _device_files_writer(results, reference, dsum, name, wall_s, figures: bool):
     return write
 
 
+def _schematic_writer(cfg):
+    """Writer of ``circuit.svg``: the worn circuit's schematic (:mod:`afo_mj.outputs.schematic`),
+    for every device that is a circuit (the ideal source is none: nothing written)."""
+    def write(tmp: Path) -> None:
+        spec = cfg.device_spec()
+        if spec is None:
+            return
+        from afo_mj.outputs.schematic import schematic_svg
+        (tmp / "circuit.svg").write_text(schematic_svg(spec.circuit, title=spec.name),
+                                         encoding="utf-8")
+    return write
+
+
 def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                 recording=None) -> DeviceWalkRun:
     """A walking scenario with an orthosis: every condition, the headline one written out."""
@@ -406,7 +419,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                                     extra_files=_chain(
                                         _device_files_writer(results, reference, dsum,
                                                              scenario.name, wall, figures),
-                                        muscle_files,
+                                        muscle_files, _schematic_writer(cfg),
                                         _recording_writer(scenario, runs, reference),
                                         _opensim_writer(scenario, runs),
                                         _rrd_writer(recording, lambda f: write_rrd(

@@ -65,6 +65,8 @@ from afo_mj.calibration.record_checks import check_record, check_signs, declared
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
 from afo_mj.experiments.bench_replay import HELD_CHANNELS, BenchReplay, ReplayError
+from afo_mj.scenarios.device_source import RIG
+from afo_mj.scenarios.schema import Key, Table, check_table
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
            "model_outputs", "sensor_outputs", "CalibrationSetup", "load_calibration_scenario",
@@ -1123,11 +1125,22 @@ class CalibrationSetup:
         return BenchReplay(self.preset, self.overrides)
 
 
-#: keys of a scenario's ``[load]`` table (a described rig's simulated joint load)
-LOAD_KEYS = ("mode", "inertia_kg_m2", "stiffness_nm_rad", "damping_nm_s_rad",
-             "rest_angle_rad", "initial_angle_rad")
-#: keys of one ``[sensors.<channel>]`` table
-SENSOR_KEYS = ("signal", "calibrated", "noise_sigma")
+#: a rig file's ``[load]`` table (a described rig's joint load: simulated, or imposed by the
+#: record's angle)
+LOAD_TABLE = Table("load", (
+    Key("mode", "string", doc='"simulated" (an inertia on a spring and damper) or "imposed"'),
+    Key("inertia_kg_m2", "number", (0.0, math.inf), unit="kg m^2", doc="load inertia"),
+    Key("stiffness_nm_rad", "number", (0.0, math.inf), 0.0, "N m/rad", "load spring"),
+    Key("damping_nm_s_rad", "number", (0.0, math.inf), 0.0, "N m s/rad", "load damper"),
+    Key("rest_angle_rad", "number", default=0.0, unit="rad", doc="spring rest angle"),
+    Key("initial_angle_rad", "number", default=0.0, unit="rad", doc="angle at t = 0")))
+LOAD_KEYS = LOAD_TABLE.names
+#: one ``[sensors.<channel>]`` table of a rig file
+SENSOR_TABLE = Table("sensors.<channel>", (
+    Key("signal", "string", doc="the circuit state or probe the channel measures"),
+    Key("calibrated", "bool", default=True, doc="false: fit a gain/offset for it"),
+    Key("noise_sigma", "number", (0.0, math.inf), unit="SI", doc="the sensor's noise σ")))
+SENSOR_KEYS = SENSOR_TABLE.names
 
 
 def load_calibration_scenario(scenario: str) -> CalibrationSetup:
@@ -1162,11 +1175,7 @@ def load_calibration_scenario(scenario: str) -> CalibrationSetup:
     if "circuit" not in doc:
         preset, overrides, options = load_calibration_setup(scenario)
         return CalibrationSetup(preset, overrides, options)
-    allowed = ("name", "description", "circuit", "load", "sensors", "calibration")
-    bad = [k for k in doc if k not in allowed]
-    if bad:
-        raise ParameterError(f"{path}: unknown key {bad[0]!r}; allowed with [circuit]: "
-                             f"{', '.join(allowed)}")
+    check_table(doc, RIG, str(path), error=ParameterError)
     try:
         circuit = Circuit.from_dict(circuit_spec(doc["circuit"], str(path)))
     except (ScenarioError, CircuitError) as exc:
@@ -1174,10 +1183,7 @@ def load_calibration_scenario(scenario: str) -> CalibrationSetup:
     load_t = doc.get("load", {"mode": "imposed"})
     if not isinstance(load_t, dict):
         raise ParameterError(f"{path}: load must be a table; allowed keys: {', '.join(LOAD_KEYS)}")
-    bad = [k for k in load_t if k not in LOAD_KEYS]
-    if bad:
-        raise ParameterError(f"{path}: load.{bad[0]} is not a setting; allowed: "
-                             f"{', '.join(LOAD_KEYS)}")
+    check_table(load_t, LOAD_TABLE, str(path), error=ParameterError)
     mode = load_t.get("mode", "simulated" if "inertia_kg_m2" in load_t else "imposed")
     if mode not in ("simulated", "imposed"):
         raise ParameterError(f"{path}: load.mode = {mode!r}; allowed: simulated, imposed")
@@ -1202,10 +1208,7 @@ def load_calibration_scenario(scenario: str) -> CalibrationSetup:
         if not isinstance(t, dict):
             raise ParameterError(f"{path}: sensors.{ch} must be a table; allowed keys: "
                                  f"{', '.join(SENSOR_KEYS)}")
-        bad = [k for k in t if k not in SENSOR_KEYS]
-        if bad:
-            raise ParameterError(f"{path}: sensors.{ch}.{bad[0]} is not a setting; allowed: "
-                                 f"{', '.join(SENSOR_KEYS)}")
+        check_table(t, SENSOR_TABLE, str(path), f"sensors.{ch}", error=ParameterError)
         if "signal" in t:
             signals[ch] = str(t["signal"])
         if t.get("calibrated", True) is False:
@@ -1216,10 +1219,7 @@ def load_calibration_scenario(scenario: str) -> CalibrationSetup:
     cal = doc.get("calibration", {})
     if not isinstance(cal, dict):
         raise ParameterError(f"{path}: calibration must be a table")
-    bad = [k for k in cal if k not in CALIBRATION_KEYS]
-    if bad:
-        raise ParameterError(f"{path}: calibration.{bad[0]} is not a setting; allowed: "
-                             f"{', '.join(CALIBRATION_KEYS)}")
+    check_table(cal, CALIBRATION_TABLE, str(path), error=ParameterError)
     kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cal.items()}
     kw.setdefault("uncalibrated_channels", tuple(uncal))
     return CalibrationSetup(None, {}, CalibrationOptions(**kw), circuit, load, signals)
@@ -1238,7 +1238,11 @@ def calibrate_setup(data: MeasuredData, setup: CalibrationSetup) -> dict:
 
 
 #: keys of a scenario's ``[calibration]`` table (the fields of :class:`CalibrationOptions`)
-CALIBRATION_KEYS = tuple(f.name for f in dataclasses.fields(CalibrationOptions))
+#: a scenario's ``[calibration]`` table: the fields of :class:`CalibrationOptions` (which
+#: declare their own types and defaults)
+CALIBRATION_TABLE = Table.of_names(
+    "calibration", (f.name for f in dataclasses.fields(CalibrationOptions)))
+CALIBRATION_KEYS = CALIBRATION_TABLE.names
 
 
 def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions]:
@@ -1270,9 +1274,6 @@ def load_calibration_setup(scenario: str) -> tuple[str, dict, CalibrationOptions
     cal = doc.get("calibration", {})
     if not isinstance(cal, dict):
         raise ParameterError(f"{path}: calibration must be a table")
-    bad = [k for k in cal if k not in CALIBRATION_KEYS]
-    if bad:
-        raise ParameterError(f"{path}: calibration.{bad[0]} is not a setting; allowed: "
-                             f"{', '.join(CALIBRATION_KEYS)}")
+    check_table(cal, CALIBRATION_TABLE, str(path), error=ParameterError)
     kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cal.items()}
     return preset, overrides, CalibrationOptions(**kw)
