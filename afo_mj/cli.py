@@ -43,7 +43,7 @@ def _demo(args) -> int:
     if args.json:
         e = d["energy"]
         print(json.dumps({"duration_s": d["duration_s"], "us_per_step": d["us_per_step"],
-                          "max_force_n": d["max_force_n"], "energy": {
+                          "max_torque_nm": d["max_torque_nm"], "energy": {
                               k: e[k] for k in ("input_j", "output_j", "heat_j",
                                                 "relative_residual")}}))
     return 0

@@ -23,9 +23,11 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
     parser.add_argument("--version", action="version", version=f"afo-mj {version}")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("hydraulics-demo",
-                          help="run the hydraulic cylinder demo headless and print results")
+                          help="run the lab bench circuit on a simulated foot headless and "
+                          "print its ranges and energy chain")
     demo.add_argument("--duration-s", type=float, default=1.0, dest="duration_s")
-    demo.add_argument("--substeps", type=int, default=4)
+    demo.add_argument("--substeps", type=int, default=1,
+                      help="circuit stepper steps per 1 ms sample (default 1)")
     demo.add_argument("--json", action="store_true", help="also print a JSON summary line")
     demo.set_defaults(func=handlers["hydraulics-demo"])
     run = sub.add_parser("run", help="simulate a walking scenario (TOML) and write its results")

@@ -380,29 +380,36 @@ def calibration_lines(report: Mapping, out) -> list[str]:
 
 
 def hydraulics_demo_lines(d: Mapping) -> list[str]:
-    """The hydraulics demo's ranges (bar gauge, N, mm, rpm, mK) and energy chain (J)."""
+    """The hydraulics demo's ranges (bar gauge, N·m, mm, deg, rpm, mK) and energy chain (J)."""
     r, e = d["ranges"], d["energy"]
-    lines = ["afo_mj hydraulic demo: pump-controlled piston-cable cylinder, 2 kg + 20 kN/m load",
-             f"  simulated {d['duration_s']:.2f} s at 1 ms steps ({d['substeps']} ROS2 "
-             f"substeps) in {d['wall_time_s']:.2f} s wall ({d['us_per_step']:.0f} us/step)"]
+    lines = ["afo_mj hydraulic demo: the lab bench circuit (pump-controlled piston-cable "
+             "cylinder, 40 mm pulley) on a simulated foot, 8 V 3 Hz open-loop motor voltage",
+             f"  simulated {d['duration_s']:.2f} s in 1 ms samples ({d['substeps']} stepper "
+             f"step(s) each) in {d['wall_time_s']:.2f} s wall ({d['us_per_step']:.0f} "
+             "us/sample)"]
     for key, label in (("chamber_a_gauge_pa", "chamber a pressure"),
                        ("chamber_b_gauge_pa", "chamber b pressure")):
         lo, hi = r[key]
         lines.append(f"  {label:22s} {lo / 1e5:7.1f} .. {hi / 1e5:7.1f} bar (gauge)")
-    lines.append(f"  {'actuator force':22s} {r['force_n'][0]:7.1f} .. {r['force_n'][1]:7.1f} N")
+    lines.append(f"  {'actuator torque':22s} {r['torque_nm'][0]:7.2f} .. "
+                 f"{r['torque_nm'][1]:7.2f} N·m")
     lines.append(f"  {'piston position':22s} {r['position_m'][0] * 1e3:7.2f} .. "
                  f"{r['position_m'][1] * 1e3:7.2f} mm")
+    lines.append(f"  {'joint angle':22s} {math.degrees(r['angle_rad'][0]):7.2f} .. "
+                 f"{math.degrees(r['angle_rad'][1]):7.2f} deg")
     lines.append(f"  {'motor speed peak':22s} "
                  f"{d['motor_speed_peak_rad_s'] * 60 / 2 / math.pi:7.0f} rpm")
     lines.append(f"  {'oil temperature rise':22s} {d['oil_temperature_rise_k'] * 1e3:7.2f} mK")
     lines.append("  energy chain (J):")
     lines.append(f"    electrical input     {e['input_j']:9.4f}")
+    share = (lambda v: f"  ({100 * v / e['input_j']:5.1f} %)") if e["input_j"] > 0 else \
+        (lambda v: "")
     for k, v in e["heat_j"].items():
-        lines.append(f"    loss {k:<22s}{v:9.4f}  ({100 * v / e['input_j']:5.1f} %)")
+        lines.append(f"    loss {k:<22s}{v:9.4f}{share(v)}")
     lines.append(f"    stored change        {e['stored_change_j']:9.4f}")
     lines.append(f"    delivered to load    {e['load_out_j']:9.4f}")
     lines.append(f"    balance residual     {e['residual_j']:9.2e}  "
-                 f"({100 * e['relative_residual']:.3f} % of input)")
+                 f"({100 * e['relative_residual']:.2e} % of the energy throughput)")
     return lines
 
 
