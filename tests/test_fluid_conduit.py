@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from afo_mj.hydraulics.conduit import Hose, HoseParams, friction_factor_ratio
+from afo_mj.hydraulics.conduit import HoseParams, friction_factor_ratio
 from afo_mj.hydraulics.fluid import (Fluid, FluidParams, ISO_VG32, ISO_VG46,
                                      effective_bulk_modulus_pa, walther_viscosity_m2_s)
 from afo_mj.hydraulics.params import ParameterError
+from component_reference import Hose
 
 
 @pytest.mark.parametrize("p_abs, expected_gpa",

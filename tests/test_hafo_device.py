@@ -13,8 +13,9 @@ from afo_mj.human.test_stand import AnkleTestStand, StandLoad
 from afo_mj.hydraulics.conduit import laminar_resistance_pa_s_m3
 from afo_mj.hydraulics.cylinder import Cylinder
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
-from afo_mj.hydraulics.motor import BrushlessMotor
-from afo_mj.hydraulics.pump import Pump
+from component_reference import BrushlessMotor, Pump
+
+
 
 
 def _rhs(y, theta=0.0, thd=0.0, v_cmd=5.0, v_bus=22.5, mu=0.05, params=HAFO):

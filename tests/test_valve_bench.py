@@ -14,10 +14,9 @@ import numpy as np
 import pytest
 
 from afo_mj.devices.valve_afo import VALVE_PRESETS
-from afo_mj.hydraulics.onoff_valve import OnOffValve
 from afo_mj.hydraulics.orifice import orifice_dp_for_flow
-from afo_mj.hydraulics.pump import Pump
 from afo_mj.experiments import valve_bench as vb
+from component_reference import OnOffValve, Pump
 
 DIGITAL = VALVE_PRESETS["digital"]
 DUTIES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)

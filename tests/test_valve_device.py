@@ -24,15 +24,13 @@ from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAfoDevice, valve_circui
 from kernel_reference import valve_kernel as va
 from kernel_reference.kernel_devices import pack_valve_parameters
 from afo_mj.human.test_stand import AnkleTestStand, ImposedTrajectory, StandLoad
-from afo_mj.hydraulics.accumulator import GasAccumulator
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
-from afo_mj.hydraulics.motor import BrushlessMotor
-from afo_mj.hydraulics.onoff_valve import OnOffValve, pwm_command
+from afo_mj.hydraulics.onoff_valve import pwm_command
 from afo_mj.hydraulics.orifice import orifice_flow_m3_s
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.pump import Pump
 from afo_mj.hydraulics.servo_valve import ServoValve
-from afo_mj.hydraulics.unloading_valve import UnloadingValve
+from component_reference import BrushlessMotor, GasAccumulator, OnOffValve, Pump, UnloadingValve
+
 
 SERVO = VALVE_PRESETS["valve"]
 DIGITAL = VALVE_PRESETS["digital"]

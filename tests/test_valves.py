@@ -14,13 +14,15 @@ import pytest
 from scipy.optimize import brentq
 
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.orifice import (Orifice, OrificeParams, orifice_area_for_flow,
-                                       orifice_dp_for_flow, orifice_flow_m3_s, smooth_ramp01)
-from afo_mj.hydraulics.check_valve import CheckValve, CheckValveParams
-from afo_mj.hydraulics.relief_valve import ReliefValve, ReliefValveParams
-from afo_mj.hydraulics.unloading_valve import UnloadingValve, UnloadingValveParams
+from afo_mj.hydraulics.orifice import (OrificeParams, orifice_area_for_flow, orifice_dp_for_flow,
+                                       orifice_flow_m3_s)
+from afo_mj.hydraulics.check_valve import CheckValveParams
+from afo_mj.hydraulics.relief_valve import ReliefValveParams
+from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
-from afo_mj.hydraulics.onoff_valve import OnOffValve, OnOffValveParams, pwm_command
+from afo_mj.hydraulics.onoff_valve import OnOffValveParams, pwm_command
+from component_reference import (CheckValve, OnOffValve, Orifice, ReliefValve, UnloadingValve,
+                                 smooth_ramp01)
 
 RHO = 870.0
 P_TANK = 0.1e6

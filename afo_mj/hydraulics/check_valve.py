@@ -25,55 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
-from . import laws
-from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
-                      orifice_flow_m3_s, throttle_power)
+from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA)
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
-__all__ = ["CheckValveParams", "CheckValve", "PoppetValve"]
-
-
-class PoppetValve:
-    """Shared static poppet law: opening ramp in ``Δp``, area, flow, power.
-
-    Subclasses set ``self.params`` and the ramp start ``self._dp_start`` and width
-    ``self._dp_width`` (Pa), ``self._leak_area`` (m²).
-    """
-
-    params: Parameters
-    _dp_start: float
-    _dp_width: float
-    _leak_area: float
-
-    def opening(self, dp_pa):
-        """Poppet opening fraction ``s ∈ [0, 1]`` at pressure drop ``dp_pa = p_in − p_out``.
-
-        ``s = ramp((Δp − Δp_start)/Δp_width)`` with rounded corners (see module docstring):
-        the law :func:`afo_mj.hydraulics.laws.poppet_opening_fraction`.
-        """
-        return laws.poppet_opening_fraction(np.asarray(dp_pa, dtype=float), self._dp_start,
-                                            self._dp_width, self.params.opening_smoothing)
-
-    def area_m2(self, dp_pa):
-        """Flow area ``A_leak + (A_max − A_leak) s(Δp)``
-        (:func:`afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
-        return laws.valve_opening_area_m2(self.opening(dp_pa), self.params.max_area_m2,
-                                          self._leak_area)
-
-    def flow_m3_s(self, p_in_pa, p_out_pa, density_kg_m3):
-        """Flow from ``in`` to ``out`` (negative = reverse flow, through the leakage only)."""
-        p = self.params
-        dp = np.asarray(p_in_pa, dtype=float) - p_out_pa
-        return orifice_flow_m3_s(dp, self.area_m2(dp), p.discharge_coefficient, density_kg_m3,
-                                 p.transition_pressure_pa)
-
-    def power(self, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
-        """Throttling power: ``in = p_up |Q|``, ``out = p_down |Q|``, ``heat = Δp Q ≥ 0``
-        (:func:`~afo_mj.hydraulics.orifice.throttle_power`)."""
-        return throttle_power(p_in_pa, p_out_pa, self.flow_m3_s(p_in_pa, p_out_pa, density_kg_m3))
+__all__ = ["CheckValveParams"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,17 +56,3 @@ class CheckValveParams(Parameters):
     def check(self) -> None:
         if self.leakage_area_m2 >= self.max_area_m2:
             self.fail("leakage_area_m2", f"must be below max_area_m2 = {self.max_area_m2}")
-
-
-class CheckValve(PoppetValve):
-    """Opening, area, flow and power of one :class:`CheckValveParams` valve.
-
-    Methods: :meth:`opening`, :meth:`area_m2`, :meth:`flow_m3_s`, :meth:`power` (see
-    :class:`PoppetValve`); all vectorised.
-    """
-
-    def __init__(self, params: CheckValveParams = CheckValveParams()):
-        self.params = params
-        self._dp_start = params.cracking_pressure_pa
-        self._dp_width = params.full_open_dp_pa
-        self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0

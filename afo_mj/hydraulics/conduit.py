@@ -27,15 +27,10 @@ design tool; the first two are re-exported here.
 from __future__ import annotations
 
 import dataclasses
-import math
 
-import numpy as np
-
-from . import laws
 from .laws import (RE_LAMINAR_END, RE_TURBULENT_START, friction_factor_ratio,  # noqa: F401
                    laminar_resistance_pa_s_m3)
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
 @dataclasses.dataclass(frozen=True)
 class HoseParams(Parameters):
@@ -50,66 +45,3 @@ class HoseParams(Parameters):
     wall_compliance_enabled: bool = effect(True, doc="hose wall expands with pressure")
     inertance_enabled: bool = effect(False, doc="fluid column inertance I = rho L / A")
     turbulence_enabled: bool = effect(True, doc="turbulent friction above Re 2000")
-
-
-class Hose:
-    """Pressure loss, capacitance and inertance of one :class:`HoseParams` line."""
-
-    def __init__(self, params: HoseParams):
-        self.params = params
-        self.area_m2 = math.pi * params.bore_m ** 2 / 4.0
-        self.volume_m3 = self.area_m2 * params.length_m
-        self.relative_roughness = params.roughness_m / params.bore_m
-
-    def reynolds(self, flow_m3_s, kinematic_viscosity_m2_s):
-        """``Re = |v| D / ν`` with ``v = Q / A`` (:func:`~afo_mj.hydraulics.laws.
-        pipe_reynolds_number` with ``μ/ρ = ν``)."""
-        return laws.pipe_reynolds_number(np.asarray(flow_m3_s, dtype=float), self.params.bore_m,
-                                         kinematic_viscosity_m2_s, 1.0)
-
-    def pressure_loss_pa(self, flow_m3_s, density_kg_m3, kinematic_viscosity_m2_s):
-        """Δp from inlet to outlet for flow ``Q`` (same sign as Q): ``Δp = R_lam Q φ(Re)``
-        (:func:`~afo_mj.hydraulics.laws.hose_pressure_loss_pa`)."""
-        hp = self.params
-        mu = np.asarray(density_kg_m3, dtype=float) * kinematic_viscosity_m2_s
-        return laws.hose_pressure_loss_pa(np.asarray(flow_m3_s, dtype=float), hp.length_m,
-                                          hp.bore_m, mu, density_kg_m3, self.relative_roughness,
-                                          float(hp.turbulence_enabled))
-
-    def flow_m3_s(self, dp_pa, density_kg_m3, kinematic_viscosity_m2_s):
-        """Flow for a pressure drop ``Δp`` from inlet to outlet: the inverse of
-        :meth:`pressure_loss_pa` (:func:`~afo_mj.hydraulics.laws.hose_flow_m3_s`)."""
-        hp = self.params
-        mu = np.asarray(density_kg_m3, dtype=float) * kinematic_viscosity_m2_s
-        return laws.hose_flow_m3_s(np.asarray(dp_pa, dtype=float), hp.length_m, hp.bore_m, mu,
-                                   density_kg_m3, self.relative_roughness,
-                                   float(hp.turbulence_enabled))
-
-    def capacitance_m3_pa(self, fluid_bulk_modulus_pa):
-        """Lumped hydraulic capacitance ``C = V (1/B + 1/K_wall)`` (wall term if enabled;
-        :func:`~afo_mj.hydraulics.laws.node_capacitance_m3_pa`)."""
-        return laws.node_capacitance_m3_pa(self.volume_m3,
-                                           np.asarray(fluid_bulk_modulus_pa, dtype=float),
-                                           self.volume_m3, self.wall_compliance_inv_pa)
-
-    @property
-    def wall_compliance_inv_pa(self) -> float:
-        """``1/K_wall`` with the wall compliance enabled, else 0 (a rigid wall)."""
-        p = self.params
-        return 1.0 / p.wall_bulk_modulus_pa if p.wall_compliance_enabled else 0.0
-
-    @property
-    def inertance_kg_m4(self) -> float:
-        """``I = ρ L / A`` per unit density: multiply by density (kg/m³) to get Pa s²/m³."""
-        return self.params.length_m / self.area_m2
-
-    def power(self, p_in_pa, p_out_pa, flow_m3_s) -> PowerFlow:
-        """Hydraulic power through the line; the pressure drop is dissipated as heat.
-
-        ``in = p_in Q``, ``out = p_out Q``, ``heat = (p_in - p_out) Q`` (>= 0 for a resistive
-        line; with inertance the difference also holds the column's kinetic power, passed as
-        stored).
-        """
-        p_in = np.asarray(p_in_pa, dtype=float)
-        p_out = np.asarray(p_out_pa, dtype=float)
-        return PowerFlow(p_in * flow_m3_s, p_out * flow_m3_s, (p_in - p_out) * flow_m3_s, 0.0)

@@ -39,13 +39,10 @@ import dataclasses
 
 import numpy as np
 
-from . import laws
-from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
-                      orifice_flow_m3_s, throttle_power)
+from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA)
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
-__all__ = ["OnOffValveParams", "OnOffValve", "pwm_command"]
+__all__ = ["OnOffValveParams", "pwm_command"]
 
 
 def pwm_command(t_s, duty_cycle, frequency_hz):
@@ -90,63 +87,3 @@ class OnOffValveParams(Parameters):
         if self.approach_time_constant_s >= self.switching_time_s:
             self.fail("approach_time_constant_s",
                       f"must be below switching_time_s = {self.switching_time_s}")
-
-
-class OnOffValve:
-    """Position dynamics, flow, hydraulic and actuator power of one :class:`OnOffValveParams`."""
-
-    def __init__(self, params: OnOffValveParams = OnOffValveParams()):
-        self.params = params
-        self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
-
-    def position_rate(self, x, command_on):
-        """``dx/dt = clip((clip(u, 0, 1) − x)/τ_s, −1/T_sw, 1/T_sw)`` (1/s): the law
-        :func:`~afo_mj.hydraulics.laws.onoff_valve_rate_1_s` with sharp corners."""
-        p = self.params
-        return laws.onoff_valve_rate_1_s(np.asarray(x, dtype=float),
-                                         np.asarray(command_on, dtype=float),
-                                         p.approach_time_constant_s, p.switching_time_s, 0.0)
-
-    def area_m2(self, x):
-        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``
-        (:func:`~afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
-        return laws.valve_opening_area_m2(np.asarray(x, dtype=float), self.params.max_area_m2,
-                                          self._leak_area)
-
-    def flow_m3_s(self, x, p_in_pa, p_out_pa, density_kg_m3):
-        """Flow from ``in`` to ``out`` at valve position ``x``."""
-        p = self.params
-        dp = np.asarray(p_in_pa, dtype=float) - p_out_pa
-        return orifice_flow_m3_s(dp, self.area_m2(x), p.discharge_coefficient, density_kg_m3,
-                                 p.transition_pressure_pa)
-
-    def power(self, x, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
-        """Hydraulic throttling power (:func:`~afo_mj.hydraulics.orifice.throttle_power`)."""
-        return throttle_power(p_in_pa, p_out_pa,
-                              self.flow_m3_s(x, p_in_pa, p_out_pa, density_kg_m3))
-
-    def actuator_power_w(self, command_on, switching_rate_hz):
-        """Electrical power of the actuator: ``P_hold clip(u, 0, 1) + E_sw n_sw`` (W), with
-        ``switching_rate_hz`` the switching events per second (2 f for a PWM at f)."""
-        p = self.params
-        return (p.holding_power_w * np.clip(np.asarray(command_on, dtype=float), 0.0, 1.0)
-                + p.switching_energy_j * np.asarray(switching_rate_hz, dtype=float))
-
-    def pwm_actuator_power_w(self, duty_cycle, frequency_hz):
-        """Period-average actuator power of a PWM: ``P_hold D + 2 f E_sw`` (W); a duty of 0 or
-        1 does not switch."""
-        d = np.clip(np.asarray(duty_cycle, dtype=float), 0.0, 1.0)
-        switching = np.where((d > 0.0) & (d < 1.0), 2.0 * np.asarray(frequency_hz, dtype=float),
-                             0.0)
-        return self.actuator_power_w(d, switching)
-
-    def transition_heat_j(self, dp_pa, density_kg_m3):
-        """Throttling heat of one complete linear-ramp transition at constant ``Δp`` (J),
-        neglecting leakage, ``τ_s`` and the regularisation: the area ramps linearly over
-        ``T_sw`` so the heat is half that of the open valve over the same time,
-        ``½ Δp Q_open T_sw`` (our arithmetic)."""
-        p = self.params
-        dp = np.asarray(dp_pa, dtype=float)
-        q_open = orifice_flow_m3_s(dp, p.max_area_m2, p.discharge_coefficient, density_kg_m3,
-                                   p.transition_pressure_pa)
-        return 0.5 * dp * q_open * p.switching_time_s

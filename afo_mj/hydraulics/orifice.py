@@ -42,20 +42,9 @@ import numpy as np
 from . import laws
 from .laws import orifice_flow_m3_s
 from .params import Parameters, param
-from .power import PowerFlow
 
-__all__ = [
-    "DEFAULT_DISCHARGE_COEFFICIENT",
-    "DEFAULT_TRANSITION_PRESSURE_PA",
-    "orifice_flow_m3_s",
-    "orifice_area_for_flow",
-    "orifice_dp_for_flow",
-    "throttle_power",
-    "smooth_max0",
-    "smooth_ramp01",
-    "OrificeParams",
-    "Orifice",
-]
+__all__ = ["DEFAULT_DISCHARGE_COEFFICIENT", "DEFAULT_TRANSITION_PRESSURE_PA",
+           "orifice_flow_m3_s", "orifice_area_for_flow", "orifice_dp_for_flow", "OrificeParams"]
 
 #: Sharp-edged orifice, fully developed jet (Merritt 1967 §3.3: 0.611 from von Mises' ideal
 #: two-dimensional jet, 0.6–0.65 measured).
@@ -96,46 +85,6 @@ def orifice_dp_for_flow(flow_m3_s, area_m2, discharge_coefficient, density_kg_m3
                                        transition_pressure_pa)
 
 
-def throttle_power(p_in_pa, p_out_pa, flow_m3_s) -> PowerFlow:
-    """Power flows of a pure throttle carrying ``flow_m3_s`` from ``p_in`` to ``p_out``.
-
-    Whichever side is upstream for the present flow direction is the input (the
-    :class:`PowerFlow` convention): ``in = p_up |Q|``, ``out = p_down |Q|``,
-    ``heat = (p_in − p_out) Q ≥ 0`` (``Q`` has the sign of ``p_in − p_out``), ``stored = 0``.
-    For forward flow (``p_in > p_out``) this is ``in = p_in Q``, ``out = p_out Q``.
-    """
-    p_in = np.asarray(p_in_pa, dtype=float)
-    p_out = np.asarray(p_out_pa, dtype=float)
-    q = np.asarray(flow_m3_s, dtype=float)
-    aq = np.abs(q)
-    heat = (p_in - p_out) * q
-    return PowerFlow(in_w=np.maximum(p_in, p_out) * aq, out_w=np.minimum(p_in, p_out) * aq,
-                     heat_w=heat, stored_w=np.zeros_like(heat))
-
-
-def smooth_max0(s, width: float):
-    """``max(s, 0)`` with its corner rounded by a parabola over ``|s| < width`` (C¹).
-
-    ``0`` for ``s ≤ −width``, ``(s + width)²/(4 width)`` between, ``s`` for ``s ≥ width``;
-    ``width = 0`` gives the exact ``max(s, 0)``. (Quadratic corner smoothing, our choice.)
-    This is the law :func:`afo_mj.hydraulics.laws.ramp_c1` shifted:
-    ``smooth_max0(s, w) = ramp_c1(s + w, 2w)``.
-    """
-    w = max(float(width), 0.0)
-    return laws.ramp_c1(np.asarray(s, dtype=float) + w, 2.0 * w)
-
-
-def smooth_ramp01(s, width: float):
-    """``clip(s, 0, 1)`` with both corners rounded over ``±width`` (``width < 0.5``; C¹).
-
-    Exactly 0 for ``s ≤ −width``, exactly ``s`` on ``[width, 1 − width]``, exactly 1 for
-    ``s ≥ 1 + width``; odd-symmetric about ``s = 1/2``. The law
-    :func:`afo_mj.hydraulics.laws.poppet_opening_fraction` with start 0 and width 1.
-    """
-    return laws.poppet_opening_fraction(np.asarray(s, dtype=float), 0.0, 1.0,
-                                        max(float(width), 0.0))
-
-
 @dataclasses.dataclass(frozen=True)
 class OrificeParams(Parameters):
     """A fixed sharp-edged orifice (restrictor)."""
@@ -152,21 +101,3 @@ class OrificeParams(Parameters):
     def diameter_m(self) -> float:
         """Diameter of a round hole of the same area."""
         return math.sqrt(4.0 * self.area_m2 / math.pi)
-
-
-class Orifice:
-    """Flow and power of one :class:`OrificeParams` restrictor."""
-
-    def __init__(self, params: OrificeParams = OrificeParams()):
-        self.params = params
-
-    def flow_m3_s(self, p_in_pa, p_out_pa, density_kg_m3):
-        """Flow from ``in`` to ``out`` (negative when reversed), :func:`orifice_flow_m3_s`."""
-        p = self.params
-        return orifice_flow_m3_s(np.asarray(p_in_pa, dtype=float) - p_out_pa, p.area_m2,
-                                 p.discharge_coefficient, density_kg_m3,
-                                 p.transition_pressure_pa)
-
-    def power(self, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
-        """All of ``Δp Q`` is heat: see :func:`throttle_power`."""
-        return throttle_power(p_in_pa, p_out_pa, self.flow_m3_s(p_in_pa, p_out_pa, density_kg_m3))

@@ -31,13 +31,8 @@ and axial-piston units (stated at each preset).
 from __future__ import annotations
 
 import dataclasses
-import math
 
-import numpy as np
-
-from . import laws
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,71 +74,3 @@ AXIAL_PISTON_PUMP_SMALL = PumpParams(kind="axial_piston", displacement_m3_rev=0.
                                      slip_coefficient=5.0e-8, coulomb_coefficient=0.03,
                                      viscous_coefficient=1.6e4, drag_torque_nm=0.004,
                                      rotor_inertia_kg_m2=1e-6)
-
-
-class Pump:
-    """Flow, torque, efficiencies and power of one :class:`PumpParams` pump."""
-
-    def __init__(self, params: PumpParams):
-        p = self.params = params
-        self.d_m3_rad = p.displacement_m3_rev / (2.0 * math.pi)
-        self._cs = p.slip_coefficient if p.leakage_enabled else 0.0
-        self._cf = p.coulomb_coefficient if p.coulomb_friction_enabled else 0.0
-        self._cv = p.viscous_coefficient if p.viscous_friction_enabled else 0.0
-
-    def _fraction(self, displacement_fraction):
-        if self.params.variable_displacement_enabled:
-            return np.clip(displacement_fraction, -1.0, 1.0)
-        return 1.0
-
-    def leakage_m3_s(self, dp_pa, dynamic_viscosity_pa_s):
-        """Slip flow from a to b, ``C_s D Δp / (2π μ)``: laminar leakage through the
-        conductance ``C_s d`` (:func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s`)."""
-        return laws.laminar_gap_flow_m3_s(np.asarray(dp_pa, dtype=float),
-                                          self._cs * self.d_m3_rad, dynamic_viscosity_pa_s)
-
-    def flow_m3_s(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
-        """Flow delivered into port a (drawn from b): ``ε d ω − Q_leak``
-        (:func:`~afo_mj.hydraulics.laws.pump_flow_m3_s`; the slip ``C_s d`` is that of the
-        full displacement, so it enters as the law's extra conductance)."""
-        eps = self._fraction(displacement_fraction)
-        return laws.pump_flow_m3_s(np.asarray(speed_rad_s, dtype=float),
-                                   np.asarray(dp_pa, dtype=float), eps * self.d_m3_rad, 0.0,
-                                   self._cs * self.d_m3_rad, dynamic_viscosity_pa_s)
-
-    def friction_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s):
-        """Loss torque (sign of ω): Coulomb ∝ |Δp| D (``|Δp|`` rounded over 10 kPa), viscous
-        ∝ μ ω, constant drag (:func:`~afo_mj.hydraulics.laws.pump_friction_torque_nm`)."""
-        p = self.params
-        return laws.pump_friction_torque_nm(np.asarray(speed_rad_s, dtype=float),
-                                            np.asarray(dp_pa, dtype=float), self.d_m3_rad,
-                                            self._cf, self._cv, p.drag_torque_nm,
-                                            p.smoothing_speed_rad_s, dynamic_viscosity_pa_s)
-
-    def shaft_torque_nm(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s,
-                        displacement_fraction=1.0):
-        """Torque the drive must supply: ``ε d Δp + T_friction``."""
-        eps = self._fraction(displacement_fraction)
-        return eps * self.d_m3_rad * np.asarray(dp_pa, dtype=float) + \
-            self.friction_torque_nm(speed_rad_s, dp_pa, dynamic_viscosity_pa_s)
-
-    def efficiencies(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction=1.0):
-        """``(η_v, η_m, η_total)`` in the pumping quadrant (ω > 0, Δp > 0)."""
-        eps = self._fraction(displacement_fraction)
-        q_ideal = eps * self.d_m3_rad * np.asarray(speed_rad_s, dtype=float)
-        q = self.flow_m3_s(speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction)
-        t = self.shaft_torque_nm(speed_rad_s, dp_pa, dynamic_viscosity_pa_s, displacement_fraction)
-        eta_v = q / q_ideal
-        eta_m = eps * self.d_m3_rad * np.asarray(dp_pa, dtype=float) / t
-        return eta_v, eta_m, eta_v * eta_m
-
-    def power(self, speed_rad_s, dp_pa, dynamic_viscosity_pa_s,
-              displacement_fraction=1.0) -> PowerFlow:
-        """``in = T ω`` (shaft), ``out = Δp Q`` (hydraulic), ``heat = T_f ω + Δp Q_leak``."""
-        w = np.asarray(speed_rad_s, dtype=float)
-        dp = np.asarray(dp_pa, dtype=float)
-        t = self.shaft_torque_nm(w, dp, dynamic_viscosity_pa_s, displacement_fraction)
-        q = self.flow_m3_s(w, dp, dynamic_viscosity_pa_s, displacement_fraction)
-        heat = (self.friction_torque_nm(w, dp, dynamic_viscosity_pa_s) * w
-                + dp * self.leakage_m3_s(dp, dynamic_viscosity_pa_s))
-        return PowerFlow(t * w, dp * q, heat, 0.0)

@@ -29,14 +29,10 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
-from . import laws
-from .check_valve import PoppetValve
 from .orifice import DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA
 from .params import Parameters, effect, param
 
-__all__ = ["ReliefValveParams", "ReliefValve"]
+__all__ = ["ReliefValveParams"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,29 +65,3 @@ class ReliefValveParams(Parameters):
             self.fail("opening_smoothing", "the rounded corner would open the valve at Δp <= 0: "
                       "opening_smoothing * override_dp_pa must be below cracking_dp_pa = "
                       f"{self.cracking_dp_pa}")
-
-
-class ReliefValve(PoppetValve):
-    """Opening, area, flow and power of one :class:`ReliefValveParams` valve.
-
-    Methods: ``opening(dp_pa)``, ``area_m2(dp_pa)``, ``flow_m3_s(p_in_pa, p_out_pa,
-    density_kg_m3)``, ``power(p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow`` (see
-    :class:`~afo_mj.hydraulics.check_valve.PoppetValve`); all vectorised.
-    """
-
-    def __init__(self, params: ReliefValveParams = ReliefValveParams()):
-        self.params = params
-        self._dp_start = params.cracking_dp_pa
-        self._dp_width = params.override_dp_pa
-        self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
-
-    def opening(self, dp_pa):
-        """Opening fraction ``smoothstep01((Δp − Δp_crack)/Δp_override)`` (module docstring)."""
-        return laws.smoothstep01((np.asarray(dp_pa, dtype=float) - self._dp_start)
-                                 / self._dp_width)
-
-    def area_m2(self, dp_pa):
-        """Flow area, the law :func:`~afo_mj.hydraulics.laws.relief_valve_area_m2`."""
-        return laws.relief_valve_area_m2(np.asarray(dp_pa, dtype=float), self._dp_start,
-                                         self._dp_width, self.params.max_area_m2,
-                                         self._leak_area)

@@ -36,15 +36,10 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
-from . import laws
-from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
-                      orifice_flow_m3_s, throttle_power)
+from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA)
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
-__all__ = ["UnloadingValveParams", "UnloadingValve"]
+__all__ = ["UnloadingValveParams"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,56 +79,3 @@ class UnloadingValveParams(Parameters):
                       f"cut_in_pressure_pa = {self.cut_out_pressure_pa - self.cut_in_pressure_pa}")
         if self.leakage_area_m2 >= self.max_area_m2:
             self.fail("leakage_area_m2", f"must be below max_area_m2 = {self.max_area_m2}")
-
-
-class UnloadingValve:
-    """Position dynamics, flow and power of one :class:`UnloadingValveParams` valve."""
-
-    def __init__(self, params: UnloadingValveParams = UnloadingValveParams()):
-        self.params = params
-        self._leak_area = params.leakage_area_m2 if params.leakage_enabled else 0.0
-
-    def open_drive(self, pilot_pressure_pa):
-        """``σ_open ∈ [0, 1]``: 1 at or above cut-out, 0 below ``cut_out − band``
-        (:func:`~afo_mj.hydraulics.laws.unloading_open_drive`)."""
-        p = self.params
-        return laws.unloading_open_drive(np.asarray(pilot_pressure_pa, dtype=float),
-                                         p.cut_out_pressure_pa, p.switching_band_pa)
-
-    def close_drive(self, pilot_pressure_pa):
-        """``σ_close ∈ [0, 1]``: 1 at or below cut-in, 0 above ``cut_in + band`` (without
-        hysteresis: ``1 − σ_open``; :func:`~afo_mj.hydraulics.laws.unloading_close_drive`)."""
-        p = self.params
-        if not p.hysteresis_enabled:
-            return 1.0 - self.open_drive(pilot_pressure_pa)
-        return laws.unloading_close_drive(np.asarray(pilot_pressure_pa, dtype=float),
-                                          p.cut_in_pressure_pa, p.switching_band_pa)
-
-    def position_rate(self, x, pilot_pressure_pa):
-        """``dx/dt = [σ_open (1 − x) − σ_close x] / τ`` (1/s): toward 1 above cut-out, toward 0
-        below cut-in, exactly 0 in the hysteresis band (the valve holds its position); the law
-        :func:`~afo_mj.hydraulics.laws.unloading_valve_rate_1_s`."""
-        p = self.params
-        return laws.unloading_valve_rate_1_s(np.asarray(x, dtype=float),
-                                             np.asarray(pilot_pressure_pa, dtype=float),
-                                             p.cut_out_pressure_pa, p.cut_in_pressure_pa,
-                                             p.switching_band_pa, p.time_constant_s,
-                                             float(p.hysteresis_enabled))
-
-    def area_m2(self, x):
-        """Flow area ``A_leak + (A_max − A_leak) clip(x, 0, 1)``
-        (:func:`~afo_mj.hydraulics.laws.valve_opening_area_m2`)."""
-        return laws.valve_opening_area_m2(np.asarray(x, dtype=float), self.params.max_area_m2,
-                                          self._leak_area)
-
-    def flow_m3_s(self, x, p_in_pa, p_out_pa, density_kg_m3):
-        """Flow from ``in`` (pump line) to ``out`` (tank) at valve position ``x``."""
-        p = self.params
-        dp = np.asarray(p_in_pa, dtype=float) - p_out_pa
-        return orifice_flow_m3_s(dp, self.area_m2(x), p.discharge_coefficient, density_kg_m3,
-                                 p.transition_pressure_pa)
-
-    def power(self, x, p_in_pa, p_out_pa, density_kg_m3) -> PowerFlow:
-        """Throttling power (:func:`~afo_mj.hydraulics.orifice.throttle_power`)."""
-        return throttle_power(p_in_pa, p_out_pa,
-                              self.flow_m3_s(x, p_in_pa, p_out_pa, density_kg_m3))
