@@ -18,13 +18,17 @@ def _run(argv, capsys):
     return rc, cap.out, cap.err
 
 
-def test_hafo_bench_refuses_a_valve_preset(tmp_path, capsys):
+def test_the_stand_refuses_a_protocol_the_valve_preset_cannot_run(tmp_path, capsys):
+    """The HAFO's protocols on the servo-valve preset: its motor feeds the valves, so the
+    open-loop motor-voltage protocols are refused, naming the protocol, the device, what it
+    lacks and what it can run on the stand instead."""
     out = tmp_path / "r"
     rc, _, err = _run(["run", str(SCEN / "bench_hafo.toml"), "--out", str(out),
                        "--set", "device.preset=valve"], capsys)
     assert rc == 2
-    assert "device.preset = 'valve'" in err and "valve-controlled" in err
-    assert 'bench.kind = "stiffness"' in err
+    assert "'torque_velocity' cannot run on device 'valve'" in err
+    assert "open-loop motor-voltage command" in err and "feeds the valve(s)" in err
+    assert "isometric_steps, position_step, stiffness" in err
     assert not out.exists()
 
 
@@ -143,14 +147,16 @@ def test_protocols_the_controller_cannot_run_exit_2(tmp_path, capsys, test):
                        "--set", f'bench.tests=["{test}"]'], capsys)
     assert rc == 2 and not out.exists()
     assert test in err
-    assert ("valve (PWM duty)" if test == "flow_vs_duty" else "'open_loop'") in err
+    assert f"'{test}' cannot run on device 'lab_bench'" in err
+    assert ("PWM duty" if test == "flow_vs_duty" else "'open_loop'") in err
 
 
 def test_flow_vs_duty_refused_for_a_pump_circuit(tmp_path, capsys):
     out = tmp_path / "r"
     rc, _, err = _run(["run", str(SCEN / "bench_pump_accumulator.toml"), "--out", str(out),
                        "--set", 'bench.tests=["flow_vs_duty"]'], capsys)
-    assert rc == 2 and "flow_vs_duty needs a valve" in err and not out.exists()
+    assert rc == 2 and not out.exists()
+    assert "'flow_vs_duty' cannot run on device 'pump_accumulator'" in err and "PWM" in err
 
 
 def _lab_spec(**over):
@@ -164,13 +170,14 @@ def test_lab_bench_stall_and_no_load_against_hand_figures():
     the motor's no-load speed at duty_max V_bus through d / (A r), less its friction."""
     import math
 
-    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
+    from afo_mj.circuits.device_spec import DeviceSpec
+    from afo_mj.experiments.bench_load import run_load_bench
+    from afo_mj.scenarios.bench_protocols import LoadBenchConfig
     from afo_mj.circuits.circuit import Circuit
-    from afo_mj.circuits.codegen import build
     relief = {"kind": "relief_valve", "params": {"cracking_dp_pa": 20e6}}
-    cc = build(Circuit.from_dict(_lab_spec(components={"relief_ab": relief,
-                                                       "relief_ba": relief})))
-    s, _ = run_circuit_bench(cc, ["torque_velocity"], CircuitBenchConfig(tv_points=2))
+    spec = DeviceSpec.from_circuit(Circuit.from_dict(_lab_spec(
+        components={"relief_ab": relief, "relief_ba": relief})))
+    s, _ = run_load_bench(spec, ["torque_velocity"], LoadBenchConfig(tv_points=2))
     K, i_max = 0.055, 6.2
     d = 0.2e-6 / (2 * math.pi)
     area = math.pi / 4 * (12e-3 ** 2 - 2e-3 ** 2)           # piston less the cable
@@ -182,8 +189,8 @@ def test_lab_bench_stall_and_no_load_against_hand_figures():
     assert 0.95 * speed_ref < tv["no_load_speed_rad_s"] < speed_ref
     assert s["energy"]["ledger_closed"], s["ledger"]
     # the relief valve caps the shipped circuit's stall at its cracking pressure
-    s2, _ = run_circuit_bench(build(Circuit.from_dict(_lab_spec())), ["torque_velocity"],
-                              CircuitBenchConfig(tv_points=2))
+    s2, _ = run_load_bench(DeviceSpec.from_circuit(Circuit.from_dict(_lab_spec())),
+                           ["torque_velocity"], LoadBenchConfig(tv_points=2))
     assert s2["torque_velocity"]["stall_torque_nm"] == pytest.approx(10e6 * ktp, rel=0.03)
 
 
@@ -193,14 +200,15 @@ def test_lab_bench_resonance_against_inertia_on_oil_stiffness():
     (C = V / B + V_hose / K_wall; Merritt §5.3), the pump side held by the motor's EMF."""
     import math
 
-    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
+    from afo_mj.circuits.device_spec import DeviceSpec
+    from afo_mj.experiments.bench_load import run_load_bench
+    from afo_mj.scenarios.bench_protocols import LoadBenchConfig
     from afo_mj.circuits.circuit import Circuit
-    from afo_mj.circuits.codegen import build
     from afo_mj.hydraulics.fluid import Fluid
     circuit = Circuit.from_dict(_lab_spec(fluid={"air_fraction": 0.0}))
-    cfg = CircuitBenchConfig(load_inertia_kg_m2=0.05, load_stiffness_nm_rad=20.0,
+    cfg = LoadBenchConfig(load_inertia_kg_m2=0.05, load_stiffness_nm_rad=20.0,
                              freq_min_hz=10.0, freq_max_hz=300.0, freq_points=20)
-    s, _ = run_circuit_bench(build(circuit), ["frequency_response"], cfg)
+    s, _ = run_load_bench(DeviceSpec.from_circuit(circuit), ["frequency_response"], cfg)
     fr = s["frequency_response"]
     assert len(fr["frequencies_hz"]) >= 15
     area = math.pi / 4 * (12e-3 ** 2 - 2e-3 ** 2)
@@ -218,15 +226,16 @@ def test_lab_bench_resonance_against_inertia_on_oil_stiffness():
 
 
 def test_torque_protocols_on_spring_return_close_their_ledgers():
-    from afo_mj.experiments.circuit_bench import CircuitBenchConfig, run_circuit_bench
-    from afo_mj.circuits.codegen import build
+    from afo_mj.circuits.device_spec import DeviceSpec
+    from afo_mj.experiments.bench_load import run_load_bench
+    from afo_mj.scenarios.bench_protocols import LoadBenchConfig
     from afo_mj.circuits.library import spring_return_gait
-    cfg = CircuitBenchConfig(step_torques_nm=(20.0,), step_duration_s=0.3,
+    cfg = LoadBenchConfig(step_torques_nm=(20.0,), step_duration_s=0.3,
                              stiffnesses_nm_rad=(100.0,), tracking_cycles=2,
                              position_duration_s=0.5)
-    s, series = run_circuit_bench(build(spring_return_gait()),
-                                  ["isometric_steps", "stiffness", "tracking",
-                                   "position_step"], cfg)
+    s, series = run_load_bench(DeviceSpec.from_circuit(spring_return_gait()),
+                               ["isometric_steps", "stiffness", "tracking",
+                                "position_step"], cfg)
     iso = s["isometric_steps"]["steps"]["20nm"]
     assert iso["rise_time_s"] < 0.1 and abs(iso["steady_state_error"]) < 2.0
     assert s["stiffness"]["stiffness"]["k100"]["error_rel"] == pytest.approx(0.0, abs=0.2)

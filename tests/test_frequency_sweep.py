@@ -63,8 +63,9 @@ def test_low_pass_sweep_is_refined_at_the_bandwidth():
 def test_hafo_bench_default_sweep_resolves_the_foot_on_oil_resonance():
     """The HAFO bench's velocity sweep (the Bode figure's data): ≥ 30 frequencies, the
     resonance inside the range with points on both flanks within ±10 % of it."""
-    from afo_mj.experiments.hafo_bench import frequency_response
-    s, series = frequency_response(kind="velocity")
+    from afo_mj.devices.registry import device_spec
+    from afo_mj.experiments.bench_stand import frequency_response
+    s, series = frequency_response(device_spec("hafo"), kind="velocity")
     f = series["frequency_response_velocity"]["freq_hz"]
     assert s["n_frequencies"] == f.size >= 30
     assert s["refined"] == "peak" and s["resonance_inside_range"]

@@ -67,7 +67,7 @@ def _rig(text):
 
 
 HAFO = '[device]\npreset = "hafo"\n'
-STIFF = '[device]\npreset = "phafo"\n[bench]\nkind = "stiffness"\n'
+STIFF = '[device]\npreset = "phafo"\n[bench]\nprotocols = ["stiffness"]\n'
 CIRC = '[circuit]\nlibrary = "lab_bench"\n'
 RIG = '[circuit]\nlibrary = "lab_bench"\n[load]\n'
 
@@ -84,7 +84,7 @@ UNKNOWN = [
     (_bench, "[walker]\n[bench]", "walker", ""),
     (_bench, HAFO + "sides = ['right']\n[bench]", "device.sides", "device"),
     (_bench, HAFO + "[bench]\ntest = []", "bench.test", "bench"),
-    (_bench, STIFF + "tests = []", "bench.tests", "bench"),
+    (_bench, STIFF + "test = []", "bench.test", "bench"),
     (_bench, CIRC + "[bench]\nfreq_pts = 30", "bench.freq_pts", "bench"),
     (lambda t: cs.circuit_spec({"library": "lab_bench", "nodez": {}}, "f.toml"), "",
      "circuit.nodez", "circuit"),
@@ -108,9 +108,8 @@ DECLARED = [(ws.TOP, _walk, "{} = 1"), (ws.GAIT, _walk, "[gait]\n{} = 1"),
             (ws.OUTPUT, _walk, "[output]\n{} = 1"),
             (ws.IMPAIRMENT, _walk, "[impairment]\n{} = 1"), (ds.DEVICE, _device, HAFO + "{} = 1"),
             (ds.ASSISTANCE, _device, HAFO + "[assistance]\n{} = 1"),
-            (bs.TOP, _bench, "{} = 1\n[bench]"), (bs.HAFO_BENCH, _bench, HAFO + "[bench]\n{} = 1"),
-            (bs.STIFFNESS_BENCH, _bench, STIFF + "{} = 1"),
-            (bs.CIRCUIT_BENCH, _bench, CIRC + "[bench]\n{} = 1"),
+            (bs.TOP, _bench, "{} = 1\n[bench]"), (bs.BENCH, _bench, HAFO + "[bench]\n{} = 1"),
+            (bs.BENCH, _bench, STIFF + "{} = 1"), (bs.BENCH, _bench, CIRC + "[bench]\n{} = 1"),
             (device_source.RIG, _rig, RIG + "{} = 1")]
 
 
@@ -141,16 +140,19 @@ def test_circuit_table_keys_are_those_circuit_descriptions_take():
 
 
 def test_defaults_read_from_the_declarations_are_the_documented_ones():
-    """The documented defaults (module docstrings, docs): a HAFO bench for a 75 kg, 1.75 m
-    wearer; the stiffness rig's 12 deg, 0.25 Hz, 3 cycles at 0.5 ms on a 25.8 kg, 1.28 m
-    child's foot sweeping 1, 2.5 and 4.6 N*m/deg; Zhang's profile 40 N*m peaking at 52.9 %;
+    """The documented defaults (module docstrings, docs): the stand's foot for a 75 kg,
+    1.75 m wearer; the stiffness sweep's 12 deg, 0.25 Hz, 3 cycles at 0.5 ms sweeping 1, 2.5
+    and 4.6 N*m/deg (the deprecated bench.kind = "stiffness": on a 25.8 kg, 1.28 m child's
+    foot); Zhang's profile 40 N*m peaking at 52.9 %;
     a recording at 500 Hz (signals) and 50 Hz (transforms); 10 strides of Winter's gait."""
     hafo = _bench(HAFO + "[bench]")
     assert (hafo.body_mass_kg, hafo.height_m, hafo.timestep_s) == (75.0, 1.75, None)
     st = _bench(STIFF).stiffness
     deg = math.pi / 180.0
     assert st.amplitude_rad == pytest.approx(12.0 * deg) and st.frequency_hz == 0.25
-    assert (st.cycles, st.timestep_s, st.body_mass_kg, st.height_m) == (3, 5e-4, 25.8, 1.28)
+    assert (st.cycles, st.timestep_s, st.body_mass_kg, st.height_m) == (3, 5e-4, 75.0, 1.75)
+    old = _bench('[device]\npreset = "phafo"\n[bench]\nkind = "stiffness"\n').stiffness
+    assert (old.cycles, old.timestep_s, old.body_mass_kg, old.height_m) == (3, 5e-4, 25.8, 1.28)
     assert [k * deg for k in st.stiffnesses_nm_per_rad] == pytest.approx([1.0, 2.5, 4.6])
     cfg = _device(HAFO)
     assert cfg.conditions == ("no_device", "transparent", "assist") and cfg.sides == ("right",)
@@ -162,7 +164,7 @@ def test_defaults_read_from_the_declarations_are_the_documented_ones():
 
 
 ALL_TABLES = [ws.TOP, ws.GAIT, ws.IMPAIRMENT, ws.OUTPUT, ds.DEVICE, ds.ASSISTANCE, bs.TOP,
-              bs.DEVICE, bs.HAFO_BENCH, bs.STIFFNESS_BENCH, bs.CIRCUIT_BENCH, cs.CIRCUIT,
+              bs.DEVICE, bs.BENCH, cs.CIRCUIT,
               device_source.RIG]
 
 
@@ -180,14 +182,14 @@ def test_declared_defaults_lie_in_their_declared_ranges():
 
 def test_impairment_and_circuit_bench_keys_are_their_parameter_fields():
     """[impairment] declares WalkerParams fields; a circuit bench's settings are
-    CircuitBenchConfig fields, whose defaults lie in the declared ranges."""
+    LoadBenchConfig fields, whose defaults lie in the declared ranges."""
     import dataclasses
 
     from afo_mj.human.walker import WalkerParams
-    from afo_mj.scenarios.bench_protocols import CircuitBenchConfig
+    from afo_mj.scenarios.bench_protocols import LoadBenchConfig
     assert set(ws.IMPAIRMENT.names) <= {f.name for f in dataclasses.fields(WalkerParams)}
-    default = CircuitBenchConfig()
-    settings = [k for k in bs.CIRCUIT_BENCH.keys if k.name not in ("kind", "tests")]
+    default = LoadBenchConfig()
+    settings = [bs.BENCH[name] for name in bs.LOAD_KEYS]
     assert {k.name for k in settings} <= {f.name for f in dataclasses.fields(default)}
     for k in settings:
         assert _within(getattr(default, k.name), k.range), k

@@ -80,20 +80,39 @@ def test_stiffness_bench_errors_name_key_value_allowed(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "bench.amplitude_deg" in err and "15" in err and "62" in err and "allowed" in err
     assert not (tmp_path / "x").exists()
+    # the stiffness protocol needs a torque controller: the open-loop lab drive has none
     rc = main(["run", str(SCEN / "stiffness_bench.toml"), "--out", str(tmp_path / "y"),
-               "--set", 'device.preset="hafo"'])
+               "--set", 'device.preset="lab_bench"'])
     assert rc == 2
     err = capsys.readouterr().err
-    assert "device.preset" in err and "hafo" in err and "phafo" in err
+    assert "'stiffness' cannot run on device 'lab_bench'" in err
+    assert "torque controller" in err and "'open_loop'" in err
     assert not (tmp_path / "y").exists()
 
 
-def test_hafo_bench_still_parses_as_the_default_kind():
-    from afo_mj.scenarios.bench_scenario import load_bench_scenario
+def test_old_bench_kinds_still_parse_to_their_protocols():
+    """The deprecated ``bench.kind`` forms read as the rig and protocols they stood for,
+    each with a note; the shipped files give the rig and protocols themselves."""
+    from afo_mj.scenarios.bench_scenario import load_bench_scenario, parse_bench_scenario
     b = load_bench_scenario(SCEN / "bench_hafo.toml")
-    assert b.bench_kind == "hafo" and b.stiffness is None
-    assert b.tests == ("torque_velocity", "isometric_steps", "frequency_response",
-                       "position_step")
+    assert (b.rig, b.stiffness, b.notes) == ("stand", None, ())
+    assert b.protocols == ("torque_velocity", "isometric_steps", "frequency_response",
+                           "position_step")
+    old = {"hafo": ('[device]\npreset = "hafo"\n[bench]\nkind = "hafo"\n'
+                    'tests = ["isometric_steps"]\n', "stand", ("isometric_steps",)),
+           "stiffness": ('[device]\npreset = "phafo"\n[bench]\nkind = "stiffness"\n',
+                         "stand", ("stiffness",)),
+           "circuit": ('[circuit]\nlibrary = "lab_bench"\n[bench]\nkind = "circuit"\n',
+                       "load", ("torque_velocity", "frequency_response"))}
+    for kind, (text, rig, protocols) in old.items():
+        b = parse_bench_scenario(text, origin="f.toml")
+        assert (b.rig, b.protocols) == (rig, protocols), kind
+        assert any(f"bench.kind = {kind!r} is deprecated" in n for n in b.notes), b.notes
+    new = parse_bench_scenario(SCEN.joinpath("stiffness_bench.toml").read_text(),
+                               origin="f.toml")
+    kinded = parse_bench_scenario(SCEN.joinpath("stiffness_bench.toml").read_text().replace(
+        'rig = "stand"\nprotocols = ["stiffness"]', 'kind = "stiffness"'), origin="f.toml")
+    assert kinded.stiffness == new.stiffness and kinded.notes and not new.notes
 
 
 # -- a child with foot drop walking with the emulator ---------------------------------------------

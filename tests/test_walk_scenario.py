@@ -34,13 +34,11 @@ def test_every_shipped_scenario_loads():
         if is_bench_document(p.read_text(encoding="utf-8")):
             bs = load_bench_scenario(p)         # a device on the test stand, no walker
             assert bs.name == p.stem and bs.description
-            # a HAFO or circuit bench lists its tests; a stiffness rig has its sweep instead
-            if bs.bench_kind in ("hafo", "circuit"):
-                assert bs.tests, p
-            else:
-                assert bs.bench_kind == "stiffness" and bs.stiffness is not None, p
-            if bs.bench_kind == "circuit":
-                assert bs.circuit is not None and bs.circuit_bench is not None, p
+            # a device, its protocols and the rig's settings (the stiffness sweep with it)
+            assert bs.protocols and bs.rig in ("stand", "load") and not bs.notes, p
+            assert (bs.stiffness is not None) == ("stiffness" in bs.protocols
+                                                  and bs.rig == "stand"), p
+            assert (bs.load is not None) == (bs.rig == "load"), p
             continue
         sc = load_scenario(p)
         assert sc.name == p.stem

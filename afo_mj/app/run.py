@@ -432,15 +432,15 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
 
 def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
               figures: bool = True, *, recording=None) -> BenchRun:
-    """Run the bench scenario ``path``: the device on the ankle test stand (HAFO bench,
-    stiffness rig) or a circuit's bench protocols; with ``out_dir``, write ``summary.json``,
+    """Run the bench scenario ``path``: its protocols on its device, on the ankle test stand
+    or a simulated load; with ``out_dir``, write ``summary.json``,
     ``scenario.toml``, ``run_info.json`` and (``figures``) the bench figures. A walking
     scenario raises :class:`~afo_mj.app.errors.InvalidInput` (run it with
     :func:`run_scenario`)."""
     from afo_mj.experiments.bench_run import run_bench_scenario
     from afo_mj.outputs.gait_report import json_ready
     from afo_mj.outputs.result_dir import ResultDirError, write_atomically
-    from afo_mj.scenarios.bench_protocols import BenchError, CircuitBenchError
+    from afo_mj.scenarios.bench_protocols import BenchError
     from afo_mj.scenarios.bench_scenario import load_bench_scenario
     from afo_mj.scenarios.walk_scenario import ScenarioError
 
@@ -461,7 +461,7 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
     t0 = time.perf_counter()
     try:
         summary, series = run_bench_scenario(bs)
-    except (BenchError, CircuitBenchError, FloatingPointError) as exc:
+    except (BenchError, FloatingPointError) as exc:
         raise RunFailed(f"{bs.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
     if out_dir is None:
@@ -475,10 +475,10 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
         if not figures:
             return
         from afo_mj.outputs.bench_figures import plot_bench_series
-        plot_bench_series(bs.bench_kind, series, tmp, bs.name)
+        plot_bench_series(bs.rig, series, tmp, bs.name, summary.get("published"))
 
     from afo_mj.outputs.recording import write_bench_recording
-    rrd = _rrd_writer(recording, lambda f: None if bs.bench_kind == "circuit" else
+    rrd = _rrd_writer(recording, lambda f: None if bs.rig == "load" else
                       write_bench_recording(f, series, title=bs.name))
     try:
         out = write_atomically(out_dir, _chain(writer, rrd))
@@ -490,13 +490,13 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
 def record_run(res: WalkRun | DeviceWalkRun | BenchRun, path) -> dict | None:
     """Write the rerun recording of a finished run to ``path`` (``--rrd``): a walk's body
     and signals (every condition of a device walk), or a bench's time-domain experiments one
-    after another. Returns the writer's info (``path``, ``entities``), or None for a circuit
-    bench (no time-domain recording of its protocols yet). Raises
+    after another. Returns the writer's info (``path``, ``entities``), or None for a bench on
+    the simulated load (no time-domain recording of its protocols yet). Raises
     :class:`~afo_mj.app.errors.RunFailed` when the file cannot be written."""
     from afo_mj.outputs.recording import RecordingError, write_bench_recording
     try:
         if isinstance(res, BenchRun):
-            if res.bench.bench_kind == "circuit":
+            if res.bench.rig == "load":
                 return None
             return write_bench_recording(path, res.series, title=res.bench.name)
         return write_rrd(path, res.scenario, res.recorded_runs(), res.reference)

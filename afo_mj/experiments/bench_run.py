@@ -1,83 +1,111 @@
-"""A bench scenario run: the HAFO bench, the stiffness bench or a circuit bench, with the
-summary ``afo-mj run`` writes for it (the ``bench.*``, ``stiffness.*`` and ``ledger`` names
-documented in :mod:`afo_mj.scenarios.bench_scenario`)."""
+"""A bench run: one set of protocols on any device that drives a joint, on the rig its
+scenario names, with the summary ``afo-mj run`` writes (the ``bench.*``, ``stiffness.*`` and
+``ledger`` names documented in :mod:`afo_mj.scenarios.bench_scenario`).
+
+:func:`run_bench` takes a :class:`~afo_mj.circuits.device_spec.DeviceSpec` (a registered
+device, :func:`afo_mj.devices.registry.device_spec`; a ``[circuit]`` description,
+:meth:`DeviceSpec.from_circuit`; a scenario file's device,
+:func:`afo_mj.scenarios.device_source.device_source`) and the protocols; each protocol's needs
+are checked against the spec first (:func:`afo_mj.scenarios.bench_protocols.check_protocols`).
+"""
 
 from __future__ import annotations
 
+from afo_mj.scenarios.bench_protocols import (RIGS, BenchError, LoadBenchConfig,
+                                              StiffnessSweepConfig, check_protocols)
 from afo_mj.scenarios.bench_scenario import BenchScenario
 
-__all__ = ["run_bench_scenario"]
+__all__ = ["run_bench", "run_bench_scenario", "published_figures"]
+
+
+def run_bench(spec, protocols, rig: str = "stand", *, body_mass_kg: float = 75.0,
+              height_m: float = 1.75, timestep_s: float | None = None,
+              stiffness: StiffnessSweepConfig | None = None,
+              load: LoadBenchConfig | None = None) -> tuple[dict, dict]:
+    """Run ``protocols`` on device ``spec`` on ``rig``: the stand
+    (:func:`afo_mj.experiments.bench_stand.run_stand`: ``body_mass_kg``, ``height_m``,
+    ``timestep_s``, the ``stiffness`` sweep) or the simulated load
+    (:func:`afo_mj.experiments.bench_load.run_load_bench`: ``load`` settings). Returns that
+    rig's ``(result, series)``; a protocol the device cannot run raises
+    :class:`~afo_mj.scenarios.bench_protocols.ProtocolError` naming it, the device and what
+    the device lacks."""
+    if rig not in RIGS:
+        raise BenchError(f"rig = {rig!r}; allowed: {', '.join(RIGS)}")
+    protocols = (protocols,) if isinstance(protocols, str) else tuple(protocols)
+    check_protocols(spec, protocols, rig)
+    if rig == "load":
+        from afo_mj.experiments.bench_load import run_load_bench
+        return run_load_bench(spec, protocols, LoadBenchConfig() if load is None else load)
+    from afo_mj.experiments.bench_stand import run_stand
+    return run_stand(spec, protocols, body_mass_kg, height_m, timestep_s=timestep_s,
+                     stiffness=stiffness)
+
+
+def published_figures(spec) -> dict | None:
+    """The published figures a device is compared with: the HAFO prototype's
+    (:data:`afo_mj.experiments.bench_stand.PUBLISHED`) for the pump-controlled HAFO presets,
+    else None."""
+    from afo_mj.devices.hafo import PumpAnkleParams
+    from afo_mj.experiments.bench_stand import PUBLISHED
+    return dict(PUBLISHED) if isinstance(spec.params, PumpAnkleParams) else None
+
+
+def _device_summary(bs: BenchScenario) -> dict:
+    from afo_mj.circuits.device import CircuitDevice
+    spec = bs.spec
+    dev = CircuitDevice(spec)
+    out = {"preset": bs.preset, "name": spec.name,
+           "controller": spec.circuit.controller.kind,
+           "mass_total_kg": dev.mass_total_kg, "mass_at_ankle_kg": dev.mass_at_ankle_kg}
+    for key in ("max_torque_nm", "supply_pressure_set_pa"):
+        v = getattr(spec.params, key, None)
+        if v is not None:
+            out[key] = v
+    return out
 
 
 def run_bench_scenario(bs: BenchScenario) -> tuple[dict, dict]:
-    """Run the bench; returns ``(summary, series)`` with the ``bench.*`` names of issue 4
-    (``bench.kind = "stiffness"``: the ``stiffness.*`` names, module docstring)."""
-    if bs.bench_kind == "stiffness":
-        return _run_stiffness_bench(bs)
-    if bs.bench_kind == "circuit":
-        return _run_circuit_bench(bs)
-    from afo_mj.devices.hafo import HafoDevice
-    from afo_mj.experiments.hafo_bench import run_bench
-    res, series = run_bench(bs.params, bs.tests, bs.body_mass_kg, bs.height_m,
-                            timestep_s=bs.timestep_s)
-    # wall time is not a result (it goes to run_info.json): a rerun gives the same summary
-    res.pop("wall_time_s", None)
+    """Run the bench scenario; returns ``(summary, series)``. The summary holds ``format``,
+    ``scenario``, ``rig``, ``protocols``, ``device`` (its name, controller, masses), and
+
+    * on the stand: ``bench`` (the scalar figures, the ``bench.*`` names of issue 4),
+      ``bench_detail`` (per-level and per-run detail), ``published`` (the figures the
+      device is compared with, where there are), with the stiffness protocol ``stiffness``
+      (per ``k<K>``), ``sweep`` and ``acceptance``; ``energy.balance_error_rel``: the worst
+      ``|residual| / max(|input|, |mechanical out|)`` of any run;
+    * on the load: ``circuit`` (name, controller), ``bench`` (per protocol), ``ledger`` (per
+      run) and ``energy`` (the worst ledger residual over its throughput)."""
+    res, series = run_bench(bs.spec, bs.protocols, bs.rig, body_mass_kg=bs.body_mass_kg,
+                            height_m=bs.height_m, timestep_s=bs.timestep_s,
+                            stiffness=bs.stiffness, load=bs.load)
+    summary = {"format": "afo_mj bench summary v2", "scenario": bs.as_dict(), "rig": bs.rig,
+               "protocols": list(bs.protocols), "notes": list(bs.notes)}
+    if bs.rig == "load":
+        energy = res.pop("energy")
+        ledger = res.pop("ledger")
+        summary.update({"device": _device_summary(bs),
+                        "circuit": {"name": bs.spec.circuit.name,
+                                    "controller": bs.spec.circuit.controller.kind},
+                        "bench": res, "ledger": ledger, "energy": energy})
+        return summary, series
+    rig_keys = ("stiffness", "sweep", "acceptance")
     scalars = {k: v for k, v in res.items()
                if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    detail = {k: v for k, v in res.items() if k not in scalars and k != "published"}
-    dev = HafoDevice(bs.params)
-    summary = {
-        "format": "afo_mj bench summary v1",
-        "scenario": bs.as_dict(),
-        "bench": scalars,
-        "bench_detail": detail,
-        "published": res["published"],
-        "device": {"preset": bs.preset, "mass_total_kg": dev.mass_total_kg,
-                   "mass_at_ankle_kg": dev.mass_at_ankle_kg},
-        "energy": {"balance_error_rel": res["energy_error_max"],
-                   "note": "largest |residual| / max(|electrical in|, |mechanical out|) "
-                           "over every bench run"},
-    }
-    return summary, series
-
-
-def _run_stiffness_bench(bs: BenchScenario) -> tuple[dict, dict]:
-    from afo_mj.devices.valve_afo import ValveAfoDevice
-    from afo_mj.experiments.stiffness_bench import run_stiffness_bench
-    res, series = run_stiffness_bench(bs.params, bs.stiffness)
-    dev = ValveAfoDevice(bs.params)
-    worst = max(res["stiffness"].values(), key=lambda v: abs(v["energy_balance_error_rel"]))
-    summary = {
-        "format": "afo_mj stiffness bench summary v1",
-        "scenario": bs.as_dict(),
-        "stiffness": res["stiffness"],
-        "sweep": res["sweep"],
-        "acceptance": res["acceptance"],
-        "device": {"preset": bs.preset, "mass_total_kg": dev.mass_total_kg,
-                   "mass_at_ankle_kg": dev.mass_at_ankle_kg,
-                   "max_torque_nm": bs.params.max_torque_nm,
-                   "supply_pressure_set_pa": bs.params.supply_pressure_set_pa},
-        "energy": {"balance_error_rel": worst["energy_balance_error_rel"],
-                   "energy_error_max": res["energy_error_max"],
-                   "newton_unconverged_steps": sum(v["newton_unconverged_steps"]
-                                                   for v in res["stiffness"].values()),
-                   "battery_overload_steps": sum(v["battery_overload_steps"]
-                                                 for v in res["stiffness"].values()),
-                   "note": "balance_error_rel: the largest |ledger residual| / battery energy "
-                           "drawn over the sweeps; energy_error_max: the largest |residual| / "
-                           "max(|electrical in|, |mechanical out|)"},
-    }
-    return summary, series
-
-
-def _run_circuit_bench(bs: BenchScenario) -> tuple[dict, dict]:
-    from afo_mj.experiments.circuit_bench import run_circuit_bench
-    res, series = run_circuit_bench(bs.circuit, bs.tests, bs.circuit_bench)
-    energy = res.pop("energy")
-    ledger = res.pop("ledger")
-    summary = {"format": "afo_mj circuit bench summary v1",
-               "scenario": bs.as_dict(),
-               "circuit": {"name": bs.circuit.circuit.name,
-                           "controller": bs.circuit.circuit.controller.kind},
-               "bench": res, "ledger": ledger, "energy": energy}
+    detail = {k: v for k, v in res.items() if k not in scalars and k not in rig_keys}
+    summary.update({"bench": scalars, "bench_detail": detail, "device": _device_summary(bs)})
+    pub = published_figures(bs.spec)
+    if pub is not None:
+        summary["published"] = pub
+    energy = {"balance_error_rel": res["energy_error_max"],
+              "note": "largest |residual| / max(|input|, |mechanical out|) over every bench "
+                      "run"}
+    if "stiffness" in res:
+        per = res["stiffness"].values()
+        summary.update({k: res[k] for k in rig_keys})
+        energy.update(
+            stiffness_ledger_error_rel=max((v["energy_balance_error_rel"] for v in per),
+                                           key=abs),
+            newton_unconverged_steps=sum(v["newton_unconverged_steps"] for v in per),
+            battery_overload_steps=sum(v["battery_overload_steps"] for v in per))
+    summary["energy"] = energy
     return summary, series

@@ -1,8 +1,7 @@
-"""Figures of the bench experiments: the HAFO bench (torque-velocity, isometric steps,
-frequency response, position step) and the stiffness rig (torque-angle loops and time series),
-drawn from the ``series`` the experiments return (:mod:`afo_mj.experiments.hafo_bench`,
-:mod:`afo_mj.experiments.stiffness_bench`; circuit benches:
-:mod:`afo_mj.outputs.circuit_figures`).
+"""Figures of the bench experiments: on the stand (torque-velocity, isometric steps,
+frequency response, position step; the stiffness sweeps' torque-angle loops and time series),
+drawn from the ``series`` :func:`afo_mj.experiments.bench_stand.run_stand` returns; on the
+simulated load: :mod:`afo_mj.outputs.circuit_figures`.
 """
 
 from __future__ import annotations
@@ -15,7 +14,7 @@ from typing import Mapping
 import numpy as np
 
 from afo_mj.experiments.frequency_sweep import resonance_peak
-from afo_mj.experiments.hafo_bench import STROKE_LIMIT_RAD, PUBLISHED
+from afo_mj.experiments.bench_stand import STROKE_LIMIT_RAD
 from afo_mj.scenarios.bench_protocols import BenchError, StiffnessBenchError
 
 __all__ = ["plot_bench", "plot_stiffness_bench", "plot_bench_series"]
@@ -23,24 +22,33 @@ __all__ = ["plot_bench", "plot_stiffness_bench", "plot_bench_series"]
 _DEG = math.pi / 180.0
 
 
-def plot_bench_series(bench_kind: str, series: Mapping, out_dir, name: str) -> list:
-    """The figures of a bench run of kind ``bench_kind`` (``hafo``/``valve``, ``stiffness``,
-    ``circuit``) into ``out_dir``; returns the paths written."""
-    if bench_kind == "stiffness":
-        return plot_stiffness_bench(series, out_dir)
-    if bench_kind == "circuit":
+def plot_bench_series(rig: str, series: Mapping, out_dir, name: str,
+                      published: Mapping | None = None) -> list:
+    """The figures of a bench run on ``rig`` (``stand``: :func:`plot_bench` for the
+    protocols with time series, :func:`plot_stiffness_bench` for the stiffness sweeps;
+    ``load``: :func:`afo_mj.outputs.circuit_figures.plot_circuit_bench`) into ``out_dir``;
+    ``published``: figures to mark on the torque–velocity plot. Returns the paths written."""
+    if rig == "load":
         from afo_mj.outputs.circuit_figures import plot_circuit_bench
         return plot_circuit_bench(series, out_dir, name)
-    return plot_bench(series, out_dir)
+    paths = []
+    if any(k != "stiffness_sweeps" for k in series):
+        paths += plot_bench(series, out_dir, published)
+    if "stiffness_sweeps" in series:
+        paths += plot_stiffness_bench(series, out_dir)
+    return paths
 
 
 # -- the HAFO bench ----------------------------------------------------------------------
-def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[Path]:
-    """Write the bench figures present in ``series`` as PNGs into ``out_dir``; returns paths.
+def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir,
+               published: Mapping | None = None) -> list[Path]:
+    """Write the stand's figures present in ``series`` as PNGs into ``out_dir``; returns
+    paths (the file names keep the HAFO bench's, where they were first drawn).
 
-    ``hafo_torque_velocity.png`` (curve with the published 65 N·m stall / 105 deg/s no-load
-    points), ``hafo_isometric_steps.png``, ``hafo_bode.png`` (magnitude re low frequency and
-    phase, torque and velocity), ``hafo_position_step.png``.
+    ``hafo_torque_velocity.png`` (curve, with the ``published`` stall torque and no-load speed
+    when given: the HAFO prototype's 65 N·m / 105 deg/s), ``hafo_isometric_steps.png``,
+    ``hafo_bode.png`` (magnitude re low frequency and phase, torque and velocity),
+    ``hafo_position_step.png``.
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -64,10 +72,11 @@ def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[
         tv = series["torque_velocity"]
         fig, ax = plt.subplots(figsize=(6, 4.2))
         ax.plot(tv["plantarflexion_speed_deg_s"], tv["assist_torque_nm"], "o-", label="model")
-        ax.plot([0.0], [PUBLISHED["stall_torque_nm"]], "r*", ms=13,
-                label="published 65 N·m stall")
-        ax.plot([PUBLISHED["no_load_speed_deg_s"]], [0.0], "rs", ms=9,
-                label="published 105 deg/s no load")
+        if published:
+            ax.plot([0.0], [published["stall_torque_nm"]], "r*", ms=13,
+                    label=f"published {published['stall_torque_nm']:g} N·m stall")
+            ax.plot([published["no_load_speed_deg_s"]], [0.0], "rs", ms=9,
+                    label=f"published {published['no_load_speed_deg_s']:g} deg/s no load")
         if "no_load" in series:
             nl = series["no_load"]
             t = nl["time_s"]
@@ -78,7 +87,7 @@ def plot_bench(series: Mapping[str, Mapping[str, np.ndarray]], out_dir) -> list[
         ax.axhline(0, color="0.6", lw=0.8)
         ax.set_xlabel("plantarflexion speed [deg/s]")
         ax.set_ylabel("plantarflexion torque [N·m]")
-        ax.set_title("HAFO torque–velocity at full motor voltage")
+        ax.set_title("Torque–velocity at full motor voltage")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         save(fig, "hafo_torque_velocity.png")
@@ -153,7 +162,8 @@ def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
     * ``stiffness_loops.png``: torque vs angle loops per commanded stiffness (solid) with the
       commanded spring lines τ = −K (θ − θ0) (dashed);
     * ``stiffness_timeseries.png`` (when the series carries the device log, as
-      :func:`run_stiffness_bench`'s does): one column per commanded stiffness against time:
+      :func:`~afo_mj.experiments.bench_stand.stiffness_sweeps`' does): one column per
+      commanded stiffness against time:
       commanded vs delivered torque (N·m, + dorsiflexing) with the imposed ankle angle (deg,
       right axis); pressures (bar, gauge: supply rail, pump outlet, cylinder chambers A
       and B); servo-valve spool position and command (normalised, ± 1 = full stroke). Shaded:
@@ -166,7 +176,7 @@ def plot_stiffness_bench(series: Mapping, out_dir) -> list[Path]:
     sweeps = series.get("stiffness_sweeps") if isinstance(series, Mapping) else None
     if not sweeps:
         raise StiffnessBenchError("series has no 'stiffness_sweeps'; allowed: the series of "
-                                  "run_stiffness_bench")
+                                  "stiffness_sweeps")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
@@ -231,6 +241,8 @@ def _plot_stiffness_timeseries(sweeps: Mapping, path: Path) -> None:
                                    ("pump_pa", "pump outlet", "C1", ":"),
                                    ("chamber_a_pa", "chamber A", "C4", "-"),
                                    ("chamber_b_pa", "chamber B", "C5", "-")):
+            if name not in s:          # a signal this device does not log
+                continue
             x = np.asarray(s[name])
             ax.plot(t if x.size == t.size else s["time_s"], x / 1e5, ls, color=col, lw=1.2,
                     label=lbl)
@@ -238,8 +250,10 @@ def _plot_stiffness_timeseries(sweeps: Mapping, path: Path) -> None:
             h, lb = ax.get_legend_handles_labels()
             handles, labels = handles + h, labels + [f"{x} pressure" for x in lb]
         ax = axes[2, j]
-        ax.plot(t, s["valve_command"], "--", color="0.3", lw=1.0, label="valve command")
-        ax.plot(t, s["valve_position"], color="C2", lw=1.2, label="valve spool position")
+        if "valve_command" in s:
+            ax.plot(t, s["valve_command"], "--", color="0.3", lw=1.0, label="valve command")
+        if "valve_position" in s:
+            ax.plot(t, s["valve_position"], color="C2", lw=1.2, label="valve spool position")
         if j == 0:
             h, lb = ax.get_legend_handles_labels()
             handles, labels = handles + h, labels + lb

@@ -4,7 +4,7 @@
   delivered ankle torque over the last strides, every pressure node of the circuit, and the
   motor current (the circuit's generic log: states and probes by name).
 * :func:`plot_circuit_bench` — one PNG per bench protocol from
-  :func:`afo_mj.experiments.circuit_bench.run_circuit_bench`'s series.
+  :func:`afo_mj.experiments.bench_load.run_load_bench`'s series.
 """
 
 from __future__ import annotations

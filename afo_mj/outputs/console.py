@@ -265,21 +265,17 @@ def sweep_outcome_lines(rows) -> list[str]:
 
 
 def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
-    """A bench run: the HAFO bench's figures against the published ones, the stiffness rig's
-    table, or a circuit bench's protocols."""
-    if bench.bench_kind == "circuit":
-        return circuit_bench_lines(bench, summary, wall_time_s, out)
-    lines = [f"afo_mj bench: {bench.name}, preset {bench.preset} ({wall_time_s:.1f} s wall)"]
-    if bench.bench_kind == "stiffness":
-        lines += format_stiffness_summary(summary)
-        lines.append(f"  mass {summary['device']['mass_total_kg']:.2f} kg worn; worst energy "
-                     f"balance error {100 * summary['energy']['balance_error_rel']:.2e} %")
-        lines += [f"  {w}" for w in
-                  solver_warnings(summary["energy"].get("newton_unconverged_steps"))
-                  + battery_warnings(summary["energy"].get("battery_overload_steps"))]
-        lines.append(f"  results: {out}")
-        return lines
-    b, pub = summary["bench"], summary["published"]
+    """A bench run: on the stand, the figures of its protocols (against the published ones
+    where the device has them) and the stiffness sweeps' table; on the simulated load, each
+    protocol's headline figure (:func:`circuit_bench_lines`). Deprecated scenario forms read
+    are noted first."""
+    notes = [f"  note: {n}" for n in summary.get("notes", ())]
+    if summary.get("rig") == "load":
+        lines = circuit_bench_lines(bench, summary, wall_time_s, out)
+        return lines[:1] + notes + lines[1:]
+    lines = [f"afo_mj bench: {bench.name}, preset {bench.preset} on the stand "
+             f"({wall_time_s:.1f} s wall)"] + notes
+    b, pub = summary["bench"], summary.get("published") or {}
     rows = (("stall_torque_nm", "N*m", ".1f", pub.get("stall_torque_nm")),
             ("no_load_speed_deg_s", "deg/s", ".1f", pub.get("no_load_speed_deg_s")),
             ("rise_time_s", "s (40 N*m isometric step, 10-90 %)", ".4f", None),
@@ -291,9 +287,16 @@ def bench_lines(bench, summary: Mapping, wall_time_s: float, out) -> list[str]:
         if key in b:
             extra = f" (published {ref:g})" if ref is not None else ""
             lines.append(f"  {key:32s} {b[key]:{fmt}} {unit}{extra}")
-    lines.append(f"  mass {summary['device']['mass_total_kg']:.2f} kg in all, "
-                 f"{summary['device']['mass_at_ankle_kg']:.2f} kg at the ankle; worst energy "
-                 f"balance error {100 * summary['energy']['balance_error_rel']:.3f} %")
+    if "stiffness" in summary:
+        lines += format_stiffness_summary(summary)
+    d, e = summary["device"], summary["energy"]
+    mass = ("masses not modelled" if d.get("mass_total_kg") is None else
+            f"mass {d['mass_total_kg']:.2f} kg in all, {d['mass_at_ankle_kg']:.2f} kg at the "
+            "ankle")
+    lines.append(f"  {mass}; worst energy balance error "
+                 f"{100 * e['balance_error_rel']:.2e} %")
+    lines += [f"  {w}" for w in solver_warnings(e.get("newton_unconverged_steps"))
+              + battery_warnings(e.get("battery_overload_steps"))]
     lines.append(f"  results: {out}")
     return lines
 
@@ -343,8 +346,9 @@ def format_stiffness_summary(summary: Mapping) -> list[str]:
              f"{'[J/cycle]':>9s} {'[-]':>6s} {'[N*m]':>11s} {'[N*m]':>7s} "
              f"{'[MPa]':>17s} {'[J]':>10s} {'[W]':>5s} {'err [%]':>8s}"]
     for v in summary["stiffness"].values():
-        pr = (f"{v['peak_load_pressure_pa'] / 1e6:.2f}/{v['peak_chamber_pressure_pa'] / 1e6:.2f}/"
-              f"{v['peak_supply_pressure_pa'] / 1e6:.2f}")
+        pr = "/".join("-" if v.get(k) is None else f"{v[k] / 1e6:.2f}"
+                      for k in ("peak_load_pressure_pa", "peak_chamber_pressure_pa",
+                                "peak_supply_pressure_pa"))
         lines.append(
             f"  {v['commanded_nm_per_deg']:10.3g} {v['emulated_nm_per_deg']:9.4g} "
             f"{100 * v['error_rel']:+6.2f} {v['r_squared']:6.4f} "

@@ -1,15 +1,27 @@
-"""What a bench scenario may ask for: the protocols of each bench and their settings, checked.
+"""The bench's vocabulary: its protocols, what each needs of a device, the rigs, the settings.
 
-The vocabulary the bench-scenario parser (:mod:`afo_mj.scenarios.bench_scenario`) validates
-against and the experiments (:mod:`afo_mj.experiments.hafo_bench`,
-:mod:`afo_mj.experiments.stiffness_bench`, :mod:`afo_mj.experiments.circuit_bench`) run:
+One set of bench protocols runs on any device that drives a joint: a registered device
+(:mod:`afo_mj.devices.registry`) or a user's ``[circuit]`` description, both seen as a
+:class:`~afo_mj.circuits.device_spec.DeviceSpec`. Each protocol (:data:`PROTOCOLS`) declares
+what it needs of the device (:data:`NEEDS`): a torque controller (a torque reference drives
+it), an open-loop motor voltage that moves the joint (a pump-controlled circuit), a PWM valve
+duty (an on/off-valve circuit). :func:`device_capabilities` reads those from the spec (never
+from a preset's name) and :func:`protocol_problem` refuses a protocol the device cannot run,
+naming the protocol, the device and what it lacks.
 
-* the HAFO bench's tests (:data:`BENCH_TESTS`);
-* the stiffness bench's sweep (:class:`StiffnessSweepConfig`, built by :func:`sweep_config`,
-  which checks each value and the device's torque limit);
-* the circuit bench's protocols (:data:`PROTOCOLS`), its settings
-  (:class:`CircuitBenchConfig`) and which protocols a given circuit can run
-  (:func:`protocol_problem`).
+A protocol runs on one of two rigs (:data:`RIGS`), the load the joint drives:
+
+* ``stand`` — the MuJoCo ankle test stand (:class:`afo_mj.human.test_stand.AnkleTestStand`): a
+  wearer's foot with its weight, locked, free, on a spring or moved by a position drive; the
+  device steps with it through the coupled protocol. Settings: ``timestep_s``,
+  ``body_mass_kg``, ``height_m`` and the stiffness sweep (:class:`StiffnessSweepConfig`).
+* ``load`` — a simulated load inside the compiled circuit: an inertia on a torsional spring
+  and damper, or the joint motion imposed (:meth:`afo_mj.circuits.device.CircuitDevice.run_load`,
+  ``run_imposed``). Settings: :class:`LoadBenchConfig`.
+
+:data:`RIG_PROTOCOLS` says which protocols each rig has. The experiments are
+:mod:`afo_mj.experiments.bench_stand` and :mod:`afo_mj.experiments.bench_load`, dispatched by
+:func:`afo_mj.experiments.bench_run.run_bench`.
 """
 
 from __future__ import annotations
@@ -18,25 +30,57 @@ import dataclasses
 import math
 from typing import Sequence
 
-__all__ = ["BENCH_TESTS", "BenchError", "StiffnessBenchError", "StiffnessSweepConfig",
-           "stiffness_label", "sweep_config", "PROTOCOLS", "TORQUE_CONTROLLERS",
-           "DIGITAL_CONTROLLERS", "CircuitBenchError", "CircuitBenchConfig", "motor_component",
-           "protocol_problem", "check_protocols"]
+__all__ = ["PROTOCOLS", "RIGS", "RIG_PROTOCOLS", "NEEDS", "NEED_TEXT", "STAND_DEFAULT_PROTOCOLS",
+           "LOAD_DEFAULT_PROTOCOLS", "BenchError", "ProtocolError", "StiffnessBenchError",
+           "StiffnessSweepConfig", "stiffness_label", "sweep_config", "LoadBenchConfig",
+           "TORQUE_CONTROLLERS", "DIGITAL_CONTROLLERS", "motor_component", "joint_actuator",
+           "stroke_limits_rad", "bus_voltage_v", "bench_spec",
+           "device_capabilities", "protocol_problem", "check_protocols"]
 
 _DEG = math.pi / 180.0
 
-# -- the HAFO bench ----------------------------------------------------------------------------
-#: the HAFO bench's tests, in the order they run
-BENCH_TESTS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step")
+#: every bench protocol, in the order a bench runs them
+PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
+             "stiffness", "tracking", "flow_vs_duty")
+#: the loads a protocol can drive (module docstring)
+RIGS = ("stand", "load")
+#: the protocols each rig has
+RIG_PROTOCOLS = {"stand": ("torque_velocity", "isometric_steps", "frequency_response",
+                           "position_step", "stiffness"),
+                 "load": PROTOCOLS}
+#: the protocols a bench runs when its scenario names none: the stand's published tests,
+#: the load's open-loop pair
+STAND_DEFAULT_PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response",
+                           "position_step")
+LOAD_DEFAULT_PROTOCOLS = ("torque_velocity", "frequency_response")
+#: what each protocol needs of the device (keys of :data:`NEED_TEXT`); every protocol also
+#: needs an actuator on the joint (``joint``)
+NEEDS = {"torque_velocity": ("motor_voltage",), "isometric_steps": ("torque",),
+         "frequency_response": ("motor_voltage",), "position_step": ("torque",),
+         "stiffness": ("torque",), "tracking": ("torque",), "flow_vs_duty": ("valve_duty",)}
+NEED_TEXT = {
+    "joint": "an actuator on the joint",
+    "torque": "a torque controller (a torque reference drives it)",
+    "motor_voltage": "an open-loop motor-voltage command that moves the joint (a "
+                     "pump-controlled circuit)",
+    "valve_duty": "a PWM duty command of on/off metering valves (controller "
+                  "digital_valve_torque with its valve_command_on switch)"}
+#: controller kinds that take a joint-torque command
+TORQUE_CONTROLLERS = ("pump_torque", "servo_valve_torque", "digital_valve_torque")
+#: controllers of a circuit metered by PWM on/off valves (``flow_vs_duty``)
+DIGITAL_CONTROLLERS = ("digital_valve_torque",)
 
 
 class BenchError(ValueError):
-    """A bench argument outside what the test allows."""
+    """A bench argument outside what the protocol allows."""
 
 
-# -- the stiffness bench -----------------------------------------------------------------------
+class ProtocolError(BenchError):
+    """A protocol the device cannot run, or a bench setting it cannot honour."""
+
+
 class StiffnessBenchError(BenchError):
-    """A stiffness-bench argument outside what the bench allows."""
+    """A stiffness-sweep argument outside what the sweep allows."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,22 +169,12 @@ def sweep_config(stiffnesses_nm_per_rad: Sequence[float], amplitude_rad: float =
     return StiffnessSweepConfig(ks, amp, f, int(cycles), b, rest, dt, mass, height)
 
 
-# -- the circuit bench -------------------------------------------------------------------------
-PROTOCOLS = ("torque_velocity", "isometric_steps", "frequency_response", "position_step",
-             "stiffness", "flow_vs_duty", "tracking")
-#: controller kinds that take a joint-torque command
-TORQUE_CONTROLLERS = ("pump_torque", "servo_valve_torque", "digital_valve_torque")
-#: controllers of a circuit metered by PWM on/off valves (``flow_vs_duty``)
-DIGITAL_CONTROLLERS = ("digital_valve_torque",)
-
-
-class CircuitBenchError(ValueError):
-    """A protocol the circuit cannot run, or a bench setting out of range."""
-
-
+# -- the simulated-load rig --------------------------------------------------------------
 @dataclasses.dataclass(frozen=True)
-class CircuitBenchConfig:
-    """Bench settings (SI). Defaults are a foot-sized load and the protocols' lengths."""
+class LoadBenchConfig:
+    """The simulated-load rig's settings (SI): the load and the protocols' lengths.
+    Defaults are a foot-sized load; a scenario's ``[bench]`` keys are checked against
+    :data:`afo_mj.scenarios.bench_scenario.LOAD_BENCH` before they get here."""
 
     timestep_s: float = 1e-4
     load_inertia_kg_m2: float = 0.05
@@ -183,45 +217,111 @@ def motor_component(circuit):
     return None
 
 
-def protocol_problem(circuit, test: str) -> str | None:
-    """Why ``circuit`` cannot run protocol ``test`` (None: it can)."""
-    if test not in PROTOCOLS:
-        return f"unknown protocol {test!r}; allowed: {', '.join(PROTOCOLS)}"
-    ctrl = circuit.controller.kind
-    motor = motor_component(circuit)
-    valves = [c.name for c in circuit.components
-              if c.kind in ("servo_valve", "onoff_valve")]
-    if test in ("torque_velocity", "frequency_response"):
-        if motor is None or motor.kind != "motor":
-            return (f"{test} drives the motor voltage open loop; circuit {circuit.name!r} has "
-                    "no motor as its actuated component")
-        if valves:
-            return (f"{test} drives the motor voltage open loop, which moves the joint only "
-                    f"in a pump-controlled circuit; in circuit {circuit.name!r} the motor "
-                    f"feeds the valve(s) {', '.join(valves)} (controller {ctrl!r}): run "
-                    "isometric_steps, position_step, stiffness, tracking or flow_vs_duty")
-        return None
-    if test == "flow_vs_duty":
-        if ctrl in DIGITAL_CONTROLLERS:
-            return None
-        act = motor.name if motor is not None else "nothing"
-        kind = motor.kind if motor is not None else "-"
-        return (f"flow_vs_duty needs a valve (PWM duty) as the actuated input: on/off valves "
-                f"under controller {' | '.join(repr(c) for c in DIGITAL_CONTROLLERS)}; "
-                f"circuit {circuit.name!r} is actuated by {act!r} ({kind}) through "
-                f"controller {ctrl!r}")
-    if ctrl not in TORQUE_CONTROLLERS:
-        what = {"stiffness": "an impedance-capable (torque-commanded) controller"}.get(
-            test, "a torque controller")
-        return (f"{test} needs {what} (circuit.controller.kind = "
-                f"{' | '.join(repr(c) for c in TORQUE_CONTROLLERS)}); circuit "
-                f"{circuit.name!r} has controller {ctrl!r}, which passes the command through "
-                "as the motor voltage")
+def joint_actuator(circuit):
+    """The component on the joint node (the cylinders that turn pressure into joint torque),
+    None if the circuit drives no joint."""
+    for c in circuit.components:
+        if "joint" in c.ports:
+            return c
     return None
 
 
-def check_protocols(circuit, tests) -> None:
-    for t in tests:
-        why = protocol_problem(circuit, t)
+def stroke_limits_rad(circuit) -> tuple[float, float]:
+    """Joint angles at the joint actuator's end stops ``(plantarflexion, dorsiflexion)``
+    (pulley cylinders: half the stroke over the pulley radius; a spring-return cylinder on a
+    lever: ``x = x0 − r θ`` in ``[0, stroke]``); ±0.5 rad for another actuator."""
+    a = joint_actuator(circuit)
+    if a is None:
+        raise ProtocolError(f"circuit {circuit.name!r} drives no joint")
+    p = a.params
+    if a.kind == "pulley_cylinders":
+        half = 0.5 * p.cylinder.stroke_m / p.pulley_radius_m
+        return -half, half
+    if a.kind == "spring_return_cylinder":
+        r = p.moment_arm_m
+        return (p.neutral_position_m - p.cylinder.stroke_m) / r, p.neutral_position_m / r
+    return -0.5, 0.5
+
+
+def bus_voltage_v(circuit) -> float:
+    """Bus voltage at full charge: the battery's ``4.2 V × cells``, or the bench supply."""
+    for c in circuit.components:
+        if c.kind == "battery":
+            return 4.2 * c.params.battery.cells_series
+    return circuit.options.supply_voltage_v
+
+
+def device_capabilities(spec) -> dict[str, str | None]:
+    """What device ``spec`` (a :class:`~afo_mj.circuits.device_spec.DeviceSpec`) offers a
+    bench: need (:data:`NEED_TEXT`) → None when it has it, else why not (one clause)."""
+    circuit = spec.circuit
+    ctrl = circuit.controller.kind
+    caps: dict[str, str | None] = {}
+    caps["joint"] = (None if joint_actuator(circuit) is not None
+                     else f"no component of circuit {circuit.name!r} is on the joint node")
+    caps["torque"] = (None if spec.torque_controlled and ctrl in TORQUE_CONTROLLERS else
+                      f"its controller {ctrl!r} takes no torque reference (it passes the "
+                      "command through as the motor voltage)")
+    motor = motor_component(circuit)
+    valves = [c.name for c in circuit.components if c.kind in ("servo_valve", "onoff_valve")]
+    if spec.open_loop_channel == "motor_voltage_v":
+        caps["motor_voltage"] = None
+    elif motor is None or motor.kind != "motor":
+        caps["motor_voltage"] = "no motor is its actuated component"
+    elif valves:
+        caps["motor_voltage"] = (f"its motor feeds the valve(s) {', '.join(valves)} "
+                                 f"(controller {ctrl!r}): the motor voltage sets the supply, "
+                                 "not the joint")
+    else:
+        caps["motor_voltage"] = None      # pump-controlled: the bench drives it open loop
+    caps["valve_duty"] = (None if ctrl in DIGITAL_CONTROLLERS else
+                          f"its controller {ctrl!r} meters no on/off valves by PWM "
+                          + (f"(its valve command, {spec.open_loop_channel}, moves a "
+                             "proportional valve)" if spec.open_loop_channel == "valve_command"
+                             else "(it has no valve command)"))
+    return caps
+
+
+def bench_spec(spec):
+    """``spec`` with an open-loop motor-voltage variant where the bench can drive one and the
+    spec has none: a pump-controlled description under a torque controller gets the same
+    components under ``open_loop`` (the motor voltage is then the command; what
+    :func:`device_capabilities` offers as ``motor_voltage``)."""
+    if spec.open_loop_channel is not None or device_capabilities(spec)["motor_voltage"]:
+        return spec
+    from afo_mj.circuits.controllers import OpenLoop
+    from afo_mj.scenarios.circuit_scenario import with_controller
+    return dataclasses.replace(spec, open_loop_circuit=with_controller(spec.circuit, OpenLoop()),
+                               open_loop_channel="motor_voltage_v")
+
+
+def protocol_problem(spec, protocol: str, rig: str = "load") -> str | None:
+    """Why device ``spec`` cannot run ``protocol`` on ``rig`` (None: it can): the protocol,
+    the device and what it lacks, named."""
+    if protocol not in PROTOCOLS:
+        return f"unknown bench protocol {protocol!r}; allowed: {', '.join(PROTOCOLS)}"
+    if rig not in RIGS:
+        return f"bench.rig = {rig!r}; allowed: {', '.join(RIGS)}"
+    if protocol not in RIG_PROTOCOLS[rig]:
+        other = [r for r in RIGS if protocol in RIG_PROTOCOLS[r]]
+        return (f"bench protocol {protocol!r} has no {rig} rig; allowed on the {rig} rig: "
+                f"{', '.join(RIG_PROTOCOLS[rig])} ({protocol} runs with bench.rig = "
+                + " | ".join(repr(r) for r in other) + ")")
+    caps = device_capabilities(spec)
+    for need in ("joint",) + NEEDS[protocol]:
+        why = caps[need]
         if why:
-            raise CircuitBenchError(why)
+            can = [p for p in RIG_PROTOCOLS[rig]
+                   if all(caps[n] is None for n in ("joint",) + NEEDS[p])]
+            return (f"bench protocol {protocol!r} cannot run on device {spec.name!r}: it needs "
+                    f"{NEED_TEXT[need]}; device {spec.name!r} lacks it: {why}. Allowed for "
+                    f"this device on the {rig} rig: {', '.join(can) or 'none'}")
+    return None
+
+
+def check_protocols(spec, protocols: Sequence[str], rig: str = "load") -> None:
+    """Raise :class:`ProtocolError` for the first protocol ``spec`` cannot run on ``rig``."""
+    for p in protocols:
+        why = protocol_problem(spec, p, rig)
+        if why:
+            raise ProtocolError(why)

@@ -104,11 +104,7 @@ def device_source(source: str, overrides: Sequence[str] = ()) -> tuple[DeviceSpe
     if rig is not None:
         return DeviceSpec.from_circuit(rig), str(path)
     if is_bench_document(text):
-        bs = load_bench_scenario(path, overrides=overrides)
-        if bs.circuit is not None:
-            return DeviceSpec.from_circuit(bs.circuit.circuit), str(path)
-        from afo_mj.devices.registry import spec_of_params
-        return spec_of_params(bs.preset, bs.params, key=f"{src}: device.preset"), str(path)
+        return load_bench_scenario(path, overrides=overrides).spec, str(path)
     cfg = device_config(load_scenario(path, overrides=overrides))
     if cfg is None:
         raise ScenarioError(f"{src}: the scenario wears no device (no [circuit] and no "

@@ -1,17 +1,21 @@
-"""Bench protocols for any circuit description that drives a joint (issue 18 item 3).
+"""The bench protocols on a simulated load (the ``load`` rig), for any device spec.
 
-The HAFO bench (:mod:`afo_mj.experiments.hafo_bench`) drives the preset devices on the MuJoCo
-ankle test stand; these protocols drive a compiled circuit
-(:class:`afo_mj.circuits.device.CircuitDevice`) against a simulated load: a foot inertia
-``J`` on a torsional spring ``K`` and damper ``c`` (``run_load``), the joint motion imposed
-(``run_imposed``: a locked ankle, a constant velocity, a sinusoid), or, for the closed
-position loop, the same inertia stepped with the device's coupled protocol.
+The stand rig (:mod:`afo_mj.experiments.bench_stand`) drives a device on the MuJoCo ankle
+test stand; here the device's compiled circuit (:class:`afo_mj.circuits.device.CircuitDevice`
+of its :class:`~afo_mj.circuits.device_spec.DeviceSpec`: a registered device with its initial
+state and named ledger, or a ``[circuit]`` description) drives a simulated load: a foot
+inertia ``J`` on a torsional spring ``K`` and damper ``c`` (``run_load``), the joint motion
+imposed (``run_imposed``: a locked ankle, a constant velocity, a sinusoid), or, for the
+closed position loop, the same inertia stepped with the device's coupled protocol.
 
-Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
+Protocols (:data:`~afo_mj.scenarios.bench_protocols.PROTOCOLS`) and what they need of the
+device (:data:`~afo_mj.scenarios.bench_protocols.NEEDS`, refused by :func:`run_load_bench`
+naming the protocol, the device and what it lacks):
 
-* ``torque_velocity`` — a motor-driven circuit (its controller is replaced by ``open_loop``:
-  full motor voltage ``1.25 × V_bus``, which the driver clips to ``duty_max V_bus``, reached
-  through a 50 ms ramp). Stall torque ``= −mean(τ)`` over the last 40 % of a locked run
+* ``torque_velocity`` — an open-loop motor voltage (the device's open-loop variant; a
+  pump-controlled description's controller is replaced by ``open_loop``): full motor
+  voltage ``1.25 × V_bus``, which the driver clips to ``duty_max V_bus``, reached
+  through a 50 ms ramp. Stall torque ``= −mean(τ)`` over the last 40 % of a locked run
   (0.4 s, lengthened to 1.5 s then 4 s until that window changes by under 1 %:
   ``stall_settled``);
   no-load speed ``= −mean(θ̇)`` of the free inertia (no spring) from 0.1 s until it passes
@@ -55,7 +59,14 @@ Protocols (:data:`PROTOCOLS`) and what they need of the circuit:
   0.01 kg m², 0.338 with 0.001 kg m²). The PWM period must be a whole number of steps.
 * ``tracking`` — a torque controller: a Zhang et al. (2017) profile (peak
   ``tracking_peak_torque_nm``) commanded on a load moved through ``θ = A sin 2πft`` (one
-  profile per cycle); RMSE of delivered − commanded torque over all cycles but the first.
+  profile per cycle); RMSE of delivered − commanded torque over all cycles but the first, and
+  the energy over those cycles per cycle: the run's ledger less that of a second run of the
+  first cycle alone (the same device from the same state under the same inputs: its first
+  cycle is the first cycle of the whole run), giving ``electrical_j_per_cycle`` (drawn from
+  the source), ``electrical_net_j_per_cycle``, ``mechanical_j_per_cycle`` (net work on the
+  ankle), ``losses_j_per_cycle`` and ``stored_change_j_per_cycle`` (the device's named
+  ledger, else by component), ``hydraulic_j_per_cycle`` (a named ledger's pump output),
+  ``efficiency_mechanical`` = mechanical / drawn, ``efficiency_hydraulic`` = hydraulic / drawn.
 
 Every run's energy ledger is reported (``ledger.<run>``: ``balance_error_rel``); the
 summary's ``energy.balance_error_rel`` is the worst and ``energy.ledger_closed`` says whether
@@ -71,68 +82,38 @@ import math
 
 import numpy as np
 
+from afo_mj.circuits.device_spec import DeviceSpec
 from afo_mj.experiments.frequency_sweep import adaptive_log_sweep, resonance_peak
 from afo_mj.metrics.response_metrics import sine_response, step_metrics
-from afo_mj.scenarios.bench_protocols import (CircuitBenchConfig, CircuitBenchError,
-                                              check_protocols)
+from afo_mj.scenarios.bench_protocols import (LOAD_DEFAULT_PROTOCOLS, RIG_PROTOCOLS,
+                                              BenchError, LoadBenchConfig, ProtocolError,
+                                              bench_spec, bus_voltage_v, check_protocols,
+                                              joint_actuator, stroke_limits_rad)
+
+__all__ = ["run_load_bench", "LEDGER_TOLERANCE"]
 
 LEDGER_TOLERANCE = 1e-9
 _RAMP_S = 0.05
 
 
-# -- what the circuit is ------------------------------------------------------------------------
-def actuator(circuit):
-    """The component on the joint node (it has ``torque_per_pa``)."""
-    for c in circuit.components:
-        if "joint" in c.ports:
-            return c
-    raise CircuitBenchError(f"circuit {circuit.name!r} drives no joint")
-
-
-def stroke_limits_rad(circuit) -> tuple[float, float]:
-    """Joint angles at the actuator's end stops ``(plantarflexion, dorsiflexion)``."""
-    a = actuator(circuit)
-    p = a.params
-    if a.kind == "pulley_cylinders":
-        half = 0.5 * p.cylinder.stroke_m / p.pulley_radius_m
-        return -half, half
-    if a.kind == "spring_return_cylinder":       # x = x0 − r θ in [0, stroke]
-        r = p.moment_arm_m
-        return (p.neutral_position_m - p.cylinder.stroke_m) / r, p.neutral_position_m / r
-    return -0.5, 0.5
-
-
-def bus_voltage_v(circuit) -> float:
-    """Bus voltage at full charge: the battery's ``4.2 V × cells``, or the bench supply."""
-    for c in circuit.components:
-        if c.kind == "battery":
-            return 4.2 * c.params.battery.cells_series
-    return circuit.options.supply_voltage_v
+def _no_command(t, q, w):
+    """The coupled-step command of a device whose replay loops take theirs per sample."""
+    return 0.0
 
 
 # -- runs ---------------------------------------------------------------------------------------
 class _Bench:
-    def __init__(self, cc, cfg: CircuitBenchConfig):
-        from afo_mj.circuits.codegen import build
-        from afo_mj.circuits.controllers import OpenLoop
-        from afo_mj.scenarios.circuit_scenario import with_controller
-        self.cc, self.cfg = cc, cfg
-        self.circuit = cc.circuit
-        self._open = None
-        self._open_factory = lambda: build(with_controller(self.circuit, OpenLoop()))
+    def __init__(self, spec: DeviceSpec, cfg: LoadBenchConfig):
+        self.spec, self.cfg = bench_spec(spec), cfg
+        self.circuit = spec.circuit
         self.ledgers: dict = {}
 
-    @property
-    def open_loop(self):
-        if self.circuit.controller.kind == "open_loop":
-            return self.cc
-        if self._open is None:
-            self._open = self._open_factory()
-        return self._open
-
-    def _dev(self, cc, **kw):
+    def _dev(self, open_loop=False, **kw):
         from afo_mj.circuits.device import CircuitDevice
-        return CircuitDevice(cc, timestep_s=self.cfg.timestep_s, **kw)
+        if open_loop:
+            kw.setdefault("torque_fn", _no_command)
+        return CircuitDevice(self.spec, timestep_s=self.cfg.timestep_s, open_loop=open_loop,
+                             **kw)
 
     def _close(self, dev, label):
         led = dev.ledger()
@@ -142,10 +123,11 @@ class _Bench:
                                "peak_pressure_pa": led["peak_pressure_pa"],
                                "newton_unconverged_steps": led["newton_unconverged_steps"],
                                "battery_overload_steps": led["battery_overload_steps"]}
+        return led
 
-    def load(self, cc, cmd, label, stiffness=None, damping=None, theta0=0.0):
+    def load(self, open_loop, cmd, label, stiffness=None, damping=None, theta0=0.0):
         c = self.cfg
-        dev = self._dev(cc)
+        dev = self._dev(open_loop)
         log = dev.run_load(cmd, c.load_inertia_kg_m2,
                            c.load_stiffness_nm_rad if stiffness is None else stiffness,
                            c.load_damping_nm_s_rad if damping is None else damping,
@@ -153,11 +135,10 @@ class _Bench:
         self._close(dev, label)
         return log
 
-    def imposed(self, cc, cmd, angle, velocity, label):
-        dev = self._dev(cc)
+    def imposed(self, open_loop, cmd, angle, velocity, label):
+        dev = self._dev(open_loop)
         log = dev.run_imposed(cmd, angle, velocity)
-        self._close(dev, label)
-        return log
+        return log, self._close(dev, label)
 
     def t(self, duration_s):
         n = int(round(duration_s / self.cfg.timestep_s))
@@ -169,22 +150,22 @@ def _ramp(t, v):
 
 
 def torque_velocity(b: _Bench) -> tuple[dict, list]:
-    cc = b.open_loop
-    vfull = 1.25 * bus_voltage_v(b.circuit)
+    vfull = 1.25 * bus_voltage_v(b.spec.circuit_for(True))
     lo, hi = stroke_limits_rad(b.circuit)
     # a compliant circuit (an accumulator on the line) takes longer to reach its stall
     # pressure: the run is lengthened until the last 40 % changes by under 1 %
     for stall_s in (0.4, 1.5, 4.0):
         t = b.t(stall_s)
         z = np.zeros_like(t)
-        stall_log = b.imposed(cc, _ramp(t, vfull), z, z, f"torque_velocity.stall_{stall_s:g}s")
+        stall_log, _ = b.imposed(True, _ramp(t, vfull), z, z,
+                                 f"torque_velocity.stall_{stall_s:g}s")
         tail = stall_log["torque_nm"][int(0.6 * t.size):]
         stall = -float(np.mean(tail))
         settled = abs(tail[-1] - tail[0]) <= 0.01 * max(abs(stall), 1e-9)
         if settled:
             break
     t = b.t(0.6)
-    free = b.load(cc, _ramp(t, vfull), "torque_velocity.free", stiffness=0.0, damping=0.0)
+    free = b.load(True, _ramp(t, vfull), "torque_velocity.free", stiffness=0.0, damping=0.0)
     th, w = free["angle_rad"], free["velocity_rad_s"]
     win = (t >= 0.1) & (np.minimum.accumulate(th) > 0.8 * lo)
     if np.count_nonzero(win) < 10:
@@ -202,7 +183,7 @@ def torque_velocity(b: _Bench) -> tuple[dict, list]:
         ta = 0.04
         vel = np.where(s < ta, 0.5 * v * (1 - np.cos(np.pi * s / ta)), v)
         ang = th0 + np.concatenate(([0.0], np.cumsum(vel[:-1]) * b.cfg.timestep_s))
-        log = b.imposed(cc, _ramp(tt, vfull), ang, vel, f"torque_velocity.v{k}")
+        log, _ = b.imposed(True, _ramp(tt, vfull), ang, vel, f"torque_velocity.v{k}")
         sel = (s > ta + 0.05) & (ang > lo * 0.8)
         if not np.any(sel):
             sel = s > ta
@@ -227,7 +208,7 @@ def isometric_steps(b: _Bench) -> tuple[dict, list]:
     out, ys = {}, {}
     for tau in b.cfg.step_torques_nm:
         cmd = np.where(t >= t_step, -tau, 0.0)
-        log = b.imposed(b.cc, cmd, z, z, f"isometric_steps.{tau:g}nm")
+        log, _ = b.imposed(False, cmd, z, z, f"isometric_steps.{tau:g}nm")
         m = step_metrics(log["time_s"], -log["torque_nm"], tau, t_step + b.cfg.timestep_s)
         out[f"{tau:g}nm"] = {k: m[k] for k in ("rise_time_s", "overshoot_pct",
                                                "settling_time_s", "steady_state_error",
@@ -243,14 +224,13 @@ def isometric_steps(b: _Bench) -> tuple[dict, list]:
 
 
 def frequency_response(b: _Bench) -> tuple[dict, list]:
-    cc = b.open_loop
     c = b.cfg
 
     def measure(f: float) -> dict:
         dur = max(8.0 / f, 0.25)
         t = b.t(dur)
         u = c.voltage_amplitude_v * np.sin(2 * np.pi * f * t)
-        log = b.load(cc, u, f"frequency_response.{f:.4g}hz")
+        log = b.load(True, u, f"frequency_response.{f:.4g}hz")
         return sine_response(log["time_s"], u, -log["velocity_rad_s"], f, settle_cycles=3.0)
 
     freqs, results, refined = adaptive_log_sweep(measure, c.freq_min_hz, c.freq_max_hz,
@@ -290,7 +270,7 @@ def position_step(b: _Bench) -> tuple[dict, list]:
                              -c.torque_limit_nm, c.torque_limit_nm))
 
     n = int(round(c.position_duration_s / h))
-    dev = b._dev(b.cc, torque_fn=law, max_steps=n)
+    dev = b._dev(torque_fn=law, max_steps=n)
     th = np.zeros(2)
     w = np.zeros(2)
     stance = np.zeros(2, dtype=bool)
@@ -334,7 +314,7 @@ def stiffness(b: _Bench) -> tuple[dict, list]:
     keep = t >= 1.0 / f
     for k in c.stiffnesses_nm_rad:
         cmd = -k * (ang - rest)
-        log = b.imposed(b.cc, cmd, ang, vel, f"stiffness.k{k:g}")
+        log, _ = b.imposed(False, cmd, ang, vel, f"stiffness.k{k:g}")
         slope = float(np.polyfit(ang[keep], log["torque_nm"][keep], 1)[0])
         out[f"k{k:g}"] = {"commanded_nm_rad": k, "emulated_nm_rad": -slope,
                           "error_rel": (-slope - k) / k,
@@ -357,13 +337,36 @@ def tracking(b: _Bench) -> tuple[dict, list]:
     prof = asst.zhang_profile(c.tracking_peak_torque_nm, 52.9, 26.2, 9.8)
     phase = (t * f) % 1.0
     cmd = np.interp(phase, np.linspace(0.0, 1.0, len(prof)), prof)
-    log = b.imposed(b.cc, cmd, ang, vel, "tracking")
+    log, led = b.imposed(False, cmd, ang, vel, "tracking")
     keep = t >= 1.0 / f
     err = log["torque_nm"][keep] - cmd[keep]
+    # the first cycle alone, on a fresh device: its ledger is the whole run's at 1 / f
+    # (module docstring), so the difference is the ledger of the measured cycles
+    n1 = int(np.count_nonzero(~keep))
+    dev1 = b._dev()
+    dev1.run_imposed(cmd[:n1], ang[:n1], vel[:n1])
+    led0 = dev1.ledger()
+    ncm = c.tracking_cycles - 1
+
+    def per(key):
+        return None if key not in led else float(led[key] - led0[key]) / ncm
+
+    drawn = per("electrical_drawn_j") if "electrical_drawn_j" in led else per("input_drawn_j")
+    mech, hyd = per("mechanical_out_j"), per("hydraulic_j")
     return ({"rmse_nm": float(np.sqrt(np.mean(err ** 2))),
              "peak_commanded_nm": float(np.max(np.abs(cmd))),
              "peak_delivered_nm": float(np.max(np.abs(log["torque_nm"][keep]))),
-             "amplitude_rad": amp, "frequency_hz": f},
+             "amplitude_rad": amp, "frequency_hz": f, "cycles_measured": ncm,
+             "electrical_j_per_cycle": drawn,
+             "electrical_net_j_per_cycle": per("input_j"),
+             "mechanical_j_per_cycle": mech, "hydraulic_j_per_cycle": hyd,
+             "losses_j_per_cycle": {k: float(v - led0["losses_j"][k]) / ncm
+                                    for k, v in led["losses_j"].items()},
+             "stored_change_j_per_cycle": {k: float(v - led0["stored_change_j"][k]) / ncm
+                                           for k, v in led["stored_change_j"].items()},
+             "efficiency_mechanical": mech / drawn if drawn > 0 else math.nan,
+             "efficiency_hydraulic": (hyd / drawn if hyd is not None and drawn > 0
+                                      else math.nan)},
             [{"x": t[keep], "y": {"commanded": cmd[keep], "delivered": log["torque_nm"][keep]},
               "xlabel": "time [s]", "ylabel": "torque [N·m] (+ dorsiflexion)"},
              {"x": t[keep], "y": {"imposed angle": ang[keep]}, "xlabel": "time [s]",
@@ -372,7 +375,7 @@ def tracking(b: _Bench) -> tuple[dict, list]:
 
 def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
     c = b.cfg
-    cc = b.cc
+    cc = b._dev().cc
     ctrl = cc.circuit.controller
     # the controller's valve_command_on switch: the command is the metering fraction itself
     open_slot = cc.param_labels.index("controller.valve_command_on")
@@ -380,11 +383,11 @@ def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
     h = c.timestep_s
     spp = 1.0 / (f * h)
     if abs(spp - round(spp)) > 1e-6:
-        raise CircuitBenchError(f"bench.timestep_s = {h!r} does not divide the PWM period "
+        raise ProtocolError(f"bench.timestep_s = {h!r} does not divide the PWM period "
                                 f"{1.0 / f!r} s; allowed: a step with period / step an "
                                 "integer")
     spp = int(round(spp))
-    act = actuator(cc.circuit)
+    act = joint_actuator(cc.circuit)
     k_tau = act.torque_per_pa()
     lo, hi = stroke_limits_rad(cc.circuit)
     theta0 = 0.8 * hi
@@ -400,7 +403,7 @@ def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
                             "flow_fraction", "periods")}
     traces = {}
     for u in c.duties:
-        dev = b._dev(cc)
+        dev = b._dev()
         dev.P[:, open_slot] = 1.0
         dev.run_imposed(np.zeros_like(spin), np.full(spin.size, theta0), np.zeros_like(spin))
         n = int(round(c.flow_max_duration_s / h))
@@ -413,7 +416,7 @@ def flow_vs_duty(b: _Bench) -> tuple[dict, list]:
         end = past[0] if past.size else th.size
         periods = (end - spp) // spp
         if periods < 1:
-            raise CircuitBenchError(
+            raise ProtocolError(
                 f"flow_vs_duty: at duty {u:g} the ankle crosses 80 % of the stroke within "
                 f"{(end * h):.3g} s, less than two PWM periods ({2.0 / f:.3g} s); allowed: a "
                 "load that slows it (bench.load_damping_nm_s_rad, load_stiffness_nm_rad)")
@@ -452,14 +455,25 @@ _RUNNERS = {"torque_velocity": torque_velocity, "isometric_steps": isometric_ste
             "stiffness": stiffness, "tracking": tracking, "flow_vs_duty": flow_vs_duty}
 
 
-def run_circuit_bench(cc, tests, cfg: CircuitBenchConfig = CircuitBenchConfig()):
-    """Run ``tests`` on compiled circuit ``cc``; returns ``(summary, series)``: summary
-    ``{protocol: figures, "ledger": {run: …}, "energy": {...}}``, series ``{protocol:
-    [panels]}`` (:func:`afo_mj.outputs.circuit_figures.plot_circuit_bench`)."""
-    check_protocols(cc.circuit, tests)
-    b = _Bench(cc, cfg)
+def run_load_bench(spec: DeviceSpec, protocols=LOAD_DEFAULT_PROTOCOLS,
+                   cfg: LoadBenchConfig = LoadBenchConfig()) -> tuple[dict, dict]:
+    """Run ``protocols`` on device ``spec`` against the simulated load; returns ``(summary,
+    series)``: summary ``{protocol: figures, "ledger": {run: …}, "energy": {...}}``, series
+    ``{protocol: [panels]}`` (:func:`afo_mj.outputs.circuit_figures.plot_circuit_bench`).
+    A protocol the device cannot run is refused first (:class:`ProtocolError` naming the
+    protocol, the device and what it lacks)."""
+    if not isinstance(spec, DeviceSpec):
+        raise BenchError(f"spec = {type(spec).__name__}; allowed: a DeviceSpec")
+    if isinstance(protocols, str):
+        protocols = (protocols,)
+    protocols = tuple(protocols)
+    if not protocols:
+        raise BenchError("protocols = []; allowed: a non-empty subset of "
+                         + ", ".join(RIG_PROTOCOLS["load"]))
+    check_protocols(spec, protocols, "load")
+    b = _Bench(spec, cfg)
     summary, series = {}, {}
-    for test in tests:
+    for test in protocols:
         summary[test], series[test] = _RUNNERS[test](b)
     worst = max((abs(v["balance_error_rel"]) for v in b.ledgers.values()), default=0.0)
     summary["ledger"] = b.ledgers
