@@ -57,10 +57,11 @@ def _run(args) -> int:
         _print(console.bench_lines(res.bench, res.summary, res.wall_time_s, res.out_dir))
     elif isinstance(res, DeviceWalkRun):
         _print(console.device_walk_lines(res.scenario, res.config, res.results,
-                                         res.device_summary, res.wall_time_s, res.out_dir))
+                                         res.device_summary.to_block(), res.wall_time_s,
+                                         res.out_dir))
     else:
-        _print(console.walk_lines(res.scenario, res.reference, res.summary, res.wall_time_s,
-                                  res.out_dir))
+        _print(console.walk_lines(res.scenario, res.reference, res.summary.to_json(),
+                                  res.wall_time_s, res.out_dir))
     if args.rrd and info is None:
         _err("run", "--rrd is not written for a circuit bench (no time-domain recording of "
              "its protocols yet)")

@@ -59,7 +59,7 @@ def test_run_scenario_returns_the_summary_the_command_writes(walk_written, tmp_p
     assert isinstance(res, WalkRun) and res.out_dir is None
     assert not any(tmp_path.iterdir())
     written = json.loads((walk_written / "summary.json").read_text())
-    _same(json.loads(json.dumps(json_ready(res.summary))), written)
+    _same(json.loads(json.dumps(json_ready(res.summary.to_json()))), written)
     assert res.record.time_s.size > 1000 and res.analysis is not None
 
 

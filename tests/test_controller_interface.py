@@ -111,7 +111,7 @@ def test_a_third_controller_wears_the_hafo_from_a_scenario(clock_registered):
                                   "gait.analyse_strides=[2, 3]",
                                   'device.conditions=["no_device", "assist"]'],
                        figures=False)
-    s = res.summary
+    s = res.summary.to_json()
     assert s["scenario"]["walker_model"] == NAME
     assist = s["device_conditions"]["assist"]
     # the device's ledger closes (electrical in = every named loss + work out + stored)

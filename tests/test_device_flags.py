@@ -93,7 +93,7 @@ def _hafo_assist(*extra):
 
 def test_short_stroke_reports_stop_contact_and_the_peak_outside_it():
     res = _hafo_assist("device.params.cylinder.stroke_m=0.02")
-    d = res.summary["device"]
+    d = res.summary.to_json()["device"]
     assert d["end_stop_contact"] and "end_stop_contact" in d["flags"]
     es = d["end_stop"]
     assert es["contact_time_s_per_stride"] > 0.02 and es["contacts_per_stride"] >= 1.0
@@ -104,7 +104,7 @@ def test_short_stroke_reports_stop_contact_and_the_peak_outside_it():
     assert d["peak_torque_nm"] < 60.0
     assert d["tracking_poor"]
     # the default 45 mm stroke (±32°) is never reached in this walk
-    d0 = _hafo_assist().summary["device"]
+    d0 = _hafo_assist().summary.to_json()["device"]
     assert not d0["end_stop_contact"] and d0["end_stop"]["contact_time_s"] == 0.0
     assert d0["flags"] == [] and d0["mechanical_role"] == "actuator"
     assert d0["peak_torque_nm"] == pytest.approx(d0["peak_torque_incl_end_stops_nm"])
@@ -128,7 +128,7 @@ def test_prototype_worn_transparent_is_flagged_as_a_brake():
     from afo_mj.app.run import run_scenario
     res = run_scenario("scenarios/gait_assist_hafo_prototype.toml",
                        overrides=SHORT + ['device.conditions=["transparent"]'], figures=False)
-    d = res.summary["device"]
+    d = res.summary.to_json()["device"]
     assert d["brake"] and d["mechanical_role"] == "brake" and "brake" in d["flags"]
     assert d["net_work_j_per_stride"] < -5.0
     assert d["net_work_j_per_stride"] == pytest.approx(

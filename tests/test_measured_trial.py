@@ -243,7 +243,7 @@ def test_a_run_scored_against_a_measured_trial(tmp_path):
                   '"trial_grf.mot"\nreference_id_path = "trial_id.sto"\nstrides = 4\n'
                   'analyse_strides = [2, 4]\n')
     res = run_scenario(sc)
-    s = res.summary
+    s = res.summary.to_json()
     assert s["reference"]["source"] == "trial"
     assert s["ankle_moment_rms_error_nm_per_kg"]["mean"] < 0.5
     assert s["knee_angle_rms_error_deg"]["mean"] < 15.0

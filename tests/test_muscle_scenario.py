@@ -80,7 +80,7 @@ def test_run_scenario_is_the_muscle_walk_with_its_metabolics():
     from afo_mj.studies.gait_optimization import load_reflex_set
     res = run_scenario(ROOT / "scenarios" / "walk_muscle_healthy.toml",
                        overrides=["gait.strides=6", "gait.analyse_strides=[3, 6]"])
-    s = res.summary
+    s = res.summary.to_json()
     assert not res.fell and s["completed_strides"] >= 6
     params = load_reflex_set(muscle_reflex_sets()["1.25"])
     direct = run_muscle_walk(None, params, float(res.record.time_s[-1]))

@@ -87,7 +87,7 @@ def muscle_run():
     """``afo-mj run``'s walk of the muscle scenario (the reference the other entry points
     must reproduce): its summary."""
     from afo_mj.app.run import run_scenario
-    return run_scenario(SCENARIOS["muscle"], overrides=SHORT2).summary
+    return run_scenario(SCENARIOS["muscle"], overrides=SHORT2).summary.to_json()
 
 
 #: two analysed strides, so that cadence and speed are measured

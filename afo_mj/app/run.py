@@ -17,7 +17,10 @@ Example::
 
     from afo_mj.app.run import run_scenario
     res = run_scenario("scenarios/walk_healthy.toml", overrides=["gait.strides=4"])
-    print(res.summary["speed_m_s"]["mean"])     # nothing written: out_dir not given
+    print(res.summary.gait.mean("speed_m_s"))   # nothing written: out_dir not given
+
+``summary`` is a :class:`~afo_mj.metrics.documents.WalkSummary`; ``summary.json`` is its
+``to_json()``.
 """
 
 from __future__ import annotations
@@ -27,11 +30,15 @@ import json
 import platform
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
 from afo_mj.app.errors import InvalidInput, RunFailed
+from afo_mj.metrics.documents import DeviceWalkPart, FallOutcome, WalkSummary
+
+if TYPE_CHECKING:
+    from afo_mj.metrics.gait_metrics import GaitAnalysis
 
 __all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "run_bench", "record_run",
            "run_recorded", "check_rrd_path", "run_info", "write_rrd"]
@@ -41,19 +48,19 @@ __all__ = ["WalkRun", "DeviceWalkRun", "BenchRun", "run_scenario", "run_bench", 
 class WalkRun:
     """A walk without an orthosis: the scenario, its reference gait, the simulated record,
     the analysis (None when the walker fell before an analysable stride) and the summary
-    (what ``summary.json`` holds)."""
+    (what ``summary.json`` holds: its ``to_json()``)."""
 
     scenario: Any
     reference: Any
     record: Any
-    analysis: Any
-    summary: dict
+    analysis: GaitAnalysis | None
+    summary: WalkSummary
     wall_time_s: float
     out_dir: Path | None = None
 
     @property
     def fell(self) -> bool:
-        return bool(self.summary.get("fell"))
+        return self.summary.fell
 
     def recorded_runs(self) -> list:
         from afo_mj.outputs.recording import RecordedRun
@@ -63,14 +70,15 @@ class WalkRun:
 @dataclasses.dataclass(frozen=True)
 class DeviceWalkRun:
     """A walk with an orthosis: every condition ``{name: (record, analysis, device)}``, the
-    device summary (per condition) and the headline summary (the last condition's)."""
+    device part of the summary (per condition) and the summary (the headline condition's
+    walk, the last one, with the device part; ``summary.json`` is its ``to_json()``)."""
 
     scenario: Any
     reference: Any
     config: Any
     results: dict
-    device_summary: dict
-    summary: dict
+    device_summary: DeviceWalkPart
+    summary: WalkSummary
     wall_time_s: float
     out_dir: Path | None = None
 
@@ -81,7 +89,7 @@ class DeviceWalkRun:
     @property
     def fell(self) -> bool:
         """The headline condition's walker fell (an outcome: the summary says when)."""
-        return bool(self.summary.get("fell"))
+        return self.summary.fell
 
     def recorded_runs(self) -> list:
         from afo_mj.outputs.recording import RecordedRun
@@ -246,16 +254,17 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
             raise RunFailed(f"{scenario.name}: {exc}") from None
         # a fall before any analysable stride is the run's outcome: report it
         ev = record.events
-        summary = {"scenario": scenario.as_dict(), "fell": True,
-                   "fall_time_s": ev.fall_time_s,
-                   "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
-                   "swing_toe_contacts": len(ev.swing_toe_contacts),
-                   "duration_s": float(record.time_s[-1]) if len(record.time_s) else 0.0,
-                   "analysis": str(exc)}
+        summary = WalkSummary(scenario=scenario.as_dict(), gait=None, fall=FallOutcome(
+            fell=True, fall_time_s=ev.fall_time_s,
+            completed_strides=max(len(ev.heel_strikes_s[0]) - 1, 0),
+            swing_toe_contacts=len(ev.swing_toe_contacts),
+            duration_s=float(record.time_s[-1]) if len(record.time_s) else 0.0,
+            analysis=str(exc)))
         out = None
         if out_dir is not None:
             try:
-                out = write_run_outputs(out_dir, summary, [], reference, record, scenario.text,
+                out = write_run_outputs(out_dir, summary.to_json(), [], reference, record,
+                                        scenario.text,
                                         extra_files=_chain(_run_info_writer(wall),
                                                            _recording_writer(scenario, runs,
                                                                              reference),
@@ -265,20 +274,22 @@ def _run_walk(scenario, reference, out_dir, figures: bool, recording=None) -> Wa
             except ReportError as exc2:
                 raise RunFailed(f"{scenario.name}: {exc2}") from None
         return WalkRun(scenario, reference, record, None, summary, wall, out)
-    summary = {"scenario": scenario.as_dict(), **analysis.summary}
-    muscle_files = None
+    muscle = muscle_files = None
     if muscle_walk is not None:
-        summary["muscle"], muscle_files = _muscle_outputs(muscle_walk, analysis, figures)
+        muscle, muscle_files = _muscle_outputs(muscle_walk, analysis, figures)
     try:
+        bands = None
         if scenario.band_references:
             from afo_mj.gait.reference import load_normative
             from afo_mj.metrics.gait_metrics import band_fraction
-            summary["band_fraction_vs"] = {
+            bands = {
                 f"{src}:{cond}": band_fraction(analysis.cycles, load_normative(src, cond))
                 for src, cond in scenario.band_references}
+        summary = WalkSummary(scenario=scenario.as_dict(), gait=analysis.document,
+                              muscle=muscle, band_fraction_vs=bands)
         out = None
         if out_dir is not None:
-            out = write_run_outputs(out_dir, summary, analysis.cycles, reference, record,
+            out = write_run_outputs(out_dir, summary.to_json(), analysis.cycles, reference, record,
                                     scenario.text, extra_files=_chain(
                                         _run_info_writer(wall),
                                         _recording_writer(scenario, runs, reference),
@@ -357,7 +368,7 @@ def _schematic_writer(cfg):
 def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                 recording=None) -> DeviceWalkRun:
     """A walking scenario with an orthosis: every condition, the headline one written out."""
-    from afo_mj.experiments.device_walk import run_device_scenario
+    from afo_mj.experiments.device_walk import run_device_conditions
     from afo_mj.gait.muscle_scenario import MuscleScenarioError
     from afo_mj.gait.walk import WalkNumericsError
     from afo_mj.outputs.gait_report import ReportError, write_run_outputs
@@ -366,7 +377,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
     t0 = time.perf_counter()
     walks = {}                      # each condition's muscle walk (muscle walker only)
     try:
-        dsum, results = run_device_scenario(scenario, reference, cfg, muscle_walks=walks)
+        part, results = run_device_conditions(scenario, reference, cfg, muscle_walks=walks)
     except MuscleScenarioError as exc:
         raise InvalidInput(str(exc)) from None
     except (WalkNumericsError, FloatingPointError) as exc:
@@ -374,7 +385,8 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
     wall = time.perf_counter() - t0
     head = cfg.conditions[-1]
     rec, analysis, dev = results[head]
-    block = dsum["device_conditions"][head]
+    dsum = part.to_block()              # the figures read the conditions as JSON
+    dsum.pop("condition")
     scen = {**scenario.as_dict(), "device": dict(scenario.device),
             "assistance": dict(scenario.assistance)}
     if analysis is None:
@@ -384,25 +396,22 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                             f"(strides {scenario.analyse_strides[0]}-"
                             f"{scenario.analyse_strides[1]} not completed); nothing written")
         # a fall before an analysable stride is the run's outcome, as for a plain walk
-        gait = {"fell": True, "fall_time_s": ev.fall_time_s,
-                "completed_strides": max(len(ev.heel_strikes_s[0]) - 1, 0),
-                "swing_toe_contacts": len(ev.swing_toe_contacts),
-                "duration_s": float(rec.time_s[-1]) if len(rec.time_s) else 0.0,
-                "analysis": f"the walker fell at t = {ev.fall_time_s:.3f} s, before the "
-                            f"analysed strides {scenario.analyse_strides[0]}-"
-                            f"{scenario.analyse_strides[1]} were complete"}
-        cycles = []
+        fall = FallOutcome(
+            fell=True, fall_time_s=ev.fall_time_s,
+            completed_strides=max(len(ev.heel_strikes_s[0]) - 1, 0),
+            swing_toe_contacts=len(ev.swing_toe_contacts),
+            duration_s=float(rec.time_s[-1]) if len(rec.time_s) else 0.0,
+            analysis=f"the walker fell at t = {ev.fall_time_s:.3f} s, before the "
+                     f"analysed strides {scenario.analyse_strides[0]}-"
+                     f"{scenario.analyse_strides[1]} were complete")
+        gait, cycles = None, []
     else:
-        gait, cycles = analysis.summary, analysis.cycles
-    summary = {"scenario": scen, **gait, "condition": head,
-               "gait": gait, "human": block["human"], **dsum}
-    if "device" in block:
-        summary["device"] = block["device"]
-        summary["energy"] = block["energy"]
-    muscle_files = None
+        fall, gait, cycles = None, analysis.document, analysis.cycles
+    muscle = muscle_files = None
     if head in walks and analysis is not None:
         # the wearer's effort in the headline condition: the muscle block and its files
-        summary["muscle"], muscle_files = _muscle_outputs(walks[head], analysis, figures)
+        muscle, muscle_files = _muscle_outputs(walks[head], analysis, figures)
+    summary = WalkSummary(scenario=scen, gait=gait, fall=fall, device=part, muscle=muscle)
     out = None
     if out_dir is not None:
         extra = {}
@@ -414,7 +423,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
         runs = [RecordedRun(c, r, d, extra_signals=_muscle_signals(walks.get(c)))
                 for c, (r, _a, d) in results.items()]
         try:
-            out = write_run_outputs(out_dir, summary, cycles, reference, rec,
+            out = write_run_outputs(out_dir, summary.to_json(), cycles, reference, rec,
                                     scenario.text, extra_tables=extra,
                                     extra_files=_chain(
                                         _device_files_writer(results, reference, dsum,
@@ -427,7 +436,7 @@ def _run_device(scenario, reference, cfg, out_dir, figures: bool,
                                     figures=figures)
         except ReportError as exc:
             raise RunFailed(f"{scenario.name}: {exc}") from None
-    return DeviceWalkRun(scenario, reference, cfg, results, dsum, summary, wall, out)
+    return DeviceWalkRun(scenario, reference, cfg, results, part, summary, wall, out)
 
 
 def run_bench(path, overrides: Sequence[str] = (), out_dir=None,

@@ -14,6 +14,8 @@ import traceback
 from pathlib import Path
 from typing import Any, Sequence
 
+from afo_mj.metrics.document_base import Document
+
 __all__ = ["run_point"]
 
 
@@ -46,7 +48,8 @@ def run_point(scenario_path: str, overrides: Sequence[str], run_id: str,
         with progress.using(progress.Reporter(quiet=True)):
             res = run_scenario(scenario_path, overrides=list(overrides), out_dir=out,
                                figures=False)
-        summary = json_ready(res.summary)
+        doc = res.summary           # a walk's WalkSummary document, a bench's dict
+        summary = json_ready(doc.to_json() if isinstance(doc, Document) else doc)
         code, error = 0, ""
     except AppError as exc:
         code, error = exc.exit_code, str(exc)

@@ -14,6 +14,9 @@ import numpy as np
 
 from afo_mj.hydraulics.params import ParameterError
 
+from afo_mj.metrics.documents import (AnkleJointWork, DeviceFigures, DeviceWalkPart,
+                                     EndStopContact, EnergyLedger, HumanAnkleWork,
+                                     HumanResponse, RunEnergy, StrideEnergy, WornCondition)
 from afo_mj.metrics.gait_metrics import PUSH_OFF_WINDOW
 from afo_mj.scenarios.device_scenario import DeviceConfig
 
@@ -29,9 +32,14 @@ def _per_stride(rec, side: int, first: int, last: int):
 
 
 def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict:
-    """The summary block of one condition: ``fell`` and ``fall_time_s``, ``gait`` (the
-    analysis, None without an analysable stride), ``human`` and ``ankle`` work per analysed
-    stride, and for a worn device ``device`` (torque, work, tracking, masses, pressure, the
+    """The JSON block of one condition (:func:`worn_condition`'s ``to_block()``)."""
+    return worn_condition(rec, analysis, device, cfg, strides).to_block()
+
+
+def worn_condition(rec, analysis, device, cfg: DeviceConfig, strides) -> WornCondition:
+    """The summary of one condition (:class:`~afo_mj.metrics.documents.WornCondition`):
+    ``fell`` and ``fall_time_s``, ``gait`` (the analysis, None without an analysable
+    stride), ``human`` and ``ankle`` work per analysed stride, and for a worn device ``device`` (torque, work, tracking, masses, pressure, the
     end-stop contact and the brake / poor-tracking flags of
     :mod:`afo_mj.metrics.device_flags`), ``energy_per_stride`` and ``energy``. Without a
     complete analysed stride (a fall) the device's figures cover the whole run instead, and
@@ -41,20 +49,19 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
     mask, n = _per_stride(rec, side, first, last)
     fall = rec.events.fall_time_s
     out = {"fell": fall is not None, "fall_time_s": fall,
-           "gait": analysis.summary if analysis is not None else None}
+           "gait": analysis.document if analysis is not None else None}
     if mask is None:
-        out["human"] = {"ankle_positive_work_j_per_stride": None}
+        out["human"] = HumanAnkleWork(None)
         if device is None or device.log is None or device.log.n == 0:
-            return out
-        return _device_blocks(out, rec, device, cfg, side, np.ones(len(rec.time_s), bool),
-                              None, [])
+            return WornCondition(**out)
+        return WornCondition(**_device_blocks(out, rec, device, cfg, side,
+                                              np.ones(len(rec.time_s), bool), None, []))
     dt = rec.sample_period_s
     w = rec.joint_velocity_rad_s[mask, side, 2]
     p_h = rec.joint_moment_nm[mask, side, 2] * w
-    out["human"] = {"ankle_positive_work_j_per_stride": float(np.sum(np.clip(p_h, 0, None))
-                                                               * dt / n),
-                    "ankle_negative_work_j_per_stride": float(np.sum(np.clip(p_h, None, 0))
-                                                              * dt / n)}
+    out["human"] = HumanAnkleWork(
+        ankle_positive_work_j_per_stride=float(np.sum(np.clip(p_h, 0, None)) * dt / n),
+        ankle_negative_work_j_per_stride=float(np.sum(np.clip(p_h, None, 0)) * dt / n))
     # the whole joint (muscles + device): push-off restoration is judged on it
     p_tot = (rec.joint_moment_nm[mask, side, 2] + rec.device_moment_nm[mask, side]) * w
     t_m = rec.time_s[mask]
@@ -70,21 +77,20 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
         if pw.size:
             peaks.append(float(np.max(pw)))
             po_work.append(float(np.sum(np.clip(pw, 0, None)) * dt))
-    out["ankle"] = {
-        "push_off_peak_power_w": float(np.mean(peaks)) if peaks else None,
-        "push_off_positive_work_j_per_stride": float(np.mean(po_work)) if po_work else None,
-        "positive_work_j_per_stride": float(np.sum(np.clip(p_tot, 0, None)) * dt / n),
-        "note": "whole ankle joint (muscles + device); push-off is "
-                f"{PUSH_OFF_WINDOW[0]:.0%}-{PUSH_OFF_WINDOW[1]:.0%} of the stride",
-    }
+    out["ankle"] = AnkleJointWork(
+        push_off_peak_power_w=float(np.mean(peaks)) if peaks else None,
+        push_off_positive_work_j_per_stride=float(np.mean(po_work)) if po_work else None,
+        positive_work_j_per_stride=float(np.sum(np.clip(p_tot, 0, None)) * dt / n),
+        note="whole ankle joint (muscles + device); push-off is "
+             f"{PUSH_OFF_WINDOW[0]:.0%}-{PUSH_OFF_WINDOW[1]:.0%} of the stride")
     if device is None:
-        return out
-    return _device_blocks(out, rec, device, cfg, side, mask, n, hs)
+        return WornCondition(**out)
+    return WornCondition(**_device_blocks(out, rec, device, cfg, side, mask, n, hs))
 
 
 def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n, hs) -> dict:
-    """The ``device``, ``energy_per_stride`` and ``energy`` blocks of
-    :func:`condition_summary` over the samples ``mask`` spanning ``n`` strides (``n`` None:
+    """``out`` with the ``device``, ``energy_per_stride`` and ``energy`` blocks of
+    :func:`worn_condition` (documents) over the samples ``mask`` spanning ``n`` strides (``n`` None:
     the whole run, no complete stride; per-stride figures None)."""
     from afo_mj.metrics.device_flags import (device_flags, end_stop_contact, end_stop_torque,
                                              mechanical_role, tracking_flag)
@@ -99,11 +105,11 @@ def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n
     p_d = rec.device_moment_nm[mask, side] * w
     per = (lambda x: x / n) if n else (lambda x: None)
     led = device_ledger(device, cfg, L, k)
-    drawn = led["electrical_drawn_j"]
+    drawn = led.electrical_drawn_j
     mech_pos = float(np.sum(np.clip(L["mechanical_power_w"][:, k], 0, None)) * dt)
     duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec.time_s) > 1 else 0.0
     mean_power = drawn / duration if duration > 0 else math.nan
-    energy_wh = led["battery_energy_wh"]
+    energy_wh = led.battery_energy_wh
     runtime_h = (energy_wh / mean_power) if mean_power > 0 and energy_wh else None
     pos_w = float(np.sum(np.clip(p_d, 0, None)) * dt)
     neg_w = float(np.sum(np.clip(p_d, None, 0)) * dt)
@@ -122,79 +128,80 @@ def _device_blocks(out: dict, rec, device, cfg: DeviceConfig, side: int, mask, n
     cmd_peak = float(np.max(np.abs(cmd))) if cmd.size else 0.0
     role, _reason = mechanical_role(per(pos_w + neg_w) if n else math.nan,
                                     per(pos_w) if n else math.nan)
-    out["device"] = {
-        "window": (f"the analysed strides of the {cfg.sides[0]} leg" if n else
-                   "whole run (no complete analysed stride): per-stride figures are None"),
-        "peak_torque_nm": peak,
-        "torque_tracking_rmse_nm": rmse,
-        "commanded_peak_torque_nm": cmd_peak,
-        "positive_work_j_per_stride": per(pos_w),
-        "negative_work_j_per_stride": per(neg_w),
-        "net_work_j_per_stride": per(pos_w + neg_w),
-        "mechanical_role": role,
-        "mass_total_kg": getattr(device, "mass_total_kg", None),
-        "mass_at_ankle_kg": getattr(device, "mass_at_ankle_kg", None),
-        "peak_pressure_mpa": led["peak_pressure_pa"] / 1e6,
-        "fluid_temperature_rise_k": led["temperature_rise_k"],
-        "battery_runtime_h": runtime_h,
-        "coupling_torque_error_rms_nm": led["coupling_torque_error_rms_nm"],
-        "newton_unconverged_steps": led["newton_unconverged_steps"],
-        "battery_overload_steps": led["battery_overload_steps"],
-    }
-    if contact is not None:
-        out["device"]["peak_torque_incl_end_stops_nm"] = peak_all
-        out["device"]["end_stop"] = contact
-    out["device"].update(device_flags(contact, role, tracking_flag(rmse, cmd_peak),
-                                      led["newton_unconverged_steps"],
-                                      led["battery_overload_steps"]))
+    flags = device_flags(contact, role, tracking_flag(rmse, cmd_peak),
+                         led.newton_unconverged_steps, led.battery_overload_steps)
+    flags["flags"] = tuple(flags["flags"])
+    device_note = None
+    if cfg.circuit is not None:
+        device_note = ("circuit description: worn masses are not modelled "
+                       "(mass_total_kg null); hydraulic_j is not a ledger term")
+    out["device"] = DeviceFigures(
+        window=(f"the analysed strides of the {cfg.sides[0]} leg" if n else
+                "whole run (no complete analysed stride): per-stride figures are None"),
+        peak_torque_nm=peak,
+        torque_tracking_rmse_nm=rmse,
+        commanded_peak_torque_nm=cmd_peak,
+        positive_work_j_per_stride=per(pos_w),
+        negative_work_j_per_stride=per(neg_w),
+        net_work_j_per_stride=per(pos_w + neg_w),
+        mechanical_role=role,
+        mass_total_kg=getattr(device, "mass_total_kg", None),
+        mass_at_ankle_kg=getattr(device, "mass_at_ankle_kg", None),
+        peak_pressure_mpa=led.peak_pressure_pa / 1e6,
+        fluid_temperature_rise_k=led.temperature_rise_k,
+        battery_runtime_h=runtime_h,
+        coupling_torque_error_rms_nm=led.coupling_torque_error_rms_nm,
+        newton_unconverged_steps=led.newton_unconverged_steps,
+        battery_overload_steps=led.battery_overload_steps,
+        peak_torque_incl_end_stops_nm=peak_all if contact is not None else None,
+        end_stop=EndStopContact(**contact) if contact is not None else None,
+        note=device_note, **flags)
     # per-stride figures: the whole-run ledger scaled by (mean analysed stride time / run time)
     stride_s = float(np.mean(np.diff(hs[:]))) if len(hs) > 1 else math.nan
     scale = stride_s / duration if duration > 0 and math.isfinite(stride_s) else math.nan
-    out["energy_per_stride"] = {
-        "stride_time_s": stride_s,
-        "electrical_in_j": drawn * scale,
-        "hydraulic_j": None if led["hydraulic_j"] is None else led["hydraulic_j"] * scale,
-        "mechanical_positive_out_j": mech_pos * scale,
-        "losses_j": {k: v * scale for k, v in led["losses_j"].items()},
-        "note": "whole-run ledger (start-up strides included) times mean analysed stride "
-                "time / run duration",
-    }
-    out["energy"] = {
-        "run_duration_s": duration,
-        "electrical_in_j": drawn,
-        "electrical_regenerated_j": led["electrical_regenerated_j"],
-        "hydraulic_j": led["hydraulic_j"],
-        "mechanical_out_j": led["mechanical_out_j"],
-        "mechanical_positive_out_j": mech_pos,
-        "losses_j": led["losses_j"],
-        "stored_change_j": led["stored_change_j"],
-        "efficiency_total": mech_pos / drawn if drawn > 0 else None,
-        "balance_error_rel": led["balance_error_rel"],
-        "note": "whole run; electrical_in_j is the battery's chemical energy drawn, "
-                "regeneration (ankle back-driving the pump) counted apart",
-    }
+    out["energy_per_stride"] = StrideEnergy(
+        stride_time_s=stride_s,
+        electrical_in_j=drawn * scale,
+        hydraulic_j=None if led.hydraulic_j is None else led.hydraulic_j * scale,
+        mechanical_positive_out_j=mech_pos * scale,
+        losses_j={k: v * scale for k, v in led.losses_j.items()},
+        note="whole-run ledger (start-up strides included) times mean analysed stride "
+             "time / run duration")
+    energy_note = ("whole run; electrical_in_j is the battery's chemical energy drawn, "
+                   "regeneration (ankle back-driving the pump) counted apart")
     if cfg.circuit is not None:
-        out["energy"]["input_j"] = led["input_j"]
-        out["energy"]["note"] = ("whole run; electrical_in_j is the energy drawn from the "
-                                 "circuit's source (battery chemical energy, or the ideal "
-                                 "bench supply), electrical_regenerated_j what went back; "
-                                 "losses and stores per component instance")
-        out["device"]["note"] = ("circuit description: worn masses are not modelled "
-                                 "(mass_total_kg null); hydraulic_j is not a ledger term")
+        energy_note = ("whole run; electrical_in_j is the energy drawn from the "
+                       "circuit's source (battery chemical energy, or the ideal "
+                       "bench supply), electrical_regenerated_j what went back; "
+                       "losses and stores per component instance")
+    out["energy"] = RunEnergy(
+        run_duration_s=duration,
+        electrical_in_j=drawn,
+        electrical_regenerated_j=led.electrical_regenerated_j,
+        hydraulic_j=led.hydraulic_j,
+        mechanical_out_j=led.mechanical_out_j,
+        mechanical_positive_out_j=mech_pos,
+        losses_j=dict(led.losses_j),
+        stored_change_j=dict(led.stored_change_j),
+        efficiency_total=mech_pos / drawn if drawn > 0 else None,
+        balance_error_rel=led.balance_error_rel,
+        note=energy_note,
+        input_j=led.input_j if cfg.circuit is not None else None)
     return out
 
 
-def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
+def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> EnergyLedger:
     """The ledger terms the summary reads: the device's own ledger, with, for a device whose
     spec names no ledger groups (a description: the generic ledger of
     :meth:`afo_mj.circuits.device.CircuitDevice.ledger`), the generic keys mapped (drawn =
     ``input_drawn_j``, regenerated = ``input_drawn_j − input_j``, the oil temperature rise
     from the device log), and the battery energy from the circuit's battery component
-    (None without one). A device that is no circuit reports its own (the ideal source)."""
+    (None without one). A device that is no circuit reports its own (the ideal source).
+    Returned as the :class:`~afo_mj.metrics.documents.EnergyLedger` document."""
     led = dict(device.ledger(k))
     spec = getattr(device, "spec", None)
     if spec is None:
-        return led
+        return EnergyLedger.from_ledger(led)
     circuit = device.cc.circuit
     if spec.ledger is None:
         temp = L["oil_temperature_k"][:, k]
@@ -209,7 +216,7 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> dict:
         from afo_mj.hydraulics.battery import Battery
         wh = Battery(bats[0].params.battery).energy_wh
     led["battery_energy_wh"] = wh
-    return led
+    return EnergyLedger.from_ledger(led, tuple(spec.ledger_extras))
 
 
 def preset_config(preset: str, sides, profile: np.ndarray | None = None,
@@ -299,7 +306,19 @@ def human_response(scenario) -> dict:
 
 
 def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=None):
-    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``.
+    """Run every condition; returns ``(summary, per-condition (record, analysis, device))``,
+    the summary as a JSON-able dict (:func:`run_device_conditions`' document without its
+    headline ``condition``)."""
+    part, results = run_device_conditions(scenario, reference, cfg, muscle_walks)
+    summary = part.to_block()
+    summary.pop("condition")
+    return summary, results
+
+
+def run_device_conditions(scenario, reference, cfg: DeviceConfig, muscle_walks=None):
+    """Run every condition; returns ``(part, per-condition (record, analysis, device))``,
+    ``part`` the :class:`~afo_mj.metrics.documents.DeviceWalkPart` document (headline: the
+    last condition).
 
     The walker is the scenario's (``walker.model``,
     :data:`afo_mj.gait.walkers.WALKER_MODELS`). On the muscle walker
@@ -336,28 +355,31 @@ def run_device_scenario(scenario, reference, cfg: DeviceConfig, muscle_walks=Non
             walks[cond] = walk
             if muscle_walks is not None:
                 muscle_walks[cond] = walk
-    conds = {c: condition_summary(r, a, d, cfg, scenario.analyse_strides)
+    conds = {c: worn_condition(r, a, d, cfg, scenario.analyse_strides)
              for c, (r, a, d) in results.items()}
-    summary = {"device_conditions": conds, "device_preset": cfg.preset,
-               "device_sides": list(cfg.sides), "human_response": human_response(scenario)}
+    circuit = None
     if cfg.circuit is not None:
-        summary["circuit"] = {"name": cfg.circuit.circuit.name,
-                              "controller": cfg.circuit.circuit.controller.kind,
-                              "description": cfg.circuit_spec}
+        circuit = {"name": cfg.circuit.circuit.name,
+                   "controller": cfg.circuit.circuit.controller.kind,
+                   "description": cfg.circuit_spec}
     for c, walk in walks.items():
-        conds[c]["muscle"] = _muscle_block(walk, results[c][1])
+        conds[c] = conds[c].with_muscle(_muscle_block(walk, results[c][1]))
+    comparison = None
     if "no_device" in conds:
-        base = conds["no_device"]["human"]["ankle_positive_work_j_per_stride"]
-        summary["comparison_vs_no_device"] = {
+        nd = conds["no_device"]
+        base = nd.human.ankle_positive_work_j_per_stride
+        comparison = {
             c: {"human_ankle_positive_work_change_j_per_stride":
-                (v["human"]["ankle_positive_work_j_per_stride"] - base)
-                if base is not None and v["human"]["ankle_positive_work_j_per_stride"]
+                (v.human.ankle_positive_work_j_per_stride - base)
+                if base is not None and v.human.ankle_positive_work_j_per_stride
                 is not None else None,
-                **_metabolic_change(conds["no_device"].get("muscle"), v.get("muscle"),
-                                    conds["no_device"].get("fall_time_s"),
-                                    v.get("fall_time_s"))}
+                **_metabolic_change(nd.muscle, v.muscle, nd.fall_time_s, v.fall_time_s)}
             for c, v in conds.items() if c != "no_device"}
-    return summary, results
+    part = DeviceWalkPart(condition=cfg.conditions[-1], device_conditions=conds,
+                          device_preset=cfg.preset, device_sides=tuple(cfg.sides),
+                          human_response=HumanResponse(**human_response(scenario)),
+                          circuit=circuit, comparison_vs_no_device=comparison)
+    return part, results
 
 
 def _muscle_block(walk, analysis) -> dict | None:

@@ -54,6 +54,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from afo_mj.gait.record import GaitRecord
+from afo_mj.metrics.documents import GaitSummary
 
 __all__ = [
     "GaitAnalysisError", "GaitCycle", "GaitAnalysis", "analyse_gait", "summarize",
@@ -122,12 +123,15 @@ class GaitCycle:
 
 @dataclasses.dataclass(frozen=True)
 class GaitAnalysis:
-    """What :func:`analyse_gait` returns: the JSON-ready ``summary``, the selected ``cycles``
-    and mean/SD ``curves`` per channel (``{channel: (mean, sd)}`` on :data:`PERCENT_CYCLE`)."""
+    """What :func:`analyse_gait` returns: the typed summary ``document``
+    (:class:`~afo_mj.metrics.documents.GaitSummary`) and its JSON-ready ``summary`` (its
+    ``to_json()``), the selected ``cycles`` and mean/SD ``curves`` per channel
+    (``{channel: (mean, sd)}`` on :data:`PERCENT_CYCLE`)."""
 
     summary: dict[str, Any]
     cycles: list[GaitCycle]
     curves: dict[str, tuple[np.ndarray, np.ndarray | None]]
+    document: GaitSummary
 
 
 # ------------------------------------------------------------------------------------------
@@ -501,7 +505,9 @@ def analyse_gait(record: GaitRecord, reference,
                     f"{len(cycles)} cycles: the simulation's joint angles contain NaN/inf "
                     f"(numerics failure)")
     curves = {ch: curve_statistics(cycles, ch) for ch in CURVE_CHANNELS}
-    return GaitAnalysis(summary=_clean(summary), cycles=cycles, curves=curves)
+    # the document checks the keys and their kinds; the summary dict is written from it
+    doc = GaitSummary.from_json(_clean(summary))
+    return GaitAnalysis(summary=doc.to_json(), cycles=cycles, curves=curves, document=doc)
 
 
 def summarize(record: GaitRecord, reference, strides: tuple[int, int] | None = (4, 10)
