@@ -139,11 +139,11 @@ def _calibrate(args) -> int:
                            on_warning=lambda w: print(f"warning: {w}", file=sys.stderr),
                            on_stage=progress.reporter().stage)
     r = res.report
-    _print(console.calibration_lines(r, args.out))
-    print(json.dumps({"verdict": r["verdict"],
-                      "effects": [s["effect"] for s in r["effects_selected"]],
-                      "error_before": r["error_before"]["overall"],
-                      "error_after": r["error_after"]["overall"]}))
+    _print(console.calibration_lines(r.to_json(), args.out))
+    print(json.dumps({"verdict": r.verdict,
+                      "effects": [s["effect"] for s in r.effects_selected],
+                      "error_before": r.error_before["overall"],
+                      "error_after": r.error_after["overall"]}))
     return 0
 
 

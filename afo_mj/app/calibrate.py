@@ -16,15 +16,17 @@ from pathlib import Path
 from typing import Callable
 
 from afo_mj.app.errors import InvalidInput, RunFailed
+from afo_mj.calibration.report_document import CalibrationReport
 
 __all__ = ["CalibrationRun", "calibrate_record"]
 
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationRun:
-    """The calibration report (what ``report.json`` holds) and where it was written."""
+    """The calibration report (:class:`~afo_mj.calibration.report_document.CalibrationReport`:
+    ``report.json`` is its ``to_json()``) and where it was written."""
 
-    report: dict
+    report: CalibrationReport
     out_dir: Path | None
 
 
@@ -71,8 +73,13 @@ def calibrate_record(scenario_path, data_path, out_dir=None, command: str | None
     if on_warning is not None:
         for flag in report.get("record_flags") or ():
             on_warning(flag)
+    from afo_mj.outputs.calibration_report import calibration_document
+    try:
+        doc = calibration_document(report, data_path, command)
+    except ValueError as exc:
+        raise RunFailed(f"{exc}; nothing written") from None
     if out_dir is None:
-        return CalibrationRun(report, None)
+        return CalibrationRun(doc, None)
     if on_stage is not None:
         on_stage(f"writing the report and figures to {out_dir}…")
     try:
@@ -80,4 +87,4 @@ def calibrate_record(scenario_path, data_path, out_dir=None, command: str | None
             report, d, data_path=data_path, command=command))
     except (ResultDirError, ValueError, OSError) as exc:
         raise RunFailed(f"{exc}; nothing written") from None
-    return CalibrationRun(report, out)
+    return CalibrationRun(doc, out)

@@ -39,9 +39,10 @@ def condition_summary(rec, analysis, device, cfg: DeviceConfig, strides) -> dict
 def worn_condition(rec, analysis, device, cfg: DeviceConfig, strides) -> WornCondition:
     """The summary of one condition (:class:`~afo_mj.metrics.documents.WornCondition`):
     ``fell`` and ``fall_time_s``, ``gait`` (the analysis, None without an analysable
-    stride), ``human`` and ``ankle`` work per analysed stride, and for a worn device ``device`` (torque, work, tracking, masses, pressure, the
-    end-stop contact and the brake / poor-tracking flags of
-    :mod:`afo_mj.metrics.device_flags`), ``energy_per_stride`` and ``energy``. Without a
+    stride), ``human`` and ``ankle`` work per analysed stride, and for a worn device
+    ``device`` (torque, work, tracking, masses, pressure, the end-stop contact and the
+    brake / poor-tracking flags of :mod:`afo_mj.metrics.device_flags`),
+    ``energy_per_stride`` and ``energy``. Without a
     complete analysed stride (a fall) the device's figures cover the whole run instead, and
     ``device.window`` says so; per-stride figures are then None."""
     side = 0 if cfg.sides[0] == "right" else 1

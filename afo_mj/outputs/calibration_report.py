@@ -5,7 +5,9 @@
 nothing replaced):
 
 * ``report.json`` -- the report dictionary without its ``"_series"``, numpy scalars and arrays
-  as plain numbers and lists (:func:`to_jsonable`), plus ``"format"`` (:data:`FORMAT`),
+  as plain numbers and lists (:func:`to_jsonable`), written from its document
+  (:func:`calibration_document`, :class:`afo_mj.calibration.report_document.CalibrationReport`),
+  plus ``"format"`` (:data:`FORMAT`),
   ``"data"`` (the record's path) and ``"command"`` (the command line). A NaN or infinity
   anywhere in the report is refused (ValueError naming its key path); JSON never holds NaN.
 * ``report.md`` -- for an engineer: the verdict in plain words, the held-out NRMSE per channel
@@ -38,13 +40,15 @@ from pathlib import Path
 
 import numpy as np
 
+from afo_mj.calibration.report_document import REPORT_FORMAT, CalibrationReport
 from afo_mj.outputs.result_dir import write_atomically
 
-__all__ = ["write_calibration_report", "to_jsonable", "render_markdown", "verdict_sentence",
-           "FORMAT", "FIGURES", "CONTEXT_S", "MAX_PLOT_POINTS"]
+__all__ = ["write_calibration_report", "calibration_document", "to_jsonable",
+           "render_markdown", "verdict_sentence", "FORMAT", "FIGURES", "CONTEXT_S",
+           "MAX_PLOT_POINTS"]
 
-#: ``report.json``'s ``"format"``.
-FORMAT = "afo_mj calibration report v1"
+#: ``report.json``'s ``"format"`` (:class:`~afo_mj.calibration.report_document.CalibrationReport`).
+FORMAT = REPORT_FORMAT
 #: The PNGs written when the report carries its ``"_series"``.
 FIGURES = ("fit_before_after.png", "residual_before_after.png", "residual_spectrum.png")
 #: Seconds of training shown before the held-out part in ``fit_before_after.png``.
@@ -690,6 +694,20 @@ _PLOTTERS = {"fit_before_after.png": _plot_fit,
 
 # --------------------------------------------------------------------------- writer
 
+def calibration_document(report: Mapping, data_path=None,
+                         command: str | None = None) -> CalibrationReport:
+    """The :class:`~afo_mj.calibration.report_document.CalibrationReport` (what
+    ``report.json`` holds) of a :func:`afo_mj.calibration.calibrate.calibrate` report: its
+    ``"_series"`` left out, numbers made plain (:func:`to_jsonable`: ValueError naming the
+    key path for a NaN or infinity), a malformed headline refused
+    (:class:`~afo_mj.calibration.report_document.DocumentError`, a ValueError)."""
+    if not isinstance(report, Mapping):
+        raise ValueError(f"report is a {type(report).__name__}; allowed: the dict calibrate "
+                         "returns")
+    body = to_jsonable({k: v for k, v in report.items() if k != "_series"})
+    return CalibrationReport.from_report(body, data_path, command)
+
+
 def write_calibration_report(report: dict, out_dir, data_path=None,
                              command: str | None = None) -> dict[str, Path]:
     """Write ``report.json``, ``report.md`` and the figures (:data:`FIGURES`, when the report
@@ -703,10 +721,7 @@ def write_calibration_report(report: dict, out_dir, data_path=None,
                          "returns")
     if command is not None and not isinstance(command, str):
         raise ValueError(f"command = {command!r}; allowed: a str or None")
-    body = {k: v for k, v in report.items() if k != "_series"}
-    doc = {"format": FORMAT, "data": None if data_path is None else str(data_path),
-           "command": command}
-    doc.update({k: v for k, v in to_jsonable(body).items() if k not in doc})
+    doc = calibration_document(report, data_path, command).to_json()
     text = json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
     series = _series(report)
     figures = FIGURES if series is not None else ()
