@@ -128,18 +128,15 @@ def test_misspelt_assistance_key_refused_by_run_with_the_suggestion(tmp_path, ca
 
 def _fake_walk(monkeypatch):
     """Replace the simulation of ``afo-mj run`` (scenario loading and overrides stay real)
-    by a finished walk with placeholder numbers."""
+    by a finished walk whose summary is a stored one (tests/golden: a 2-stride healthy walk)."""
+    import json
+
     import afo_mj.app.run as run_mod
+    from afo_mj.metrics.documents import WalkSummary
+    stored = ROOT / "tests" / "golden" / "summary_walk_healthy_strides2.json"
 
     def fake(scenario, reference, *_, **__):
-        summary = {"fell": False, "duration_s": 5.0, "completed_strides": 4,
-                   "n_cycles_used": 3, "swing_toe_contacts": 0,
-                   "residual_force_rms_percent_body_weight": {"over_analysed_span": 1.0}}
-        summary.update(dict.fromkeys((
-            "hip_angle_rms_error_deg", "knee_angle_rms_error_deg", "ankle_angle_rms_error_deg",
-            "peak_ankle_plantarflexor_moment_nm_per_kg", "peak_ankle_power_w_per_kg",
-            "ankle_push_off_positive_work_j_per_kg", "speed_m_s", "cadence_steps_per_min",
-            "stride_length_m", "min_toe_clearance_m", "residual_moment_rms_nm")))
+        summary = WalkSummary.from_json(json.loads(stored.read_text(encoding="utf-8")))
         return run_mod.WalkRun(scenario, reference, None, None, summary, 1.0, None)
 
     monkeypatch.setattr(run_mod, "_run_walk", fake)
