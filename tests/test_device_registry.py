@@ -163,3 +163,20 @@ def test_a_source_is_a_device_name_or_the_device_a_scenario_wears():
         device_source("no_such_device")
     with pytest.raises(ScenarioError, match="allowed: device.params.NAME=VALUE"):
         device_source("hafo", ["gait.strides=3"])
+
+
+def test_published_figures_come_with_the_device_that_was_published():
+    """The HAFO prototype's published 65 N·m stall and 105 deg/s no-load speed (facts.md) are
+    what its presets are compared with; a valve circuit, whose parameter class extends the
+    HAFO's, is compared with nothing (it was compared with the HAFO's figures when the bench
+    asked the parameter class)."""
+    from afo_mj.experiments.bench_run import published_figures
+    from afo_mj.experiments.hafo_bench import torque_velocity
+    from afo_mj.scenarios.bench_protocols import BenchError
+    assert published_figures(device_spec("hafo")) == {"stall_torque_nm": 65.0,
+                                                      "no_load_speed_deg_s": 105.0}
+    for name in valve_afo.VALVE_PRESETS:
+        assert published_figures(device_spec(name)) is None
+    assert published_figures(device_spec("lab_bench")) is None
+    with pytest.raises(BenchError, match="allowed: a PumpAnkleParams"):
+        torque_velocity(valve_afo.VALVE_PRESETS["valve"])

@@ -167,6 +167,9 @@ class DeviceSpec:
     #: role → component name where they differ (:func:`circuit_roles`); empty: the part
     #: names are the roles
     roles: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    #: published measurements of the real device its bench figures are compared with
+    #: (figure name → SI value, e.g. ``stall_torque_nm``), empty where none are published
+    published: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         if not isinstance(self.circuit, Circuit):

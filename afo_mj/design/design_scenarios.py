@@ -36,7 +36,8 @@ def bench_scenario(req, overrides: dict) -> dict:
                            f"pump-controlled design on the ankle test stand, torque-velocity "
                            f"test (stall torque, no-load speed).",
             "device": {"preset": "hafo", "params": dict(overrides)},
-            "bench": {"tests": ["torque_velocity"], "body_mass_kg": mass, "height_m": 1.75}}
+            "bench": {"protocols": ["torque_velocity"], "body_mass_kg": mass,
+                      "height_m": 1.75}}
 
 
 def walk_scenario(req, overrides: dict, stall_torque_nm: float,

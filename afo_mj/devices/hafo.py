@@ -342,6 +342,11 @@ HAFO_OUTPUTS = ("pressure_a_pa", "pressure_b_pa", "chamber_a_pa", "chamber_b_pa"
                 "fluid_temperature_k", "battery_current_a", "bus_voltage_v")
 
 
+#: the HAFO prototype's published bench figures (Neubauer & Durfee 2016; seed ch. 6;
+#: ``shared/reference/facts.md``): stall torque and no-load ankle speed (deg/s, as published)
+HAFO_PUBLISHED = {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}
+
+
 def hafo_spec(params: PumpAnkleParams = HAFO_ACTUATOR, name: str = "hafo",
               initial_pressure_pa: float | None = None) -> DeviceSpec:
     """The pump-controlled orthosis of ``params`` as a device spec: :func:`hafo_circuit` with
@@ -355,7 +360,7 @@ def hafo_spec(params: PumpAnkleParams = HAFO_ACTUATOR, name: str = "hafo",
                 "piston-cable cylinders)",
         open_loop_channel="motor_voltage_v", outputs=HAFO_OUTPUTS, log_names=HAFO_LOG_NAMES,
         ledger=HAFO_LEDGER, current_limit_a=params.driver.current_limit_a,
-        masses=mass_budget(params), mass_label="hafo")
+        masses=mass_budget(params), mass_label="hafo", published=HAFO_PUBLISHED)
 
 
 class HafoDevice(CircuitDevice):

@@ -42,12 +42,10 @@ def run_bench(spec, protocols, rig: str = "stand", *, body_mass_kg: float = 75.0
 
 
 def published_figures(spec) -> dict | None:
-    """The published figures a device is compared with: the HAFO prototype's
-    (:data:`afo_mj.experiments.bench_stand.PUBLISHED`) for the pump-controlled HAFO presets,
-    else None."""
-    from afo_mj.devices.hafo import PumpAnkleParams
-    from afo_mj.experiments.bench_stand import PUBLISHED
-    return dict(PUBLISHED) if isinstance(spec.params, PumpAnkleParams) else None
+    """The published figures a device is compared with (its spec's,
+    :attr:`~afo_mj.circuits.device_spec.DeviceSpec.published`: the HAFO prototype's for the
+    pump-controlled HAFO presets), else None."""
+    return dict(spec.published) or None
 
 
 def _device_summary(bs: BenchScenario) -> dict:

@@ -81,6 +81,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from afo_mj.devices.hafo import HAFO_PUBLISHED
 from afo_mj.circuits.device import CircuitDevice
 from afo_mj.circuits.device_spec import DeviceSpec
 from afo_mj.experiments.frequency_sweep import adaptive_log_sweep, resonance_peak
@@ -97,8 +98,8 @@ __all__ = ["PUBLISHED", "BenchError", "torque_velocity", "isometric_steps",
            "energy_error", "ACCEPTANCE_TOLERANCE_REL"]
 
 #: Published prototype figures (Neubauer & Durfee 2016; seed ch. 6): what the HAFO presets
-#: are compared with.
-PUBLISHED = {"stall_torque_nm": 65.0, "no_load_speed_deg_s": 105.0}
+#: are compared with (their specs carry them: :attr:`DeviceSpec.published`).
+PUBLISHED = HAFO_PUBLISHED
 #: The stiffness sweep's acceptance figure: emulated stiffness within 10 % of the command.
 ACCEPTANCE_TOLERANCE_REL = 0.10
 

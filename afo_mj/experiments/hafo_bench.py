@@ -14,7 +14,7 @@ __all__ = ["torque_velocity"]
 
 def torque_velocity(params: PumpAnkleParams, *args, **kwargs) -> tuple[dict, dict]:
     """:func:`afo_mj.experiments.bench_stand.torque_velocity` on the HAFO of ``params``."""
-    if not isinstance(params, PumpAnkleParams):
+    if type(params) is not PumpAnkleParams:      # (a valve circuit's params subclass it)
         raise BenchError(f"params = {type(params).__name__}; allowed: a PumpAnkleParams "
                          "(afo_mj.devices.hafo.hafo_params({...}))")
     return bench_stand.torque_velocity(hafo_spec(params), *args, **kwargs)
