@@ -118,8 +118,8 @@ def test_impairment_fractions_are_the_muscles_force_factors():
 
 def test_recording_of_a_muscle_walk_has_the_muscles(tmp_path):
     """[output] record = true on the muscle model: the rerun recording carries each muscle's
-    activation, force and metabolic rate per side and the whole-body net rate, with the
-    run's samples (read back from the file)."""
+    activation, force and metabolic rate per side and the whole-body net rate, sampled from
+    the run's samples (read back from the file)."""
     from afo_mj.app.run import run_scenario
     from afo_mj.outputs.recording import read_recording_index
     out = tmp_path / "res"
@@ -131,5 +131,6 @@ def test_recording_of_a_muscle_walk_has_the_muscles(tmp_path):
     for key in ("signals/muscle_activation/soleus/right/walk",
                 "signals/muscle_force_n/tibialis_anterior/left/walk",
                 "signals/metabolic_w_per_kg/umberger/walk"):
-        assert idx[key]["rows"] == n, key
+        # thinned for display to the samples a plot needs (tests/test_recording.py)
+        assert 2 <= idx[key]["rows"] <= n, key
     assert idx["signals/muscle_force_n/vasti/right/walk"]["unit"] == "N"

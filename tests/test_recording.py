@@ -13,8 +13,8 @@ import pytest
 rr = pytest.importorskip("rerun")
 
 from afo_mj.cli import main  # noqa: E402
-from afo_mj.outputs.recording import (RecordedRun, RecordingError,  # noqa: E402
-                                      read_recording_index, write_recording)
+from afo_mj.outputs.recording import (SIGNAL_TOLERANCE, RecordedRun,  # noqa: E402
+                                      RecordingError, read_recording_index, write_recording)
 from afo_mj.scenarios.walk_scenario import ScenarioError, load_scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -76,7 +76,9 @@ def test_walk_recording_paths_counts_units(walk_recording):
                       "ankle_torque_nm/human/right/walk": "N*m"}
     for p, unit in expected_units.items():
         e = idx[f"signals/{p}"]
-        assert e["rows"] == n_sig, p
+        # sampled at the signal rate, then thinned to the samples a plot needs
+        assert info["entities"][f"signals/{p}"]["samples"] == n_sig, p
+        assert 2 <= e["rows"] <= n_sig, p
         assert e["unit"] == unit, p
     # the normative band is mapped onto the measured strides only (fewer samples)
     band = idx["signals/angle_deg/ankle/normative/mean"]
@@ -90,12 +92,26 @@ def test_walk_recording_paths_counts_units(walk_recording):
     assert rr.chunk.RrdReader(str(path)).blueprints()
 
 
+def check_thinned(t, v, t_full, v_full, rel_tol=SIGNAL_TOLERANCE):
+    """A thinned signal read back from a recording against the full one: its samples are
+    samples of the full signal (same times, same values), the first and last among them, and
+    straight lines between them pass within ``rel_tol`` × the signal's range of every
+    sample left out."""
+    k = np.searchsorted(t_full, t - 1e-9)
+    np.testing.assert_allclose(t, t_full[k], atol=1e-9)
+    np.testing.assert_allclose(v, v_full[k], rtol=1e-12, atol=1e-12)
+    assert k[0] == 0 and k[-1] == len(t_full) - 1
+    err = np.abs(np.interp(t_full, t, v) - v_full).max()
+    assert err <= rel_tol * np.ptp(v_full) * (1 + 1e-9) + 1e-12
+
+
 def test_walk_recording_values_equal_the_record(walk_recording):
-    rec, path, _info, _idx = walk_recording
+    rec, path, info, _idx = walk_recording
     t, v = _scalars(path, "signals/angle_deg/ankle/right/walk")
     step = round(1 / (250.0 * rec.sample_period_s))
-    np.testing.assert_allclose(t, rec.time_s[::step], atol=1e-9)
-    np.testing.assert_allclose(v, np.degrees(rec.joint_angle_rad[::step, 0, 2]), rtol=1e-12)
+    check_thinned(t, v, rec.time_s[::step], np.degrees(rec.joint_angle_rad[::step, 0, 2]))
+    # a smooth joint angle needs a small share of its samples (measured: about 1 in 8)
+    assert len(t) < 0.3 * len(rec.time_s[::step])
 
 
 @pytest.fixture(scope="module")
@@ -106,19 +122,21 @@ def device_recording(tmp_path_factory):
     from afo_mj.app.run import record_run, run_scenario
     res = run_scenario(ROOT / "scenarios" / "gait_assist_hafo.toml", overrides=SHORT,
                        out_dir=out / "res", figures=False)
-    assert record_run(res, rrd)["path"] == str(rrd)
-    return out, rrd, read_recording_index(rrd)
+    info = record_run(res, rrd)
+    assert info["path"] == str(rrd)
+    return out, rrd, read_recording_index(rrd), info, res
 
 
 def test_device_recording_has_orthosis_and_chain(device_recording):
-    out, rrd, idx = device_recording
+    out, rrd, idx, info, _res = device_recording
     # every condition walks in its own lane
     for cond in ("no_device", "transparent", "assist"):
         assert f"world/{cond}/body/pelvis" in idx
         assert f"signals/angle_deg/ankle/right/{cond}" in idx
         assert f"events/{cond}" in idx
     for cond in ("transparent", "assist"):
-        n = idx[f"signals/ankle_torque_nm/device_delivered/right/{cond}"]["rows"]
+        n = info["entities"][f"signals/ankle_torque_nm/device_delivered/right/{cond}"][
+            "samples"]
         assert n > 100
         units = {"ankle_torque_nm/device_commanded": "N*m", "pressure_bar/line_a": "bar (gauge)",
                  "pressure_bar/chamber_b": "bar (gauge)", "flow_l_min/pump": "L/min",
@@ -129,7 +147,8 @@ def test_device_recording_has_orthosis_and_chain(device_recording):
                  "piston_position_mm": "mm"}
         for p, unit in units.items():
             e = idx[f"signals/{p}/right/{cond}"]
-            assert (e["rows"], e["unit"]) == (n, unit), p
+            assert info["entities"][f"signals/{p}/right/{cond}"]["samples"] == n, p
+            assert 2 <= e["rows"] <= n and e["unit"] == unit, p
         for c in ("a", "b"):
             oil = idx[f"world/{cond}/body/shank_r/afo/oil_{c}"]
             assert oil["rows"] > 10 and "Cylinders3D:colors" in oil["components"]
@@ -290,3 +309,190 @@ def test_render_command(tmp_path, capsys):
     assert main(["render", str(ROOT / "scenarios" / "walk_healthy.toml"), "--mp4",
                  str(tmp_path / "x.mp4"), "--fps", "0"]) == 2
     assert "fps" in capsys.readouterr().err and not (tmp_path / "x.mp4").exists()
+
+
+# -- a recording that shows the walk at a glance (issue 43 item 3) -----------------------------
+def test_thinning_keeps_the_corners_of_a_polyline_and_bounds_the_rest():
+    """The swing-door thinning against two references of its own: a polyline sampled densely
+    needs exactly its corners (and its ends) at a tolerance below its features; a random
+    walk, compared sample by sample with straight lines between the kept samples, is within
+    the tolerance everywhere (and a tolerance of 0 keeps every sample)."""
+    from afo_mj.outputs.series_thinning import thin_indices
+    t = np.arange(0.0, 3.0 + 1e-9, 2e-3)
+    corners_t = np.array([0.0, 0.5, 1.2, 2.0, 3.0])
+    corners_v = np.array([0.0, 4.0, -1.0, -1.0, 2.5])
+    v = np.interp(t, corners_t, corners_v)
+    keep = thin_indices(t, v, 1e-6)
+    np.testing.assert_allclose(t[keep], corners_t, atol=1e-12)
+    rng = np.random.default_rng(7)
+    walk = np.cumsum(rng.normal(size=4000))
+    tt = np.arange(4000) * 1e-3
+    for tol in (0.05, 0.5, 3.0):
+        k = thin_indices(tt, walk, tol)
+        assert k[0] == 0 and k[-1] == 3999
+        assert np.abs(np.interp(tt, tt[k], walk[k]) - walk).max() <= tol * (1 + 1e-12)
+    assert len(thin_indices(tt, walk, 3.0)) < len(thin_indices(tt, walk, 0.05)) < 4000
+    assert len(thin_indices(tt, walk, 0.0)) == 4000
+    with pytest.raises(ValueError, match="tol"):
+        thin_indices(tt, walk, -1.0)
+
+
+def _blueprint_views(rrd: Path) -> dict:
+    """The views of the blueprint a recording carries, read back from the file:
+    ``{view id: {"class", "origin", "legend_visible", "eye"}}``."""
+    reader = rr.chunk.RrdReader(str(rrd))
+    (bp,) = reader.blueprints()
+    views: dict = {}
+    for ch in reader.store(store=bp).stream():
+        parts = ch.entity_path.strip("/").split("/")
+        if len(parts) < 2 or parts[0] != "view":
+            continue
+        v = views.setdefault(parts[1], {"legend_visible": None, "eye": {}})
+        rb = ch.to_record_batch()
+        cols = {n: rb.column(n).to_pylist()[-1] for n in rb.schema.names}
+        if "ViewBlueprint:class_identifier" in cols:
+            v["class"] = cols["ViewBlueprint:class_identifier"][0]
+            v["origin"] = cols["ViewBlueprint:space_origin"][0]
+        if "PlotLegend:visible" in cols:
+            v["legend_visible"] = cols["PlotLegend:visible"][0]
+        for key in ("position", "look_target"):
+            if f"EyeControls3D:{key}" in cols:
+                v["eye"][key] = np.array(cols[f"EyeControls3D:{key}"][0], dtype=float)
+    return views
+
+
+def _translations(rrd: Path, entity: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time_s, translation (n, 3)) of one Transform3D entity, read with rerun's reader."""
+    store = rr.chunk.RrdReader(str(rrd)).stream().collect()
+    ts, xs = [], []
+    for ch in store.stream():
+        if ch.entity_path.lstrip("/") != entity or ch.is_static:
+            continue
+        rb = ch.to_record_batch()
+        t = rb.column("time").to_numpy()
+        ts.append(t.astype("timedelta64[ns]").astype(np.int64) / 1e9)
+        xs.append(np.array(rb.column("Transform3D:translation").to_pylist(),
+                           dtype=float).reshape(-1, 3))
+    order = np.argsort(np.concatenate(ts))
+    return np.concatenate(ts)[order], np.concatenate(xs)[order]
+
+
+def test_3d_view_follows_and_frames_every_walker(device_recording):
+    """The 3D view is set in the frame ``world/follow`` (a translation along x logged over
+    time) with its eye fixed in that frame; every body of every condition's walker, at every
+    logged time of the walk, lies within 20° of the eye's line of sight (the screenshots of
+    ``tools/recording_screenshot.py`` show the walkers filling about half the view's height).
+    Without the following frame the walkers leave the view within a few strides (the
+    walk is over 5 m long against a view a few metres wide)."""
+    _out, rrd, idx, _info, _res = device_recording
+    views = _blueprint_views(rrd)
+    (view,) = [v for v in views.values() if v.get("class") == "3D"]
+    assert view["origin"] == "world/follow"
+    eye, target = view["eye"]["position"], view["eye"]["look_target"]
+    sight = (target - eye) / np.linalg.norm(target - eye)
+    t_f, x_f = _translations(rrd, "world/follow")
+    assert np.allclose(x_f[:, 1:], 0.0) and x_f[-1, 0] - x_f[0, 0] > 1.5   # it moves along x
+    worst = 0.0
+    for cond in ("no_device", "transparent", "assist"):
+        bodies = [e for e in idx if e.startswith(f"world/{cond}/body/")
+                  and e.count("/") == 3 and "Transform3D:translation" in idx[e]["components"]]
+        assert len(bodies) >= 7
+        for body in bodies:
+            t, p = _translations(rrd, body)
+            rel = p - np.column_stack([np.interp(t, t_f, x_f[:, 0]), np.zeros((len(t), 2))])
+            d = rel - eye
+            ang = np.degrees(np.arccos(np.clip(d @ sight / np.linalg.norm(d, axis=1), -1, 1)))
+            worst = max(worst, float(ang.max()))
+    assert worst < 20.0, f"a body is {worst:.1f} deg off the line of sight"
+
+
+def test_plot_legends_leave_the_data_and_a_key_names_the_runs(device_recording):
+    _out, rrd, idx, _info, _res = device_recording
+    views = _blueprint_views(rrd)
+    plots = [v for v in views.values() if v.get("class") == "TimeSeries"]
+    assert len(plots) >= 10
+    assert all(v["legend_visible"] is False for v in plots), "a legend is drawn over a plot"
+    assert any(v.get("class") == "TextDocument" and v["origin"] == "key" for v in views.values())
+    store = rr.chunk.RrdReader(str(rrd)).stream().collect()
+    (text,) = [ch.to_record_batch().column("TextDocument:text").to_pylist()[0][0]
+               for ch in store.stream() if ch.entity_path.lstrip("/") == "key"]
+    for i, cond in enumerate(("no_device", "transparent", "assist")):
+        assert f"`{cond}`" in text
+        # the colour named is the one the run's lines carry
+        style = [ch.to_record_batch() for ch in store.stream()
+                 if ch.entity_path.lstrip("/") == f"signals/angle_deg/ankle/right/{cond}"
+                 and ch.is_static]
+        rgba = style[0].column("SeriesLines:colors").to_pylist()[0][0]
+        r, g, b = (rgba >> 24) & 255, (rgba >> 16) & 255, (rgba >> 8) & 255
+        assert f"`{cond}`: RGB {r}, {g}, {b}" in text
+        # and each walker carries its name
+        assert f"world/{cond}/body/pelvis/label" in idx
+
+
+def test_orthosis_drawn_at_the_ankle_with_its_torque(device_recording):
+    """The worn orthosis is drawn at the right ankle of the two conditions that wear it (a
+    cuff on the shank, a plate under the foot) and its delivered torque as an arrow ending at
+    the ball of the foot, 1 cm per N·m, in the sagittal plane, pointing down for plantarflexion:
+    checked against the torque in the device's own log, the foot's logged pose and the ball
+    sphere's place in the foot (the walker's model)."""
+    import mujoco
+    _out, rrd, idx, _info, res = device_recording
+    store = rr.chunk.RrdReader(str(rrd)).stream().collect()
+    for cond in ("transparent", "assist"):
+        rec, _analysis, dev = res.results[cond]
+        log = dev.log.arrays()
+        t_log, tau_log = log["time_s"][:, 0], log["delivered_torque_nm"][:, 0]
+        model = mujoco.MjModel.from_xml_string(rec.model_xml)
+        ball_m = float(np.linalg.norm(model.geom("ball_r").pos))      # ankle → ball
+        assert f"world/{cond}/body/shank_r/afo/cuff" in idx
+        assert f"world/{cond}/body/foot_r/afo/plate" in idx
+        arrows = [ch.to_record_batch() for ch in store.stream()
+                  if ch.entity_path.lstrip("/") == f"world/{cond}/afo_torque/right"
+                  and not ch.is_static]
+        t = np.concatenate([a.column("time").to_numpy().astype("timedelta64[ns]")
+                            .astype(np.int64) / 1e9 for a in arrows])
+        vec = np.concatenate([np.array(a.column("Arrows3D:vectors").to_pylist(), dtype=float)
+                              .reshape(-1, 3) for a in arrows])
+        org = np.concatenate([np.array(a.column("Arrows3D:origins").to_pylist(), dtype=float)
+                              .reshape(-1, 3) for a in arrows])
+        order = np.argsort(t, kind="stable")
+        t, vec, org = t[order], vec[order], org[order]
+        assert len(t) > 50
+        tau = tau_log[np.clip(np.searchsorted(t_log, t - 1e-9), 0, len(t_log) - 1)]
+        np.testing.assert_allclose(np.linalg.norm(vec, axis=1), 0.01 * np.abs(tau),
+                                   rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(vec[:, 1], 0.0, atol=1e-6)         # sagittal plane
+        if cond == "assist":
+            assert np.abs(tau).max() > 20.0
+        t_foot, p_foot = _translations(rrd, f"world/{cond}/body/foot_r")
+        ankle = p_foot[np.searchsorted(t_foot, t - 1e-9)]
+        r = org + vec - ankle                       # the arrow ends at the ball
+        np.testing.assert_allclose(np.linalg.norm(r, axis=1), ball_m, atol=1e-5)
+        # a force along the arrow at the ball turns the foot as the torque does: its moment
+        # about the ankle is along the joint's axis (−y; + = dorsiflexion), of sign tau
+        moment_y = np.cross(r, vec)[:, 1]
+        np.testing.assert_allclose(-moment_y, 0.01 * tau * ball_m, rtol=1e-4, atol=1e-7)
+        push = tau < -5.0                       # plantarflexion: the forefoot pushed down
+        assert np.all(vec[push & (np.abs(r[:, 2]) < 0.5 * ball_m), 2] < 0)
+        assert cond != "assist" or push.sum() > 10
+    assert "world/no_device/body/shank_r/afo/cuff" not in idx
+    assert "world/no_device/afo_torque/right" not in idx
+
+
+def test_recording_is_a_quarter_of_every_sample(device_recording, tmp_path):
+    """The thinned recording of a short three-condition walk against the same walk with
+    every signal sample kept (``signal_tolerance=0``, the signal content of recordings
+    before the thinning): under 40 % of the bytes and of the rows (measured on this short
+    run: 31 % and 17 %; on the default 10 strides 24 % and 17 %)."""
+    _out, rrd, _idx, _info, res = device_recording
+    sc = res.scenario
+    full = tmp_path / "full.rrd"
+    write_recording(full, res.recorded_runs(), res.reference, title=sc.name,
+                    signal_tolerance=0.0)
+
+    def rows(p):
+        return sum(ch.num_rows for ch in rr.chunk.RrdReader(str(p)).stream().collect().stream())
+    assert rrd.stat().st_size < 0.4 * full.stat().st_size
+    assert rows(rrd) < 0.4 * rows(full)
+    with pytest.raises(RecordingError, match="signal_tolerance"):
+        write_recording(tmp_path / "x.rrd", res.recorded_runs(), signal_tolerance=0.5)

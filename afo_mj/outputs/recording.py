@@ -5,17 +5,33 @@ One recording holds one or more *runs* (a plain walk is one run, ``walk``; a dev
 records each of its conditions, e.g. ``no_device``, ``transparent``, ``assist``, walking side
 by side in parallel lanes). Everything is logged column-wise (``send_columns``) after the
 simulation, from the arrays the run already keeps, so recording adds no work to the physics
-loop and costs little wall time (``benchmarks/recording.py``).
+loop and costs little wall time (``benchmarks/recording_overhead.py``). Static data (geometry,
+styles, units, the floor, the colour key) goes first, so a viewer reading the file draws each
+series styled as it arrives; signals are thinned for display to within ``signal_tolerance`` of
+their range (:mod:`afo_mj.outputs.series_thinning`), a sixth of the rows of a typical walk
+(size and web-viewer load time: ``benchmarks/recording.py``).
+
+The blueprint opens the file playing: the 3D view is set in ``world/follow``, a frame that
+moves forward with the walkers (:func:`follow_track`), its eye fixed in that frame
+(:func:`eye_placement`), so the walkers stay framed; the plots carry no legend over their data
+(a ``key`` text panel names each run's colour, and each walker carries its run's name).
 
 Timeline ``time`` (a duration, seconds of simulated time). Entity paths (``<run>`` = run
 name, ``<side>`` = ``right`` / ``left``, ``<joint>`` = ``hip`` / ``knee`` / ``ankle``):
 
 3D (``world``, metres, z up, x forward; transforms at ``transform_rate_hz``)
 
-* ``world/floor`` -- the floor (static box);
+* ``world/floor`` -- the floor (static box), ``world/floor/metre_marks`` a line every metre;
+* ``world/follow`` -- ``Transform3D`` (translation in x) of the frame the 3D view is set in;
 * ``world/<run>/body/<body>`` -- ``Transform3D`` of each MuJoCo body (world pose, lane offset
   in y); its children ``world/<run>/body/<body>/<geom>`` are the body's geoms as rerun
   primitives (boxes, capsules, ellipsoids, cylinders) in the body frame;
+* ``world/<run>/body/pelvis/label`` -- the run's name over the walker (static);
+* ``world/<run>/body/shank_<r|l>/afo/cuff``, ``.../foot_<r|l>/afo/plate`` -- the orthosis
+  shell on each worn side (static boxes);
+* ``world/<run>/afo_torque/<side>`` -- ``Arrows3D``: the delivered orthosis torque, an arrow
+  ending at the ball of the foot, :data:`AFO_ARROW_M_PER_NM` per N·m, pointing where a force
+  there turns the foot the same way (down = plantarflexion);
 * ``world/<run>/grf/<side>`` -- ``Arrows3D``: ground-reaction force at the foot's centre of
   pressure (heel/ball spheres weighted by their normal force), 1 m per :data:`GRF_M_PER_N`⁻¹ N;
 * ``world/<run>/body/shank_<r|l>/afo/barrel_<a|b>`` and ``.../afo/oil_<a|b>`` -- the
@@ -25,8 +41,8 @@ name, ``<side>`` = ``right`` / ``left``, ``<joint>`` = ``hip`` / ``knee`` / ``an
   a-end as logged, ``<cylinder>.piston_position_m``) and whose colour is the chamber pressure
   (blue = 0 bar gauge, red = the highest relief valve's cracking pressure).
 
-Signals (``Scalars``, at ``signal_rate_hz``; each entity carries a static ``unit`` value and
-a series name; display units as the path says)
+Signals (``Scalars``, sampled at ``signal_rate_hz`` and thinned; each entity carries a static
+``unit`` value and a series name; display units as the path says)
 
 ==========================================================  =========================
 ``signals/angle_deg/<joint>/<side>/<run>``                  joint angle [deg] (+ flexion /
@@ -89,17 +105,38 @@ import numpy as np
 
 __all__ = ["RecordedRun", "RecordingError", "write_recording", "write_bench_recording",
            "read_recording_index", "check_recording_path", "RecordingTarget",
-           "write_results_with_recording",
-           "GRF_M_PER_N", "SIGNAL_RATE_HZ", "TRANSFORM_RATE_HZ"]
+           "write_results_with_recording", "follow_track", "eye_placement",
+           "GRF_M_PER_N", "SIGNAL_RATE_HZ", "SIGNAL_TOLERANCE", "TRANSFORM_RATE_HZ"]
 
-#: default sample rate of the scalar signals (every k-th simulation step) [Hz]
+#: default sample rate of the scalar signals (every k-th simulation step) [Hz], before the
+#: tolerance-bound thinning of :func:`thin_series` (``SIGNAL_TOLERANCE``)
 SIGNAL_RATE_HZ = 500.0
+#: default tolerance of the signal thinning, as a fraction of each signal's range (max − min):
+#: a sample is left out only when the straight line between the samples kept on either side
+#: passes within this of it (0.002: under a pixel of a plot 500 pixels tall)
+SIGNAL_TOLERANCE = 2.0e-3
 #: default sample rate of body transforms, force arrows and orthosis cylinders [Hz]
 TRANSFORM_RATE_HZ = 50.0
 #: length of a ground-reaction-force arrow per newton [m/N]
 GRF_M_PER_N = 1.0e-3
 #: lateral distance between the lanes of the runs of one recording [m]
-LANE_SPACING_M = 0.8
+LANE_SPACING_M = 1.0
+#: window of the moving average that smooths the forward position the 3D camera follows [s]
+FOLLOW_SMOOTHING_S = 1.0
+#: height of each run's name above its pelvis [m]
+LABEL_HEIGHT_M = 0.95
+#: length of the orthosis torque arrow per newton metre [m/(N·m)]
+AFO_ARROW_M_PER_NM = 1.0e-2
+#: colour of the orthosis shell (cuff and foot plate) and of its torque arrow (RGBA)
+AFO_COLOUR = (25, 45, 80, 230)
+AFO_TORQUE_COLOUR = (200, 0, 200, 255)
+#: the 3D view's eye, in the frame that follows the walkers (``world/follow``): how far ahead
+#: of the walkers, how far to their right of the middle lane and how high it stands [m]
+EYE_SIDE_M = 2.5
+EYE_HEIGHT_M = 1.8
+EYE_AHEAD_M = 3.6
+#: the point the eye looks at: height above the floor [m]
+LOOK_HEIGHT_M = 0.8
 
 _SIDES = ("right", "left")
 _JOINTS = ("hip", "knee", "ankle")
@@ -176,21 +213,33 @@ def _stride_phase(t: np.ndarray, strikes: Sequence[float]) -> np.ndarray:
 class _Writer:
     """Column-wise logging into one recording stream, with the list of what was logged."""
 
-    def __init__(self, rr, stream):
+    def __init__(self, rr, stream, tolerance: float = 0.0):
         self.rr, self.stream = rr, stream
+        self.tolerance = tolerance          # of the signal thinning, fraction of the range
         self.index: dict[str, dict] = {}
 
     def scalars(self, path: str, t: np.ndarray, values: np.ndarray, unit: str, name: str,
                 colour=None) -> None:
+        """One signal: its style and unit (static, first, so that a viewer reading the file
+        in order draws it styled at once), then its samples thinned by
+        :func:`~afo_mj.outputs.series_thinning.thin_indices` to within ``tolerance`` × the
+        signal's range."""
+        from afo_mj.outputs.series_thinning import thin_indices
         rr = self.rr
         v = np.asarray(values, dtype=float)
+        t = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(v)):
             raise RecordingError(f"signal {path!r} has non-finite values; nothing written")
-        self.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
-                                 columns=rr.Scalars.columns(scalars=v))
         style = rr.SeriesLines(names=name, colors=None if colour is None else [colour])
         self.stream.log(path, style, rr.AnyValues(unit=unit), static=True)
-        self.index[path] = {"kind": "Scalars", "rows": int(len(v)), "unit": unit}
+        span = float(np.ptp(v)) if len(v) else 0.0
+        # a constant signal: its two ends (any tolerance > 0 keeps only those)
+        tol = self.tolerance * span if span > 0 else (1e-300 if self.tolerance > 0 else 0.0)
+        keep = thin_indices(t, v, tol)
+        self.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t[keep])],
+                                 columns=rr.Scalars.columns(scalars=v[keep]))
+        self.index[path] = {"kind": "Scalars", "rows": int(len(keep)), "unit": unit,
+                            "samples": int(len(v))}
 
 
 def _log_gait_signals(w: _Writer, run: RecordedRun, i: int, step: int) -> None:
@@ -461,18 +510,16 @@ def _geom_archetype(rr, model, g: int):
     return None
 
 
-def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
-    """Transforms of every body, geoms, force arrows and orthosis cylinders of one run;
-    returns the x extent walked (for the floor)."""
+def _kinematics(run: RecordedRun, step: int, lane_y: float) -> dict:
+    """World poses of every body and geom of one run at every ``step``-th sample (MuJoCo's
+    forward kinematics of the recorded ``qpos``), its lane offset in y added."""
     import mujoco
-    rr = w.rr
     rec = run.record
     if rec.qpos is None or rec.model_xml is None:
         raise RecordingError(f"run {run.name!r}: the record kept no qpos/model for 3D replay")
     model = mujoco.MjModel.from_xml_string(rec.model_xml)
     data = mujoco.MjData(model)
     idx = np.arange(0, len(rec.time_s), step)
-    t = rec.time_s[idx]
     n = len(idx)
     xpos = np.empty((n, model.nbody, 3))
     xquat = np.empty((n, model.nbody, 4))
@@ -485,14 +532,41 @@ def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
         gpos[k] = data.geom_xpos
     xpos[:, :, 1] += lane_y
     gpos[:, :, 1] += lane_y
+    names = [model.body(b).name for b in range(model.nbody)]
+    return {"model": model, "idx": idx, "t": rec.time_s[idx], "xpos": xpos, "xquat": xquat,
+            "gpos": gpos, "body_names": names, "lane_y": lane_y,
+            "pelvis": names.index("pelvis") if "pelvis" in names else 1}
+
+
+def follow_track(kins: Sequence[dict], smoothing_s: float = FOLLOW_SMOOTHING_S
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The forward position the 3D camera follows: ``(t, x)`` on the longest run's transform
+    times, the midpoint of the runs' pelvis positions (lowest and highest x; a run that
+    ended, e.g. by a fall, stays where it ended) smoothed by a centred moving average over
+    ``smoothing_s`` (about a stride, so the camera glides instead of surging with each step).
+    Every walker is within half the runs' spread (plus what the smoothing lags) of it."""
+    t = max((k["t"] for k in kins), key=len)
+    xs = np.array([np.interp(t, k["t"], k["xpos"][:, k["pelvis"], 0]) for k in kins])
+    mid = 0.5 * (xs.min(axis=0) + xs.max(axis=0))
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    half = int(round(0.5 * smoothing_s / dt)) if dt > 0 else 0
+    if half < 1 or len(mid) < 3:
+        return t, mid
+    pad = np.pad(mid, half, mode="edge")
+    kernel = np.full(2 * half + 1, 1.0 / (2 * half + 1))
+    return t, np.convolve(pad, kernel, mode="valid")
+
+
+def _log_body(w: _Writer, run: RecordedRun, kin: dict, i: int) -> None:
+    """Geoms (static, first), the run's name over the walker, transforms of every body,
+    force arrows and the orthosis of one run."""
+    rr = w.rr
+    rec = run.record
+    model, idx, t = kin["model"], kin["idx"], kin["t"]
+    xpos, xquat, gpos = kin["xpos"], kin["xquat"], kin["gpos"]
+    n = len(idx)
     root = f"world/{run.name}"
-    body_names = [model.body(b).name for b in range(model.nbody)]
-    for b in range(1, model.nbody):
-        path = f"{root}/body/{body_names[b]}"
-        w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
-                              columns=rr.Transform3D.columns(translation=xpos[:, b],
-                                                             quaternion=_xyzw(xquat[:, b])))
-        w.index[path] = {"kind": "Transform3D", "rows": n, "unit": "m"}
+    body_names = kin["body_names"]
     for g in range(model.ngeom):
         b = int(model.geom_bodyid[g])
         if b == 0:
@@ -502,6 +576,19 @@ def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
             continue
         name = model.geom(g).name or f"geom_{g}"
         w.stream.log(f"{root}/body/{body_names[b]}/{name}", arch, static=True)
+    # the run's name above the walker's head, in the run's colour: the key to every plot
+    w.stream.log(f"{root}/body/{body_names[kin['pelvis']]}/label",
+                 rr.Points3D(positions=[[0.0, 0.0, LABEL_HEIGHT_M]], radii=[0.015],
+                             colors=[_run_colour(i)], labels=[run.name], show_labels=True),
+                 static=True)
+    if run.device is not None and getattr(run.device, "log", None) is not None:
+        _log_afo_shapes(w, run, model, root, body_names)
+    for b in range(1, model.nbody):
+        path = f"{root}/body/{body_names[b]}"
+        w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                              columns=rr.Transform3D.columns(translation=xpos[:, b],
+                                                             quaternion=_xyzw(xquat[:, b])))
+        w.index[path] = {"kind": "Transform3D", "rows": n, "unit": "m"}
     # ground reaction force arrows at the centre of pressure of heel/ball contact spheres
     gid = {model.geom(g).name: g for g in range(model.ngeom)}
     for s, side in enumerate(_SIDES):
@@ -523,8 +610,7 @@ def _log_body(w: _Writer, run: RecordedRun, lane_y: float, step: int) -> dict:
                               columns=rr.Arrows3D.columns(origins=origin, vectors=vec))
         w.index[path] = {"kind": "Arrows3D", "rows": n, "unit": "N"}
     if run.device is not None and getattr(run.device, "log", None) is not None:
-        _log_afo(w, run, model, root, body_names, t)
-    return {"x_min": float(xpos[:, 1:, 0].min()), "x_max": float(xpos[:, 1:, 0].max())}
+        _log_afo(w, run, kin, root)
 
 
 def _orthosis(dev, L: dict) -> dict | None:
@@ -558,21 +644,81 @@ def _orthosis(dev, L: dict) -> dict | None:
             "stroke_m": stroke, "p_max_pa": p_max, "chambers": chambers}
 
 
-def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
-             t_body: np.ndarray) -> None:
-    """The worn orthosis's cylinders along each worn shank (barrel + oil column per chamber:
-    two for a double-acting pair, one for a single-acting cylinder), at the log rows nearest
-    to the body-transform times ``t_body``."""
+def _log_afo_shapes(w: _Writer, run: RecordedRun, model, root: str, body_names) -> None:
+    """The orthosis's shell on each worn side (static, in the body frames): a cuff around
+    the lower shank and a foot plate from heel to ball, in :data:`AFO_COLOUR`."""
+    rr = w.rr
+    for side in run.device.sides:
+        shank, foot = f"shank_{side[0]}", f"foot_{side[0]}"
+        gid = {model.geom(g).name: g for g in range(model.ngeom)}
+        if shank in body_names and shank in gid:
+            g = gid[shank]
+            gq = model.geom_quat[g]
+            axis = _quat_rotate(gq, np.array([0.0, 0.0, 1.0]))
+            half, r = float(model.geom_size[g, 1]), float(model.geom_size[g, 0])
+            centre = model.geom_pos[g] - axis * 0.55 * half       # the lower half of the shank
+            w.stream.log(f"{root}/body/{shank}/afo/cuff", rr.Boxes3D(
+                half_sizes=[[r + 0.012, r + 0.012, 0.35 * half]], centers=[centre],
+                quaternions=[_xyzw(gq)], colors=[AFO_COLOUR], fill_mode="solid"),
+                static=True)
+        heel, ball = gid.get(f"heel_{side[0]}"), gid.get(f"ball_{side[0]}")
+        if foot in body_names and heel is not None and ball is not None:
+            ph, pb = model.geom_pos[heel], model.geom_pos[ball]
+            rad = float(model.geom_size[heel, 0])
+            d = pb - ph
+            length = float(np.hypot(d[0], d[2])) + 2 * rad
+            a = -math.atan2(d[2], d[0])                  # rotation about y: x onto heel→ball
+            q = [0.0, math.sin(a / 2), 0.0, math.cos(a / 2)]
+            w.stream.log(f"{root}/body/{foot}/afo/plate", rr.Boxes3D(
+                half_sizes=[[length / 2, 0.045, 0.006]], centers=[0.5 * (ph + pb)],
+                quaternions=[q], colors=[AFO_COLOUR], fill_mode="solid"), static=True)
+
+
+def _log_afo(w: _Writer, run: RecordedRun, kin: dict, root: str) -> None:
+    """The worn orthosis over time: its delivered torque as an arrow ending at the ball of each
+    worn foot (:data:`AFO_ARROW_M_PER_NM`; pointing where a force there turns the foot the way
+    the torque does: down for plantarflexion, up for dorsiflexion), and
+    its cylinders along each worn shank (barrel + oil column per chamber: two for a
+    double-acting pair, one for a single-acting cylinder), at the log rows nearest to the
+    body-transform times."""
     rr = w.rr
     dev = run.device
     if dev.log.n == 0:
         return
+    model, body_names, t_body = kin["model"], kin["body_names"], kin["t"]
     L = dev.log.arrays()
+    t_all = L["time_s"][:, 0]
+    rows = np.clip(np.searchsorted(t_all, t_body), 0, len(t_all) - 1)
+    tau = L.get("delivered_torque_nm")
+    gid = {model.geom(g).name: g for g in range(model.ngeom)}
+    if tau is not None:
+        for k, side in enumerate(dev.sides):
+            foot, ball = f"foot_{side[0]}", gid.get(f"ball_{side[0]}")
+            jid = [j for j in range(model.njnt) if model.jnt_bodyid[j] == body_names.index(foot)
+                   and model.jnt_type[j] == 3] if foot in body_names else []
+            if not jid or ball is None:
+                continue
+            b, j = body_names.index(foot), jid[0]
+            ankle = kin["xpos"][:, b] + np.array([_quat_rotate(q, model.jnt_pos[j])
+                                                  for q in kin["xquat"][:, b]])
+            axis = np.array([_quat_rotate(q, model.jnt_axis[j]) for q in kin["xquat"][:, b]])
+            r = kin["gpos"][:, ball] - ankle
+            # the direction in which a force at the ball of the foot turns the foot the way
+            # the torque does (axis × r̂): down for plantarflexion, up for dorsiflexion; the
+            # arrow ends at the ball (a downward one would start there and sink into the floor)
+            d = np.cross(axis, r / np.linalg.norm(r, axis=1)[:, None])
+            vec = d * (np.asarray(tau, dtype=float)[rows, k] * AFO_ARROW_M_PER_NM)[:, None]
+            path = f"{root}/afo_torque/{side}"
+            w.stream.log(path, rr.Arrows3D.from_fields(radii=0.012, colors=[AFO_TORQUE_COLOUR]),
+                         static=True)
+            w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t_body)],
+                                  columns=rr.Arrows3D.columns(
+                                      origins=kin["gpos"][:, ball] - vec, vectors=vec))
+            w.index[path] = {"kind": "Arrows3D", "rows": int(len(t_body)), "unit": "N*m"}
     geo = _orthosis(dev, L)
     if geo is None:
         return
-    t_all = L["time_s"][:, 0]
-    rows = np.unique(np.clip(np.searchsorted(t_all, t_body), 0, len(t_all) - 1))
+    rows = np.unique(rows)
     t = t_all[rows]
     bore_r, stroke, p_max = geo["bore_radius_m"], geo["stroke_m"], geo["p_max_pa"]
     for k, side in enumerate(dev.sides):
@@ -615,11 +761,44 @@ def _log_afo(w: _Writer, run: RecordedRun, model, root: str, body_names,
 
 
 # -- blueprint ----------------------------------------------------------------------------------
-def _blueprint(has_device: bool, has_valve: bool):
+def eye_placement(n_runs: int) -> dict:
+    """The 3D view's eye for ``n_runs`` lanes, in the frame that follows the walkers
+    (``world/follow``: x forward with the walkers, y across the lanes, z up; the lanes at
+    y = −(n−1)·:data:`LANE_SPACING_M` … 0): ``{"position", "look_target", "eye_up"}``. The eye
+    stands ahead of the walkers and to their right (:data:`EYE_AHEAD_M`, :data:`EYE_SIDE_M`
+    from the middle lane), above them, and looks at the middle lane at hip height: a
+    three-quarter view, in which walkers of neighbouring lanes stand apart on screen unless
+    one is over a metre ahead of the other."""
+    y_mid = -0.5 * (n_runs - 1) * LANE_SPACING_M
+    return {"position": (EYE_AHEAD_M, y_mid - EYE_SIDE_M, EYE_HEIGHT_M),
+            "look_target": (0.0, y_mid, LOOK_HEIGHT_M), "eye_up": (0.0, 0.0, 1.0)}
+
+
+def _key_text(names: Sequence[str], has_normative: bool) -> str:
+    """The colour key (markdown) that the plots' hidden legends would have given."""
+    lines = ["**Colours** (each plot; hover a line for its name)", ""]
+    for i, name in enumerate(names):
+        c = _run_colour(i)
+        lines.append(f"- `{name}`: RGB {c[0]}, {c[1]}, {c[2]} (right leg); the left leg is "
+                     f"the lighter shade")
+    if has_normative:
+        lines.append("- normative reference: black (mean), grey (±1 SD)")
+    lines += ["", "**3D**: each walker carries its run's name; the camera follows the walkers "
+              "(view origin `world/follow`). Red arrows: ground reaction force "
+              f"({1 / GRF_M_PER_N:.0f} N per metre). Orthosis: dark-blue cuff and foot plate; "
+              f"magenta arrow at the ball of the foot = the torque it delivers at the ankle "
+              f"({1 / AFO_ARROW_M_PER_NM:.0f} N·m per metre, down = plantarflexion); oil "
+              f"columns coloured by chamber pressure (blue 0 bar → red relief pressure)."]
+    return "\n".join(lines)
+
+
+def _blueprint(has_device: bool, has_valve: bool, n_runs: int = 1):
     import rerun.blueprint as rrb
 
     def ts(origin, name):
-        return rrb.TimeSeriesView(origin=origin, name=name)
+        # no legend over the data: the key is its own panel, and hovering names a line
+        return rrb.TimeSeriesView(origin=origin, name=name,
+                                  plot_legend=rrb.PlotLegend(visible=False))
 
     gait = rrb.Grid(ts("signals/angle_deg/hip", "hip angle [deg]"),
                     ts("signals/angle_deg/knee", "knee angle [deg]"),
@@ -650,23 +829,37 @@ def _blueprint(has_device: bool, has_valve: bool):
                              ts("signals/gait_phase", "gait phase [1]"),
                              ts("signals/grf_n/forward", "fore-aft GRF [N]"),
                              name="joints", grid_columns=2))
-    left = rrb.Vertical(rrb.Spatial3DView(origin="world", name="walker"),
-                        rrb.TextLogView(origin="events", name="gait events"),
+    eye = eye_placement(n_runs)
+    walker = rrb.Spatial3DView(
+        origin="world/follow", contents="world/**", name="walkers (camera follows)",
+        eye_controls=rrb.EyeControls3D(kind="orbital", **eye))
+    left = rrb.Vertical(walker,
+                        rrb.Horizontal(rrb.TextDocumentView(origin="key", name="key"),
+                                       rrb.TextLogView(origin="events", name="gait events")),
                         row_shares=[3, 1])
     return rrb.Blueprint(rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
-                         rrb.TimePanel(timeline="time"), collapse_panels=False)
+                         rrb.TimePanel(timeline="time", play_state="playing", loop_mode="all"),
+                         collapse_panels=False)
 
 
 # -- public -------------------------------------------------------------------------------------
 def write_recording(path, runs: Sequence[RecordedRun], reference=None,
                     title: str = "afo_mj run", signal_rate_hz: float = SIGNAL_RATE_HZ,
-                    transform_rate_hz: float = TRANSFORM_RATE_HZ) -> dict:
+                    transform_rate_hz: float = TRANSFORM_RATE_HZ,
+                    signal_tolerance: float = SIGNAL_TOLERANCE) -> dict:
     """Write ``runs`` into one rerun recording at ``path`` (written to a temporary file and
-    renamed, so a failure leaves nothing half-written). Returns ``{"path", "entities":
-    {entity path: {"kind", "rows", "unit"}}}``.
+    renamed, so a failure leaves nothing half-written). Returns ``{"path", "recording_id",
+    "entities": {entity path: {"kind", "rows", "unit"(, "samples")}}}`` (a signal's
+    ``samples``: at ``signal_rate_hz``; its ``rows``: those kept by the thinning).
 
-    Raises :class:`RecordingError` for a bad rate, a run without 3D data, non-finite signals
-    or an unwritable path.
+    Signals are sampled at ``signal_rate_hz`` and thinned
+    (:func:`~afo_mj.outputs.series_thinning.thin_indices`) to within ``signal_tolerance`` ×
+    each signal's range (0: every sample kept). Static data (geometry, styles, units, the
+    floor) is written before the time series, so a viewer reading the file draws each
+    series finished as it arrives.
+
+    Raises :class:`RecordingError` for a bad rate or tolerance, a run without 3D data,
+    non-finite signals or an unwritable path.
     """
     import rerun as rr
     if not runs:
@@ -675,6 +868,10 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
                            ("transform_rate_hz", transform_rate_hz, 1.0, 1e4)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
             raise RecordingError(f"{key} = {v!r}; allowed: a number in [{lo:g}, {hi:g}] Hz")
+    if not (isinstance(signal_tolerance, (int, float)) and math.isfinite(signal_tolerance)
+            and 0.0 <= signal_tolerance <= 0.1):
+        raise RecordingError(f"signal_tolerance = {signal_tolerance!r}; allowed: a number in "
+                             f"[0, 0.1] (fraction of each signal's range; 0 keeps every sample)")
     names = [r.name for r in runs]
     if len(set(names)) != len(names):
         raise RecordingError(f"run names must be unique, got {names}")
@@ -687,23 +884,46 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
     except OSError as exc:
         raise RecordingError(f"recording path = {str(out)!r}: {exc}") from None
     tmp = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.tmp")
-    # every run's device signals, from what its log holds, before anything is written
+    # every run's device signals, from what its log holds, and its 3D poses, before anything
+    # is written
     series = {r.name: _device_series(r) for r in runs}
     has_device = any(r.device is not None for r in runs)
     has_valve = any(path.startswith("valve/") for sr in series.values() for path, *_ in sr)
-    stream = rr.RecordingStream("afo_mj", recording_id=uuid.uuid4().hex)
+    kins = []
+    for i, run in enumerate(runs):
+        t_step = max(1, int(round(1.0 / (transform_rate_hz * run.record.sample_period_s))))
+        kins.append(_kinematics(run, t_step, (i - (len(runs) - 1)) * LANE_SPACING_M))
+    t_follow, x_follow = follow_track(kins)
+    x_lo = min(0.0, min(float(k["xpos"][:, 1:, 0].min()) for k in kins))
+    x_hi = max(1.0, max(float(k["xpos"][:, 1:, 0].max()) for k in kins))
+    recording_id = uuid.uuid4().hex
+    stream = rr.RecordingStream("afo_mj", recording_id=recording_id)
     try:
-        stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve))
+        stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve, len(runs)))
         stream.send_recording_name(title)
-        w = _Writer(rr, stream)
-        x_lo, x_hi = 0.0, 1.0
+        w = _Writer(rr, stream, signal_tolerance)
+        # static first: floor with a mark every metre (the camera follows the walkers, the
+        # marks show them moving), the key
+        y_lo = -(len(runs) - 1) * LANE_SPACING_M - 0.5
+        stream.log("world/floor", rr.Boxes3D(
+            mins=[[x_lo - 1.0, y_lo, -0.01]], sizes=[[x_hi - x_lo + 2.0, -y_lo + 0.5, 0.01]],
+            colors=[(205, 205, 195)], fill_mode="solid"), static=True)
+        marks = [[[x, y_lo, 0.001], [x, 0.5, 0.001]]
+                 for x in np.arange(math.floor(x_lo - 1.0), math.ceil(x_hi + 1.0) + 1)]
+        stream.log("world/floor/metre_marks", rr.LineStrips3D(
+            marks, colors=[(120, 120, 110)], radii=[0.004]), static=True)
+        stream.log("key", rr.TextDocument(_key_text(names, reference is not None),
+                                          media_type="text/markdown"), static=True)
+        stream.send_columns("world/follow", indexes=[rr.TimeColumn("time", duration=t_follow)],
+                            columns=rr.Transform3D.columns(
+                                translation=np.column_stack([x_follow, np.zeros_like(x_follow),
+                                                             np.zeros_like(x_follow)])))
+        w.index["world/follow"] = {"kind": "Transform3D", "rows": int(len(t_follow)),
+                                   "unit": "m"}
         for i, run in enumerate(runs):
             dt = run.record.sample_period_s
             s_step = max(1, int(round(1.0 / (signal_rate_hz * dt))))
-            t_step = max(1, int(round(1.0 / (transform_rate_hz * dt))))
-            lane = (i - (len(runs) - 1)) * LANE_SPACING_M       # the last run at y = 0
-            ext = _log_body(w, run, lane, t_step)
-            x_lo, x_hi = min(x_lo, ext["x_min"]), max(x_hi, ext["x_max"])
+            _log_body(w, run, kins[i], i)
             _log_gait_signals(w, run, i, s_step)
             t_sig = run.record.time_s[::s_step]
             for key, (values, unit, label) in run.extra_signals.items():
@@ -714,10 +934,6 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
         last = runs[-1]
         _log_normative(w, last, reference,
                        max(1, int(round(1.0 / (signal_rate_hz * last.record.sample_period_s)))))
-        y_lo = -(len(runs) - 1) * LANE_SPACING_M - 0.5
-        stream.log("world/floor", rr.Boxes3D(
-            mins=[[x_lo - 1.0, y_lo, -0.01]], sizes=[[x_hi - x_lo + 2.0, -y_lo + 0.5, 0.01]],
-            colors=[(205, 205, 195)], fill_mode="solid"), static=True)
         stream.flush()
         stream.disconnect()
         os.replace(tmp, out)
@@ -728,7 +944,7 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
             pass
         tmp.unlink(missing_ok=True)
         raise
-    return {"path": str(out), "entities": w.index}
+    return {"path": str(out), "recording_id": recording_id, "entities": w.index}
 
 
 #: unit of a bench series entry by the suffix of its key (SI as simulated)
