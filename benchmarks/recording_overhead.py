@@ -14,7 +14,8 @@ blurred by the machine's load, so the recorder's own time (``write_recording`` t
 the recorded runs) is reported beside it as a fraction of the unrecorded run; the target is
 checked on the worse of the two. Prints the figures; the last line
 is a JSON object.
-Run: ``.venv/bin/python benchmarks/recording.py [repeats]``
+Run: ``.venv/bin/python benchmarks/recording_overhead.py [repeats]`` (the recording's size and
+the viewer's load time: ``benchmarks/recording.py``)
 """
 
 from __future__ import annotations
