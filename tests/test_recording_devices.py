@@ -153,3 +153,53 @@ def test_every_device_is_recorded_with_what_its_log_holds(tmp_path, scenario, ov
             assert idx[oil]["rows"] > 5 and "Cylinders3D:colors" in idx[oil]["components"]
         else:
             assert oil not in idx
+
+
+def _colours(path: Path, entity: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time_s, RGBA uint32 per row) of an entity's time-varying colours, read with rerun's
+    reader."""
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    ts, cs = [], []
+    for ch in store.stream():
+        if ch.entity_path.lstrip("/") != entity or ch.is_static:
+            continue
+        rb = ch.to_record_batch()
+        col = [c for c in rb.schema.names if c.endswith(":colors")][0]
+        t = rb.column("time").to_numpy()
+        ts.append(t.astype("timedelta64[ns]").astype(np.int64) / 1e9)
+        cs.append(np.array([x[0] for x in rb.column(col).to_pylist()], dtype=np.uint64))
+    order = np.argsort(np.concatenate(ts))
+    return np.concatenate(ts)[order], np.concatenate(cs)[order]
+
+
+@pytest.mark.parametrize("scenario, overrides", [CASES[0], CASES[len(PRESETS)]])
+def test_the_recording_carries_the_circuit_coloured_by_pressure(tmp_path, scenario, overrides):
+    """Issue 43 item 1: the worn circuit's schematic is in the recording (every component, every
+    node), and each pressure node's colour follows its logged pressure: ordered by the log's
+    pressure, the colour's red minus blue never falls (blue empty → red at the relief)."""
+    from afo_mj.app.run import record_run, run_scenario
+    res = run_scenario(SCN / scenario, overrides=SHORT + overrides, figures=False)
+    _rec, _analysis, dev = res.results["assist"]
+    rrd = tmp_path / "dev.rrd"
+    record_run(res, rrd)
+    idx = read_recording_index(rrd)
+    circuit = dev.cc.circuit
+    root = "schematic/assist"
+    assert f"{root}/components" in idx
+    for node in circuit.nodes:
+        assert f"{root}/nodes/{node}" in idx, node
+    L = dev.log.arrays()
+    t_log = L["time_s"][:, 0]
+    kinds = dict(zip(dev.cc.state_names, dev.cc.state_kinds))
+    checked = 0
+    for node in circuit.nodes:
+        if kinds.get(node) != "pressure":
+            continue
+        t, rgba = _colours(rrd, f"{root}/nodes/{node}")
+        p = L[_column(dev, L, node)][np.searchsorted(t_log, t - 1e-9), 0]
+        red, blue = (rgba >> 24) & 0xFF, (rgba >> 8) & 0xFF
+        warmth = red.astype(float) - blue.astype(float)
+        order = np.argsort(p, kind="stable")
+        assert np.all(np.diff(warmth[order]) >= -1.0), node     # rounding of one unit
+        checked += 1
+    assert checked >= 2

@@ -760,6 +760,57 @@ def _log_afo(w: _Writer, run: RecordedRun, kin: dict, root: str) -> None:
             w.index[path] = {"kind": "Cylinders3D", "rows": int(len(t)), "unit": "m"}
 
 
+#: grey of a schematic's components and of its nodes that carry no pressure (bus, shaft, joint)
+SCHEMATIC_GREY = (150, 150, 150, 255)
+
+
+def _log_schematic(w: _Writer, run: RecordedRun, t_body: np.ndarray) -> str | None:
+    """The worn circuit's schematic (:func:`afo_mj.outputs.schematic.schematic_svg`) as 2D
+    geometry under ``schematic/<run>``: each component's box and name (static), each node's
+    lines and port stubs, a pressure node coloured by its logged pressure over time
+    (:func:`_pressure_colours`, blue at 0 through white to red at the highest relief valve's
+    cracking pressure or the run's peak), the other nodes grey. Sampled at the body
+    transforms' times. Returns the entity root, or None for a device that is no circuit or
+    has no log."""
+    from afo_mj.outputs.schematic import schematic_geometry, schematic_svg
+    rr, dev = w.rr, run.device
+    c = _circuit(dev)
+    if c is None or dev.log is None or dev.log.n == 0:
+        return None
+    geo = schematic_geometry(schematic_svg(c, title=run.name))
+    root = f"schematic/{run.name}"
+    names = sorted(geo["components"])
+    boxes = np.array([geo["components"][n] for n in names], dtype=float).reshape(-1, 4)
+    w.stream.log(f"{root}/components", rr.Boxes2D(
+        mins=boxes[:, :2], sizes=boxes[:, 2:], labels=names, colors=[SCHEMATIC_GREY],
+        show_labels=True), static=True)
+    w.index[f"{root}/components"] = {"kind": "Boxes2D", "rows": 1, "unit": "-"}
+    L = dev.log.arrays()
+    t_all = L["time_s"][:, 0]
+    rows = np.unique(np.clip(np.searchsorted(t_all, t_body), 0, len(t_all) - 1))
+    t = t_all[rows]
+    kinds = dict(zip(dev.cc.state_names, dev.cc.state_kinds))
+    pressures = {n: _column(dev, L, n) for n in geo["nodes"] if kinds.get(n) == "pressure"}
+    pressures = {n: np.asarray(p, dtype=float)[rows, 0] for n, p in pressures.items()
+                 if p is not None}
+    reliefs = [float(r.params.cracking_dp_pa) for r in c.components if r.kind == "relief_valve"]
+    p_max = max(reliefs) if reliefs else max([float(np.max(p)) for p in pressures.values()]
+                                             + [1e5])
+    for node, strips in geo["nodes"].items():
+        path = f"{root}/nodes/{node}"
+        if node not in pressures:
+            w.stream.log(path, rr.LineStrips2D(strips, colors=[SCHEMATIC_GREY], radii=[1.0],
+                                               labels=[node]), static=True)
+            w.index[path] = {"kind": "LineStrips2D", "rows": 1, "unit": "-"}
+            continue
+        w.stream.log(path, rr.LineStrips2D(strips, radii=[1.6], labels=[node]), static=True)
+        w.stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=t)],
+                              columns=rr.LineStrips2D.columns(
+                                  colors=_pressure_colours(pressures[node], p_max)))
+        w.index[path] = {"kind": "LineStrips2D", "rows": int(len(t)), "unit": "Pa"}
+    return root
+
+
 # -- blueprint ----------------------------------------------------------------------------------
 def eye_placement(n_runs: int) -> dict:
     """The 3D view's eye for ``n_runs`` lanes, in the frame that follows the walkers
@@ -792,7 +843,8 @@ def _key_text(names: Sequence[str], has_normative: bool) -> str:
     return "\n".join(lines)
 
 
-def _blueprint(has_device: bool, has_valve: bool, n_runs: int = 1):
+def _blueprint(has_device: bool, has_valve: bool, n_runs: int = 1,
+               schematics: Sequence[str] = ()):
     import rerun.blueprint as rrb
 
     def ts(origin, name):
@@ -823,6 +875,9 @@ def _blueprint(has_device: bool, has_valve: bool, n_runs: int = 1):
                              ts("signals/fluid_temperature_c", "oil temperature [°C]"),
                              ts("signals/gait_phase", "gait phase [1]"),
                              name="energy", grid_columns=2))
+        for root in schematics:
+            tabs.append(rrb.Spatial2DView(origin=root, name=f"circuit {root.split('/', 1)[1]} "
+                                          "(pressure: blue 0 → red relief)"))
     else:
         tabs.append(rrb.Grid(ts("signals/moment_nm", "joint moments [N·m]"),
                              ts("signals/joint_power_w", "joint powers [W]"),
@@ -899,7 +954,11 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
     recording_id = uuid.uuid4().hex
     stream = rr.RecordingStream("afo_mj", recording_id=recording_id)
     try:
-        stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve, len(runs)))
+        schematics = [f"schematic/{r.name}" for r in runs
+                      if _circuit(r.device) is not None and r.device.log is not None
+                      and r.device.log.n > 0]
+        stream.save(str(tmp), default_blueprint=_blueprint(has_device, has_valve, len(runs),
+                                                           schematics))
         stream.send_recording_name(title)
         w = _Writer(rr, stream, signal_tolerance)
         # static first: floor with a mark every metre (the camera follows the walkers, the
@@ -924,6 +983,8 @@ def write_recording(path, runs: Sequence[RecordedRun], reference=None,
             dt = run.record.sample_period_s
             s_step = max(1, int(round(1.0 / (signal_rate_hz * dt))))
             _log_body(w, run, kins[i], i)
+            if run.device is not None:
+                _log_schematic(w, run, kins[i]["t"])
             _log_gait_signals(w, run, i, s_step)
             t_sig = run.record.time_s[::s_step]
             for key, (values, unit, label) in run.extra_signals.items():

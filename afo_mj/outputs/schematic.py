@@ -39,8 +39,8 @@ import xml.etree.ElementTree as ET
 
 from afo_mj.circuits.components import BUS, HYDRAULIC, JOINT, SHAFT
 
-__all__ = ["schematic_svg", "write_schematic", "read_schematic_topology", "SchematicError",
-           "SYMBOLS", "LABELS", "symbol_svg", "layout_problems"]
+__all__ = ["schematic_geometry", "schematic_svg", "write_schematic", "read_schematic_topology",
+           "SchematicError", "SYMBOLS", "LABELS", "symbol_svg", "layout_problems"]
 
 SVG_NS = "http://www.w3.org/2000/svg"
 
@@ -1276,6 +1276,39 @@ def read_schematic_topology(svg_text: str) -> dict:
             raise SchematicError(f"node {node!r} is drawn twice")
         nodes[node] = found
     return {"components": comps, "nodes": nodes}
+
+
+def schematic_geometry(svg_text: str) -> dict:
+    """The drawing of a schematic written by :func:`schematic_svg` as plain geometry (SVG
+    units, y down): ``{"size": (width, height), "components": {name: (x, y, w, h)},
+    "nodes": {node: [polyline, ...]}}``, each node's lines and port stubs as lists of
+    ``(x, y)`` points: what a viewer needs to draw the circuit and colour each node (the
+    recording's live schematic, :mod:`afo_mj.outputs.recording`)."""
+    try:
+        root = ET.fromstring(svg_text)
+    except ET.ParseError as exc:
+        raise SchematicError(f"not an SVG document: {exc}") from None
+    size = (float(root.get("width", 0)), float(root.get("height", 0)))
+    comps = {}
+    for el in root.iter():
+        ident = el.get("id", "")
+        if ident.startswith("comp-"):
+            comps[ident[5:]] = tuple(_nums(el.get("data-bbox", "")))
+    nodes: dict = {}
+    for g in root.iter(f"{{{SVG_NS}}}g"):
+        node = g.get("data-node")
+        if node is None:
+            continue
+        strips = nodes.setdefault(node, [])
+        for el in g.iter():
+            tag = el.tag.split("}")[-1]
+            cls = el.get("class", "").split()
+            if tag == "line" and "wire" in cls:
+                x1, y1, x2, y2 = (float(el.get(k)) for k in ("x1", "y1", "x2", "y2"))
+                strips.append([(x1, y1), (x2, y2)])
+            elif tag == "path" and "stub" in cls:
+                strips.append(_path_points(el.get("d", "")))
+    return {"size": size, "components": comps, "nodes": nodes}
 
 
 def layout_problems(svg_text: str) -> list:
