@@ -83,6 +83,23 @@ and, as the solver does not clip, is zero on a run that never reaches the floor.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:     # the generated module's globals (module docstring; stepper_globals)
+    import math
+
+    from afo_mj.circuits.buffer_views import view2, view3
+    from afo_mj.circuits.stepper_globals import (
+        F_CAP, F_HEAT, F_LOSS, F_PROBE, F_SRATE, F_TAU, N_CTRL, N_INPUT, N_LOSS, N_P, N_PROBE,
+        N_SCRATCH, N_SRATE, N_U, N_U_HEAD, N_W, N_Y, S_WIDTH, U_CMD, U_VBUS, W_A, W_B,
+        W_CLIP_STEPS, W_CMD, W_COUPLE_SQ, W_CTRL, W_E_ABS_FLOW, W_E_FLOOR, W_E_LOSS, W_E_MECH,
+        W_E_SRATE, W_E_STORE, W_G, W_HEAT_TO_OIL, W_I_BAT, W_NEWTON_FAIL, W_NEWTON_ITERS,
+        W_P_MECH, W_SUBSTEPPED, W_SUBSTEPS, W_TAU, W_TAU0, W_TAU_END, W_TAU_MEAS, W_TEMP_K,
+        W_THETA, W_THETA_DOT, W_U, Y_TYP, begin_extra, clip_floor, close_extra, controller,
+        rhs_columns, rhs_step)
+    from afo_mj.control.assistance import N_PH, PH_PHASE, phase_update, table_lookup
+    from afo_mj.control.impedance import impedance_torque
+
 #: Newton tolerance on the backward-Euler residual, per state, in units of ``Y_TYP``, for a
 #: step of ``NEWTON_TOL_STEP_S``; a step ``h`` uses ``NEWTON_TOL h / NEWTON_TOL_STEP_S``. The
 #: residual a step leaves is an error of the stores' content, and so of the energy ledger;
