@@ -15,9 +15,10 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from component_reference import Cylinder
+
 from afo_mj.circuits.circuit import Circuit
 from afo_mj.hydraulics import laws as L
-from afo_mj.hydraulics.cylinder import Cylinder
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 
 #: rows of the reference solution ``sol.y`` and the kernel's log names of the same signals

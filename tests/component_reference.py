@@ -21,8 +21,11 @@ from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.laws import orifice_flow_m3_s
 from afo_mj.hydraulics.accumulator import (GAS_LAW_MIN_VOLUME_FRACTION, GasAccumulatorParams,
                                            SpringAccumulatorParams)
+from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.check_valve import CheckValveParams
 from afo_mj.hydraulics.conduit import HoseParams
+from afo_mj.hydraulics.cylinder import CylinderParams
+from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA
 from afo_mj.hydraulics.motor import DriverParams, MotorParams
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
@@ -30,6 +33,8 @@ from afo_mj.hydraulics.params import Parameters
 from afo_mj.hydraulics.power import PowerFlow
 from afo_mj.hydraulics.pump import PumpParams
 from afo_mj.hydraulics.relief_valve import ReliefValveParams
+from afo_mj.hydraulics.seal import OringSeal
+from afo_mj.hydraulics.servo_valve import ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
 
@@ -354,6 +359,88 @@ class Hose:
         return PowerFlow(p_in * flow_m3_s, p_out * flow_m3_s, (p_in - p_out) * flow_m3_s, 0.0)
 
 
+# --- from afo_mj.hydraulics.cylinder
+class Cylinder:
+    """Volumes, forces, leakage and power of one :class:`CylinderParams` cylinder."""
+
+    def __init__(self, params: CylinderParams):
+        p = self.params = params
+        # the geometry is the parameters' own (CylinderParams.area_a_m2 etc.), which the tests
+        # hold against hand figures (tests/test_actuator_pump_motor.py)
+        self.area_a_m2, self.area_b_m2 = p.area_a_m2, p.area_b_m2
+        self.piston_seal = OringSeal(p.piston_seal, p.bore_m)
+        self.rod_seal = OringSeal(p.rod_seal, max(p.rod_diameter_m, 1e-6))
+        # seals sliding on the rod or cable: both caps of a piston-cable cylinder, the rod's
+        # cap of a double-acting one; the vented side of a single-acting one is not counted
+        self.n_rod_seals = {"piston_cable": 2, "double_acting": 1}.get(p.kind, 0)
+        self.leakage_conductance_m3 = p.leakage_conductance_m3
+
+    def chamber_volumes_m3(self, position_m):
+        """``(V_a, V_b)`` at piston position ``x``."""
+        x = np.asarray(position_m, dtype=float)
+        return (self.params.dead_volume_a_m3 + self.area_a_m2 * x,
+                self.params.dead_volume_b_m3 + self.area_b_m2 * (self.params.stroke_m - x))
+
+    def hydraulic_force_n(self, p_a_pa, p_b_pa):
+        """``F_h = p_a A_a − p_b A_b − p_atm (A_a − A_b)`` (positive extends)."""
+        return (self.area_a_m2 * (np.asarray(p_a_pa) - ATMOSPHERIC_PRESSURE_PA)
+                - self.area_b_m2 * (np.asarray(p_b_pa) - ATMOSPHERIC_PRESSURE_PA))
+
+    def friction_force_n(self, velocity_m_s, p_a_pa, p_b_pa):
+        """Total seal friction (sign of velocity): piston seal sees ``p_a − p_b``, each rod or
+        cable seal its chamber's gauge pressure."""
+        if not self.params.seal_friction_enabled:
+            return np.zeros_like(np.asarray(velocity_m_s, dtype=float))
+        f = self.piston_seal.friction_force_n(velocity_m_s, np.asarray(p_a_pa) - p_b_pa)
+        if self.n_rod_seals == 2:
+            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_a_pa)
+                                                   - ATMOSPHERIC_PRESSURE_PA)
+            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_b_pa)
+                                                   - ATMOSPHERIC_PRESSURE_PA)
+        elif self.n_rod_seals == 1:
+            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_b_pa)
+                                                   - ATMOSPHERIC_PRESSURE_PA)
+        return f
+
+    def internal_leakage_m3_s(self, p_a_pa, p_b_pa, dynamic_viscosity_pa_s):
+        """Laminar annular-gap flow from chamber a to b (0 for single-acting or if disabled)."""
+        dp = np.asarray(p_a_pa, dtype=float) - p_b_pa
+        if not self.params.internal_leakage_enabled or self.params.kind == "single_acting":
+            return np.zeros_like(dp)
+        return laws.laminar_gap_flow_m3_s(dp, self.leakage_conductance_m3, dynamic_viscosity_pa_s)
+
+    def end_stop_force_n(self, position_m, velocity_m_s):
+        """Contact force of the end stops (pushes the piston back into 0 … stroke): the law
+        :func:`~afo_mj.hydraulics.laws.end_stop_force_n`."""
+        x = np.asarray(position_m, dtype=float)
+        v = np.asarray(velocity_m_s, dtype=float)
+        if not self.params.end_stops_enabled:
+            return np.zeros_like(x)
+        p = self.params
+        return laws.end_stop_force_n(x, v, p.stroke_m, p.end_stop_stiffness_n_m,
+                                     p.end_stop_damping_n_s_m)
+
+    def end_stop_energy_j(self, position_m):
+        """Elastic energy stored in the end stops, ``½ k pen²``
+        (:func:`~afo_mj.hydraulics.laws.end_stop_energy_j`)."""
+        x = np.asarray(position_m, dtype=float)
+        if not self.params.end_stops_enabled:
+            return np.zeros_like(x)
+        return laws.end_stop_energy_j(x, self.params.stroke_m, self.params.end_stop_stiffness_n_m)
+
+    def power(self, p_a_pa, p_b_pa, velocity_m_s, leakage_m3_s) -> PowerFlow:
+        """Hydraulic → mechanical conversion with gauge pressures.
+
+        ``in = F_h v + (p_a − p_b) Q_leak`` (displacement power plus the power carried by the
+        leakage flow), ``out = (F_h − F_fric) v``, ``heat = F_fric v + (p_a − p_b) Q_leak``.
+        """
+        v = np.asarray(velocity_m_s, dtype=float)
+        fh = self.hydraulic_force_n(p_a_pa, p_b_pa)
+        ff = self.friction_force_n(v, p_a_pa, p_b_pa)
+        leak = (np.asarray(p_a_pa) - p_b_pa) * leakage_m3_s
+        return PowerFlow(fh * v + leak, (fh - ff) * v, ff * v + leak, 0.0)
+
+
 # --- from afo_mj.hydraulics.pump
 class Pump:
     """Flow, torque, efficiencies and power of one :class:`PumpParams` pump."""
@@ -673,3 +760,153 @@ class SpringAccumulator(_Accumulator):
         """
         return laws.spring_accumulator_energy_j(np.asarray(fluid_volume_m3, dtype=float),
                                                 *self._law_args())
+
+
+# --- from afo_mj.hydraulics.servo_valve
+class ServoValve:
+    """Spool dynamics, edge areas, port flows and power of one :class:`ServoValveParams` valve."""
+
+    def __init__(self, params: ServoValveParams = ServoValveParams()):
+        p = self.params = params
+        self.omega_n_rad_s = 2.0 * math.pi * p.natural_frequency_hz
+        # the edges' sizing is the parameters' own (ServoValveParams.area_gradient_m, ...)
+        self.overlap_m = p.effective_overlap_m
+        #: area gradient w (m²/m): port width of each metering edge
+        self.area_gradient_m = p.area_gradient_m
+        #: leakage area of each edge (m²), 0 with leakage disabled
+        self.leakage_area_m2 = p.leakage_area_m2
+
+    def spool_target_m(self, command):
+        """``x_ref = clip(u, −1, 1) · x_max``."""
+        return np.clip(np.asarray(command, dtype=float), -1.0, 1.0) * self.params.spool_max_m
+
+    def spool_derivatives(self, x_m, v_m_s, command):
+        """``(dx/dt, dv/dt)`` of the spool: ``ẋ = v``, ``v̇ = ω_n² (x_ref − x) − 2 ζ ω_n v``."""
+        x = np.asarray(x_m, dtype=float)
+        v = np.asarray(v_m_s, dtype=float)
+        w = self.omega_n_rad_s
+        dv = w * w * (self.spool_target_m(command) - x) - 2.0 * self.params.damping_ratio * w * v
+        return v + 0.0 * x, dv
+
+    def edge_areas_m2(self, x_m):
+        """``(A_PA, A_AT, A_PB, A_BT)`` (m²) at spool position ``x_m`` (clipped to ±x_max)."""
+        p = self.params
+        x = np.asarray(x_m, dtype=float)
+        args = (p.spool_max_m, self.overlap_m, self.area_gradient_m, p.opening_smoothing_m,
+                self.leakage_area_m2)
+        a_pos = laws.spool_edge_area_m2(x, *args)
+        a_neg = laws.spool_edge_area_m2(-x, *args)
+        return a_pos, a_neg, a_neg, a_pos
+
+    def edge_flows_m3_s(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3):
+        """``(Q_PA, Q_AT, Q_PB, Q_BT)``: flow through each edge in its named direction."""
+        p = self.params
+        a_pa, a_at, a_pb, a_bt = self.edge_areas_m2(x_m)
+        pp, pt, pa, pb = (np.asarray(v, dtype=float) for v in (p_p_pa, p_t_pa, p_a_pa, p_b_pa))
+        cd, pcr = p.discharge_coefficient, p.transition_pressure_pa
+        return (orifice_flow_m3_s(pp - pa, a_pa, cd, density_kg_m3, pcr),
+                orifice_flow_m3_s(pa - pt, a_at, cd, density_kg_m3, pcr),
+                orifice_flow_m3_s(pp - pb, a_pb, cd, density_kg_m3, pcr),
+                orifice_flow_m3_s(pb - pt, a_bt, cd, density_kg_m3, pcr))
+
+    def flows_m3_s(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3):
+        """``(Q_A, Q_B, Q_P, Q_T)``: net flow out of the valve into line A and into line B,
+        flow drawn from the supply P, flow returned to tank T."""
+        q_pa, q_at, q_pb, q_bt = self.edge_flows_m3_s(x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa,
+                                                      density_kg_m3)
+        return q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
+
+    def power(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3) -> PowerFlow:
+        """Throttling power summed over the four edges (see module docstring)."""
+        pp, pt, pa, pb = (np.asarray(v, dtype=float) for v in (p_p_pa, p_t_pa, p_a_pa, p_b_pa))
+        flows = self.edge_flows_m3_s(x_m, pp, pt, pa, pb, density_kg_m3)
+        ends = ((pp, pa), (pa, pt), (pp, pb), (pb, pt))
+        p_in = p_out = heat = 0.0
+        for q, (up, down) in zip(flows, ends):
+            aq = np.abs(q)
+            p_in = p_in + np.maximum(up, down) * aq
+            p_out = p_out + np.minimum(up, down) * aq
+            heat = heat + (up - down) * q
+        return PowerFlow(in_w=p_in, out_w=p_out, heat_w=heat, stored_w=np.zeros_like(heat))
+
+
+# --- from afo_mj.hydraulics.battery
+class Battery:
+    """Rint equivalent circuit of a :class:`BatteryParams` pack (vectorised over SOC/current)."""
+
+    def __init__(self, params: BatteryParams = BatteryParams()):
+        self.params = p = params
+        #: Charge in coulombs.
+        self.capacity_c = 3600.0 * p.capacity_ah
+        # the table's figures are the parameters' own (BatteryParams.energy_wh, ...), which
+        # tests/test_storage_thermal.py holds against the trapezoid integral of the table
+        self.energy_wh = p.energy_wh
+        self.nominal_voltage_v = p.nominal_voltage_v
+        self.specific_energy_wh_kg = p.specific_energy_wh_kg
+
+    def open_circuit_voltage_v(self, soc):
+        """:meth:`BatteryParams.open_circuit_voltage_v`."""
+        return self.params.open_circuit_voltage_v(soc)
+
+    def terminal_voltage_v(self, soc, current_a):
+        """``V_term = V_oc − R I`` (``I > 0`` discharging).
+
+        Example (defaults): ``terminal_voltage_v(0.5, 10)`` → ``22.5 − 1.2 = 21.3`` V.
+        """
+        return self.open_circuit_voltage_v(soc) - self.params.internal_resistance_ohm * \
+            np.asarray(current_a, dtype=float)
+
+    def max_power_w(self, soc):
+        """Largest terminal power the pack can deliver, ``V_oc² / (4R)`` (at ``I = V_oc/(2R)``,
+        half the open-circuit voltage across the load; matched-load theorem).
+
+        Example (defaults, SOC 0.5): ``22.5²/0.48`` = 1055 W.
+        """
+        v = self.open_circuit_voltage_v(soc)
+        return v * v / (4.0 * self.params.internal_resistance_ohm)
+
+    def power_limited(self, soc, power_w):
+        """True where ``power_w`` exceeds :meth:`max_power_w` (the current is then clipped)."""
+        return np.asarray(power_w, dtype=float) > self.max_power_w(soc)
+
+    def current_for_power_a(self, soc, power_w):
+        """Pack current that delivers terminal power ``P = V_term I`` (negative ``P`` charges).
+
+        Root of ``R I² − V_oc I + P = 0`` on the stable branch,
+        ``I = (V_oc − sqrt(V_oc² − 4 R P)) / (2R) = 2P / (V_oc + sqrt(V_oc² − 4 R P))``
+        (the second form, used here, has no cancellation at small ``P``). ``P`` is first clipped
+        to :meth:`max_power_w`, so the result is finite: ``V_oc/(2R)`` at and beyond the limit
+        (see :meth:`power_limited`). The law :func:`afo_mj.hydraulics.laws.battery_current_a`.
+
+        Example (defaults, SOC 0.5, 200 W): ``2·200/(22.5 + sqrt(22.5² − 96))`` = 9.36 A.
+        """
+        return laws.battery_current_a(np.asarray(power_w, dtype=float),
+                                      self.open_circuit_voltage_v(soc),
+                                      self.params.internal_resistance_ohm)
+
+    def over_current(self, current_a):
+        """True where ``|I|`` exceeds ``max_current_a``."""
+        return np.abs(np.asarray(current_a, dtype=float)) > self.params.max_current_a
+
+    def soc_rate_per_s(self, current_a):
+        """``dSOC/dt = −I / (3600 C_Ah)`` (coulomb counting).
+
+        Example (defaults): 10 A → ``−10/9000 = −1.11e-3`` 1/s.
+        """
+        return -np.asarray(current_a, dtype=float) / self.capacity_c
+
+    def stored_energy_j(self, soc):
+        """:meth:`BatteryParams.stored_energy_j`."""
+        return self.params.stored_energy_j(soc)
+
+    def power(self, soc, current_a) -> PowerFlow:
+        """Power flows at ``(SOC, I)``: ``in = 0``, ``out = V_term I``, ``heat = R I²``,
+        ``stored = −V_oc I`` (see the module docstring).
+
+        Example (defaults, SOC 0.5, 10 A): out 213 W, heat 12 W, stored −225 W.
+        """
+        i = np.asarray(current_a, dtype=float)
+        v_oc = self.open_circuit_voltage_v(soc)
+        r = self.params.internal_resistance_ohm
+        out = (v_oc - r * i) * i
+        return PowerFlow(in_w=np.zeros_like(out), out_w=out, heat_w=r * i * i, stored_w=-v_oc * i)

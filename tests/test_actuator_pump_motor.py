@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
+from afo_mj.hydraulics.cylinder import CylinderParams
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid, FluidParams
 from afo_mj.hydraulics.motor import DriverParams, MotorParams
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.pump import AXIAL_PISTON_PUMP_SMALL, GEAR_PUMP_SMALL, PumpParams
 from afo_mj.hydraulics.seal import OringSeal, OringSealParams
-from component_reference import BrushlessMotor, Pump
+from component_reference import BrushlessMotor, Cylinder, Pump
 
 PA = ATMOSPHERIC_PRESSURE_PA
 

@@ -11,9 +11,8 @@ from kernel_reference import pump_kernel as pa
 from kernel_reference.kernel_devices import HafoKernelDevice, pack_parameters
 from afo_mj.human.test_stand import AnkleTestStand, StandLoad
 from afo_mj.hydraulics.conduit import laminar_resistance_pa_s_m3
-from afo_mj.hydraulics.cylinder import Cylinder
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
-from component_reference import BrushlessMotor, Pump
+from component_reference import BrushlessMotor, Cylinder, Pump
 
 
 

@@ -55,7 +55,6 @@ from afo_mj.circuits.circuit import Circuit, CircuitOptions, ThermalParams
 from afo_mj.circuits.codegen import build
 from afo_mj.circuits.components import CircuitError
 from afo_mj.circuits.device import CircuitDevice, JointLoad
-from afo_mj.hydraulics.battery import Battery
 from afo_mj.hydraulics.fluid import ISO_VG32
 from afo_mj.hydraulics.params import ParameterError, Parameters, replace_named
 from afo_mj.scenarios.circuit_scenario import library_spec
@@ -222,8 +221,7 @@ def battery_capped(dev: CircuitDevice, log: dict) -> bool:
     if not comps:
         return False
     p = comps[0].params
-    bat = Battery(p.battery)
-    v_oc = float(np.min(bat.open_circuit_voltage_v(np.array([p.initial_soc]))))
+    v_oc = float(np.min(p.battery.open_circuit_voltage_v(np.array([p.initial_soc]))))
     i_cap = v_oc / (2.0 * p.battery.internal_resistance_ohm)
     return bool(np.max(log["battery_current_a"]) >= 0.98 * i_cap)
 
@@ -337,7 +335,7 @@ def test_ledger_closes_when_the_battery_reaches_its_matched_load_power():
     over = led["stored_change_j"]["battery_overload"]
     assert over < 0.0
     comp = Circuit.from_dict(library_spec("spring_return")).components
-    bat = Battery(next(c for c in comp if c.kind == "battery").params.battery)
+    bat = next(c for c in comp if c.kind == "battery").params.battery
     v_oc = float(np.max(bat.open_circuit_voltage_v(np.array([0.0, 1.0]))))
     delivered = led["input_j"] - led["losses_j"]["battery.internal"]
     assert delivered <= v_oc ** 2 / (4 * 45.9) * N_STEPS * 1e-3 * (1 + 1e-9)

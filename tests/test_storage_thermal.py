@@ -16,11 +16,11 @@ from scipy.linalg import expm
 
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams, SpringAccumulatorParams
-from afo_mj.hydraulics.battery import Battery, BatteryParams
+from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.thermal import (
     AMBIENT, ThermalNetwork, ThermalNetworkParams, ThermalNodeParams, air_properties,
     convection_resistance_k_w, fluid_only, natural_convection_h_cylinder)
-from component_reference import GasAccumulator, SpringAccumulator
+from component_reference import Battery, GasAccumulator, SpringAccumulator
 
 
 def _raises_naming(factory, *fields):

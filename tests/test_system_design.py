@@ -151,6 +151,35 @@ def test_laws_reproduce_the_preset_anchors():
         math.sqrt(4 * 2.2 * 2000.0 / (math.pi * 800e6)), rel=1e-12)
 
 
+def test_actuator_geometry_is_what_the_generated_circuit_packs():
+    """The design's cylinders are the circuit's: for a design's bore, cable and piston ring, the
+    effective area, leakage conductance and lumped seal arguments of
+    :func:`~afo_mj.design.system_design.actuator_geometry` are the very numbers the generated
+    HAFO circuit packs for those cylinders (one code path: bit-for-bit equal), and the hose's oil
+    is the circuit's (twice a half volume per hose)."""
+    from afo_mj.circuits.codegen import generate
+    from afo_mj.design.system_design import actuator_geometry
+    from afo_mj.devices.hafo import HAFO, hafo_circuit
+    geo = actuator_geometry(np.array([13.8e6, 6e6]), np.array([10.4e-3, 17.3e-3]),
+                            np.array([0.04, 0.03]), 1.0, A, HAFO)
+    for k in range(2):
+        cy = HAFO.cylinder
+        cy = cy.replace(bore_m=float(np.array([10.4e-3, 17.3e-3])[k]),
+                        rod_diameter_m=float(geo["cable_m"][k]),
+                        piston_seal=cy.piston_seal.replace(
+                            cross_section_m=float(geo["piston_seal_cross_section_m"][k])))
+        params = HAFO.replace(cylinder=cy, hose=HAFO.hose.replace(bore_m=3.1e-3))
+        _, emitted, _ = generate(hafo_circuit(params))
+        P = dict(zip(emitted.P_labels, emitted.P))
+        assert geo["effective_area_m2"][k] == P["cylinders.count"] * P["cylinders.area"]
+        assert geo["leak_conductance_m3"][k] == P["cylinders.leak_g"]
+        packed = [P["cylinders.seal_" + n] for n in ("fc", "stribeck", "v_st", "v_c", "fv")]
+        assert [float(np.asarray(v).flat[k] if np.ndim(v) else v)
+                for v in geo["seal"]] == packed
+        hose_half = [v for lab, v in P.items() if lab.endswith("half_volume")]
+        assert hose_half and all(2.0 * v == params.hose.volume_m3 for v in hose_half)
+
+
 def test_oil_viscosity_is_the_simulators():
     """The viscosity the generated HAFO circuit holds over a step at oil temperature t."""
     from afo_mj.devices.hafo import HAFO, HafoDevice
@@ -442,10 +471,12 @@ def test_valve_supply_against_hand_calculation():
         # centre leakage: the maker's figure scaled by the regularised orifice law
         # C_d A √(2/ρ) Δp / (Δp² + p_cr²)^¼ of two edges in series (half the drop each); far
         # above p_cr this is Q_L √(p_s/Δp_L)
-        edge = lambda x: x / (x * x + sf.servo_pcr_pa ** 2) ** 0.25  # noqa: E731
-        q_lk = sf.servo_leak_m3_s * edge(ps / 2) / edge(sf.servo_leak_dp_pa / 2)
-        assert q_lk == pytest.approx(sf.servo_leak_m3_s * math.sqrt(ps / sf.servo_leak_dp_pa),
-                                     rel=1e-4)
+        sv = sf.servo_valve
+        assert sv.rated_density_kg_m3 == 870.0       # the maker's figure holds in this oil
+        edge = lambda x: x / (x * x + sv.transition_pressure_pa ** 2) ** 0.25  # noqa: E731
+        q_lk = sv.leakage_flow_m3_s * edge(ps / 2) / edge(sv.leakage_supply_dp_pa / 2)
+        assert q_lk == pytest.approx(
+            sv.leakage_flow_m3_s * math.sqrt(ps / sv.leakage_supply_dp_pa), rel=1e-4)
         qp = abs(q) + q_lk
         assert float(out["p_valve"]) == pytest.approx(ps * qp - dp * q, rel=1e-12)
         assert float(out["w_p"]) == pytest.approx((qp + 1.2e-7 * d * ps / mu) / d, rel=1e-12)

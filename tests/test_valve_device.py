@@ -28,8 +28,8 @@ from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 from afo_mj.hydraulics.onoff_valve import pwm_command
 from afo_mj.hydraulics.orifice import orifice_flow_m3_s
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.servo_valve import ServoValve
-from component_reference import BrushlessMotor, GasAccumulator, OnOffValve, Pump, UnloadingValve
+from component_reference import (BrushlessMotor, GasAccumulator, OnOffValve, Pump, ServoValve,
+                                 UnloadingValve)
 
 
 SERVO = VALVE_PRESETS["valve"]

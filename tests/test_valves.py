@@ -19,10 +19,10 @@ from afo_mj.hydraulics.orifice import (OrificeParams, orifice_area_for_flow, ori
 from afo_mj.hydraulics.check_valve import CheckValveParams
 from afo_mj.hydraulics.relief_valve import ReliefValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
-from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
+from afo_mj.hydraulics.servo_valve import ServoValveParams
 from afo_mj.hydraulics.onoff_valve import OnOffValveParams, pwm_command
-from component_reference import (CheckValve, OnOffValve, Orifice, ReliefValve, UnloadingValve,
-                                 smooth_ramp01)
+from component_reference import (CheckValve, OnOffValve, Orifice, ReliefValve, ServoValve,
+                                 UnloadingValve, smooth_ramp01)
 
 RHO = 870.0
 P_TANK = 0.1e6

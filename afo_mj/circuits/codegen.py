@@ -93,6 +93,11 @@ class _Recorder:
         object.__setattr__(self, "_prefix", prefix)
 
     def __getattr__(self, name):
+        prop = inspect.getattr_static(type(self._obj), name, None)
+        if isinstance(prop, property):
+            # a derived figure (CylinderParams.area_a_m2, ...): evaluated on this view, so
+            # the fields it reads are recorded as used
+            return prop.fget(self)
         value = getattr(self._obj, name)
         path = self._prefix + name
         if dataclasses.is_dataclass(value) and not isinstance(value, type):

@@ -27,12 +27,12 @@ import math
 from afo_mj.hydraulics.accumulator import GasAccumulatorParams
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
-from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
+from afo_mj.hydraulics.cylinder import CylinderParams
 from afo_mj.hydraulics.motor import DriverParams, MotorParams
 from afo_mj.hydraulics.params import Parameters, param
 from afo_mj.hydraulics.pump import PumpParams
 from afo_mj.hydraulics.relief_valve import ReliefValveParams
-from afo_mj.hydraulics.seal import OringSeal
+from afo_mj.hydraulics.seal import OringSeal, cylinder_seal_law_args, seal_law_args
 
 HYDRAULIC, SHAFT, BUS, JOINT = "hydraulic", "shaft", "bus", "joint"
 
@@ -272,7 +272,7 @@ class Hose(Component):
         bore = g.param(self, "bore", p.bore_m)
         rough = g.param(self, "relative_roughness", p.roughness_m / p.bore_m)
         turb = g.param(self, "turbulent", 1.0 if p.turbulence_enabled else 0.0)
-        half = g.param(self, "half_volume", 0.5 * math.pi / 4.0 * p.bore_m ** 2 * p.length_m)
+        half = g.param(self, "half_volume", 0.5 * p.volume_m3)
         kinv = g.param(self, "wall_inv", gated(p.wall_compliance_enabled,
                                                   1.0 / p.wall_bulk_modulus_pa))
         pa, pb = g.p(self, "a"), g.p(self, "b")
@@ -494,8 +494,7 @@ class PulleyCylinders(Component):
 
     def torque_per_pa(self) -> float:
         """``n A r``: joint torque per pascal of ``p_a − p_b``."""
-        return self.params.count * Cylinder(self.params.cylinder).area_a_m2 * \
-            self.params.pulley_radius_m
+        return self.params.count * self.params.cylinder.area_a_m2 * self.params.pulley_radius_m
 
     def emit(self, g, p):
         cy = p.cylinder
@@ -505,19 +504,18 @@ class PulleyCylinders(Component):
         if cy.rod_seal.leakage_enabled:
             raise CircuitError(f"{self.name}.cylinder.rod_seal.leakage_enabled = True: "
                                "external cable-seal drag-out is not simulated (allowed: False)")
-        cyl = Cylinder(cy)
         n = g.param(self, "count", p.count)
         r = g.param(self, "pulley_radius", p.pulley_radius_m)
-        area = g.param(self, "area", cyl.area_a_m2)
+        area = g.param(self, "area", cy.area_a_m2)
         stroke = g.param(self, "stroke", cy.stroke_m)
         va0 = g.param(self, "dead_a", cy.dead_volume_a_m3)
         vb0 = g.param(self, "dead_b", cy.dead_volume_b_m3)
         gl = g.param(self, "leak_g", gated(cy.internal_leakage_enabled,
-                                           cyl.leakage_conductance_m3))
+                                           cy.leakage_conductance_m3))
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
         ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
         cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
-        seal = _seal_params(g, self, cy, cyl, rods=2)
+        seal = _seal_params(g, self, cy, rods=2)
         ps = cy.piston_seal
         drag_on = g.param(self, "dragout_on", 1.0 if ps.leakage_enabled else 0.0)
         ps_seal = OringSeal(ps, cy.bore_m)
@@ -562,22 +560,23 @@ class PulleyCylinders(Component):
         g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")
 
 
-def _seal_params(g, comp, cy, cyl, rods: int) -> str:
+def _seal_params(g, comp, cy, rods: int) -> str:
     """Pack one piston seal + ``rods`` rod/cable seals of a cylinder (all sliding at the piston
-    speed) as the argument list of :func:`~afo_mj.hydraulics.laws.seal_friction_n`."""
-    ps, rs = cyl.piston_seal, cyl.rod_seal
+    speed) as the argument list of :func:`~afo_mj.hydraulics.laws.seal_friction_n`
+    (:func:`~afo_mj.hydraulics.seal.cylinder_seal_law_args`)."""
     on = cy.seal_friction_enabled
     # the viscous and pressure coefficients reach the seal model through their switches
     # (0 while an effect is off): read here so that switching one off is not "unused"
     for seal in (cy.piston_seal, cy.rod_seal):
         _ = (seal.pressure_coefficient_m2, seal.viscous_coefficient_n_s_m)
-    fc = gated(on, ps.coulomb_force_n + rods * rs.coulomb_force_n)
-    st = gated(on, ps._stribeck_gain + rods * rs._stribeck_gain)
-    fv = gated(on, ps._fv + rods * rs._fv)
-    cp = gated(on, ps._cp + rods * rs._cp)
-    return ", ".join((g.param(comp, "seal_fc", fc), g.param(comp, "seal_stribeck", st),
-                      g.param(comp, "seal_v_st", ps._v_st), g.param(comp, "seal_v_c", ps._v_c),
-                      g.param(comp, "seal_fv", fv), g.param(comp, "seal_cp", cp)))
+    fc, st, v_st, v_c, fv, cp = cylinder_seal_law_args(
+        seal_law_args(cy.piston_seal, cy.bore_m),
+        seal_law_args(cy.rod_seal, max(cy.rod_diameter_m, 1e-6)), rods)
+    return ", ".join((g.param(comp, "seal_fc", gated(on, float(fc))),
+                      g.param(comp, "seal_stribeck", gated(on, float(st))),
+                      g.param(comp, "seal_v_st", v_st), g.param(comp, "seal_v_c", v_c),
+                      g.param(comp, "seal_fv", gated(on, fv)),
+                      g.param(comp, "seal_cp", gated(on, cp))))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -611,7 +610,7 @@ class SpringReturnCylinder(Component):
 
     def torque_per_pa(self) -> float:
         """``A r``: joint torque per pascal of chamber pressure."""
-        return Cylinder(self.params.cylinder).area_a_m2 * self.params.moment_arm_m
+        return self.params.cylinder.area_a_m2 * self.params.moment_arm_m
 
     metadata_fields = ("cylinder.piston_mass_kg", "cylinder.dead_volume_b_m3",
                        "cylinder.radial_clearance_m", "cylinder.land_length_m",
@@ -627,9 +626,8 @@ class SpringReturnCylinder(Component):
             raise CircuitError(f"{self.name}: seal drag-out leakage of a single-acting "
                                "cylinder goes to the vented side, not simulated (allowed: "
                                "leakage_enabled = False)")
-        cyl = Cylinder(cy)
         r = g.param(self, "arm", p.moment_arm_m)
-        area = g.param(self, "area", cyl.area_a_m2)
+        area = g.param(self, "area", cy.area_a_m2)
         stroke = g.param(self, "stroke", cy.stroke_m)
         v0 = g.param(self, "dead_a", cy.dead_volume_a_m3)
         k = g.param(self, "spring_k", p.spring_rate_n_m)
@@ -638,7 +636,7 @@ class SpringReturnCylinder(Component):
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
         ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
         cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
-        seal = _seal_params(g, self, cy, cyl, rods=1)
+        seal = _seal_params(g, self, cy, rods=1)
         pa = g.p(self, "a")
         x, xd, f_s, f_e = (g.local(self, n) for n in ("x", "xd", "fseal", "fstop"))
         g.line(f"{x} = {x0} - {r} * th")

@@ -32,17 +32,8 @@ from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
 from afo_mj.hydraulics.params import Parameters, param
 from afo_mj.hydraulics.pump import PumpParams
-from afo_mj.hydraulics.servo_valve import ServoValve as _ServoValveModel
 from afo_mj.hydraulics.servo_valve import ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
-
-
-def _plain(view):
-    """The parameter dataclass behind the generator's read-recording view (or ``view``)."""
-    try:
-        return object.__getattribute__(view, "_obj")
-    except AttributeError:
-        return view
 
 
 def _emit_orifice_flow(g, comp, key, dp, area, cd, pcr) -> str:
@@ -93,17 +84,13 @@ class ServoValve(Component):
 
     def emit(self, g, p):
         v = p.valve
-        model = _ServoValveModel(_plain(v))
-        # the rating, leakage figure and lap size the edges through the library's valve model
-        for name in ("rated_flow_m3_s", "rated_dp_pa", "rated_density_kg_m3",
-                     "leakage_flow_m3_s", "leakage_supply_dp_pa", "leakage_enabled",
-                     "overlap_m", "overlap_enabled"):
-            getattr(v, name)
+        # the rating, leakage figure and lap size the edges (ServoValveParams' derived figures,
+        # whose fields the read-recording view counts as used)
         xmax = v.spool_max_m
-        af = g.param(self, "full_area", model.area_gradient_m * xmax)
-        lap = g.param(self, "lap", model.overlap_m / xmax)
+        af = g.param(self, "full_area", v.area_gradient_m * xmax)
+        lap = g.param(self, "lap", v.effective_overlap_m / xmax)
         rnd = g.param(self, "rounding", v.opening_smoothing_m / xmax)
-        aleak = g.param(self, "leak_area", model.leakage_area_m2)
+        aleak = g.param(self, "leak_area", v.leakage_area_m2)
         tau = g.param(self, "tau", 1.0 / (2.0 * math.pi * v.natural_frequency_hz))
         cd = g.param(self, "cd", v.discharge_coefficient)
         pcr = g.param(self, "p_cr", v.transition_pressure_pa)

@@ -37,8 +37,10 @@ import math
 import numpy as np
 
 from afo_mj.hydraulics import laws
+from afo_mj.hydraulics.geometry import annulus_area_m2
 from afo_mj.hydraulics.fluid import Fluid, FluidParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, param
+from afo_mj.hydraulics.servo_valve import ServoValveParams
 from afo_mj.hydraulics.thermal import natural_convection_h_cylinder
 
 __all__ = ["DesignAssumptions", "BatteryChemistry", "CHEMISTRIES", "ORING_CROSS_SECTIONS_M",
@@ -290,7 +292,9 @@ def cylinder_masses(bore_m, stroke_m, cable_m, design_pressure_pa, oil_density_k
       + two end caps;
     * end caps: two discs of the barrel's outer diameter;
     * piston: aluminium disc of the bore, piston length long;
-    * oil: swept volume ``π/4 (D² − d_c²) s`` plus both dead volumes;
+    * oil: swept volume ``π/4 (D² − d_c²) s`` plus both dead volumes (the areas
+      :func:`~afo_mj.hydraulics.geometry.annulus_area_m2`, as
+      :class:`~afo_mj.hydraulics.cylinder.CylinderParams` has them);
     * hardware: ports, fittings and mounts (constant).
 
     Example (the HAFO's 10.4 mm, 45 mm stroke, 2 mm cable, 15.6 MPa, VG 32): 0.130 kg each,
@@ -305,12 +309,13 @@ def cylinder_masses(bore_m, stroke_m, cable_m, design_pressure_pa, oil_density_k
                    a.cylinder_safety_factor * p * d / (2.0 * a.cylinder_yield_strength_pa))
     length = s + a.cylinder_piston_length_m + 2.0 * a.cylinder_end_cap_m
     barrel = rho * math.pi * (d + t) * t * length
-    caps = 2.0 * rho * math.pi / 4.0 * (d + 2.0 * t) ** 2 * a.cylinder_end_cap_m
-    piston = rho * math.pi / 4.0 * d ** 2 * a.cylinder_piston_length_m
-    swept = math.pi / 4.0 * (d ** 2 - c ** 2) * s
-    oil = np.asarray(oil_density_kg_m3, dtype=float) * (swept + 2.0 * dead_volume_m3)
+    caps = 2.0 * rho * annulus_area_m2(d + 2.0 * t, 0.0) * a.cylinder_end_cap_m
+    piston = rho * annulus_area_m2(d, 0.0) * a.cylinder_piston_length_m
+    oil_volume = annulus_area_m2(d, c) * s + 2.0 * dead_volume_m3
+    oil = np.asarray(oil_density_kg_m3, dtype=float) * oil_volume
     total = barrel + caps + piston + oil + a.cylinder_hardware_kg
     return {"barrel_kg": barrel, "caps_kg": caps, "piston_kg": piston, "oil_kg": oil,
+            "oil_volume_m3": oil_volume,
             "hardware_kg": np.full_like(total, a.cylinder_hardware_kg), "total_kg": total,
             "wall_m": t, "outer_diameter_m": d + 2.0 * t}
 
@@ -379,8 +384,7 @@ class SupplyFigures:
 
     margin_pa: float            # rail above the load pressure (pressure-following supply)
     rail_min_pa: float          # lowest rail
-    servo_leak_m3_s: float      # servo centre leakage at servo_leak_dp_pa
-    servo_leak_dp_pa: float
+    servo_valve: ServoValveParams   # the servo valve (its centre leakage)
     servo_coil_w: float
     onoff_area_m2: float        # open area of the digital circuit's on/off valve
     onoff_cd: float
@@ -391,8 +395,6 @@ class SupplyFigures:
     flow_margin: float          # digital: pump flow / peak demand (the valve preset's 30 %)
     valve_block_kg: float
     accumulator_kg: float       # the pressure-following supply's small accumulator
-    servo_cd: float = 0.61      # the servo valve's edges (orifice law)
-    servo_pcr_pa: float = 1.0e4
     onoff_pcr_pa: float = 1.0e4  # the on/off valve's orifice transition pressure
 
     @classmethod
@@ -401,29 +403,23 @@ class SupplyFigures:
         v, g = VALVE_PRESETS["valve_pressure_control"], VALVE_PRESETS["digital"]
         sw = g.switching_valve
         return cls(margin_pa=v.supply_pressure_margin_pa, rail_min_pa=v.supply_pressure_min_pa,
-                   servo_leak_m3_s=v.servo_valve.leakage_flow_m3_s,
-                   servo_leak_dp_pa=v.servo_valve.leakage_supply_dp_pa,
-                   servo_coil_w=v.servo_coil_power_w, onoff_area_m2=sw.max_area_m2,
+                   servo_valve=v.servo_valve, servo_coil_w=v.servo_coil_power_w,
+                   onoff_area_m2=sw.max_area_m2,
                    onoff_cd=sw.discharge_coefficient, onoff_switch_s=sw.switching_time_s,
                    onoff_switch_j=sw.switching_energy_j, onoff_hold_w=sw.holding_power_w,
                    pwm_hz=g.pwm_frequency_hz, flow_margin=1.3,
                    valve_block_kg=v.valve_block_mass_kg, accumulator_kg=v.accumulator_mass_kg,
-                   servo_cd=v.servo_valve.discharge_coefficient,
-                   servo_pcr_pa=v.servo_valve.transition_pressure_pa,
                    onoff_pcr_pa=sw.transition_pressure_pa)
 
 
 def servo_centre_leak_m3_s(rail_pa, sf: SupplyFigures, rho):
-    """Centre leakage of the servo valve from the rail ``p_s`` to tank: the maker's figure
-    ``Q_L`` at ``Δp_L``, scaled by the orifice law
-    (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`) of its edges, which see half the drop
-    each (two in series; :class:`afo_mj.hydraulics.servo_valve.ServoValve` sizes them so):
-    ``Q = Q_L q(p_s/2)/q(Δp_L/2)`` — ``Q_L √(p_s/Δp_L)`` far above the transition pressure.
+    """Centre leakage of the servo valve from the rail ``p_s`` to tank in oil of density
+    ``rho``: :meth:`afo_mj.hydraulics.servo_valve.ServoValveParams.centre_leakage_m3_s`, the
+    edges' leakage areas (sized from the maker's ``Q_L`` at ``Δp_L``) passing the orifice law
+    at half the drop each, as the simulated valve's edges do — ``Q_L √(p_s/Δp_L)`` far above
+    the transition pressure in oil of the rating's density.
     """
-    unit = lambda dp: laws.orifice_flow_m3_s(0.5 * dp, 1.0, sf.servo_cd, rho,  # noqa: E731
-                                             sf.servo_pcr_pa)
-    return sf.servo_leak_m3_s * unit(np.asarray(rail_pa, dtype=float)) \
-        / unit(sf.servo_leak_dp_pa)
+    return sf.servo_valve.centre_leakage_m3_s(rail_pa, rho)
 
 
 def supply_steady(arch: str, q, dp_load, *, mu, rho, d, cs, cf, cv, t0, wc_pump,

@@ -64,7 +64,9 @@ from afo_mj.design.design_requirements import (DesignError, DutyCycle, Requireme
                                                  duty_cycle, load_requirements,
                                                  parse_requirements)
 from afo_mj.hydraulics import laws
-from afo_mj.hydraulics.battery import Battery, BatteryParams
+from afo_mj.hydraulics.battery import BatteryParams
+from afo_mj.hydraulics.geometry import annulus_area_m2
+from afo_mj.hydraulics.seal import cylinder_seal_law_args, seal_law_args
 from afo_mj.hydraulics.fluid import FLUID_PRESETS, Fluid
 
 __all__ = ["DesignError", "DesignResult", "load_requirements", "parse_requirements",
@@ -192,10 +194,14 @@ def actuator_geometry(pressure_pa, bore_m, arm_m, rom_rad: float, a: DesignAssum
       full-open ``p_cr + override``; walls see that plus the charge pressure;
     * cable: :func:`~afo_mj.design.design_models.cable_diameter_m` for the piston force at the
       largest pressure difference on the full bore area (conservative);
-    * ``A_e = n π/4 (D² − d_c²)``, stroke ``r × range of motion``;
+    * ``A_e = n π/4 (D² − d_c²)`` (:func:`~afo_mj.hydraulics.geometry.annulus_area_m2`, as
+      :attr:`~afo_mj.hydraulics.cylinder.CylinderParams.area_a_m2`), stroke
+      ``r × range of motion``;
     * seals: the preset's nitrile O-rings, piston ring cross-section by bore
-      (:func:`~afo_mj.design.design_models.oring_cross_section_m`), Coulomb level seed eq. 2.7,
-      per cylinder one piston seal and two cable seals as the kernel counts them;
+      (:func:`~afo_mj.design.design_models.oring_cross_section_m`), per cylinder one piston seal
+      and two cable seals lumped as the circuit packs them
+      (:func:`~afo_mj.hydraulics.seal.seal_law_args`,
+      :func:`~afo_mj.hydraulics.seal.cylinder_seal_law_args`; Coulomb level seed eq. 2.7);
     * internal leakage conductance of one cylinder (as the kernel packs it).
     """
     base = base or _base()
@@ -205,31 +211,22 @@ def actuator_geometry(pressure_pa, bore_m, arm_m, rom_rad: float, a: DesignAssum
     n = base.cylinders
     crack = a.relief_margin * p
     dp_max = crack + a.relief_override_pa
-    cable = cable_diameter_m(dp_max * math.pi / 4.0 * d ** 2, a)
-    area = math.pi / 4.0 * np.maximum(d ** 2 - cable ** 2, 0.0)
-    ae = n * area
-    ps, rs = base.cylinder.piston_seal, base.cylinder.rod_seal
-    cs = oring_cross_section_m(d)
-    fc_p = laws.oring_coulomb_force_n(d, cs, ps.squeeze_ratio, ps.friction_coefficient,
-                                      ps.elastic_modulus_pa, ps.coulomb_scale)
-    fc_r = laws.oring_coulomb_force_n(cable, rs.cross_section_m, rs.squeeze_ratio,
-                                      rs.friction_coefficient, rs.elastic_modulus_pa,
-                                      rs.coulomb_scale)
-    k_s = math.sqrt(2.0 * math.e)
-    strib = ((k_s * (ps.breakaway_ratio - 1.0) * fc_p if ps.stribeck_enabled else 0.0)
-             + 2.0 * (k_s * (rs.breakaway_ratio - 1.0) * fc_r if rs.stribeck_enabled else 0.0))
-    fv = ((ps.viscous_coefficient_n_s_m if ps.viscous_enabled else 0.0)
-          + 2.0 * (rs.viscous_coefficient_n_s_m if rs.viscous_enabled else 0.0))
+    cable = cable_diameter_m(dp_max * annulus_area_m2(d, 0.0), a)
+    ae = n * annulus_area_m2(d, cable)
     cy = base.cylinder
+    cs = oring_cross_section_m(d)
+    # one piston seal and two cable seals per cylinder, the seal_friction_n arguments as the
+    # pulley_cylinders component packs them (its pressure part is not used here)
+    fc, strib, v_st, v_c, fv, _ = cylinder_seal_law_args(
+        seal_law_args(cy.piston_seal, d, cross_section_m=cs),
+        seal_law_args(cy.rod_seal, cable), 2)
     g_leak = laws.annular_gap_conductance_m3(d, cy.radial_clearance_m, cy.land_length_m)
     return {"relief_cracking_pa": crack, "max_dp_pa": dp_max,
             "wall_pressure_pa": a.reservoir_pressure_pa + dp_max, "cable_m": cable,
             "effective_area_m2": ae, "torque_per_pressure_m3": ae * r,
             "stroke_m": r * rom_rad, "piston_seal_cross_section_m": cs,
-            "seal": (fc_p + 2.0 * fc_r, strib, math.sqrt(2.0) * ps.breakaway_velocity_m_s,
-                     ps.breakaway_velocity_m_s / 10.0, fv + 0.0 * fc_p),
-            "seal_coulomb_n": fc_p + 2.0 * fc_r, "leak_conductance_m3": g_leak,
-            "pulley_kg": pulley_mass_kg(r, a)}
+            "seal": (fc, strib, v_st, v_c, fv), "seal_coulomb_n": fc,
+            "leak_conductance_m3": g_leak, "pulley_kg": pulley_mass_kg(r, a)}
 
 
 def _runtime(req: Requirements, stride_s: float) -> dict:
@@ -248,8 +245,7 @@ def _runtime(req: Requirements, stride_s: float) -> dict:
 def _battery_figures(req: Requirements) -> dict:
     """Per ampere-hour of an ``N_s``-cell pack: full energy, usable energy down to
     ``min_state_of_charge`` (J), open-circuit voltage at that charge and at mid-use."""
-    b = Battery(BatteryParams(capacity_ah=1.0, cells_series=float(req.cells_series),
-                              mass_kg=1.0))
+    b = BatteryParams(capacity_ah=1.0, cells_series=float(req.cells_series), mass_kg=1.0)
     soc_lo = req.min_state_of_charge
     return {"full_j_per_ah": b.energy_wh * 3600.0,
             "usable_j_per_ah": float(b.stored_energy_j(1.0) - b.stored_energy_j(soc_lo)),
@@ -344,14 +340,13 @@ def evaluate_designs(spec: dict, req: Requirements, duty: DutyCycle | None = Non
     cylinders_kg = base.cylinders * cyl["total_kg"]
     hose_wall_kg = 2.0 * req.conduit_length_m * hose_wall_mass_kg_per_m(
         hb, geo["wall_pressure_pa"], a)
-    hose_oil_kg = 2.0 * rho * math.pi / 4.0 * hb ** 2 * req.conduit_length_m
+    hose_volume = annulus_area_m2(hb, 0.0) * req.conduit_length_m   # one hose, as HoseParams
+    hose_oil_kg = 2.0 * rho * hose_volume
     pump_kg = pump_mass_kg(disp, a)
     motor_kg = ms["mass_kg"]
     ankle_fixed = fixed["shank_cuff_struts"] + fixed["foot_plate"]
     waist_fixed = _waist_fixed(fixed)
-    oil_volume = (2.0 * math.pi / 4.0 * hb ** 2 * req.conduit_length_m
-                  + base.cylinders * (geo["effective_area_m2"] / base.cylinders * geo["stroke_m"]
-                                      + 2.0 * base.cylinder.dead_volume_a_m3)
+    oil_volume = (2.0 * hose_volume + base.cylinders * cyl["oil_volume_m3"]
                   + 2.0 * base.pump_port_volume_m3)
     heat_capacity = rho * oil_volume * c_oil + a.metal_specific_heat_j_kg_k * pump_kg
 
@@ -955,7 +950,7 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
                           geo["wall_pressure_pa"][gi], rho_f, base.cylinder.dead_volume_a_m3, a)
     hoses = 2.0 * req.conduit_length_m * (hose_wall_mass_kg_per_m(
         spec_f["hose_bore_m"], geo["wall_pressure_pa"][gi], a)
-        + rho_f * math.pi / 4.0 * spec_f["hose_bore_m"] ** 2)
+        + rho_f * annulus_area_m2(spec_f["hose_bore_m"], 0.0))
     pump_kg = pump_mass_kg(spec_f["displacement_m3_rev"], a)
     base_kg = (base.cylinders * cyl["total_kg"] + geo["pulley_kg"][gi] + hoses + pump_kg
                + sum(fixed.values()))
@@ -986,10 +981,10 @@ def _screen(act, req, duty, a, base, grids, cidx, counts, limits):
         pf = p_need[gsel]
         d_f, mu_f = dk[ksel], mu_g[gsel]
         w_f = wm[gsel, ksel] * speed_lim
-        if arch == "digital":
-            q_open = d_f * w_f
-            pf = np.maximum(pf, 0.5 * rho_g[gsel] * (q_open / (sf.onoff_cd
-                                                              * sf.onoff_area_m2)) ** 2)
+        if arch == "digital":      # the open on/off valve's drop for the pump's flow
+            pf = np.maximum(pf, laws.orifice_dp_for_flow_pa(d_f * w_f, sf.onoff_area_m2,
+                                                            sf.onoff_cd, rho_g[gsel],
+                                                            sf.onoff_pcr_pa))
         cf_, t0_, cv_ = pu.coulomb_coefficient, pu.drag_torque_nm, pu.viscous_coefficient
         t_ub = d_f * pf + cf_ * d_f * (pf + 1e4) + t0_ + cv_ * d_f * mu_f * w_f
         t_lb = np.maximum(d_f * pf * (1.0 - cf_) - t0_ - cv_ * d_f * mu_f * w_f, 0.0)
@@ -1398,7 +1393,8 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
       left out: it moves the pump pressure by < 0.1 MPa and the speed by < 1 %.
 
     Every component equation is a law of :mod:`afo_mj.hydraulics.laws`; the open-circuit
-    voltage is the battery parameters' own table (:class:`afo_mj.hydraulics.battery.Battery`).
+    voltage is the battery parameters' own table
+    (:meth:`afo_mj.hydraulics.battery.BatteryParams.open_circuit_voltage_v`).
     """
     from scipy.optimize import brentq
 
@@ -1410,7 +1406,7 @@ def predict_bench(params, *, soc: float | None = None, temperature_k: float | No
     soc = params.initial_soc if soc is None else soc
     temp = params.ambient_temperature_k if temperature_k is None else temperature_k
     mu = float(Fluid(params.fluid).dynamic_viscosity_pa_s(temp))
-    v_oc = float(Battery(params.battery).open_circuit_voltage_v(soc))
+    v_oc = float(params.battery.open_circuit_voltage_v(soc))
     v_cmd = 1.25 * 4.2 * params.battery.cells_series if full_voltage_v is None else full_voltage_v
     n, r = P["cylinders.count"], P["cylinders.pulley_radius"]
     ae = n * P["cylinders.area"]

@@ -46,7 +46,6 @@ of the bench scenario (``scenarios/bench_hafo.toml``).
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
@@ -55,7 +54,7 @@ from afo_mj.circuits.device import CircuitDevice
 from afo_mj.circuits.device_spec import DeviceSpec, LedgerGroups, MassItem
 from afo_mj.hydraulics.battery import BatteryParams
 from afo_mj.hydraulics.conduit import HoseParams
-from afo_mj.hydraulics.cylinder import Cylinder, CylinderParams
+from afo_mj.hydraulics.cylinder import CylinderParams
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, ISO_VG32, Fluid, FluidParams
 from afo_mj.hydraulics.motor import DriverParams, MotorParams
 from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_named
@@ -132,7 +131,7 @@ class PumpAnkleParams(Parameters):
     # -- derived figures ---------------------------------------------------------------------
     @property
     def effective_area_m2(self) -> float:
-        return self.cylinders * Cylinder(self.cylinder).area_a_m2
+        return self.cylinders * self.cylinder.area_a_m2
 
     @property
     def torque_per_pressure_m3(self) -> float:
@@ -141,12 +140,12 @@ class PumpAnkleParams(Parameters):
 
     @property
     def hose_volume_m3(self) -> float:
-        return math.pi / 4 * self.hose.bore_m ** 2 * self.hose.length_m
+        return self.hose.volume_m3
 
     @property
     def oil_volume_m3(self) -> float:
         cyl = self.cylinders * (self.cylinder.dead_volume_a_m3 + self.cylinder.dead_volume_b_m3
-                                + Cylinder(self.cylinder).area_a_m2 * self.cylinder.stroke_m)
+                                + self.cylinder.area_a_m2 * self.cylinder.stroke_m)
         return 2 * self.hose_volume_m3 + cyl + 2 * self.pump_port_volume_m3
 
     def hydraulic_stiffness_nm_per_rad(self, pressure_pa: float = 1e6) -> float:

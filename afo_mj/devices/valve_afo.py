@@ -70,7 +70,7 @@ from afo_mj.hydraulics.onoff_valve import OnOffValveParams
 from afo_mj.hydraulics.orifice import OrificeParams
 from afo_mj.hydraulics.params import ParameterError, effect, param, replace_named
 from afo_mj.hydraulics.pump import GEAR_PUMP_SMALL
-from afo_mj.hydraulics.servo_valve import ServoValve, ServoValveParams
+from afo_mj.hydraulics.servo_valve import ServoValveParams
 from afo_mj.hydraulics.unloading_valve import UnloadingValveParams
 
 __all__ = ["CONTROL_SET_BY_PRESET", "VALVE_CONTROL_ALIASES", "ValveAnkleParams",
@@ -218,8 +218,7 @@ class ValveAnkleParams(PumpAnkleParams):
     def servo_full_area_m2(self) -> float:
         """Servo edge area per unit of normalised spool opening, ``w x_max`` (m²): an edge
         opened by ``x − lap`` (fractions of the stroke) has ``w x_max (x − lap)``."""
-        sv = ServoValve(self.servo_valve)
-        return sv.area_gradient_m * self.servo_valve.spool_max_m
+        return self.servo_valve.area_gradient_m * self.servo_valve.spool_max_m
 
     @property
     def nominal_pump_flow_m3_s(self) -> float:

@@ -214,8 +214,7 @@ def device_ledger(device, cfg: DeviceConfig, L: dict, k: int = 0) -> EnergyLedge
     bats = [c for c in circuit.components if c.kind == "battery"]
     wh = None
     if bats:
-        from afo_mj.hydraulics.battery import Battery
-        wh = Battery(bats[0].params.battery).energy_wh
+        wh = bats[0].params.battery.energy_wh
     led["battery_energy_wh"] = wh
     return EnergyLedger.from_ledger(led, tuple(spec.ledger_extras))
 

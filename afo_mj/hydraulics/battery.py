@@ -18,10 +18,12 @@ its points are rounded from the shape of published low-rate OCV curves of NMC 18
 representative, not calibrated to one cell: replace ``ocv_soc``/``ocv_cell_v`` with a measured
 table where that matters.
 
-Power convention (:meth:`Battery.power`): the chemical energy is the battery's **store**. With
-``P_chem = V_oc I`` released from it, ``in_w = 0``, ``stored_w = −V_oc I`` (negative when
-discharging), ``out_w = V_term I`` (electrical power to the bus, negative when charging) and
-``heat_w = R I²``, so ``in = out + heat + stored`` holds:
+:class:`BatteryParams` holds the table's figures (open-circuit voltage, stored energy); the
+circuit component :class:`afo_mj.circuits.components.Battery` emits the model into the
+generated stepper. Power convention (the component's ledger): the chemical energy is the
+battery's **store**. With ``P_chem = V_oc I`` released from it, ``in_w = 0``,
+``stored_w = −V_oc I`` (negative when discharging), ``out_w = V_term I`` (electrical power to
+the bus, negative when charging) and ``heat_w = R I²``, so ``in = out + heat + stored`` holds:
 ``0 = V_term I + R I² − V_oc I``.
 """
 
@@ -34,9 +36,8 @@ import numpy as np
 
 from . import laws
 from .params import Parameters, param
-from .power import PowerFlow
 
-__all__ = ["NMC_OCV_SOC", "NMC_OCV_CELL_V", "BatteryParams", "Battery"]
+__all__ = ["NMC_OCV_SOC", "NMC_OCV_CELL_V", "BatteryParams"]
 
 #: State-of-charge points of the generic NMC open-circuit-voltage table.
 NMC_OCV_SOC = (0.0, 0.05, 0.10, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.0)
@@ -90,103 +91,53 @@ class BatteryParams(Parameters):
         object.__setattr__(self, "ocv_soc", soc)
         object.__setattr__(self, "ocv_cell_v", volts)
 
-
-class Battery:
-    """Rint equivalent circuit of a :class:`BatteryParams` pack (vectorised over SOC/current)."""
-
-    def __init__(self, params: BatteryParams = BatteryParams()):
-        self.params = p = params
-        self._soc = np.asarray(p.ocv_soc, dtype=float)
-        self._volts = np.asarray(p.ocv_cell_v, dtype=float)
-        seg = np.diff(self._soc) * 0.5 * (self._volts[1:] + self._volts[:-1])
-        #: ∫_0^{SOC_i} v_cell dSOC at the table points (V), exact for the piecewise-linear table.
-        self._cum = np.concatenate(([0.0], np.cumsum(seg)))
-        #: Charge in coulombs.
-        self.capacity_c = 3600.0 * p.capacity_ah
-        #: Energy between empty and full at zero current, ``N_s C_Ah ∫ v_cell dSOC`` (W h).
-        self.energy_wh = p.cells_series * p.capacity_ah * float(self._cum[-1])
-        #: Nominal voltage: the SOC-mean open-circuit voltage, ``energy_wh / capacity_ah``.
-        self.nominal_voltage_v = p.cells_series * float(self._cum[-1])
-        #: Specific energy of the pack (W h/kg).
-        self.specific_energy_wh_kg = self.energy_wh / p.mass_kg
+    # -- the open-circuit table and what it holds ---------------------------------------------
+    def _cell_energy_table(self) -> np.ndarray:
+        """``∫_0^{SOC_i} v_cell dSOC`` (V) at the table points: the trapezoids of the
+        piecewise-linear table, exact for it."""
+        soc = np.asarray(self.ocv_soc, dtype=float)
+        volts = np.asarray(self.ocv_cell_v, dtype=float)
+        return np.concatenate(([0.0], np.cumsum(np.diff(soc) * 0.5 * (volts[1:] + volts[:-1]))))
 
     def open_circuit_voltage_v(self, soc):
-        """``V_oc = N_s · interp(SOC, table)``, SOC clipped to ``[0, 1]``.
+        """``V_oc = N_s · interp(SOC, table)``, SOC clipped to ``[0, 1]`` (the law
+        :func:`~afo_mj.hydraulics.laws.table_interp_array`, the generated circuits'
+        ``table_interp``).
 
         Example (defaults, 6S): ``open_circuit_voltage_v(0.5)`` → ``6·3.75 = 22.5`` V.
         """
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
-        return self.params.cells_series * laws.table_interp_array(s, self._soc, self._volts)
+        return self.cells_series * laws.table_interp_array(
+            s, np.asarray(self.ocv_soc, dtype=float), np.asarray(self.ocv_cell_v, dtype=float))
 
-    def terminal_voltage_v(self, soc, current_a):
-        """``V_term = V_oc − R I`` (``I > 0`` discharging).
+    @property
+    def nominal_voltage_v(self) -> float:
+        """The SOC-mean open-circuit voltage, ``N_s ∫_0^1 v_cell dSOC`` (V)."""
+        return self.cells_series * float(self._cell_energy_table()[-1])
 
-        Example (defaults): ``terminal_voltage_v(0.5, 10)`` → ``22.5 − 1.2 = 21.3`` V.
-        """
-        return self.open_circuit_voltage_v(soc) - self.params.internal_resistance_ohm * \
-            np.asarray(current_a, dtype=float)
+    @property
+    def energy_wh(self) -> float:
+        """Energy between empty and full at zero current, ``N_s C_Ah ∫_0^1 v_cell dSOC``
+        (W h). Example (defaults): 6 · 2.5 · 3.767 = 56.5 W h."""
+        return self.cells_series * self.capacity_ah * float(self._cell_energy_table()[-1])
 
-    def max_power_w(self, soc):
-        """Largest terminal power the pack can deliver, ``V_oc² / (4R)`` (at ``I = V_oc/(2R)``,
-        half the open-circuit voltage across the load; matched-load theorem).
-
-        Example (defaults, SOC 0.5): ``22.5²/0.48`` = 1055 W.
-        """
-        v = self.open_circuit_voltage_v(soc)
-        return v * v / (4.0 * self.params.internal_resistance_ohm)
-
-    def power_limited(self, soc, power_w):
-        """True where ``power_w`` exceeds :meth:`max_power_w` (the current is then clipped)."""
-        return np.asarray(power_w, dtype=float) > self.max_power_w(soc)
-
-    def current_for_power_a(self, soc, power_w):
-        """Pack current that delivers terminal power ``P = V_term I`` (negative ``P`` charges).
-
-        Root of ``R I² − V_oc I + P = 0`` on the stable branch,
-        ``I = (V_oc − sqrt(V_oc² − 4 R P)) / (2R) = 2P / (V_oc + sqrt(V_oc² − 4 R P))``
-        (the second form, used here, has no cancellation at small ``P``). ``P`` is first clipped
-        to :meth:`max_power_w`, so the result is finite: ``V_oc/(2R)`` at and beyond the limit
-        (see :meth:`power_limited`). The law :func:`afo_mj.hydraulics.laws.battery_current_a`.
-
-        Example (defaults, SOC 0.5, 200 W): ``2·200/(22.5 + sqrt(22.5² − 96))`` = 9.36 A.
-        """
-        return laws.battery_current_a(np.asarray(power_w, dtype=float),
-                                      self.open_circuit_voltage_v(soc),
-                                      self.params.internal_resistance_ohm)
-
-    def over_current(self, current_a):
-        """True where ``|I|`` exceeds ``max_current_a``."""
-        return np.abs(np.asarray(current_a, dtype=float)) > self.params.max_current_a
-
-    def soc_rate_per_s(self, current_a):
-        """``dSOC/dt = −I / (3600 C_Ah)`` (coulomb counting).
-
-        Example (defaults): 10 A → ``−10/9000 = −1.11e-3`` 1/s.
-        """
-        return -np.asarray(current_a, dtype=float) / self.capacity_c
+    @property
+    def specific_energy_wh_kg(self) -> float:
+        """``energy_wh / mass_kg`` (W h/kg)."""
+        return self.energy_wh / self.mass_kg
 
     def stored_energy_j(self, soc):
-        """Chemical energy above empty, ``3600 C_Ah N_s ∫_0^SOC v_cell dSOC`` (J); its rate
-        is ``V_oc dSOC/dt · 3600 C_Ah = −V_oc I`` = ``power().stored_w``.
+        """Chemical energy above empty, ``3600 C_Ah N_s ∫_0^SOC v_cell dSOC`` (J), exact for
+        the piecewise-linear table; its rate is ``−V_oc I`` (coulomb counting,
+        ``dSOC/dt = −I/(3600 C_Ah)``).
 
         Example (defaults): ``stored_energy_j(1.0)`` = ``energy_wh · 3600`` ≈ 2.0e5 J.
         """
+        soc_t = np.asarray(self.ocv_soc, dtype=float)
+        volts = np.asarray(self.ocv_cell_v, dtype=float)
+        cum = self._cell_energy_table()
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
-        i = np.clip(np.searchsorted(self._soc, s, side="right") - 1, 0, len(self._soc) - 2)
-        s0 = self._soc[i]
-        v0 = self._volts[i]
-        v = laws.table_interp_array(s, self._soc, self._volts)
-        cell = self._cum[i] + (s - s0) * 0.5 * (v0 + v)
-        return self.capacity_c * self.params.cells_series * cell
-
-    def power(self, soc, current_a) -> PowerFlow:
-        """Power flows at ``(SOC, I)``: ``in = 0``, ``out = V_term I``, ``heat = R I²``,
-        ``stored = −V_oc I`` (see the module docstring).
-
-        Example (defaults, SOC 0.5, 10 A): out 213 W, heat 12 W, stored −225 W.
-        """
-        i = np.asarray(current_a, dtype=float)
-        v_oc = self.open_circuit_voltage_v(soc)
-        r = self.params.internal_resistance_ohm
-        out = (v_oc - r * i) * i
-        return PowerFlow(in_w=np.zeros_like(out), out_w=out, heat_w=r * i * i, stored_w=-v_oc * i)
+        i = np.clip(np.searchsorted(soc_t, s, side="right") - 1, 0, len(soc_t) - 2)
+        v = laws.table_interp_array(s, soc_t, volts)
+        cell = cum[i] + (s - soc_t[i]) * 0.5 * (volts[i] + v)
+        return 3600.0 * self.capacity_ah * self.cells_series * cell

@@ -30,6 +30,7 @@ import dataclasses
 
 from .laws import (RE_LAMINAR_END, RE_TURBULENT_START, friction_factor_ratio,  # noqa: F401
                    laminar_resistance_pa_s_m3)
+from .geometry import annulus_area_m2
 from .params import Parameters, effect, param
 
 @dataclasses.dataclass(frozen=True)
@@ -45,3 +46,9 @@ class HoseParams(Parameters):
     wall_compliance_enabled: bool = effect(True, doc="hose wall expands with pressure")
     inertance_enabled: bool = effect(False, doc="fluid column inertance I = rho L / A")
     turbulence_enabled: bool = effect(True, doc="turbulent friction above Re 2000")
+
+    @property
+    def volume_m3(self) -> float:
+        """Oil the line holds, ``π D²/4 · L`` (:func:`~.geometry.annulus_area_m2` of the bore
+        times the length). Example (defaults): 4 mm, 1 m → 12.6 mL."""
+        return float(annulus_area_m2(self.bore_m, 0.0)) * self.length_m

@@ -19,23 +19,23 @@ Geometry and force (Merritt 1967, ch. 5; seed §2.3)
   ``F = −k_s pen − c_s v_pen`` where ``pen`` is the penetration, with the damping force only while
   penetrating (and never pulling the piston into the stop).
 
-The leakage, end-stop and seal equations are the laws of :mod:`afo_mj.hydraulics.laws`
-(``annular_gap_conductance_m3``, ``laminar_gap_flow_m3_s``, ``end_stop_force_n``,
-``end_stop_energy_j``; the seals' in :mod:`.seal`).
+The area is :func:`afo_mj.hydraulics.geometry.annulus_area_m2`; the leakage, end-stop and seal
+equations are the laws of :mod:`afo_mj.hydraulics.laws` (``annular_gap_conductance_m3``,
+``laminar_gap_flow_m3_s``, ``end_stop_force_n``, ``end_stop_energy_j``; the seals' in
+:mod:`.seal`).
+:class:`CylinderParams` carries the derived geometry (areas, swept volume, leakage conductance);
+the circuit components :class:`afo_mj.circuits.components.PulleyCylinders` and
+``SpringReturnCylinder`` emit the equations above into the generated stepper.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-
-import numpy as np
 
 from . import laws
-from .fluid import ATMOSPHERIC_PRESSURE_PA
+from .geometry import annulus_area_m2
 from .params import Parameters, effect, param
-from .power import PowerFlow
-from .seal import OringSeal, OringSealParams
+from .seal import OringSealParams
 
 CYLINDER_KINDS = ("double_acting", "single_acting", "piston_cable")
 
@@ -78,87 +78,30 @@ class CylinderParams(Parameters):
                 and self.rod_diameter_m == 0):
             self.fail("rod_diameter_m", "a double_acting (single-rod) cylinder needs a rod > 0")
 
+    # -- derived geometry -----------------------------------------------------------------
+    @property
+    def area_a_m2(self) -> float:
+        """Piston area on side a, ``π/4 (D² − d_a²)`` (:func:`~.geometry.annulus_area_m2`):
+        the cable's side for a piston-cable cylinder, the full bore otherwise."""
+        inner = self.rod_diameter_m if self.kind == "piston_cable" else 0.0
+        return float(annulus_area_m2(self.bore_m, inner))
 
-class Cylinder:
-    """Volumes, forces, leakage and power of one :class:`CylinderParams` cylinder."""
+    @property
+    def area_b_m2(self) -> float:
+        """Piston area on side b: the rod's or cable's side, 0 for a single-acting cylinder
+        (vented)."""
+        if self.kind == "single_acting":
+            return 0.0
+        return float(annulus_area_m2(self.bore_m, self.rod_diameter_m))
 
-    def __init__(self, params: CylinderParams):
-        p = self.params = params
-        full = math.pi * p.bore_m ** 2 / 4.0
-        rod = math.pi * p.rod_diameter_m ** 2 / 4.0
-        if p.kind == "piston_cable":
-            self.area_a_m2, self.area_b_m2, n_rod_seals = full - rod, full - rod, 2
-        elif p.kind == "double_acting":
-            self.area_a_m2, self.area_b_m2, n_rod_seals = full, full - rod, 1
-        else:  # single_acting: side b vented, rod seal on the vented side
-            self.area_a_m2, self.area_b_m2, n_rod_seals = full, 0.0, 0
-        self.piston_seal = OringSeal(p.piston_seal, p.bore_m)
-        self.rod_seal = OringSeal(p.rod_seal, max(p.rod_diameter_m, 1e-6))
-        self.n_rod_seals = n_rod_seals
-        self.leakage_conductance_m3 = float(laws.annular_gap_conductance_m3(
-            p.bore_m, p.radial_clearance_m, p.land_length_m))
+    @property
+    def swept_volume_m3(self) -> float:
+        """Oil displaced by a full stroke on side a, ``A_a s``."""
+        return self.area_a_m2 * self.stroke_m
 
-    def chamber_volumes_m3(self, position_m):
-        """``(V_a, V_b)`` at piston position ``x``."""
-        x = np.asarray(position_m, dtype=float)
-        return (self.params.dead_volume_a_m3 + self.area_a_m2 * x,
-                self.params.dead_volume_b_m3 + self.area_b_m2 * (self.params.stroke_m - x))
-
-    def hydraulic_force_n(self, p_a_pa, p_b_pa):
-        """``F_h = p_a A_a − p_b A_b − p_atm (A_a − A_b)`` (positive extends)."""
-        return (self.area_a_m2 * (np.asarray(p_a_pa) - ATMOSPHERIC_PRESSURE_PA)
-                - self.area_b_m2 * (np.asarray(p_b_pa) - ATMOSPHERIC_PRESSURE_PA))
-
-    def friction_force_n(self, velocity_m_s, p_a_pa, p_b_pa):
-        """Total seal friction (sign of velocity): piston seal sees ``p_a − p_b``, each rod or
-        cable seal its chamber's gauge pressure."""
-        if not self.params.seal_friction_enabled:
-            return np.zeros_like(np.asarray(velocity_m_s, dtype=float))
-        f = self.piston_seal.friction_force_n(velocity_m_s, np.asarray(p_a_pa) - p_b_pa)
-        if self.n_rod_seals == 2:
-            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_a_pa)
-                                                   - ATMOSPHERIC_PRESSURE_PA)
-            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_b_pa)
-                                                   - ATMOSPHERIC_PRESSURE_PA)
-        elif self.n_rod_seals == 1:
-            f = f + self.rod_seal.friction_force_n(velocity_m_s, np.asarray(p_b_pa)
-                                                   - ATMOSPHERIC_PRESSURE_PA)
-        return f
-
-    def internal_leakage_m3_s(self, p_a_pa, p_b_pa, dynamic_viscosity_pa_s):
-        """Laminar annular-gap flow from chamber a to b (0 for single-acting or if disabled)."""
-        dp = np.asarray(p_a_pa, dtype=float) - p_b_pa
-        if not self.params.internal_leakage_enabled or self.params.kind == "single_acting":
-            return np.zeros_like(dp)
-        return laws.laminar_gap_flow_m3_s(dp, self.leakage_conductance_m3, dynamic_viscosity_pa_s)
-
-    def end_stop_force_n(self, position_m, velocity_m_s):
-        """Contact force of the end stops (pushes the piston back into 0 … stroke): the law
-        :func:`~afo_mj.hydraulics.laws.end_stop_force_n`."""
-        x = np.asarray(position_m, dtype=float)
-        v = np.asarray(velocity_m_s, dtype=float)
-        if not self.params.end_stops_enabled:
-            return np.zeros_like(x)
-        p = self.params
-        return laws.end_stop_force_n(x, v, p.stroke_m, p.end_stop_stiffness_n_m,
-                                     p.end_stop_damping_n_s_m)
-
-    def end_stop_energy_j(self, position_m):
-        """Elastic energy stored in the end stops, ``½ k pen²``
-        (:func:`~afo_mj.hydraulics.laws.end_stop_energy_j`)."""
-        x = np.asarray(position_m, dtype=float)
-        if not self.params.end_stops_enabled:
-            return np.zeros_like(x)
-        return laws.end_stop_energy_j(x, self.params.stroke_m, self.params.end_stop_stiffness_n_m)
-
-    def power(self, p_a_pa, p_b_pa, velocity_m_s, leakage_m3_s) -> PowerFlow:
-        """Hydraulic → mechanical conversion with gauge pressures.
-
-        ``in = F_h v + (p_a − p_b) Q_leak`` (displacement power plus the power carried by the
-        leakage flow), ``out = (F_h − F_fric) v``, ``heat = F_fric v + (p_a − p_b) Q_leak``.
-        """
-        v = np.asarray(velocity_m_s, dtype=float)
-        fh = self.hydraulic_force_n(p_a_pa, p_b_pa)
-        ff = self.friction_force_n(v, p_a_pa, p_b_pa)
-        leak = (np.asarray(p_a_pa) - p_b_pa) * leakage_m3_s
-        return PowerFlow(fh * v + leak, (fh - ff) * v, ff * v + leak, 0.0)
+    @property
+    def leakage_conductance_m3(self) -> float:
+        """Geometric conductance of the piston's clearance, ``π D δ³ / (12 L)``
+        (:func:`~afo_mj.hydraulics.laws.annular_gap_conductance_m3`)."""
+        return float(laws.annular_gap_conductance_m3(self.bore_m, self.radial_clearance_m,
+                                                      self.land_length_m))

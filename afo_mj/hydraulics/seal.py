@@ -74,6 +74,39 @@ class OringSealParams(Parameters):
     leakage_enabled: bool = effect(False, doc="drag-out film leakage (seed eq. 2.8, negligible)")
 
 
+def seal_law_args(params: OringSealParams, sliding_diameter_m, cross_section_m=None) -> tuple:
+    """The arguments ``(F_C, g_St, v_St, v_C, f_v, c_p)`` of
+    :func:`~afo_mj.hydraulics.laws.seal_friction_n` for one seal of ``params`` sliding on
+    ``sliding_diameter_m`` (arrays broadcast; ``cross_section_m`` replaces the parameters' own,
+    e.g. a piston ring chosen by bore). The module docstring's Stribeck form:
+    ``F_C`` from :func:`~afo_mj.hydraulics.laws.oring_coulomb_force_n` (seed eq. 2.7),
+    ``g_St = √(2e)(F_brk − F_C)`` with ``F_brk = ratio · F_C``, ``v_St = √2 v_brk``,
+    ``v_C = v_brk/10``; each switched-off effect contributes 0.
+
+    Example (defaults, D = 10 mm): ``F_C`` = 3.25 N, ``g_St`` = 3.79 N, ``v_St`` = 7.07 mm/s.
+    """
+    p = params
+    cs = p.cross_section_m if cross_section_m is None else cross_section_m
+    fc = laws.oring_coulomb_force_n(sliding_diameter_m, cs, p.squeeze_ratio,
+                                    p.friction_coefficient, p.elastic_modulus_pa,
+                                    p.coulomb_scale)
+    breakaway = p.breakaway_ratio * fc
+    gain = math.sqrt(2.0 * math.e) * (breakaway - fc) if p.stribeck_enabled else 0.0
+    return (fc, gain, math.sqrt(2.0) * p.breakaway_velocity_m_s,
+            p.breakaway_velocity_m_s / 10.0,
+            p.viscous_coefficient_n_s_m if p.viscous_enabled else 0.0,
+            p.pressure_coefficient_m2 if p.pressure_friction_enabled else 0.0)
+
+
+def cylinder_seal_law_args(piston: tuple, rod: tuple, rods) -> tuple:
+    """:func:`seal_law_args` of one piston seal plus ``rods`` rod or cable seals that slide at
+    the piston's speed, lumped into one argument set of
+    :func:`~afo_mj.hydraulics.laws.seal_friction_n`: the forces and coefficients add, the
+    characteristic speeds are the piston seal's."""
+    return (piston[0] + rods * rod[0], piston[1] + rods * rod[1], piston[2], piston[3],
+            piston[4] + rods * rod[4], piston[5] + rods * rod[5])
+
+
 class OringSeal:
     """Friction force, heat and leakage of one :class:`OringSealParams` seal sliding on a
     surface of diameter ``sliding_diameter_m`` (the bore for a piston seal, the rod or cable for
@@ -85,17 +118,11 @@ class OringSeal:
                                  "allowed: > 0 [m]")
         p = self.params = params
         self.sliding_diameter_m = float(sliding_diameter_m)
-        self.coulomb_force_n = float(laws.oring_coulomb_force_n(
-            self.sliding_diameter_m, p.cross_section_m, p.squeeze_ratio, p.friction_coefficient,
-            p.elastic_modulus_pa, p.coulomb_scale))
+        fc, gain, self._v_st, self._v_c, self._fv, self._cp = seal_law_args(
+            p, self.sliding_diameter_m)
+        self.coulomb_force_n = float(fc)
         self.breakaway_force_n = p.breakaway_ratio * self.coulomb_force_n
-        self._v_st = math.sqrt(2.0) * p.breakaway_velocity_m_s
-        self._v_c = p.breakaway_velocity_m_s / 10.0
-        self._stribeck_gain = (math.sqrt(2.0 * math.e) * (self.breakaway_force_n
-                                                          - self.coulomb_force_n)
-                               if p.stribeck_enabled else 0.0)
-        self._fv = p.viscous_coefficient_n_s_m if p.viscous_enabled else 0.0
-        self._cp = p.pressure_coefficient_m2 if p.pressure_friction_enabled else 0.0
+        self._stribeck_gain = float(gain)
         # Hertz line contact of the squeezed cross-section (per unit circumference):
         # load w = E d λ^1.5, effective modulus E* = E/(1-ν²) with ν = 0.5,
         # half-width a = sqrt(4 w R / (π E*)), R = d/2, peak pressure σ_m = 2 w / (π a).

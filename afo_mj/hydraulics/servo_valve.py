@@ -56,13 +56,11 @@ import math
 
 import numpy as np
 
-from . import laws
 from .orifice import (DEFAULT_DISCHARGE_COEFFICIENT, DEFAULT_TRANSITION_PRESSURE_PA,
                       orifice_flow_m3_s)
 from .params import Parameters, effect, param
-from .power import PowerFlow
 
-__all__ = ["ServoValveParams", "ServoValve"]
+__all__ = ["ServoValveParams"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,74 +116,38 @@ class ServoValveParams(Parameters):
                       "leakage per edge must be well below rated_flow_m3_s = "
                       f"{self.rated_flow_m3_s}")
 
+    # -- the metering edges sized from the rating (module docstring) --------------------------
+    @property
+    def effective_overlap_m(self) -> float:
+        """The lap the edges have: ``overlap_m``, 0 with ``overlap_enabled`` off."""
+        return self.overlap_m if self.overlap_enabled else 0.0
 
-class ServoValve:
-    """Spool dynamics, edge areas, port flows and power of one :class:`ServoValveParams` valve."""
+    @property
+    def area_gradient_m(self) -> float:
+        """Area gradient ``w`` (m²/m, the port width of each edge):
+        ``w = Q_r / ((x_max − o) q(Δp_r/2, 1 m²))``, so the rated flow passes at full stroke
+        through two lands in series. Example (defaults): 4.06 mm."""
+        unit = float(orifice_flow_m3_s(0.5 * self.rated_dp_pa, 1.0, self.discharge_coefficient,
+                                       self.rated_density_kg_m3, self.transition_pressure_pa))
+        return self.rated_flow_m3_s / ((self.spool_max_m - self.effective_overlap_m) * unit)
 
-    def __init__(self, params: ServoValveParams = ServoValveParams()):
-        p = self.params = params
-        self.omega_n_rad_s = 2.0 * math.pi * p.natural_frequency_hz
-        self.overlap_m = p.overlap_m if p.overlap_enabled else 0.0
-        unit_q_rated = float(orifice_flow_m3_s(0.5 * p.rated_dp_pa, 1.0, p.discharge_coefficient,
-                                               p.rated_density_kg_m3, p.transition_pressure_pa))
-        #: area gradient w (m²/m): port width of each metering edge
-        self.area_gradient_m = p.rated_flow_m3_s / ((p.spool_max_m - self.overlap_m) * unit_q_rated)
-        unit_q_leak = float(orifice_flow_m3_s(0.5 * p.leakage_supply_dp_pa, 1.0,
-                                              p.discharge_coefficient, p.rated_density_kg_m3,
-                                              p.transition_pressure_pa))
-        #: leakage area of each edge (m²), 0 with leakage disabled
-        self.leakage_area_m2 = (p.leakage_flow_m3_s / (2.0 * unit_q_leak)
-                                if p.leakage_enabled else 0.0)
+    @property
+    def leakage_area_m2(self) -> float:
+        """Leakage area of each edge, ``A_leak = Q_L / (2 q(Δp_L/2, 1 m²))`` (two edges in
+        parallel at spool centre, A and B blocked, each seeing half the supply drop); 0 with
+        ``leakage_enabled`` off."""
+        if not self.leakage_enabled:
+            return 0.0
+        unit = float(orifice_flow_m3_s(0.5 * self.leakage_supply_dp_pa, 1.0,
+                                       self.discharge_coefficient, self.rated_density_kg_m3,
+                                       self.transition_pressure_pa))
+        return self.leakage_flow_m3_s / (2.0 * unit)
 
-    def spool_target_m(self, command):
-        """``x_ref = clip(u, −1, 1) · x_max``."""
-        return np.clip(np.asarray(command, dtype=float), -1.0, 1.0) * self.params.spool_max_m
-
-    def spool_derivatives(self, x_m, v_m_s, command):
-        """``(dx/dt, dv/dt)`` of the spool: ``ẋ = v``, ``v̇ = ω_n² (x_ref − x) − 2 ζ ω_n v``."""
-        x = np.asarray(x_m, dtype=float)
-        v = np.asarray(v_m_s, dtype=float)
-        w = self.omega_n_rad_s
-        dv = w * w * (self.spool_target_m(command) - x) - 2.0 * self.params.damping_ratio * w * v
-        return v + 0.0 * x, dv
-
-    def edge_areas_m2(self, x_m):
-        """``(A_PA, A_AT, A_PB, A_BT)`` (m²) at spool position ``x_m`` (clipped to ±x_max)."""
-        p = self.params
-        x = np.asarray(x_m, dtype=float)
-        args = (p.spool_max_m, self.overlap_m, self.area_gradient_m, p.opening_smoothing_m,
-                self.leakage_area_m2)
-        a_pos = laws.spool_edge_area_m2(x, *args)
-        a_neg = laws.spool_edge_area_m2(-x, *args)
-        return a_pos, a_neg, a_neg, a_pos
-
-    def edge_flows_m3_s(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3):
-        """``(Q_PA, Q_AT, Q_PB, Q_BT)``: flow through each edge in its named direction."""
-        p = self.params
-        a_pa, a_at, a_pb, a_bt = self.edge_areas_m2(x_m)
-        pp, pt, pa, pb = (np.asarray(v, dtype=float) for v in (p_p_pa, p_t_pa, p_a_pa, p_b_pa))
-        cd, pcr = p.discharge_coefficient, p.transition_pressure_pa
-        return (orifice_flow_m3_s(pp - pa, a_pa, cd, density_kg_m3, pcr),
-                orifice_flow_m3_s(pa - pt, a_at, cd, density_kg_m3, pcr),
-                orifice_flow_m3_s(pp - pb, a_pb, cd, density_kg_m3, pcr),
-                orifice_flow_m3_s(pb - pt, a_bt, cd, density_kg_m3, pcr))
-
-    def flows_m3_s(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3):
-        """``(Q_A, Q_B, Q_P, Q_T)``: net flow out of the valve into line A and into line B,
-        flow drawn from the supply P, flow returned to tank T."""
-        q_pa, q_at, q_pb, q_bt = self.edge_flows_m3_s(x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa,
-                                                      density_kg_m3)
-        return q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
-
-    def power(self, x_m, p_p_pa, p_t_pa, p_a_pa, p_b_pa, density_kg_m3) -> PowerFlow:
-        """Throttling power summed over the four edges (see module docstring)."""
-        pp, pt, pa, pb = (np.asarray(v, dtype=float) for v in (p_p_pa, p_t_pa, p_a_pa, p_b_pa))
-        flows = self.edge_flows_m3_s(x_m, pp, pt, pa, pb, density_kg_m3)
-        ends = ((pp, pa), (pa, pt), (pp, pb), (pb, pt))
-        p_in = p_out = heat = 0.0
-        for q, (up, down) in zip(flows, ends):
-            aq = np.abs(q)
-            p_in = p_in + np.maximum(up, down) * aq
-            p_out = p_out + np.minimum(up, down) * aq
-            heat = heat + (up - down) * q
-        return PowerFlow(in_w=p_in, out_w=p_out, heat_w=heat, stored_w=np.zeros_like(heat))
+    def centre_leakage_m3_s(self, supply_dp_pa, density_kg_m3):
+        """Leakage from P to T at spool centre with A and B blocked: two edges in parallel,
+        each the orifice law (:func:`~afo_mj.hydraulics.laws.orifice_flow_m3_s`) of its
+        :attr:`leakage_area_m2` at half the supply drop (arrays broadcast). At the rating's
+        drop and density it is ``leakage_flow_m3_s``."""
+        return 2.0 * orifice_flow_m3_s(0.5 * np.asarray(supply_dp_pa, dtype=float),
+                                       self.leakage_area_m2, self.discharge_coefficient,
+                                       density_kg_m3, self.transition_pressure_pa)

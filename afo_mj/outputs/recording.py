@@ -352,7 +352,6 @@ def _derived(dev, L: dict) -> dict[str, np.ndarray]:
     from afo_mj.metrics.device_signals import device_signals
     if getattr(dev, "params", None) is not None:
         return {k: s.values for k, s in device_signals(dev).items()}
-    from afo_mj.hydraulics.cylinder import Cylinder
     out: dict[str, np.ndarray] = {}
     c = _circuit(dev)
     pumps = [x for x in (c.components if c is not None else ())
@@ -371,7 +370,7 @@ def _derived(dev, L: dict) -> dict[str, np.ndarray]:
     vel = L.get("ankle_velocity_rad_s")
     if cyl is not None and lever is not None and vel is not None:
         count = float(getattr(act.params, "count", 1.0))
-        out["cylinder_flow_m3_s"] = count * Cylinder(cyl).area_a_m2 * lever * vel
+        out["cylinder_flow_m3_s"] = count * cyl.area_a_m2 * lever * vel
     if "bus_voltage_v" in L and "battery_current_a" in L and "mechanical_power_w" in L:
         p_el, p_mech = L["bus_voltage_v"] * L["battery_current_a"], L["mechanical_power_w"]
         t = L["time_s"][:, 0]
@@ -619,7 +618,6 @@ def _orthosis(dev, L: dict) -> dict | None:
     log's ``<cylinder>.piston_position_m`` where it has it, else ``x_0 − r θ``; ``b``: the
     rest of the stroke) and the pressure of full colour (the highest relief valve's cracking
     pressure). None for a device without a cylinder on the joint or a logged chamber."""
-    from afo_mj.hydraulics.cylinder import Cylinder
     act, lever, c = _joint_actuator(dev), _lever_m(dev), _circuit(dev)
     cyl = getattr(getattr(act, "params", None), "cylinder", None)
     if cyl is None or lever is None or c is None:
@@ -640,7 +638,7 @@ def _orthosis(dev, L: dict) -> dict | None:
     reliefs = [float(r.params.cracking_dp_pa) for r in c.components if r.kind == "relief_valve"]
     p_max = max(reliefs) if reliefs else max(max(float(np.max(p)) for _n, p, _l in chambers),
                                              1e5)
-    return {"bore_radius_m": math.sqrt(Cylinder(cyl).area_a_m2 / math.pi),
+    return {"bore_radius_m": math.sqrt(cyl.area_a_m2 / math.pi),
             "stroke_m": stroke, "p_max_pa": p_max, "chambers": chambers}
 
 

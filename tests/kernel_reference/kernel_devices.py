@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from component_reference import Cylinder, ServoValve
 from kernel_reference import pump_kernel as pa
 from kernel_reference import valve_kernel as va
 from afo_mj.circuits.device import SIDE_NAMES
@@ -25,10 +26,8 @@ from afo_mj.control import assistance as asst
 from afo_mj.control.impedance import impedance_table
 from afo_mj.devices.hafo import HafoDevice, PumpAnkleParams
 from afo_mj.devices.valve_afo import VALVE_PRESETS, ValveAfoDevice, ValveAnkleParams
-from afo_mj.hydraulics.cylinder import Cylinder
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.servo_valve import ServoValve
 
 __all__ = ["KernelDevice", "KernelLog", "HafoKernelDevice", "ValveKernelDevice",
            "pack_parameters", "pack_valve_parameters"]
