@@ -94,7 +94,7 @@ RIG2_TRUTH = {
     "current_limit": ("motor_current_limit",),
     "softer_cable": ("series_compliance",),
     "backlash": ("backlash",),
-    "seal_pressure_friction": ("pressure_friction",),
+    "seal_pressure_friction": ("seal_pressure_friction", "pressure_friction"),
     "charge_loss": (),
 }
 QUICK = {"rig1_stepped": ["clean", "current_limit", "pressure_friction", "cable_compliance"],

@@ -23,6 +23,9 @@ effect                      term (component: equation; source)
 stribeck_friction           seal: ``F_S exp(−(v/v_St)²) v/v_St`` (Stribeck peak; Simscape
                             translational friction, facts.md)
 pressure_friction           seal: ``c_p |Δp| tanh(v/v_C)`` (seed §2.3, ref. [48])
+seal_pressure_friction      seal, per seal: ``f_h (|Δp| + p_a⁺ + p_b⁺) tanh(v/v_C)``: the
+                            piston seal against ``|p_a − p_b|``, each cable seal against its
+                            own chamber (Parker O-ring handbook ORD 5700)
 entrained_air               oil: bulk modulus with air fraction ``a`` (seed eq. 2.5)
 hose_wall_compliance        hose: ``C += V_h/(2 K_wall)`` per end (Merritt §2.5)
 piston_leakage              cylinder: ``Q = G_l Δp/μ`` across each piston (laminar gap)
@@ -199,6 +202,7 @@ def _set_gain_offset(channel):
 #: :func:`afo_mj.devices.hafo.hafo_circuit` / :func:`afo_mj.devices.valve_afo.valve_circuit`)
 _STRIBECK = ("cylinders.seal_stribeck", "cylinders.seal_v_st")
 _CP = "cylinders.seal_cp"
+_CP_CHAMBER = "cylinders.seal_cp_chamber"
 _AIR = "fluid.air_fraction"
 _WALL = ("hose_a.wall_inv", "hose_b.wall_inv")
 _LEAK = "cylinders.leak_g"
@@ -229,6 +233,16 @@ def _common_effects() -> list[Effect]:
                (P("pressure_coefficient_m2", "m^2", 0.0, 5e-5, 2e-6,
                   "friction force per Pa across the piston"),),
                _row(_CP), signature="torque residual ∝ |Δp|·sign(v)", labels=(_CP,)),
+        Effect("seal_pressure_friction", "seal",
+               "f_h (|Δp| + p_a⁺ + p_b⁺) tanh(v/v_C) per cylinder: the piston seal against "
+               "|p_a − p_b|, each cable seal against its own chamber's gauge pressure",
+               "Parker O-ring handbook ORD 5700, friction F = F_C + F_H per seal; "
+               "afo_mj.hydraulics.laws.chamber_seal_pressure_friction_n",
+               (P("seal_pressure_coefficient_m2", "m^2", 0.0, 5e-5, 2e-6,
+                  "friction force per Pa of each seal's own sealed pressure"),),
+               _row((_CP, _CP_CHAMBER)),
+               signature="torque residual ∝ (|Δp| + p_a + p_b)·sign(v): grows with the "
+                         "common-mode pressure too", labels=(_CP, _CP_CHAMBER)),
         Effect("entrained_air", "oil",
                "B_eff(p) of seed eq. 2.5 with air fraction a at atmospheric pressure",
                "seed eq. 2.5 (entrained air)",
@@ -351,8 +365,8 @@ EFFECT_NAMES = tuple(e.name for e in _common_effects()) + (
     "sensor_gain_offset", "sensor_lag") + tuple(e.name for e in _valve_effects())
 
 #: the lean model's values of what the effects switch on (the circuits' shared entries)
-_LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _AIR: 0.0, _WALL[0]: 0.0, _WALL[1]: 0.0, _LEAK: 0.0,
-             _PUMP_LEAK: 0.0, _CURRENT_LIMIT[0]: 0.0, _SERIES: 0.0}
+_LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _CP_CHAMBER: 0.0, _AIR: 0.0, _WALL[0]: 0.0,
+             _WALL[1]: 0.0, _LEAK: 0.0, _PUMP_LEAK: 0.0, _CURRENT_LIMIT[0]: 0.0, _SERIES: 0.0}
 #: what "switched off" means in a described circuit (the lean values and the effects only a
 #: described circuit is offered)
 _OFF_VALUES = dict(_LEAN_ROW, **{_CHECK_CRACK[0]: 0.0, _CHECK_CRACK[1]: 0.0,
