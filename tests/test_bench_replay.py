@@ -5,6 +5,7 @@ definition."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 from afo_mj.devices.hafo import HafoDevice, hafo_params
 from afo_mj.hydraulics.laws import seal_friction_n
 from afo_mj.hydraulics.params import ParameterError
-from afo_mj.hydraulics.seal import OringSeal
+from afo_mj.hydraulics.seal import OringSeal, OringSealParams
 from afo_mj.hydraulics.sensor import sensor_reading
 from afo_mj.hydraulics.transmission import play_operator
 from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
@@ -177,6 +178,118 @@ def test_series_cable_compliance_against_the_analytic_compression():
         led = dev.ledger()
         assert abs(led["balance_error_rel"]) < 1e-3, led
         assert led["stored_change_j"]["cylinders.series_spring"] > 0.0
+
+
+def _sealed_pulley(seal, per_chamber=False):
+    """Two cylinders on a 40 mm pulley between two rigid 2 cm³ volumes (no pump), air-free
+    oil at 5 MPa: the chambers' oil is all there is to the hydraulics."""
+    from afo_mj.circuits.circuit import Circuit, CircuitOptions
+    from afo_mj.circuits.codegen import build
+    from afo_mj.circuits.components import PulleyCylinders, Volume, VolumeParams
+    from afo_mj.circuits.controllers import OpenLoop
+    from afo_mj.hydraulics.cylinder import CylinderParams
+    from afo_mj.hydraulics.fluid import FluidParams
+
+    cyl = CylinderParams(internal_leakage_enabled=False, end_stops_enabled=False,
+                         seal_pressure_per_chamber=per_chamber, piston_seal=seal,
+                         rod_seal=seal)
+    comps = [PulleyCylinders("cylinders", PulleyCylinders.Params(cylinder=cyl, count=2.0,
+                                                                 pulley_radius_m=0.04)),
+             Volume("vol_a", VolumeParams(volume_m3=2e-6)),
+             Volume("vol_b", VolumeParams(volume_m3=2e-6))]
+    nodes = {"chamber_a": ["cylinders.a", "vol_a.port"],
+             "chamber_b": ["cylinders.b", "vol_b.port"], "ankle": ["cylinders.joint"]}
+    fluid = FluidParams(entrained_air_enabled=False)
+    cc = build(Circuit("series_friction_check", comps, nodes, OpenLoop(), fluid=fluid,
+                       options=CircuitOptions(initial_pressure_pa=5e6)))
+    return cc, comps[0], cyl, float(fluid.liquid_bulk_modulus_pa)
+
+
+#: seals of a fixed Coulomb level with no breakaway peak, a Coulomb corner at 1 µm/s (the
+#: slow turn below slides at 50 µm/s: tanh(50) = 1) and viscous friction
+_SEAL = OringSealParams(stribeck_enabled=False, breakaway_velocity_m_s=1e-5,
+                        viscous_coefficient_n_s_m=40.0)
+
+
+def test_seal_friction_stretches_the_series_cable():
+    """The cable carries the pistons' force less their seal friction, ``F_c = n A Δp − F_s``
+    (massless pistons), and stretches by ``r² (1/k) F_c`` (Hooke). The joint turns slowly
+    (Δθ at θ̇ constant) with two sealed chambers: the pistons travel
+    ``x − x_0 = −r θ + r² c (n A Δp − F_s)`` and the linear chambers give
+    ``Δp = −n A S (x − x_0)``, ``S = 1/C_a + 1/C_b``, so, while the joint moves,
+    ``Δp = n A S (r θ + r² c F_s) / (1 + c (n A r)² S)`` with
+    ``F_s = n (F_C sgn(v) + f_v v)`` at the pistons' speed ``v = −r θ̇`` (seal friction
+    opposes it); at rest the friction is gone and ``Δp = n A S r θ / (1 + c (n A r)² S)``.
+    Seal friction of 2 × (F_C of three seals) ≈ 2 × 10 N against a cable of
+    1/(r² c) = 625 kN/m: the stretch (32 µm) is as large as the turn (r Δθ = 20 µm)."""
+    from afo_mj.circuits.device import CircuitDevice
+    cc, comp, cyl, b = _sealed_pulley(_SEAL)
+    n_steps, dtheta, h = 400, 0.0005, 1e-3
+    th = np.linspace(0.0, dtheta, n_steps + 1)
+    w = dtheta / (n_steps * h)
+    thd = np.full(n_steps + 1, w)
+    thd[-1] = 0.0
+    r, n, c = 0.04, 2.0, 1e-3
+    na = comp.torque_per_pa() / r
+    area = na / n
+    f_c = (OringSeal(cyl.piston_seal, cyl.bore_m).coulomb_force_n
+           + 2 * OringSeal(cyl.rod_seal, cyl.rod_diameter_m).coulomb_force_n)
+    v = -r * w
+    f_s = n * (f_c * np.sign(v) + 3 * 40.0 * v)
+    dev = CircuitDevice(cc, timestep_s=h)
+    dev.P[0, cc.param_labels.index("cylinders.series_compliance")] = c
+    log = dev.run_imposed(np.zeros(n_steps), th, thd)
+
+    def s_at(theta):
+        x = 0.5 * cyl.stroke_m - r * theta
+        ca = (2e-6 + n * (cyl.dead_volume_a_m3 + area * x)) / b
+        cb = (2e-6 + n * (cyl.dead_volume_b_m3 + area * (cyl.stroke_m - x))) / b
+        return 1.0 / ca + 1.0 / cb
+
+    dp = log["chamber_a"] - log["chamber_b"]
+    k2 = c * (na * r) ** 2
+    # moving (the last sample whose end velocity is still w) and at rest
+    moving = na * s_at(th[-2]) * (r * th[-2] + r * r * c * f_s) / (1 + k2 * s_at(th[-2]))
+    rest = na * s_at(th[-1]) * r * th[-1] / (1 + k2 * s_at(th[-1]))
+    assert abs(r * r * c * f_s) > 0.8 * r * dtheta            # the friction matters here
+    assert dp[-2] == pytest.approx(moving, rel=5e-3)
+    assert dp[-1] == pytest.approx(rest, rel=5e-3)
+    # the pistons' travel: kinematic plus the stretch under n A Δp − F_s
+    xp = log["cylinders.piston_position_m"]
+    assert xp[-2] == pytest.approx(0.5 * cyl.stroke_m - r * th[-2]
+                                   + r * r * c * (na * dp[-2] - f_s), abs=2e-8)
+    led = dev.ledger()
+    assert abs(led["balance_error_rel"]) < 1e-6, led
+    assert led["losses_j"]["cylinders.seal_friction"] > 0.0
+
+
+def test_cable_seals_pressure_friction_against_their_own_chamber():
+    """``seal_pressure_per_chamber``: each cable seal's pressure friction grows with its own
+    chamber's gauge pressure (Parker ORD 5700), the piston seal's with ``|p_a − p_b|``. The
+    joint torque of the turning joint, less the hydraulic torque, is ``r F_s`` with
+    ``F_s = n (F_C + f_v v + c_p (|Δp|~ + p_a⁺ + p_b⁺))`` (v ≫ v_C; the documented
+    roundings: ``|Δp|~ = √(Δp² + (10 kPa)²)``, ``p⁺ = p − 5 kPa`` above 10 kPa): the form
+    written out here, against the |Δp| form that sees ``c_p (1 + 2) |Δp|~``."""
+    from afo_mj.circuits.device import CircuitDevice
+    cp = 2e-6
+    seal = dataclasses.replace(_SEAL, pressure_coefficient_m2=cp, pressure_friction_enabled=True)
+    cc, comp, cyl, b = _sealed_pulley(seal, per_chamber=True)
+    cc0, _, _, _ = _sealed_pulley(seal, per_chamber=False)
+    n_steps, h, w, r, n = 50, 1e-3, -0.01, 0.04, 2.0
+    th = w * h * np.arange(n_steps + 1)
+    thd = np.full(n_steps + 1, w)
+    f_c = (OringSeal(cyl.piston_seal, cyl.bore_m).coulomb_force_n
+           + 2 * OringSeal(cyl.rod_seal, cyl.rod_diameter_m).coulomb_force_n)
+    v = -r * w
+    for circuit, per_chamber in ((cc, True), (cc0, False)):
+        log = CircuitDevice(circuit, timestep_s=h).run_imposed(np.zeros(n_steps), th, thd)
+        pa, pb = log["chamber_a"][-1], log["chamber_b"][-1]
+        assert min(pa, pb) > 2e6 and abs(pa - pb) > 5e5
+        dpr = math.hypot(pa - pb, 1e4)
+        sealed = dpr + (pa - 5e3) + (pb - 5e3) if per_chamber else 3 * dpr
+        f_s = n * (f_c + 3 * 40.0 * v + cp * sealed)
+        tau_h = -comp.torque_per_pa() * (pa - pb)
+        assert log["torque_nm"][-1] - tau_h == pytest.approx(r * f_s, rel=1e-3), per_chamber
 
 
 def test_play_operator_definition():

@@ -72,8 +72,9 @@ def test_right_hand_side_equals_the_old_kernel(preset):
         y = np.zeros(len(cc.state_names))
         y[order] = y_old
         d_new, F_new = np.zeros(len(y)), np.zeros(m.N_F)
-        m.rhs(y, th, thd, np.array([v, vbus, mu, rho, preset.ambient_temperature_k]), cc.P,
-              d_new, F_new)
+        U = np.zeros(m.N_U)          # the held inputs; 1/h and the held values stay 0
+        U[:5] = (v, vbus, mu, rho, preset.ambient_temperature_k)
+        m.rhs(y, th, thd, U, cc.P, d_new, F_new)
         scale = np.maximum(np.abs(d_old), 1e-6 * np.abs(d_old).max())
         err = np.abs(d_new[order] - d_old) / scale
         np.testing.assert_array_less(err[1:], 1e-6)

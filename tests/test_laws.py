@@ -647,6 +647,10 @@ SAMPLES = {
     "series_spring_capacitance_m3_pa": [(6.4e-6, 5e-4), (6.4e-6, 0.0)],
     "series_spring_stretch_m": [(0.04, 6.03e-6, 3.1e-4, 1e6), (0.04, 6.03e-6, 0.0, 1e6),
                                 (0.04, 6.03e-6, 3.1e-4, -2e5)],
+    "cable_stretch_m": [(0.035, 5.442e-4, 20.0), (0.035, 0.0, 20.0), (0.04, 3.1e-4, -7.0)],
+    "chamber_seal_pressure_friction_n": [(0.01, 2e6, 0.5e6, 1e-6, 5e-4),
+                                         (-0.01, -5e4, 3e3, 1e-6, 5e-4),
+                                         (0.0, 2e6, 2e6, 1e-6, 5e-4)],
     "coupled_node_rate_pa_s": [(3e-6, -1e-6, 3e-15, 4e-15, 2e-15),
                                (-1e-6, 3e-6, 4e-15, 3e-15, 2e-15),
                                (3e-6, -1e-6, 3e-15, 4e-15, 0.0)],
@@ -771,3 +775,17 @@ def test_series_spring_couples_two_chambers():
     assert series_compliance_m3_pa(0.04, 1.6e-4, 2000.0) == pytest.approx(cs, rel=1e-14)
     with pytest.raises(ParameterError, match="stiffness_nm_rad"):
         series_compliance_m3_pa(0.04, 1.6e-4, 0.0)
+
+
+def test_cable_stretch_and_chamber_seal_friction_examples():
+    """The docstrings' examples, by hand: the cable 1/(r² (1/k)) = 1.5 MN/m stretched by 20 N
+    (Hooke: 13.33 µm); two cable seals of f_h = 1e-6 N/Pa on 2 and 0.5 MPa chambers, each
+    rounded 5 kPa low above 10 kPa, at a speed far past the Coulomb corner: 2.49 N."""
+    k_lin = 1.0 / (0.035 ** 2 * 5.442e-4)
+    assert k_lin == pytest.approx(1.5e6, rel=1e-3)
+    assert L.cable_stretch_m(0.035, 5.442e-4, 20.0) == pytest.approx(20.0 / k_lin, rel=1e-12)
+    assert L.chamber_seal_pressure_friction_n(0.01, 2e6, 0.5e6, 1e-6, 5e-4) == \
+        pytest.approx(1e-6 * (1.995e6 + 0.495e6), rel=1e-9)
+    # a chamber below the atmosphere loads its seal with nothing; opposite speed, opposite sign
+    assert L.chamber_seal_pressure_friction_n(-0.01, -5e4, 2e6, 1e-6, 5e-4) == \
+        pytest.approx(-1e-6 * 1.995e6, rel=1e-9)

@@ -39,8 +39,11 @@ from afo_mj.hydraulics import laws
 from afo_mj.hydraulics.fluid import ATMOSPHERIC_PRESSURE_PA, Fluid
 
 #: entries of the held input vector ``U``: actuated command, bus voltage, viscosity, density,
-#: temperature
-U_NAMES = ("CMD", "VBUS", "MU", "RHO", "TEMP")
+#: temperature, and ``1/h`` of the (sub-)step being solved (set by the stepper before each
+#: solve: a component's difference quotient over the step, e.g. the cable stretch of
+#: :class:`~afo_mj.circuits.components.PulleyCylinders`). The named actuated inputs follow,
+#: then the held values (:meth:`Emitter.held`).
+U_NAMES = ("CMD", "VBUS", "MU", "RHO", "TEMP", "INV_H")
 #: header of the work vector ``W`` (per side); the arrays that follow are sized per circuit
 W_HEADER = ("CMD", "THETA", "THETA_DOT", "TAU0", "G", "TAU", "TAU_END", "TAU_MEAS", "P_MECH",
             "COUPLE_SQ", "NEWTON_ITERS", "NEWTON_FAIL", "SUBSTEPPED", "SUBSTEPS",
@@ -154,6 +157,7 @@ class Emitter:
         self.work_init: dict = {}
         self.inputs: list = []          # named actuated inputs after U_NAMES (controller-set)
         self.inputs_driven: set = set()
+        self.held_values: list = []     # (label, expr): values held from the last step's end
         self.fixed: dict = {}
         self.sources: dict = {}
         self._current = None
@@ -310,6 +314,19 @@ class Emitter:
         if label not in self.inputs:
             self.inputs.append(label)
         return f"U[{len(U_NAMES) + self.inputs.index(label)}]"
+
+    def held(self, comp, key, expr) -> str:
+        """A value held from the end of the last accepted (sub-)step: ``expr`` is evaluated
+        with the right-hand side and stored when a step is accepted (``close_extra``); the
+        next step reads it as the returned reference (an entry of ``U`` after the actuated
+        inputs, 0 at the start). With ``U[U_INV_H]`` it makes a backward-Euler difference
+        quotient ``(expr(y) − expr_n)/h`` of a quantity that depends on the joint motion as
+        well as on the states."""
+        label = f"{comp.name}.{key}"
+        if any(lab == label for lab, _ in self.held_values):
+            raise CircuitError(f"held value {label} declared twice")
+        self.held_values.append((label, expr))
+        return f"U[U_HELD_{len(self.held_values) - 1}]"
 
     def input_slot(self, comp, key) -> str:
         """The work-vector entry through which the controller sets input ``comp.key``."""
@@ -470,7 +487,8 @@ def generate(circuit: Circuit):
     f_cap = f_srate + n_srate
     f_probe = f_cap + n_y
     f_mon = f_probe + len(g.probes)
-    n_f = f_mon + len(g.monitors)
+    f_held = f_mon + len(g.monitors)
+    n_f = f_held + len(g.held_values)
     body.append(f"F[F_TAU] = {_expr_sum(g.joint_terms)}")
     bus_all = [t for terms in g.bus_terms.values() for t in terms]
     body.append(f"F[F_PBUS] = {_expr_sum(bus_all)}")
@@ -494,6 +512,8 @@ def generate(circuit: Circuit):
         body.append(f"F[{f_probe + i}] = {expr}")
     for i, (label, expr, in_close) in enumerate(g.monitors):
         body.append(f"F[{f_mon + i}] = {expr if not in_close else '0.0'}")
+    for i, (label, expr) in enumerate(g.held_values):
+        body.append(f"F[{f_held + i}] = {expr}")
 
     # work vector layout
     w_names = list(W_HEADER)
@@ -501,7 +521,7 @@ def generate(circuit: Circuit):
     consts = {f"W_{n}": i for i, n in enumerate(W_HEADER)}
     off = len(W_HEADER)
     consts["W_U"] = off
-    off += len(U_NAMES) + len(g.inputs)
+    off += len(U_NAMES) + len(g.inputs) + len(g.held_values)
     consts["W_CTRL"] = off
     off += max(len(g.ctrl_slots), 1)
     consts["W_A"] = off
@@ -521,7 +541,7 @@ def generate(circuit: Circuit):
     consts["W_PROBE_INT"] = off      # time integral of every probe (right-point rule)
     off += max(len(g.probes), 1)
     n_w = off
-    n_u = len(U_NAMES) + len(g.inputs)
+    n_u = len(U_NAMES) + len(g.inputs) + len(g.held_values)
     s_width = max(n_y + 1, n_f, n_u, 2)
     n_scratch = stepper.scratch_rows(n_y)
 
@@ -554,6 +574,8 @@ def generate(circuit: Circuit):
         close.append(f"if y[{k}] > W[W_Y_MAX + {k}]:\n    W[W_Y_MAX + {k}] = y[{k}]")
     for i in range(len(g.probes)):
         close.append(f"W[W_PROBE_INT + {i}] += h * F[{f_probe + i}]")
+    for i in range(len(g.held_values)):
+        close.append(f"W[W_U + U_HELD_{i}] = F[{f_held + i}]")
     floor_lines = [f"fl = {floor} - {p_atm}", "clipped = False"]
     for k in pressure_states:
         floor_lines.append(f"if y[{k}] < fl:\n    y[{k}] = fl\n    clipped = True")
@@ -577,7 +599,7 @@ def generate(circuit: Circuit):
            ""]
     src.append(f"N_Y = {n_y}")
     src.append(f"N_F = {n_f}")
-    src.append(f"N_U = {len(U_NAMES) + len(g.inputs)}")
+    src.append(f"N_U = {n_u}")
     src.append(f"N_LOSS = {n_loss}")
     src.append(f"N_SRATE = {n_srate}")
     src.append(f"N_W = {n_w}")
@@ -588,10 +610,13 @@ def generate(circuit: Circuit):
     src.append(f"N_INPUT = {len(g.inputs)}")
     src.append(f"N_U_HEAD = {len(U_NAMES)}")
     src.append(f"N_CTRL = {len(g.ctrl_slots)}")
+    src.append(f"N_HELD = {len(g.held_values)}")
     for name in stepper.LAYOUT_CONSTANTS:
         src.append(f"{name} = {getattr(stepper, name)!r}")
     for i, n in enumerate(U_NAMES):
         src.append(f"U_{n} = {i}")
+    for i in range(len(g.held_values)):
+        src.append(f"U_HELD_{i} = {len(U_NAMES) + len(g.inputs) + i}")
     for i, n in enumerate(F_HEADER):
         src.append(f"F_{n} = {i}")
     src += [f"F_LOSS = {f_loss}", f"F_SRATE = {f_srate}", f"F_CAP = {f_cap}",

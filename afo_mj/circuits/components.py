@@ -464,16 +464,34 @@ class PulleyCylinders(Component):
     ``F_seal`` one piston seal and two cable seals per cylinder
     (:func:`~afo_mj.hydraulics.laws.seal_friction_n`, all sliding at the piston speed);
     internal leakage across the piston (laminar gap, Merritt §3.2); piston-seal drag-out film
-    (Müller & Nau) carried from the chamber the piston enters. Losses: ``seal_friction``,
+    (Müller & Nau) carried from the chamber the piston enters. With
+    ``cylinder.seal_pressure_per_chamber`` each cable seal's pressure friction grows with its
+    own chamber's pressure against the ambient
+    (:func:`~afo_mj.hydraulics.laws.chamber_seal_pressure_friction_n`, Parker ORD 5700) and
+    only the piston seal's with ``|p_a − p_b|``. Losses: ``seal_friction``,
     ``leakage``. Store: ``end_stops`` (the work done on them; the joint angle is held over a
-    step, so stores that depend on it are booked as the work done on them). A series cable
-    compliance ``1/k`` joins the chambers by the differential capacitance
-    :func:`~afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa` (their continuity solved
-    together, :func:`~afo_mj.hydraulics.laws.coupled_node_rate_pa_s`; store
-    ``series_spring``). Cable-seal (external) drag-out is refused:
+    step, so stores that depend on it are booked as the work done on them).
+
+    Series cable: a compliance ``1/k`` between pulley and pistons (massless pistons), stretched
+    by the cable force ``F_c = n A Δp − F_seal + F_stop``
+    (:func:`~afo_mj.hydraulics.laws.cable_stretch_m`): the pistons sit at
+    ``x = s/2 − r θ + δ``, ``δ = r² (1/k) F_c``, and sweep ``n A δ̇`` besides the kinematic
+    flow. Its hydraulic part ``r² (1/k) n A Δp`` joins the chambers by the differential
+    capacitance :func:`~afo_mj.hydraulics.laws.series_spring_capacitance_m3_pa` (their
+    continuity solved together, :func:`~afo_mj.hydraulics.laws.coupled_node_rate_pa_s`); its
+    part ``G = F_stop − F_seal``, which moves with the joint's velocity (friction) and angle
+    (stops) as well as the pressures, enters as the backward-Euler difference quotient
+    ``r² (1/k) (G − G_n)/h`` over the step (``G_n`` held from the last step's end,
+    :meth:`~afo_mj.circuits.codegen.Emitter.held`). The seals and stops are evaluated at the
+    kinematic speed ``−r θ̇``; their loss and work are booked at the pistons' own speed
+    ``−r θ̇ + δ̇`` and the cable's store ``series_spring`` at ``F_c δ̇`` (its energy
+    ``½ r² (1/k) F_c²``), which closes the ledger exactly (the oil's work on the pistons
+    ``n A Δp (ẋ_kin + δ̇) = F_c ẋ_kin + F_c δ̇ + F_seal (ẋ_kin + δ̇) − F_stop (ẋ_kin + δ̇)``).
+    A rigid cable (``1/k = 0``) adds nothing. Cable-seal (external) drag-out is refused:
     the film returns on the in-stroke and the circuit has no ambient node for it. Probes:
-    ``piston_position_m``, ``hydraulic_torque_nm`` and ``end_stop_torque_nm`` (the stops'
-    share of the joint torque, ``−r F_stop``; 0 off the stops)."""
+    ``piston_position_m`` (kinematic plus the stretch), ``hydraulic_torque_nm`` and
+    ``end_stop_torque_nm`` (the stops' share of the joint torque, ``−r F_stop``; 0 off the
+    stops)."""
 
     kind = "pulley_cylinders"
     ports = {"a": HYDRAULIC, "b": HYDRAULIC, "joint": JOINT}
@@ -515,68 +533,91 @@ class PulleyCylinders(Component):
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
         ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
         cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
-        seal = _seal_params(g, self, cy, rods=2)
+        seal, cp_own = _seal_params(g, self, cy, rods=2)
         ps = cy.piston_seal
         drag_on = g.param(self, "dragout_on", 1.0 if ps.leakage_enabled else 0.0)
         ps_seal = OringSeal(ps, cy.bore_m)
         w_grad = g.param(self, "dragout_w", ps_seal.peak_contact_pressure_pa
                          / ps_seal.contact_half_width_m)
         dbore = g.param(self, "bore", cy.bore_m)
+        v_c = g.param_ref(self, "seal_v_c")
         pa, pb = g.p(self, "a"), g.p(self, "b")
         th, thd = "th", "thd"
-        x, xd, f_s, f_e, q_l, q_d = (g.local(self, k) for k in
-                                     ("x", "xd", "fseal", "fstop", "qleak", "qdrag"))
-        # series cable spring: the chambers' differential capacitance (massless cable
-        # stretched by the hydraulic torque; seals and stops still slide at r θ̇)
+        x, xd, f_s, f_e, q_l, q_d, f_g, xs = (g.local(self, k) for k in
+                                              ("x", "xd", "fseal", "fstop", "qleak", "qdrag",
+                                               "fg", "xs"))
+        # series cable: its hydraulic stretch as the chambers' differential capacitance, the
+        # rest (stops less seal friction) as a difference quotient over the step (docstring)
         comp_s = g.param(self, "series_compliance", p.series_compliance_rad_per_nm)
         c_s = g.local(self, "cs")
         g.line(f"{c_s} = series_spring_capacitance_m3_pa({n} * {area} * {r}, {comp_s})")
         g.couple(self, "a", "b", c_s)
         g.line(f"{x} = 0.5 * {stroke} - {r} * {th}")
         g.line(f"{xd} = -{r} * {thd}")
-        g.line(f"{f_s} = {n} * seal_friction_n({xd}, {pa} - {pb}, {seal})")
+        g.line(f"{f_s} = {n} * (seal_friction_n({xd}, {pa} - {pb}, {seal}) + "
+               f"chamber_seal_pressure_friction_n({xd}, {pa}, {pb}, {cp_own}, {v_c}))")
         g.line(f"{f_e} = {n} * end_stop_force_n({x}, {xd}, {stroke}, {ks}, {cs})")
+        g.line(f"{f_g} = {f_e} - {f_s}")
+        g_n = g.held(self, "cable_force_other_n", f_g)
+        g.line(f"{xs} = (cable_stretch_m({r}, {comp_s}, {f_g}) - cable_stretch_m({r}, {comp_s}, "
+               f"{g_n})) * U[U_INV_H]")
         g.line(f"{q_l} = {n} * laminar_gap_flow_m3_s({pa} - {pb}, {gl}, U[U_MU])")
         g.line(f"{q_d} = {n} * seal_dragout_flow_m3_s({xd}, U[U_MU], {dbore}, {w_grad}) "
                f"if {drag_on} != 0.0 else 0.0")
         # chamber a grows as x grows: its net inflow from the piston is −n A ẋ
-        g.flow(self, "a", f"-{n} * {area} * {xd} - {q_l} + {q_d}")
-        g.flow(self, "b", f"{n} * {area} * {xd} + {q_l} - {q_d}")
+        g.flow(self, "a", f"-{n} * {area} * ({xd} + {xs}) - {q_l} + {q_d}")
+        g.flow(self, "b", f"{n} * {area} * ({xd} + {xs}) + {q_l} - {q_d}")
         g.volume(self, "a", f"{n} * max({va0} + {area} * {x}, 0.5 * {va0})")
         g.volume(self, "b", f"{n} * max({vb0} + {area} * ({stroke} - {x}), 0.5 * {vb0})")
         # force on the pistons towards +x: n A (p_a − p_b) − F_seal + F_stop; τ = F dx/dθ
         g.joint_torque(self, f"-{r} * ({n} * {area} * ({pa} - {pb}) - {f_s} + {f_e})")
-        g.loss(self, "seal_friction", f"{f_s} * {xd}")
+        # the pistons' speed, the cable's stretch rate included: the hydraulic part
+        # c_s Δṗ/(n A) and the rest xs
+        vp = f"({xd} + {c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})"
+        g.loss(self, "seal_friction", f"{f_s} * {vp}")
         g.loss(self, "leakage", f"({pa} - {pb}) * {q_l} + ({pb} - {pa}) * {q_d}")
-        g.store_rate(self, "end_stops", f"-{f_e} * {xd}")
-        # the cable spring's energy ½ c_s Δp², booked at its rate c_s Δp Δṗ
-        g.store_rate(self, "series_spring", f"{c_s} * ({pa} - {pb}) * (d{pa} - d{pb})")
-        # the pistons' travel: kinematic plus the series spring's stretch
-        g.probe(self, "piston_position_m", f"{x} + series_spring_stretch_m({r}, {n} * {area} "
-                f"* {r}, {comp_s}, {pa} - {pb})")
+        g.store_rate(self, "end_stops", f"-{f_e} * {vp}")
+        # the cable's energy ½ r²(1/k) F_c², booked as F_c δ̇ (δ̇ = vp − ẋ_kin)
+        g.store_rate(self, "series_spring", f"({n} * {area} * ({pa} - {pb}) + {f_g}) * "
+                     f"({c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})")
+        # the pistons' travel: kinematic plus the cable's stretch under its whole force
+        g.probe(self, "piston_position_m", f"{x} + cable_stretch_m({r}, {comp_s}, {n} * "
+                f"{area} * ({pa} - {pb}) + {f_g})")
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
         # the end stops' share of the joint torque (0 unless a piston is past a stroke end):
         # what the run's summary reports as stop contact, apart from the torque delivered
         g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")
 
 
-def _seal_params(g, comp, cy, rods: int) -> str:
+def _seal_params(g, comp, cy, rods: int) -> tuple[str, str]:
     """Pack one piston seal + ``rods`` rod/cable seals of a cylinder (all sliding at the piston
     speed) as the argument list of :func:`~afo_mj.hydraulics.laws.seal_friction_n`
-    (:func:`~afo_mj.hydraulics.seal.cylinder_seal_law_args`)."""
+    (:func:`~afo_mj.hydraulics.seal.cylinder_seal_law_args`), and, for a two-rod
+    (piston-cable) cylinder, the packed reference of each cable seal's own pressure
+    coefficient (:func:`~afo_mj.hydraulics.laws.chamber_seal_pressure_friction_n`; 0 unless
+    ``seal_pressure_per_chamber``; ``""`` for one rod). With ``seal_pressure_per_chamber``
+    the |Δp| coefficient is the piston seal's alone; a single-acting cylinder's rod seal then
+    seals the vented side and adds none."""
     on = cy.seal_friction_enabled
+    own = bool(cy.seal_pressure_per_chamber)
     # the viscous and pressure coefficients reach the seal model through their switches
     # (0 while an effect is off): read here so that switching one off is not "unused"
     for seal in (cy.piston_seal, cy.rod_seal):
         _ = (seal.pressure_coefficient_m2, seal.viscous_coefficient_n_s_m)
+    piston = seal_law_args(cy.piston_seal, cy.bore_m)
+    rod = seal_law_args(cy.rod_seal, max(cy.rod_diameter_m, 1e-6))
+    # per chamber: the cable seals' pressure coefficient leaves the |Δp| sum
     fc, st, v_st, v_c, fv, cp = cylinder_seal_law_args(
-        seal_law_args(cy.piston_seal, cy.bore_m),
-        seal_law_args(cy.rod_seal, max(cy.rod_diameter_m, 1e-6)), rods)
-    return ", ".join((g.param(comp, "seal_fc", gated(on, float(fc))),
+        piston, rod[:5] + (0.0,) if own else rod, rods)
+    args = ", ".join((g.param(comp, "seal_fc", gated(on, float(fc))),
                       g.param(comp, "seal_stribeck", gated(on, float(st))),
                       g.param(comp, "seal_v_st", v_st), g.param(comp, "seal_v_c", v_c),
                       g.param(comp, "seal_fv", gated(on, fv)),
                       g.param(comp, "seal_cp", gated(on, cp))))
+    cp_own = ""
+    if rods == 2:
+        cp_own = g.param(comp, "seal_cp_chamber", gated(on and own, rod[5]))
+    return args, cp_own
 
 
 @dataclasses.dataclass(frozen=True)
@@ -636,7 +677,7 @@ class SpringReturnCylinder(Component):
         k_stop, c_stop = cy.end_stop_stiffness_n_m, cy.end_stop_damping_n_s_m
         ks = g.param(self, "stop_k", gated(cy.end_stops_enabled, k_stop))
         cs = g.param(self, "stop_c", gated(cy.end_stops_enabled, c_stop))
-        seal = _seal_params(g, self, cy, rods=1)
+        seal, _ = _seal_params(g, self, cy, rods=1)
         pa = g.p(self, "a")
         x, xd, f_s, f_e = (g.local(self, n) for n in ("x", "xd", "fseal", "fstop"))
         g.line(f"{x} = {x0} - {r} * th")

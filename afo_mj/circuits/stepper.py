@@ -90,8 +90,9 @@ if TYPE_CHECKING:     # the generated module's globals (module docstring; steppe
 
     from afo_mj.circuits.buffer_views import view2, view3
     from afo_mj.circuits.stepper_globals import (
-        F_CAP, F_HEAT, F_LOSS, F_PROBE, F_SRATE, F_TAU, N_CTRL, N_INPUT, N_LOSS, N_P, N_PROBE,
-        N_SCRATCH, N_SRATE, N_U, N_U_HEAD, N_W, N_Y, S_WIDTH, U_CMD, U_VBUS, W_A, W_B,
+        F_CAP, F_HEAT, F_LOSS, F_PROBE, F_SRATE, F_TAU, N_CTRL, N_HELD, N_INPUT, N_LOSS, N_P,
+        N_PROBE, N_SCRATCH, N_SRATE, N_U, N_U_HEAD, N_W, N_Y, S_WIDTH, U_CMD, U_INV_H, U_VBUS,
+        W_A, W_B,
         W_CLIP_STEPS, W_CMD, W_COUPLE_SQ, W_CTRL, W_E_ABS_FLOW, W_E_FLOOR, W_E_LOSS, W_E_MECH,
         W_E_SRATE, W_E_STORE, W_G, W_HEAT_TO_OIL, W_I_BAT, W_NEWTON_FAIL, W_NEWTON_ITERS,
         W_P_MECH, W_SUBSTEPPED, W_SUBSTEPS, W_TAU, W_TAU0, W_TAU_END, W_TAU_MEAS, W_TEMP_K,
@@ -243,6 +244,7 @@ def linearise(y, P, W, S):
     the perturbed ones."""
     h = S[0, 0]
     U = W[W_U:W_U + N_U]
+    U[U_INV_H] = 1.0 / h
     theta, thd = W[W_THETA], W[W_THETA_DOT]
     (f1, F1, yold, ybest, step, f0, F0, yp, fp, Fp, dtau, ystart, M, Mc,
      R) = scratch_views(S)
@@ -251,8 +253,11 @@ def linearise(y, P, W, S):
     ujac = S[15 + 3 * N_Y, :N_U]
     age = S[0, 1]
     if age > 0.0 and age < JAC_MAX_AGE:
-        for k in range(N_U):
-            if abs(U[k] - ujac[k]) > JAC_INPUT_REL * max(abs(U[k]), abs(ujac[k])):
+        # the actuated inputs and the oil's state; not 1/h or the held values (they move
+        # every step without changing the Jacobian's structure)
+        for k in range(N_U - N_HELD):
+            if k != U_INV_H and abs(U[k] - ujac[k]) > JAC_INPUT_REL * max(abs(U[k]),
+                                                                          abs(ujac[k])):
                 age = 0.0
     build = not (age > 0.0 and age < JAC_MAX_AGE)
     if build:
@@ -314,6 +319,7 @@ def newton(y, yold, h, theta, theta_dot, U, P, W, S, first_matrix):
     rv = R[:, :1]
     Bu, Bw, rcur, rprev = broyden_views(S)
     tol = NEWTON_TOL * h / NEWTON_TOL_STEP_S
+    U[U_INV_H] = 1.0 / h
     err_prev = 1e300
     kept = first_matrix != 0.0
     own = False

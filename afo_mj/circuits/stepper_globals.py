@@ -19,8 +19,9 @@ import numpy as np
 
 # -- sizes, per circuit ---------------------------------------------------------------------
 N_Y: int = 0            #: number of states (node pressures, shaft speeds, currents, positions)
-N_U: int = 0            #: held inputs: the header U_NAMES, then the named actuated inputs
-N_U_HEAD: int = 5       #: entries of the held-input header (len(U_NAMES))
+N_U: int = 0            #: held inputs: the header U_NAMES, the named actuated inputs, the
+                        #: held values
+N_U_HEAD: int = 6       #: entries of the held-input header (len(U_NAMES))
 N_INPUT: int = 0        #: named actuated inputs (a valve's command, ...)
 N_W: int = 0            #: length of the work vector W (per side)
 N_P: int = 0            #: length of the packed parameter row P
@@ -28,6 +29,7 @@ N_LOSS: int = 0         #: named losses
 N_SRATE: int = 0        #: store rates (springs, stops, fixed-pressure reservoirs)
 N_PROBE: int = 0        #: probes (flows, powers, positions)
 N_CTRL: int = 0         #: controller slots (integrators, filters)
+N_HELD: int = 0         #: values held from the last accepted step's end (Emitter.held)
 N_SCRATCH: int = 0      #: rows of the scratch matrix S (Jacobians, factors)
 S_WIDTH: int = 0        #: columns of the scratch matrix S
 #: each state's typical size (the Newton test's scale; Pa, rad/s, A, 1)
@@ -39,6 +41,7 @@ U_VBUS: int = 1         #: bus voltage, V
 U_MU: int = 2           #: oil dynamic viscosity, Pa·s
 U_RHO: int = 3          #: oil density, kg/m³
 U_TEMP: int = 4         #: oil temperature, K
+U_INV_H: int = 5        #: 1/h of the (sub-)step being solved, 1/s (set by the stepper)
 
 # -- the flow vector F (rhs outputs) ------------------------------------------------------------
 F_TAU: int = 0          #: joint torque, N·m

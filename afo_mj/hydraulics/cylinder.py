@@ -68,6 +68,10 @@ class CylinderParams(Parameters):
     internal_leakage_enabled: bool = effect(True, doc="laminar leakage across the piston")
     end_stops_enabled: bool = effect(True, doc="stiff end stops at 0 and stroke")
     seal_friction_enabled: bool = effect(True, doc="O-ring seal friction")
+    seal_pressure_per_chamber: bool = effect(
+        False, doc="each rod/cable seal's pressure friction grows with its own chamber's "
+                   "pressure against the ambient (Parker ORD 5700), not with the pressure "
+                   "difference across the piston, which stays the piston seal's")
 
     def check(self) -> None:
         if self.kind not in CYLINDER_KINDS:

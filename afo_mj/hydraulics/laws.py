@@ -241,6 +241,20 @@ def series_spring_stretch_m(pulley_radius_m, torque_per_pa_m3, compliance_rad_pe
 
 
 @law
+def cable_stretch_m(pulley_radius_m, compliance_rad_per_nm, force_n):
+    """Piston travel taken up by the cable between a joint pulley and its pistons under the
+    cable force ``F``: ``δ = r (1/k) r F``. Hooke's law of the cable lumped as a torsional
+    spring at the pulley (compliance ``1/k`` rad/(N m)): ``F`` loads the pulley with
+    ``τ = r F``, which winds the cable by ``τ/k`` rad, i.e. ``r τ/k`` of travel at the
+    pistons, a translational stiffness ``1/(r² (1/k))`` (the reflection of a rotational
+    spring through a pulley, Merritt §2.3). The cable carries the pistons' whole force, the
+    hydraulic ``n A Δp`` less the seal friction plus the end stops' push (massless pistons);
+    :func:`series_spring_stretch_m` is its hydraulic part. Example: r = 0.035 m,
+    1/k = 5.442e-4 rad/(N m) (1.5 MN/m at the pistons), F = 20 N → δ = 1.333e-5 m."""
+    return pulley_radius_m * pulley_radius_m * compliance_rad_per_nm * force_n
+
+
+@law
 def coupled_node_rate_pa_s(net_inflow_m3_s, other_inflow_m3_s, capacitance_m3_pa,
                            other_capacitance_m3_pa, coupling_m3_pa):
     """Pressure rate of one of two nodes joined by a differential capacitance ``c_s`` (a
@@ -504,6 +518,24 @@ def seal_friction_n(velocity_m_s, sealed_dp_pa, coulomb_n, stribeck_gain_n, stri
     if pressure_coefficient_m2 != 0.0:
         f += pressure_coefficient_m2 * math.sqrt(sealed_dp_pa * sealed_dp_pa + 1e8) * tc
     return f
+
+
+@law
+def chamber_seal_pressure_friction_n(velocity_m_s, chamber_a_pa, chamber_b_pa, coefficient_m2,
+                                     coulomb_speed_m_s):
+    """Pressure part of the friction of two rod/cable seals, each loaded by its own
+    chamber's gauge pressure against the ambient on its other side:
+    ``F = f_h (p_a⁺ + p_b⁺) tanh(v/v_C)`` with ``p⁺`` the positive part rounded over 10 kPa
+    (:func:`ramp_c1`; a seal below the atmosphere gains nothing) and ``f_h`` in N/Pa (the
+    hydraulic friction coefficient times the seal's projected area). The per-seal form of
+    the Parker O-ring handbook (ORD 5700, "Friction": ``F = F_C + F_H``, ``F_H`` growing with
+    the pressure each seal holds), as seal datasheets give it; the piston seal's share,
+    against ``|p_a − p_b|``, is :func:`seal_friction_n`'s pressure part. Returned with the
+    sign of the velocity. Example: v = 0.01 m/s, v_C = 5e-4 m/s, p_a = 2 MPa, p_b = 0.5 MPa,
+    f_h = 1e-6 m² → 2.49 N."""
+    pa = ramp_c1(chamber_a_pa, 1e4)
+    pb = ramp_c1(chamber_b_pa, 1e4)
+    return coefficient_m2 * (pa + pb) * math.tanh(velocity_m_s / coulomb_speed_m_s)
 
 
 @law
