@@ -263,7 +263,7 @@ def _version() -> str:
         return __version__
 
 
-_ATOMIC = ("demo", "run", "render", "compare")    # write all at once or nothing
+_ATOMIC = ("hydraulics-demo", "run", "render", "compare")    # write all at once or nothing
 
 # every command of ``afo-mj``, as typed, and its handler (``args -> exit code``); the parser
 # (:func:`afo_mj.cli_args.build_parser`) declares the same commands
