@@ -61,7 +61,13 @@ from afo_mj.scenarios.circuit_scenario import library_spec
 
 #: one description per compiled structure (the ``*_gait`` variants share these structures)
 STRUCTURES = ("lab_bench", "pump_accumulator", "spring_return")
-LEDGER_TOL = 1e-7             # relative to the energy throughput (closing runs: ~1e-10)
+#: relative to the energy throughput. Closing runs reach ~1e-10; what is left is the Newton
+#: tolerance, which is on each pressure (Pa, in units of Y_TYP) rather than on the volume it
+#: stands for, so a very compliant node closes its stored energy less tightly: a draw of
+#: pump_accumulator with hose_b's wall at 1 MPa (the range's lower end) closes to 9.6e-7, and
+#: to 4.7e-9 with the Newton tolerance divided by 100 (measured); a 1 ohm / 1 H motor at 0 Pa
+#: to 1.5e-7. A ledger bug shows at 1e-3 and above.
+LEDGER_TOL = 2e-6
 N_STEPS = 250                 # 0.25 s at 1 ms
 SETTINGS = dict(deadline=None, derandomize=True, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
