@@ -20,6 +20,7 @@ rr = pytest.importorskip("rerun")
 
 from afo_mj.circuits.library import LIBRARY  # noqa: E402
 from afo_mj.devices.hafo import PRESETS  # noqa: E402
+from afo_mj.devices.registry import device_names  # noqa: E402
 from afo_mj.devices.valve_afo import VALVE_PRESETS  # noqa: E402
 from afo_mj.outputs.recording import read_recording_index  # noqa: E402
 
@@ -37,12 +38,24 @@ LIBRARY_SCENARIO = {"lab_bench": "gait_lab_bench.toml",
 #: documented display names of two valve-circuit pressure nodes
 NODE_NAMES = {"pump_out": "pump", "rail": "supply"}
 
-CASES = ([pytest.param("gait_assist_hafo.toml", [f"device.preset={p}"], id=f"preset-{p}")
-          for p in PRESETS]
-         + [pytest.param("gait_assist_valve.toml", [f"device.preset={p}", "device.variants={}"],
-                         id=f"preset-{p}") for p in VALVE_PRESETS]
-         + [pytest.param(LIBRARY_SCENARIO.get(lib, "?"), [f'circuit.library="{lib}"'],
-                         id=f"circuit-{lib}") for lib in LIBRARY])
+
+
+def _walk_case(name: str):
+    """A walking scenario wearing registered device ``name``: a preset on the HAFO's or the
+    valve AFO's assistance scenario, a library circuit in its own walking scenario."""
+    if name in PRESETS:
+        return pytest.param("gait_assist_hafo.toml", [f"device.preset={name}"],
+                            id=f"preset-{name}")
+    if name in VALVE_PRESETS:
+        return pytest.param("gait_assist_valve.toml", [f"device.preset={name}",
+                                                       "device.variants={}"],
+                            id=f"preset-{name}")
+    return pytest.param(LIBRARY_SCENARIO.get(name, "?"), [f'circuit.library="{name}"'],
+                        id=f"circuit-{name}")
+
+
+#: every registered device (issue 40: the registry enumerated through a 2-stride walk)
+CASES = [_walk_case(name) for name in device_names()]
 
 
 def _scalars(path: Path, entity: str) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +82,7 @@ def _column(dev, L, generic: str):
 
 def test_every_library_circuit_has_a_walking_scenario():
     assert set(LIBRARY) == set(LIBRARY_SCENARIO)
+    assert set(device_names()) == set(PRESETS) | set(VALVE_PRESETS) | set(LIBRARY)
 
 
 @pytest.mark.parametrize("scenario, overrides", CASES)

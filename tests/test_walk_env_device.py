@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from afo_mj.devices.registry import device_names
 from afo_mj.experiments import walk_env as we
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -140,3 +141,35 @@ def test_device_mode_on_the_muscle_walker():
     plain.reset()
     assert env.walk.phys.body_mass_kg == pytest.approx(plain.walk.phys.body_mass_kg
                                                        + d.mass_total_kg)
+
+
+def _env_case(name: str):
+    """The scenario and overrides that wear registered device ``name`` (as
+    tests/test_recording_devices.py walks each)."""
+    from afo_mj.devices.hafo import PRESETS
+    from afo_mj.devices.valve_afo import VALVE_PRESETS
+    if name in PRESETS:
+        return "gait_assist_hafo.toml", [f"device.preset={name}"]
+    if name in VALVE_PRESETS:
+        return "gait_assist_valve.toml", [f"device.preset={name}", "device.variants={}"]
+    scen = {"lab_bench": "gait_lab_bench.toml", "pump_accumulator": "gait_pump_accumulator.toml",
+            "pump_accumulator_gait": "gait_pump_accumulator.toml",
+            "spring_return": "gait_spring_return.toml",
+            "spring_return_gait": "gait_spring_return.toml"}[name]
+    return scen, [f'circuit.library="{name}"']
+
+
+@pytest.mark.parametrize("name", device_names())
+def test_every_registered_device_is_commanded_by_the_action(name):
+    """Issue 40: the registry enumerated through the environment. Each device, worn as its
+    walking scenario wears it, takes 0.1 s of a -10 N·m action through its controller; the
+    observation stays in its space and the device's energy ledger closes."""
+    scen, ov = _env_case(name)
+    env = we.AnkleAssistEnv(str(SC / scen), mode="device", overrides=SHORT + ov)
+    env.reset(seed=0)
+    for _ in range(10):
+        obs, r, _term, _trunc, info = env.step(np.array([-10.0, -10.0]))
+        assert np.isfinite(r) and env.observation_space.contains(obs)
+        assert np.all(np.isfinite(info["device_delivered_torque_nm"]))
+    led = env.device.ledger(0)
+    assert abs(led["balance_error_rel"]) < 1e-6 and led["input_drawn_j"] >= 0.0
