@@ -269,3 +269,41 @@ def test_a_brake_gets_no_efficiency_no_battery_runtime_and_a_stated_reason():
 def test_mechanical_role(net, pos, role):
     got, reason = dc.mechanical_role(net, pos)
     assert got == role and (reason == "") == (role == "actuator")
+
+
+def _user_circuit_scenario(tmp: Path) -> Path:
+    """A walking scenario wearing a user's own [circuit] table: the calibration lab rig's
+    datasheet description (scenarios/calibration/lab_rig.toml) under the pump_torque law,
+    on the walker and assistance of gait_lab_bench.toml."""
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    walk = (root / "gait_lab_bench.toml").read_text(encoding="utf-8")
+    walk = walk[:walk.index("[circuit]")] + walk[walk.index("[assistance]"):]
+    walk = walk.replace('name = "gait_lab_bench"', 'name = "gait_user_rig"')
+    rig = (root / "calibration" / "lab_rig.toml").read_text(encoding="utf-8")
+    circuit = rig[rig.index("[circuit]"):rig.index("[load]")].replace(
+        'controller = { kind = "open_loop" }',
+        'controller = { kind = "pump_torque", motor = "motor", pump = "pump", '
+        'actuator = "cylinder" }')
+    p = tmp / "gait_user_rig.toml"
+    p.write_text(walk + "\n" + circuit, encoding="utf-8")
+    return p
+
+
+def test_compare_takes_a_library_circuit_and_a_users_description(tmp_path):
+    """Issue 40: compare runs on gait_lab_bench.toml's circuit and on a user's TOML
+    description side by side; each row names its circuit and its per-stride ledger closes
+    (electrical net = losses + mechanical net + stored, the energy balance)."""
+    from afo_mj.app.compare import compare
+    lab = Path(__file__).resolve().parents[1] / "scenarios" / "gait_lab_bench.toml"
+    user = _user_circuit_scenario(tmp_path)
+    res = compare([str(lab), str(user)], tmp_path / "c",
+                  overrides=["gait.analyse_strides=[2, 4]"], strides=4)
+    with (tmp_path / "c" / "comparison.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["label"] for r in rows] == ["gait_lab_bench", "gait_user_rig"], rows
+    assert res is not None
+    for r in rows:
+        losses = sum(csv_number(v) for k, v in r.items() if k.startswith("loss_") and v != "")
+        assert losses + csv_number(r["mechanical_net_j_per_stride"]) + csv_number(
+            r["stored_j_per_stride"]) == pytest.approx(
+                csv_number(r["electrical_net_j_per_stride"]), rel=0.02), r["label"]
