@@ -41,7 +41,7 @@ from scipy.signal import bilinear, lfilter
 
 from afo_mj.calibration.effect_library import (
     declared_parameters, effect_by_name, effects_for, lean_setting)
-from afo_mj.calibration.calibrate import declared_labels, model_outputs
+from afo_mj.calibration.calibration_model import declared_labels, model_outputs
 from afo_mj.calibration.measured_data import write_measured
 from afo_mj.devices.registry import device_spec
 from afo_mj.hydraulics.params import ParameterError

@@ -39,7 +39,7 @@ def preset_overrides(overrides: Sequence[str], name: str) -> dict:
 
 #: the top level of a calibration rig file (``afo-mj calibrate --scenario``): a described
 #: circuit with its load, sensors and calibration options (those three tables are declared
-#: and checked by afo_mj.calibration.calibrate)
+#: and checked by afo_mj.calibration.calibration_setup)
 RIG = Table("", (
     Key("name", "string"),
     Key("description", "string"),
