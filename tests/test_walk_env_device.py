@@ -114,11 +114,6 @@ def test_what_cannot_be_commanded_is_refused():
     with pytest.raises(ValueError, match="device.preset = 'ideal'.*no torque-command input"):
         we.AnkleAssistEnv(str(SC / "gait_muscle_ideal_zhang.toml"), mode="device",
                           overrides=SHORT)
-    with pytest.raises(ValueError, match="'open_loop'.*motor voltage.*no torque-command "
-                                         "input; allowed: a torque controller"):
-        we.AnkleAssistEnv(str(SC / "gait_lab_bench.toml"), mode="device",
-                          overrides=SHORT + ['circuit.controller.kind="open_loop"',
-                                             'device.conditions=["transparent"]'])
     with pytest.raises(ValueError, match="allowed: 'torque', 'hafo', 'device'"):
         we.AnkleAssistEnv(str(SC / "gait_assist_hafo.toml"), mode="valve")
 
@@ -173,3 +168,27 @@ def test_every_registered_device_is_commanded_by_the_action(name):
         assert np.all(np.isfinite(info["device_delivered_torque_nm"]))
     led = env.device.ledger(0)
     assert abs(led["balance_error_rel"]) < 1e-6 and led["input_drawn_j"] >= 0.0
+
+
+def test_an_open_loop_circuit_takes_its_motor_voltage_as_the_action():
+    """Issue 40: the environment's command comes from the device's spec. The lab bench under
+    its own open-loop controller has no torque reference; the action is then the motor voltage
+    (V), bounded by its ideal 24 V supply (the description's options.supply_voltage_v), and
+    the voltage the motor gets each step is the action (clipped to the supply)."""
+    env = we.AnkleAssistEnv(str(SC / "gait_lab_bench.toml"), mode="device",
+                            overrides=SHORT + ['circuit.controller.kind="open_loop"',
+                                               'device.conditions=["transparent"]'])
+    assert env.command_channel == "motor_voltage_v" and env.action_limit == 24.0
+    assert env.action_space.high[0] == 24.0
+    env.reset(seed=0)
+    for u in (6.0, -4.0, 30.0):
+        for _ in range(3):
+            obs, r, _t, _u, _i = env.step(np.array([u, 0.0]))
+            assert np.isfinite(r) and env.observation_space.contains(obs)
+    L = env.device.log.arrays()
+    v = L["actuated_input"][:, 0]
+    n = env.substeps * 3
+    np.testing.assert_array_equal(v[:n], 6.0)
+    np.testing.assert_array_equal(v[n:2 * n], -4.0)
+    np.testing.assert_array_equal(v[2 * n:3 * n], 24.0)      # 30 V clipped to the supply
+    assert abs(env.device.ledger(0)["balance_error_rel"]) < 1e-6

@@ -23,8 +23,11 @@ apart:
   torque reference of the circuit's
   controller (``torque_fn`` of :class:`afo_mj.circuits.device.CircuitDevice`, the input the
   assistance profile drives in ``afo-mj run``); the scenario's ``[assistance]`` is not used.
-  A device without that input is refused: the ideal preset (no circuit) and a circuit whose
-  controller passes its command through as the motor voltage (``open_loop``). The worn
+  A device with no torque controller takes its open-loop command instead, as its spec names
+  it (:attr:`AnkleAssistEnv.command_channel`: a circuit whose ``open_loop`` controller passes
+  the command to the motor takes the motor voltage, V, within ± its supply: the battery's
+  open-circuit voltage at full charge or the ideal supply's; :attr:`AnkleAssistEnv.action_limit`).
+  The ideal preset (no circuit) is refused with ``mode="device"``. The worn
   device's masses are on the body (a described circuit has none);
 * **observation** (:data:`OBSERVATION_NAMES`): joint angles and velocities of both legs, the
   phase per leg (torque walker: its controller's estimate; muscle walker: time since the
@@ -104,6 +107,16 @@ def _command_fn(command: np.ndarray, sides):
     return torque_fn
 
 
+def _supply_voltage_v(circuit) -> float:
+    """The bound of a motor-voltage action: the circuit's battery at full charge (its
+    open-circuit voltage, :meth:`~afo_mj.hydraulics.battery.BatteryParams.open_circuit_voltage_v`)
+    or, without one, its ideal supply (``options.supply_voltage_v``)."""
+    bats = [c for c in circuit.components if c.kind == "battery"]
+    if bats:
+        return float(bats[0].params.battery.open_circuit_voltage_v(1.0))
+    return float(circuit.options.supply_voltage_v)
+
+
 def default_reward(env: "AnkleAssistEnv", w_track: float = 1.0, w_effort: float = 1.0,
                    w_energy: float = 0.1) -> float:
     """Tracking, effort and energy of the last control step (module docstring)."""
@@ -144,12 +157,21 @@ class AnkleAssistEnv(gym.Env):
         self._command = np.zeros(2)        # the commanded torque per walker side (N·m)
         self.device_config = (self._device_config(scenario) if mode == "device"
                               else self._hafo_config(hafo_preset) if mode == "hafo" else None)
+        #: what the action is (per walker side): the torque (``commanded_torque_nm``: the
+        #: ideal device, or a worn device's torque reference), or a worn open-loop circuit's
+        #: command (``motor_voltage_v``), and its bound (N·m, or V: the circuit's supply)
+        self.command_channel, self.action_limit = "commanded_torque_nm", self.max_torque_nm
+        if self.device_config is not None:
+            spec = self.device_config.device_spec()
+            if not spec.torque_controlled:
+                self.command_channel = spec.open_loop_channel
+                self.action_limit = _supply_voltage_v(spec.circuit)
         self._device_states: tuple[str, ...] = ()
         if self.device_config is not None:
             self._device_states = tuple(f"{side}_device.{n}" for side in self.device_config.sides
                                         for n in self._make_device(0).cc.state_names)
         self.reward_fn = reward_fn or default_reward
-        self.action_space = gym.spaces.Box(-self.max_torque_nm, self.max_torque_nm, (2,),
+        self.action_space = gym.spaces.Box(-self.action_limit, self.action_limit, (2,),
                                            np.float64)
         # bounds: angles ±π, velocities ±100 rad/s, phase and stance 0…1, forces ±20 body
         # weights, speed ±20 m/s, device torques ±1000 N·m
@@ -183,10 +205,12 @@ class AnkleAssistEnv(gym.Env):
     def step(self, action):
         if self.walk is None:
             raise RuntimeError("AnkleAssistEnv.step before reset()")
-        a = np.clip(np.asarray(action, float).reshape(2), -self.max_torque_nm,
-                    self.max_torque_nm)
+        a = np.clip(np.asarray(action, float).reshape(2), -self.action_limit,
+                    self.action_limit)
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action = {action!r}; allowed: two finite torques (N·m)")
+            what = ("torques (N·m)" if self.command_channel == "commanded_torque_nm"
+                    else f"commands ({self.command_channel})")
+            raise ValueError(f"action = {action!r}; allowed: two finite {what}")
         w = self.walk
         mg = w.phys.body_mass_kg * GRAVITY_M_S2
         leg = self.scenario.walker.height_m * 0.53            # leg length ~ 0.53 stature
@@ -252,8 +276,7 @@ class AnkleAssistEnv(gym.Env):
 
     def _device_config(self, path):
         """The scenario's device (:func:`afo_mj.scenarios.device_scenario.device_config`),
-        refused where ``mode="device"`` cannot command it."""
-        from afo_mj.circuits.catalogue import CONTROLLER_KINDS
+        refused where it wears none or the ideal source (no circuit to command)."""
         from afo_mj.scenarios.device_scenario import device_config
         cfg = device_config(self.scenario)
         if cfg is None:
@@ -265,13 +288,6 @@ class AnkleAssistEnv(gym.Env):
             raise ValueError(f"mode = 'device' with device.preset = 'ideal' ({path}): the "
                              "ideal device is no circuit and has no torque-command input; "
                              "allowed: mode = 'torque' (the action is then the torque itself)")
-        ctrl = cfg.circuit.circuit.controller.kind if cfg.circuit is not None else None
-        if ctrl == "open_loop":        # the rule device_config applies to the assist condition
-            torque = [k for k in CONTROLLER_KINDS if k != "open_loop"]
-            raise ValueError(f"mode = 'device' with circuit.controller.kind = 'open_loop' "
-                             f"({path}): it passes its command through as the motor voltage, "
-                             "so the circuit has no torque-command input; allowed: a torque "
-                             f"controller ({', '.join(torque)})")
         return cfg
 
     def _make_device(self, max_steps: int):
