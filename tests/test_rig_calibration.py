@@ -308,3 +308,25 @@ def test_declared_value_beyond_tolerance_names_its_equivalent_effects():
     d = out[0]
     assert d["fitted"] == pytest.approx(3.45e5) and d["relative_change"] == pytest.approx(-0.31)
     assert d["equivalent_to"][0].startswith("check_valve_cracking")
+
+
+def test_a_softened_oil_names_the_cable_spring_among_its_equivalents():
+    """Issue 41 item 2: an oil bulk modulus fitted 48 % below its datasheet value (what a rig
+    whose cable stiffness was left out of the description gives: the series combination of oil
+    and cable) lists the cable spring (the library's series_compliance) beside the hose wall
+    and entrained air; a raised air fraction likewise."""
+    from types import SimpleNamespace
+
+    from afo_mj.calibration.calibrate import Calibration
+    from afo_mj.calibration.effect_library import declared_parameters
+    by = {d.name: d for d in declared_parameters("motor_voltage_v", described=True)}
+    names = ["liquid_bulk_modulus_pa", "air_fraction"]
+    values = {"fluid.liquid_bulk_modulus": 1.6e9, "fluid.air_fraction": 0.005}
+    fake = SimpleNamespace(declared=[by[n] for n in names],
+                           declared_labels=[by[n].labels for n in names],
+                           replay=SimpleNamespace(value=values.__getitem__))
+    m = SimpleNamespace(x=np.array([0.52, 4.0]))
+    out = {d["parameter"]: d for d in Calibration.declared_deviations(
+        fake, m, {"sd": np.array([0.01, 0.1])})}
+    assert "series_compliance" in out["liquid_bulk_modulus_pa"]["equivalent_to"]
+    assert "series_compliance" in out["air_fraction"]["equivalent_to"]

@@ -498,10 +498,13 @@ _CIRCUIT_DECLARED = (
                       "viscous friction of the cylinder seals", 0.5),
     DeclaredParameter("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
                       "oil bulk modulus", 0.3,
-                      below=("hose_wall_compliance", "entrained_air")),
+                      # a compliance in series with the oil lowers the effective modulus:
+                      # a hose wall, air, or a cable between pulley and pistons (1/B_eff =
+                      # 1/B + the cable's compliance seen through the chambers)
+                      below=("hose_wall_compliance", "entrained_air", "series_compliance")),
     DeclaredParameter("air_fraction", "-", ("fluid.air_fraction",), 0.0, 10.0,
                       "entrained air volume fraction at 1 atm", 1.0,
-                      above=("entrained_air", "hose_wall_compliance")),
+                      above=("entrained_air", "hose_wall_compliance", "series_compliance")),
     DeclaredParameter("charge_pressure_pa", "Pa", ("charge.pressure",), 0.5, 2.0,
                       "charge reservoir pressure", 0.1,
                       below=("check_valve_cracking", "charge pressure below its setting")),
