@@ -143,3 +143,28 @@ def test_calibration_report_file_is_written_from_the_document(tmp_path):
     with pytest.raises(DocumentError, match=r"calibration report.verdict = 3"):
         write_calibration_report(dict(rep, verdict=3), tmp_path / "bad")
     assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.parametrize("scenario, overrides", [
+    ("bench_hafo.toml", ['bench.protocols=["isometric_steps"]']),
+    ("bench_lab_bench.toml", ['bench.protocols=["torque_velocity"]']),
+])
+def test_bench_summary_is_written_from_its_document(tmp_path, scenario, overrides):
+    """Issue 40 item 4: a bench's summary.json is its BenchSummary document, equal key for key
+    and value for value to the summary the bench run assembled (the load rig's keys come in
+    the document's order: device after bench), read back by from_json to the same JSON; a
+    summary with a key the document does not declare is refused naming it."""
+    import json
+
+    from afo_mj.app.run import run_scenario
+    from afo_mj.metrics.documents import BenchSummary, DocumentError
+    from afo_mj.outputs.gait_report import json_ready
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    res = run_scenario(root / scenario, overrides=overrides, out_dir=tmp_path / "b",
+                       figures=False)
+    written = json.loads((tmp_path / "b" / "summary.json").read_text(encoding="utf-8"))
+    assert written == json.loads(json.dumps(json_ready(res.summary)))
+    assert written["format"] == BenchSummary.FORMAT == res.document.FORMAT
+    assert BenchSummary.from_json(written).to_json() == written
+    with pytest.raises(DocumentError, match="unknown key.*'bogus'"):
+        BenchSummary.from_json({**written, "bogus": 1})

@@ -44,6 +44,8 @@ def render() -> str:
          "| --- | --- | --- |",
          "| `summary.json` of `afo-mj run` (a walk, with or without an orthosis) | "
          "`WalkSummary` | `afo_mj gait summary v1` |",
+         "| `summary.json` of a bench scenario (`afo-mj run` of a `[bench]` file) | "
+         "`BenchSummary` | `afo_mj bench summary v2` |",
          "| `report.json` of `afo-mj calibrate` | `CalibrationReport` | "
          f"`{CalibrationReport.FORMAT}` |",
          "| (embedded) one device condition in `device_conditions` | `WornCondition` | "

@@ -105,6 +105,9 @@ class BenchRun:
     series: dict
     wall_time_s: float
     out_dir: Path | None = None
+    #: the summary as its typed document (:class:`afo_mj.metrics.documents.BenchSummary`):
+    #: ``summary.json`` is its ``to_json()``
+    document: Any = None
 
 
 def run_info(wall_s: float) -> dict:
@@ -473,12 +476,14 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
     except (BenchError, FloatingPointError) as exc:
         raise RunFailed(f"{bs.name}: {exc}; nothing written") from None
     wall = time.perf_counter() - t0
+    from afo_mj.metrics.documents import BenchSummary
+    document = BenchSummary.from_json(json_ready(summary))
     if out_dir is None:
-        return BenchRun(bs, summary, series, wall)
+        return BenchRun(bs, summary, series, wall, document=document)
 
     def writer(tmp: Path) -> None:
         _run_info_writer(wall)(tmp)
-        text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
+        text = json.dumps(document.to_json(), indent=2, allow_nan=False)
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         (tmp / "scenario.toml").write_text(bs.text, encoding="utf-8")
         if not figures:
@@ -493,7 +498,7 @@ def run_bench(path, overrides: Sequence[str] = (), out_dir=None,
         out = write_atomically(out_dir, _chain(writer, rrd))
     except (ResultDirError, ValueError) as exc:
         raise RunFailed(f"{bs.name}: {exc}") from None
-    return BenchRun(bs, summary, series, wall, out)
+    return BenchRun(bs, summary, series, wall, out, document)
 
 
 def record_run(res: WalkRun | DeviceWalkRun | BenchRun, path) -> dict | None:

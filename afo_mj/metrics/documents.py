@@ -22,14 +22,14 @@ is generated from the classes (``tools/result_documents.py``).
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar, Mapping
+from typing import ClassVar, Mapping, Sequence
 
 from afo_mj.metrics.document_base import Document, DocumentError, entry
 
 __all__ = ["DocumentError", "StrideStatistic", "GaitReference", "PerLeg", "GaitDefinitions",
            "GaitSummary", "FallOutcome", "HumanAnkleWork", "AnkleJointWork",
            "EndStopContact", "DeviceFigures", "StrideEnergy", "RunEnergy", "WornCondition",
-           "EnergyLedger", "HumanResponse", "DeviceWalkPart", "WalkSummary",
+           "EnergyLedger", "HumanResponse", "DeviceWalkPart", "WalkSummary", "BenchSummary",
            "STRIDE_STATISTICS", "SPAN_STATISTICS", "GAIT_FORMAT", "DOCUMENT_CLASSES"]
 
 GAIT_FORMAT = "afo_mj gait summary v1"
@@ -611,7 +611,49 @@ def _json_value(v):
 
 
 #: The documents ``docs/result_documents.md`` describes, with their embedded blocks.
-DOCUMENT_CLASSES = (WalkSummary, GaitSummary, StrideStatistic, GaitReference, PerLeg,
+@dataclasses.dataclass(frozen=True)
+class BenchSummary(Document):
+    """``summary.json`` of a bench scenario (``afo-mj run`` of a ``[bench]`` file,
+    :func:`afo_mj.experiments.bench_run.run_bench_scenario`): the protocols run on the ankle
+    test stand (``rig = "stand"``) or on a simulated load (``"load"``), their figures, the
+    device, and the energy balance. The protocols' own figures are free-form objects named
+    by protocol (documented in ``scenarios/README.md``, bench scenarios)."""
+
+    FORMAT: ClassVar[str] = "afo_mj bench summary v2"
+    TITLE: ClassVar[str] = "bench summary (summary.json of a bench scenario)"
+
+    scenario: Mapping = entry("object", "the bench scenario as run")
+    rig: str = entry("str", '"stand" (the MuJoCo ankle test stand) or "load" (a simulated '
+                     "joint load)")
+    protocols: Sequence = entry("list", "the protocols run, in order")
+    notes: Sequence = entry("list", "notes on the scenario (deprecated keys read, ...)")
+    bench: Mapping = entry("object", "stand: the scalar figures (bench.*); load: per protocol")
+    bench_detail: Mapping | None = entry("object?", "stand: per-level and per-run detail",
+                                         omit_none=True, default=None)
+    device: Mapping = entry("object", "the device: its name, controller and masses (kg)",
+                            default=None)
+    circuit: Mapping | None = entry("object?", "load: the circuit's name and controller",
+                                    omit_none=True, default=None)
+    ledger: Mapping | None = entry("object?", "load: the energy ledger of each run (J)",
+                                   omit_none=True, default=None)
+    published: Mapping | None = entry("object?", "stand: the published figures the device is "
+                                      "compared with (its spec's)", omit_none=True,
+                                      default=None)
+    stiffness: Mapping | None = entry("object?", "stand, stiffness protocol: per commanded "
+                                      "stiffness k<K>", omit_none=True, default=None)
+    sweep: Mapping | None = entry("object?", "stand, stiffness protocol: the sweep",
+                                  omit_none=True, default=None)
+    acceptance: Mapping | None = entry("object?", "stand, stiffness protocol: its acceptance",
+                                       omit_none=True, default=None)
+    energy: Mapping = entry("object", "the energy balance: the worst relative residual of any "
+                            "run (balance_error_rel), with its note", default=None)
+
+    def __post_init__(self):
+        if self.rig not in ("stand", "load"):
+            raise DocumentError(f"BenchSummary: rig = {self.rig!r}; allowed: stand, load")
+
+
+DOCUMENT_CLASSES = (WalkSummary, BenchSummary, GaitSummary, StrideStatistic, GaitReference, PerLeg,
                     GaitDefinitions, FallOutcome, DeviceWalkPart, HumanResponse,
                     WornCondition, HumanAnkleWork, AnkleJointWork, DeviceFigures,
                     EndStopContact, StrideEnergy, RunEnergy, EnergyLedger)
