@@ -233,7 +233,7 @@ def _design(args) -> int:
 def _schematic(args) -> int:
     """Exit 0 written, 2 invalid input (nothing written)."""
     from afo_mj.app.schematic import write_circuit_schematic
-    _print(console.schematic_lines(write_circuit_schematic(args.scenario, args.out)))
+    _print(console.schematic_lines(write_circuit_schematic(args.scenario, args.out, args.set)))
     return 0
 
 

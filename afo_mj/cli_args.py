@@ -212,6 +212,9 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                      "(lab_bench, pump_accumulator, spring_return, ...)")
     sch.add_argument("--out", required=True, metavar="FILE.svg",
                      help="the drawing to write (.svg, or .png)")
+    sch.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario value by its dotted key, as for run; with a "
+                          "preset name: device.params.NAME=VALUE (repeatable)")
     sch.set_defaults(func=handlers["schematic"])
     fmu = sub.add_parser("export-fmu", help="write a scenario's circuit as an FMI 2.0 "
                          "co-simulation FMU (inputs: command, joint angle and velocity)")

@@ -206,3 +206,24 @@ def test_a_device_run_writes_the_schematic_of_the_circuit_it_wore(tmp_path):
     assert got == _described(lab)
     ctrl = tomllib.loads(rel.read_text(encoding="utf-8"))["circuit"]["controller"]["kind"]
     assert ctrl == "pump_torque"
+
+
+def test_the_command_takes_overrides_as_run_does(tmp_path):
+    """``afo-mj schematic hafo --set device.params.hose.length_m=2.2`` draws the HAFO with its
+    2.2 m hoses (the hose label states length and bore); a walking scenario takes scenario
+    keys; a key that is no device parameter of a preset is refused, nothing written."""
+    from afo_mj.cli import main
+    out = tmp_path / "h.svg"
+    assert main(["schematic", "hafo", "--out", str(out), "--quiet",
+                 "--set", "device.params.hose.length_m=2.2"]) == 0
+    assert "2.2 m × Ø3.2 mm" in out.read_text(encoding="utf-8")
+    assert "2.2 m" not in schematic_svg(SHIPPED["hafo"])
+    out2 = tmp_path / "v.svg"
+    scen = ROOT / "scenarios" / "gait_assist_hafo.toml"
+    assert main(["schematic", str(scen), "--out", str(out2), "--quiet",
+                 "--set", "device.params.hose.length_m=1.7"]) == 0
+    assert "1.7 m" in out2.read_text(encoding="utf-8")
+    bad = tmp_path / "x.svg"
+    assert main(["schematic", "hafo", "--out", str(bad), "--quiet",
+                 "--set", "gait.strides=3"]) == 2
+    assert not bad.exists()

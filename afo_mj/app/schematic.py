@@ -20,7 +20,7 @@ __all__ = ["circuit_of", "shipped_circuits", "write_circuit_schematic", "SCENARI
 SCENARIO_CIRCUITS = ("scenarios/calibration/lab_rig.toml",)
 
 
-def circuit_of(source: str):
+def circuit_of(source: str, overrides=()):
     """``(circuit, title)`` of ``source``: a registered device's name or a scenario file
     (:func:`afo_mj.scenarios.device_source.device_source`); :class:`InvalidInput` naming the
     problem otherwise."""
@@ -29,7 +29,7 @@ def circuit_of(source: str):
     from afo_mj.scenarios.device_source import device_source
     from afo_mj.scenarios.walk_scenario import ScenarioError
     try:
-        spec, origin = device_source(source)
+        spec, origin = device_source(source, overrides)
     except (ScenarioError, CircuitError, ParameterError) as exc:
         raise InvalidInput(str(exc)) from None
     path = Path(origin)
@@ -51,11 +51,13 @@ def shipped_circuits(root: Path | None = None) -> dict:
     return out
 
 
-def write_circuit_schematic(source: str, out) -> dict:
-    """Draw ``source``'s circuit into ``out`` (``.svg``, or ``.png`` where cairosvg can
-    render it); returns ``{"path", "circuit", "components", "nodes"}``."""
+def write_circuit_schematic(source: str, out, overrides=()) -> dict:
+    """Draw ``source``'s circuit, with ``overrides`` (``--set`` items, as
+    :func:`afo_mj.scenarios.device_source.device_source` takes them), into ``out`` (``.svg``,
+    or ``.png`` where cairosvg can render it); returns ``{"path", "circuit", "components",
+    "nodes"}``."""
     from afo_mj.outputs.schematic import SchematicError, write_schematic
-    circuit, title = circuit_of(source)
+    circuit, title = circuit_of(source, overrides or ())
     out_path = Path(out)
     if out_path.parent and not out_path.parent.exists():
         raise InvalidInput(f"--out = {str(out)!r}: the folder "
