@@ -130,31 +130,14 @@ def test_series_cable_compliance_against_the_analytic_compression():
     ``C_a δp_a = (nAr)(Δθ − c (nAr) δΔp)``,
     ``C_b δp_b = −(nAr)(Δθ − c (nAr) δΔp)``, i.e.
     ``δΔp = (nAr) Δθ (1/C_a + 1/C_b) / (1 + c (nAr)² (1/C_a + 1/C_b))``."""
-    from afo_mj.circuits.circuit import Circuit, CircuitOptions
-    from afo_mj.circuits.codegen import build
-    from afo_mj.circuits.components import PulleyCylinders, Volume, VolumeParams
-    from afo_mj.circuits.controllers import OpenLoop
     from afo_mj.circuits.device import CircuitDevice
-    from afo_mj.hydraulics.cylinder import CylinderParams
-    from afo_mj.hydraulics.fluid import FluidParams
 
-    cyl = CylinderParams(internal_leakage_enabled=False, seal_friction_enabled=False,
-                         end_stops_enabled=False)
-    comps = [PulleyCylinders("cylinders", PulleyCylinders.Params(cylinder=cyl, count=2.0,
-                                                                 pulley_radius_m=0.04)),
-             Volume("vol_a", VolumeParams(volume_m3=2e-6)),
-             Volume("vol_b", VolumeParams(volume_m3=2e-6))]
-    nodes = {"chamber_a": ["cylinders.a", "vol_a.port"],
-             "chamber_b": ["cylinders.b", "vol_b.port"], "ankle": ["cylinders.joint"]}
-    fluid = FluidParams(entrained_air_enabled=False)
-    cc = build(Circuit("series_check", comps, nodes, OpenLoop(), fluid=fluid,
-                       options=CircuitOptions(initial_pressure_pa=5e6)))
+    cc, comp, cyl, b = _sealed_pulley(None)
     n_steps, dtheta = 400, 0.0005
     th = np.linspace(0.0, dtheta, n_steps + 1)
     thd = np.full(n_steps + 1, dtheta / (n_steps * 1e-3))
     thd[0] = thd[-1] = 0.0
-    ktp = comps[0].torque_per_pa()
-    b = float(fluid.liquid_bulk_modulus_pa)
+    ktp = comp.torque_per_pa()
 
     def run(c):
         dev = CircuitDevice(cc, timestep_s=1e-3)
@@ -182,7 +165,8 @@ def test_series_cable_compliance_against_the_analytic_compression():
 
 def _sealed_pulley(seal, per_chamber=False):
     """Two cylinders on a 40 mm pulley between two rigid 2 cm³ volumes (no pump), air-free
-    oil at 5 MPa: the chambers' oil is all there is to the hydraulics."""
+    oil at 5 MPa: the chambers' oil is all there is to the hydraulics. ``seal`` None: the
+    seals without friction."""
     from afo_mj.circuits.circuit import Circuit, CircuitOptions
     from afo_mj.circuits.codegen import build
     from afo_mj.circuits.components import PulleyCylinders, Volume, VolumeParams
@@ -190,9 +174,10 @@ def _sealed_pulley(seal, per_chamber=False):
     from afo_mj.hydraulics.cylinder import CylinderParams
     from afo_mj.hydraulics.fluid import FluidParams
 
+    seals = ({"seal_friction_enabled": False} if seal is None
+             else {"piston_seal": seal, "rod_seal": seal})
     cyl = CylinderParams(internal_leakage_enabled=False, end_stops_enabled=False,
-                         seal_pressure_per_chamber=per_chamber, piston_seal=seal,
-                         rod_seal=seal)
+                         seal_pressure_per_chamber=per_chamber, **seals)
     comps = [PulleyCylinders("cylinders", PulleyCylinders.Params(cylinder=cyl, count=2.0,
                                                                  pulley_radius_m=0.04)),
              Volume("vol_a", VolumeParams(volume_m3=2e-6)),

@@ -192,3 +192,9 @@ def test_an_open_loop_circuit_takes_its_motor_voltage_as_the_action():
     np.testing.assert_array_equal(v[n:2 * n], -4.0)
     np.testing.assert_array_equal(v[2 * n:3 * n], 24.0)      # 30 V clipped to the supply
     assert abs(env.device.ledger(0)["balance_error_rel"]) < 1e-6
+    # a torque bound means nothing for a voltage action: refused, not ignored
+    with pytest.raises(ValueError, match="max_torque_nm = 40.0 with a device that takes no "
+                                         "torque command"):
+        we.AnkleAssistEnv(str(SC / "gait_lab_bench.toml"), mode="device", max_torque_nm=40.0,
+                          overrides=SHORT + ['circuit.controller.kind="open_loop"',
+                                             'device.conditions=["transparent"]'])

@@ -46,6 +46,9 @@ class DeviceEntry:
     #: the spec of a parameter set of this device's type (a design variant), or None for a
     #: description (its overrides are the description's)
     from_params: Callable[[object], DeviceSpec] | None = None
+    #: the validated parameter set of ``overrides`` without building the spec (a scenario
+    #: parses it; the device is built from it later), or None for a description
+    params_of: Callable[[Mapping | None], object] | None = None
 
 
 _REGISTRY: dict[str, DeviceEntry] = {}
@@ -102,6 +105,12 @@ def _preset_maker(params_of, spec_of, preset: str):
     return make
 
 
+def _overrides_maker(params_of, preset: str):
+    def params(overrides=None):
+        return params_of(dict(overrides or {}), preset)
+    return params
+
+
 def _params_maker(spec_of, preset: str):
     def from_params(params):
         return spec_of(params, name=preset)
@@ -128,13 +137,15 @@ def _library_maker(name: str):
 for _name in hafo.PRESETS:
     register_device(DeviceEntry(_name, _preset_maker(hafo.hafo_params, hafo.hafo_spec, _name),
                                 "pump-controlled hydraulic AFO", label="HAFO",
-                                from_params=_params_maker(hafo.hafo_spec, _name)))
+                                from_params=_params_maker(hafo.hafo_spec, _name),
+                                params_of=_overrides_maker(hafo.hafo_params, _name)))
 for _name, _p in valve_afo.VALVE_PRESETS.items():
     register_device(DeviceEntry(
         _name, _preset_maker(valve_afo.valve_params, valve_afo.valve_spec, _name),
         f"valve-controlled AFO ({_p.circuit} circuit, {_p.supply_mode} supply)",
         label="valve AFO",
-        from_params=_params_maker(valve_afo.valve_spec, _name)))
+        from_params=_params_maker(valve_afo.valve_spec, _name),
+        params_of=_overrides_maker(valve_afo.valve_params, _name)))
 for _name, _fn in library.LIBRARY.items():
     register_device(DeviceEntry(_name, _library_maker(_name),
                                 " ".join((_fn.__doc__ or "").split(".")[0].split()),

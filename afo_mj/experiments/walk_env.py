@@ -91,6 +91,8 @@ OBSERVATION_NAMES = tuple(
     + ["pelvis_speed_m_s", "right_ankle_device_torque_nm", "left_ankle_device_torque_nm"])
 GRAVITY_M_S2 = 9.81
 MODES = ("torque", "hafo", "device")
+#: the torque action's bound when ``max_torque_nm`` is not given, N·m
+DEFAULT_MAX_TORQUE_NM = 60.0
 
 
 def _command_fn(command: np.ndarray, sides):
@@ -136,11 +138,13 @@ class AnkleAssistEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, scenario="scenarios/walk_healthy.toml", mode: str = "torque",
-                 control_rate_hz: float = 100.0, max_torque_nm: float = 60.0,
+                 control_rate_hz: float = 100.0, max_torque_nm: float | None = None,
                  reward_fn=None, overrides=(), hafo_preset: str = "hafo_gait"):
         from afo_mj.scenarios.walk_scenario import load_scenario
         if mode not in MODES:
             raise ValueError(f"mode = {mode!r}; allowed: {', '.join(map(repr, MODES))}")
+        torque_given = max_torque_nm is not None
+        max_torque_nm = DEFAULT_MAX_TORQUE_NM if max_torque_nm is None else max_torque_nm
         if not (math.isfinite(max_torque_nm) and 0 < max_torque_nm <= 200):
             raise ValueError(f"max_torque_nm = {max_torque_nm!r}; allowed: 0 < N·m <= 200")
         self.scenario = load_scenario(Path(scenario), overrides=list(overrides))
@@ -164,6 +168,11 @@ class AnkleAssistEnv(gym.Env):
         if self.device_config is not None:
             spec = self.device_config.device_spec()
             if not spec.torque_controlled:
+                if torque_given:
+                    raise ValueError(
+                        f"max_torque_nm = {max_torque_nm!r} with a device that takes no torque "
+                        f"command ({spec.name!r}: its action is {spec.open_loop_channel}, "
+                        "bounded by its supply); allowed: leave max_torque_nm unset")
                 self.command_channel = spec.open_loop_channel
                 self.action_limit = _supply_voltage_v(spec.circuit)
         self._device_states: tuple[str, ...] = ()

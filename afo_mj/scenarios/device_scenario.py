@@ -149,7 +149,7 @@ def device_params(dev: dict, origin: str):
                             f"allowed: [circuit] library = {preset!r} (with the description's "
                             "overrides), or a preset: " + " | ".join(allowed))
     try:
-        params = entry.make(overrides).params
+        params = entry.params_of(overrides)
     except ParameterError as exc:
         raise ScenarioError(f"{origin}: device.params: {exc}") from None
     return preset, params, overrides
