@@ -224,10 +224,10 @@ def _design(args) -> int:
     except DesignError as exc:
         _err("design", str(exc))
         return 2
-    print(out["text"])
-    for w in out.get("warnings") or []:
+    print(out.text)
+    for w in out.warnings:
         _err("design", f"WARNING: {w}")
-    return 0 if out["feasible"] else 1
+    return 0 if out.feasible else 1
 
 
 def _schematic(args) -> int:

@@ -58,9 +58,9 @@ def main() -> None:
         out = run_design(ROOT / "scenarios" / "design" / "hafo_requirements.toml",
                          Path(tmp) / "design")
         t_run = time.perf_counter() - t0
-    best = out["summary"]["best"]
+    best = out.summary.best
     print(f"size_system, HAFO corner (13.8 MPa): {t_hafo:.2f} s, {res.screened} designs "
-          f"screened, best {best['total_kg']:.3f} kg")
+          f"screened, best {best.total_kg:.3f} kg")
     print(f"size_system, normative gait profile over 5-21 MPa: {t_gait:.2f} s, "
           f"{res_g.screened} designs screened, best {res_g.row(0)['total_kg']:.3f} kg")
     print(f"guideline studies (8 pressures, 3 oils, 5 output powers): {t_study:.2f} s")
@@ -72,11 +72,11 @@ def main() -> None:
                       "designs_screened_gait_profile": res_g.screened,
                       "guideline_studies_s": round(t_study, 3),
                       "run_design_s": round(t_run, 3), "target_s": TARGET_S,
-                      "best_total_kg": round(best["total_kg"], 4),
+                      "best_total_kg": round(best.total_kg, 4),
                       "predicted_stall_torque_nm": round(
-                          out["summary"]["predicted_bench"]["stall_torque_nm"], 3),
+                          out.summary.predicted_bench.stall_torque_nm, 3),
                       "predicted_no_load_speed_deg_s": round(
-                          out["summary"]["predicted_bench"]["no_load_speed_deg_s"], 3)}))
+                          out.summary.predicted_bench.no_load_speed_deg_s, 3)}))
 
 
 if __name__ == "__main__":

@@ -21,6 +21,8 @@ from afo_mj.design.design_requirements import (DesignError, duty_cycle, parse_re
                                                  toml_dumps)
 from afo_mj.app.design import design as run_design
 from afo_mj.app.errors import InvalidInput
+from afo_mj.design.design_document import (DesignStudies, DesignSummary, DocumentError,
+                                           jsonable)
 from afo_mj.design.system_design import (design_params, guideline_studies, hose_bore_study,
                                            mass_check, predict_bench, size_system)
 
@@ -262,7 +264,7 @@ def hafo_design(tmp_path_factory):
 
 def test_hafo_design_meets_requirements_and_writes_files(hafo_design):
     res, out = hafo_design
-    assert res["feasible"]
+    assert res.feasible
     s = json.loads((out / "design.json").read_text())
     assert s["format"] == "afo_mj design v1" and s["feasible"]
     for f in ("design.md", "designs.csv", "design_bench.toml", "design_walk.toml",
@@ -380,13 +382,14 @@ def test_infeasible_surface_temperature_and_the_written_explanation(tmp_path):
     req_file = tmp_path / "hot.toml"
     req_file.write_text(BASE + "max_surface_temperature_k = 303.15\n", encoding="utf-8")
     res = run_design(req_file, tmp_path / "out", studies=False)
-    assert not res["feasible"]
+    assert not res.feasible
     s = json.loads((tmp_path / "out" / "design.json").read_text())
+    assert res.summary == DesignSummary.from_json(s) and res.summary.best is None
     assert s["binding_constraints"] == ["surface_temperature"]
     assert "[constraint: surface_temperature]" in s["explanation"]
     assert "303.1 K" in s["explanation"]
     assert not (tmp_path / "out" / "design_bench.toml").exists()
-    assert "infeasible" in res["text"]
+    assert "infeasible" in res.text
 
 
 def test_surface_temperature_limit_is_respected_and_costs_mass():
@@ -562,3 +565,93 @@ def test_walk_check_of_a_fast_enough_design_does_not_warn(hafo_design):
     assert fast["conditions"]["transparent"]["net_work_j_per_stride"] == 0.0
     slow = walk_work_check(sc, cfg, {"stall_torque_nm": 90.0, "no_load_speed_deg_s": 105.0})
     assert slow["brakes"] and "brakes the walker" in slow["warning"]
+
+
+# -- design.json as a typed document (issue 40 item 4) ----------------------------------------
+# tests/golden/design_hafo_studies_verify.json: design.json of
+# `afo-mj design scenarios/design/hafo_requirements.toml --verify` (run from the repository root)
+# as written by the code before DesignSummary existed (commit d9e9dfc). The search is
+# deterministic, so values are compared exactly; only the wall times differ between runs.
+GOLDEN_DESIGN = ROOT / "tests" / "golden" / "design_hafo_studies_verify.json"
+_WALL = ("search_wall_s", "total_wall_s")
+
+
+def _golden_design() -> dict:
+    return json.loads(GOLDEN_DESIGN.read_text(encoding="utf-8"))
+
+
+def _no_wall_times(d: dict) -> dict:
+    d = json.loads(json.dumps(d))
+    for k in _WALL:
+        d["search"][k] = None
+    return d
+
+
+def test_design_json_is_the_document_and_equals_the_golden_file(hafo_design):
+    """The fixture's run (no studies, no --verify) wrote design.json from its DesignSummary:
+    key for key, in the same order, what the code before the document wrote for the same
+    requirements, less the studies' and the simulated bench's blocks and files."""
+    res, out = hafo_design
+    text = (out / "design.json").read_text(encoding="utf-8")
+    data = json.loads(text)
+    assert isinstance(res.summary, DesignSummary)
+    assert data == res.summary.to_json()
+    assert DesignSummary.from_json(data) == res.summary
+    want = _golden_design()
+    for k in ("simulated_bench", "bench_agreement", "studies"):
+        want.pop(k)
+    want["files"] = [f for f in want["files"] if not f.startswith("study_")]
+    want["requirements"]["file"] = str(HAFO_REQ)
+    assert json.dumps(_no_wall_times(data), indent=1) == json.dumps(_no_wall_times(want),
+                                                                    indent=1)
+    # the typed parts say what the file says
+    assert res.summary.best.total_kg == data["best"]["total_kg"]
+    assert res.summary.predicted_bench.stall_torque_nm == data["predicted_bench"][
+        "stall_torque_nm"]
+    assert res.summary.walk_check.conditions["assist"].net_work_j_per_stride == data[
+        "walk_check"]["conditions"]["assist"]["net_work_j_per_stride"]
+    assert list(res.warnings) == data["warnings"] and res.out_dir == out
+
+
+def test_design_studies_document_equals_the_golden_block(pressure_study):
+    """The guideline studies as a typed block: the same rows as the golden file's (the
+    pressure and oil rows; the power rows at the factors the fixture ran)."""
+    doc = DesignStudies._from_body(jsonable(pressure_study), "studies")
+    got, want = doc.to_block(), _golden_design()["studies"]
+    assert got["pressure"] == want["pressure"] and got["oil"] == want["oil"]
+    by_factor = {r["power_factor"]: r for r in want["power"]}
+    assert [r["power_factor"] for r in got["power"]] == [0.5, 1.0]
+    for r in got["power"]:
+        assert json.dumps(r) == json.dumps(by_factor[r["power_factor"]])
+
+
+def test_design_golden_round_trips_and_refuses_undeclared_keys():
+    text = GOLDEN_DESIGN.read_text(encoding="utf-8")
+    data = json.loads(text)
+    doc = DesignSummary.from_json(data)
+    assert json.dumps(doc.to_json(), indent=1) == text
+    assert doc.simulated_bench.stall_torque_nm == data["simulated_bench"]["stall_torque_nm"]
+    assert doc.studies.power[-1].feasible is False and doc.studies.power[-1].total_kg is None
+    assert doc.hose_bore_tradeoff.interior_optimum is data["hose_bore_tradeoff"][
+        "interior_optimum"]
+
+    def refused(mutate, *words):
+        bad = json.loads(text)
+        mutate(bad)
+        with pytest.raises(DocumentError) as exc:
+            DesignSummary.from_json(bad)
+        for w in words:
+            assert w in str(exc.value), (w, str(exc.value))
+
+    refused(lambda d: d.update(best_guess=1.0), "unknown key(s) 'best_guess'")
+    refused(lambda d: d["best"].update(colour="red"), "DesignSummary.best", "'colour'")
+    refused(lambda d: d["walk_check"].pop("brakes"), "walk_check", "missing key(s) 'brakes'")
+    refused(lambda d: d["mass_check"]["items"]["pump"].update(note="x"),
+            "mass_check.items.pump", "'note'")
+    refused(lambda d: d["ranked"][3].update(rank=4), "ranked[3]", "'rank'")
+    refused(lambda d: d["studies"]["power"][-1].update(total_kg=1.0), "power[4]", "'total_kg'",
+            "infeasible row")
+    refused(lambda d: d["predicted_bench"].update(stall_torque_nm="90"),
+            "predicted_bench.stall_torque_nm", "number")
+    refused(lambda d: d.update(format="afo_mj design v0"), "format", "afo_mj design v1")
+    refused(lambda d: d["scenarios"].update(note="x"), "either bench, walk and run, or note")

@@ -911,11 +911,11 @@ def design_result(requirements_path: str, *, studies: bool = True,
     less the search grid, the ranked designs and the wall times."""
     def run():
         from afo_mj.design.system_design import compute_design, read_requirements
-        from afo_mj.outputs.design_report import build_summary, jsonable
+        from afo_mj.outputs.design_report import build_summary
         req, _text = read_requirements(ROOT / requirements_path)
         d = compute_design(req, studies=studies, verify=verify)
-        out = jsonable(build_summary(d["result"], d["written"], d["study"], d["hose"],
-                                     d["bench"], d["wall_s"]))
+        out = build_summary(d["result"], d["written"], d["study"], d["hose"], d["bench"],
+                            d["wall_s"]).to_json()
         for k in ("search", "ranked", "assumptions", "device"):
             out.pop(k, None)
         return out

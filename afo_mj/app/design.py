@@ -8,10 +8,14 @@ files are :mod:`afo_mj.outputs.design_report`. This module joins the two.
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 from afo_mj.app.errors import InvalidInput
+from afo_mj.design.design_document import DesignSummary
 from afo_mj.design.design_requirements import DesignError
 
-__all__ = ["design", "InvalidRequirements"]
+__all__ = ["design", "DesignRun", "InvalidRequirements"]
 
 
 class InvalidRequirements(InvalidInput, DesignError):
@@ -21,8 +25,20 @@ class InvalidRequirements(InvalidInput, DesignError):
     the application layer), so callers catching either keep working."""
 
 
+@dataclasses.dataclass(frozen=True)
+class DesignRun:
+    """What :func:`design` returns: the verdict, the document written as ``design.json``
+    (its ``to_json()``), what to print, where it was written and the warnings."""
+
+    feasible: bool
+    summary: DesignSummary
+    text: str
+    out_dir: Path
+    warnings: tuple[str, ...] = ()
+
+
 def design(requirements_path, out_dir, overrides=(), studies: bool = True,
-           verify: bool = False, top: int = 10) -> dict:
+           verify: bool = False, top: int = 10) -> DesignRun:
     """Read and validate the requirements (``overrides``: ``key=value`` strings as for
     ``afo-mj run --set``, e.g. ``requirement.runtime_h=3``), search the designs
     (:func:`afo_mj.design.system_design.compute_design`) and write into ``out_dir`` atomically
@@ -38,11 +54,11 @@ def design(requirements_path, out_dir, overrides=(), studies: bool = True,
     is reported as a warning (``design.json`` ``warnings`` and ``walk_check``, ``design.md``,
     the description of ``design_walk.toml``, and the returned ``warnings``).
 
-    Returns ``{"feasible": bool, "summary": dict (what design.json holds), "text": str (what
-    to print), "out_dir": str, "warnings": list[str]}``. Raises :class:`InvalidRequirements`
-    (an ``InvalidInput`` and a ``DesignError``) for invalid requirements, nothing written. An
-    infeasible requirement is not an error: the explanation is written and returned
-    (``feasible`` False)."""
+    Returns a :class:`DesignRun` (``summary``: the
+    :class:`~afo_mj.design.design_document.DesignSummary` written as ``design.json``).
+    Raises :class:`InvalidRequirements` (an ``InvalidInput`` and a ``DesignError``) for
+    invalid requirements, nothing written. An infeasible requirement is not an error: the
+    explanation is written and returned (``feasible`` False)."""
     from afo_mj.design.system_design import compute_design, read_requirements
     from afo_mj.outputs.design_report import build_summary, summary_text, write_design_report
 
@@ -56,8 +72,8 @@ def design(requirements_path, out_dir, overrides=(), studies: bool = True,
     result = d["result"]
     summary = build_summary(result, d["written"], d["study"], d["hose"], d["bench"],
                             d["wall_s"])
-    write_design_report(out_dir, result, summary, d["written"], d["study"], d["hose"],
-                        top=top, requirements_text=text)
-    return {"feasible": result.feasible, "summary": summary,
-            "text": summary_text(summary, out_dir), "out_dir": str(out_dir),
-            "warnings": list(summary.get("warnings") or [])}
+    doc = write_design_report(out_dir, result, summary, d["written"], d["study"], d["hose"],
+                              top=top, requirements_text=text)
+    return DesignRun(feasible=doc.feasible, summary=doc,
+                     text=summary_text(doc.to_json(), out_dir), out_dir=Path(out_dir),
+                     warnings=tuple(doc.warning_list))

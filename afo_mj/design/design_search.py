@@ -73,7 +73,7 @@ REFINE_TOP = 6
 @dataclasses.dataclass
 class DesignResult:
     """What :func:`size_system` found (its JSON form:
-    :func:`afo_mj.outputs.design_report.build_summary`)."""
+    :func:`afo_mj.design.design_document.design_summary`)."""
 
     requirements: Requirements
     assumptions: DesignAssumptions

@@ -48,15 +48,17 @@ KINDS = {
 
 
 def entry(kind, doc: str, unit: str = "", omit_none: bool = False, *, map_of=None,
-          tagged: bool = True, nullable: bool = False, default=dataclasses.MISSING):
+          list_of=None, tagged: bool = True, nullable: bool = False,
+          default=dataclasses.MISSING):
     """A document field: ``kind`` (a key of :data:`KINDS`, or a :class:`Document` subclass:
     a nested document), ``doc`` what it means, ``unit`` its SI unit (empty for none).
     ``omit_none``: the key is absent when the value is None; ``nullable``: a nested document
     or ``map_of`` value may be null. ``map_of``: a :class:`Document` subclass: the value is a JSON
-    object ``{name: that document or null}``. ``tagged``: a nested document carries its own
-    ``"format"`` key."""
+    object ``{name: that document or null}``. ``list_of``: a :class:`Document` subclass: the
+    value is a JSON list of that document (kept as a tuple). ``tagged``: a nested document
+    carries its own ``"format"`` key."""
     meta = {"kind": kind, "doc": doc, "unit": unit, "omit_none": omit_none,
-            "map_of": map_of, "tagged": tagged, "nullable": nullable}
+            "map_of": map_of, "list_of": list_of, "tagged": tagged, "nullable": nullable}
     if default is dataclasses.MISSING:
         return dataclasses.field(metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -132,6 +134,8 @@ class Document:
         if m["map_of"] is not None:
             return {k: (None if x is None else _nested_json(x, m["tagged"]))
                     for k, x in v.items()}
+        if m.get("list_of") is not None:
+            return [_nested_json(x, m["tagged"]) for x in v]
         if isinstance(m["kind"], type):
             return _nested_json(v, m["tagged"])
         return _plain(v)
@@ -190,6 +194,14 @@ class Document:
             return {k: (None if x is None else _nested_from(m["map_of"], x, m["tagged"],
                                                              f"{where}.{k}"))
                     for k, x in v.items()}
+        if m.get("list_of") is not None:
+            if v is None and (m["omit_none"] or m["nullable"]):
+                return None
+            if not isinstance(v, (list, tuple)):
+                raise DocumentError(f"{where} = {v!r}; allowed: a JSON list of "
+                                    f"{m['list_of'].__name__}")
+            return tuple(_nested_from(m["list_of"], x, m["tagged"], f"{where}[{i}]")
+                         for i, x in enumerate(v))
         if isinstance(kind, type):
             if v is None:
                 if m["omit_none"] or m["nullable"]:
@@ -230,6 +242,8 @@ def schema_rows(cls) -> list[tuple[str, str, str, str]]:
         kind = m["kind"]
         if m["map_of"] is not None:
             k = f"object of {m['map_of'].__name__}"
+        elif m.get("list_of") is not None:
+            k = f"list of {m['list_of'].__name__}"
         elif isinstance(kind, type):
             k = kind.__name__
         else:

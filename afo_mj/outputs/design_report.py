@@ -6,7 +6,8 @@ write_atomically`): a failure leaves the directory as it was.
 
 Files (``DIR``):
 
-* ``design.json`` — :func:`build_summary`: requirements, duty cycle, verdict (or the
+* ``design.json`` — the :class:`~afo_mj.design.design_document.DesignSummary`
+  (:func:`build_summary`, format ``afo_mj design v1``): requirements, duty cycle, verdict (or the
   infeasibility explanation and the binding constraint), the best design with its mass
   breakdown (ankle / waist), efficiencies per stage, losses per stride, heat, temperatures,
   runtime, the predicted bench figures and the mass check against the simulator's mass budget,
@@ -32,128 +33,25 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
-import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from afo_mj.design.design_document import (DESIGN_FORMAT, DesignSummary, design_summary,
+                                           jsonable)
 from afo_mj.design.design_requirements import toml_dumps
 from afo_mj.design.design_scenarios import bench_scenario, walk_scenario
 from afo_mj.outputs.result_dir import write_atomically
 
 __all__ = ["build_summary", "summary_text", "write_design_report", "bench_scenario",
-           "walk_scenario", "jsonable"]
+           "walk_scenario", "jsonable", "DesignSummary"]
 
-FORMAT = "afo_mj design v1"
+FORMAT = DESIGN_FORMAT
 
-
-def jsonable(x: Any) -> Any:
-    """``x`` with numpy scalars/arrays as Python numbers/lists and non-finite floats as None."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return [jsonable(v) for v in x.tolist()]
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    return x
-
-
-# -- summary ----------------------------------------------------------------------------------
-def _compact(row: dict) -> dict:
-    keys = ("total_kg", "ankle_kg", "waist_kg", "operating_pressure_pa", "cylinder_bore_m",
-            "pulley_radius_m", "hose_bore_m", "pump_displacement_m3_rev", "oil",
-            "motor_rated_power_w", "battery_capacity_ah", "system_efficiency",
-            "surface_temperature_k", "runtime_h")
-    return {k: row[k] for k in keys}
-
-
-def build_summary(result, written: dict | None, study: dict | None, hose: dict | None,
-                  bench: dict | None, wall_s: float) -> dict:
-    """The ``design.json`` record (module docstring)."""
-    from afo_mj.design.system_design import CONSTRAINTS
-    req = result.requirements
-    duty = result.duty
-    s: dict[str, Any] = {
-        "format": FORMAT,
-        "requirements": req.as_dict(),
-        "duty_cycle": {"note": duty.note, "stride_time_s": duty.stride_time_s,
-                       "samples": int(duty.torque_nm.size),
-                       "positive_work_j_per_stride": duty.positive_work_j,
-                       "peak_power_w": duty.peak_power_w,
-                       "constraint_points": [
-                           {"label": lab, "torque_nm": float(t),
-                            "velocity_deg_s": math.degrees(float(v))}
-                           for lab, t, v in zip(duty.constraint_labels[:12],
-                                                duty.constraint_torque_nm[:12],
-                                                duty.constraint_velocity_rad_s[:12])]},
-        "architecture": req.architecture,
-        "feasible": result.feasible,
-        "explanation": result.explanation,
-        "binding_constraints": result.binding,
-        "designs_ruled_out_by_constraint": result.counts,
-        "constraints": dict(CONSTRAINTS),
-        "search": {"designs_screened": result.screened,
-                   "grid_sizes": {k: len(v) for k, v in result.grid.items()},
-                   "grid": result.grid, "search_wall_s": result.wall_s,
-                   "total_wall_s": wall_s},
-        "assumptions": dataclasses.asdict(result.assumptions),
-    }
-    if result.feasible:
-        n = len(result.order)
-        best = result.row(0)
-        s["best"] = best
-        s["ranked"] = [_compact(result.row(k)) for k in range(min(n, 20))]
-        s["feasible_designs_evaluated_exactly"] = n
-    if written is not None:
-        pb = written["predicted_bench"]
-        s["device"] = {"preset": "hafo", "params": written["overrides"],
-                       "mass_total_kg": written["mass_check"]["budget_total_kg"],
-                       "mass_at_ankle_kg": written["mass_check"]["budget_ankle_kg"]}
-        s["predicted_bench"] = pb
-        s["mass_check"] = written["mass_check"]
-        s["scenarios"] = {"bench": "design_bench.toml", "walk": "design_walk.toml",
-                          "run": "afo-mj run DIR/design_bench.toml --out OUT"}
-        wc = written.get("walk_check")
-        if wc is not None:
-            s["walk_check"] = wc
-            if wc.get("warning"):
-                s["warnings"] = [wc["warning"]]
-    if written is None and result.feasible:
-        s["scenarios"] = written_note(req)
-    if bench is not None:
-        pb = s["predicted_bench"]
-        s["simulated_bench"] = bench
-        s["bench_agreement"] = {
-            "stall_torque_rel": bench["stall_torque_nm"] / pb["stall_torque_nm"] - 1.0,
-            "no_load_speed_rel": bench["no_load_speed_deg_s"] / pb["no_load_speed_deg_s"] - 1.0}
-    if study is not None:
-        s["studies"] = study
-    if hose is not None:
-        tk = np.asarray(hose["total_kg"])
-        k = int(np.argmin(tk))
-        tr = np.asarray(hose["total_reoptimised_kg"], dtype=float)
-        kr = int(np.argmin(tr))
-        s["hose_bore_tradeoff"] = {k_: np.asarray(v) for k_, v in hose.items()}
-        s["hose_bore_tradeoff"].update(
-            optimum_hose_bore_m=float(hose["hose_bore_m"][k]),
-            interior_optimum=bool(0 < k < tk.size - 1),
-            feasible_optimum_hose_bore_m=(float(hose["hose_bore_m"][kr])
-                                          if np.isfinite(tr[kr]) else None),
-            feasible_interior_optimum=bool(np.isfinite(tr[kr]) and 0 < kr < tr.size - 1))
-    return jsonable(s)
-
-
-def written_note(req) -> dict:
-    return {"note": f"architecture {req.architecture!r}: designs are reported; the written "
-                    f"scenarios are for the pump-controlled HAFO kernel only"}
+#: The :class:`~afo_mj.design.design_document.DesignSummary` of a design computation
+#: (``design.json``: its ``to_json()``, the files written added by
+#: :func:`write_design_report`).
+build_summary = design_summary
 
 
 def summary_text(s: dict, out_dir) -> str:
@@ -429,12 +327,14 @@ def _pct(v) -> str:
     return "-" if v is None else f"{v * 100:.1f} %"
 
 
-def write_design_report(out_dir, result, summary: dict, written: dict | None,
+def write_design_report(out_dir, result, summary: DesignSummary, written: dict | None,
                         study: dict | None, hose: dict | None, top: int = 10,
-                        requirements_text: str | None = None) -> Path:
-    """Write every file of the module docstring into ``out_dir`` at once; returns its path.
+                        requirements_text: str | None = None) -> DesignSummary:
+    """Write every file of the module docstring into ``out_dir`` at once; returns the
+    document written as ``design.json`` (``summary`` with the files written).
     ``requirements_text``: the requirements as read (with any ``--set`` applied)."""
     req = result.requirements
+    done: list[DesignSummary] = []
 
     def writer(tmp: Path) -> None:
         files = ["design.json", "design.md"]
@@ -478,9 +378,12 @@ def write_design_report(out_dir, result, summary: dict, written: dict | None,
                         for i in range(n)])
             _plot_hose(tmp / "hose_bore_tradeoff.png", hose)
             files += ["hose_bore_tradeoff.csv", "hose_bore_tradeoff.png"]
-        summary["files"] = files
-        (tmp / "design.json").write_text(json.dumps(summary, indent=1, allow_nan=False),
+        doc = dataclasses.replace(summary, files=tuple(files))
+        data = doc.to_json()
+        (tmp / "design.json").write_text(json.dumps(data, indent=1, allow_nan=False),
                                          encoding="utf-8")
-        (tmp / "design.md").write_text(_md(summary), encoding="utf-8")
+        (tmp / "design.md").write_text(_md(data), encoding="utf-8")
+        done.append(doc)
 
-    return write_atomically(out_dir, writer)
+    write_atomically(out_dir, writer)
+    return done[-1]
