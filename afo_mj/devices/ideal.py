@@ -14,7 +14,12 @@ ankle is the command, set from the state at the step's start (``begin_step``), a
 * a clutched spring (``spring``, :class:`ClutchedSpring`; Collins, Wiggin & Sawicki 2015,
   *Nature* 522:212): the clutch engages once per stance, at ``engage_phase`` of the stride,
   with the spring slack at the ankle angle of that moment; it then resists dorsiflexion past
-  that angle with ``stiffness_nm_per_rad`` and opens at toe off or past ``release_phase``;
+  that angle with ``stiffness_nm_per_rad`` and opens at toe off or past ``release_phase``.
+  With ``ratchet`` the engaged clutch takes up slack as a ratchet and pawl does: an ankle
+  that plantarflexes further moves the slack angle down with it, so the spring stretches
+  from the stance's lowest angle after engagement (a clutch engaged early, before foot flat,
+  then still catches the whole loaded dorsiflexion; :mod:`afo_mj.experiments.
+  spring_mechanics` measures what a fixed-phase engagement misses);
 * nothing (transparent): zero torque, the worn mass alone.
 
 The gait phase comes from the foot switch exactly as on the circuit devices (the HAFO's
@@ -46,7 +51,8 @@ import numpy as np
 from afo_mj.circuits.device import CircuitLog
 from afo_mj.control import assistance as asst
 from afo_mj.control.impedance import impedance_table, impedance_torque
-from afo_mj.hydraulics.params import ParameterError, Parameters, param, replace_named
+from afo_mj.hydraulics.params import (ParameterError, Parameters, effect, param,
+                                       replace_named)
 from afo_mj.human.walker import WornMass
 
 __all__ = ["IdealAnkleParams", "ClutchedSpring", "IdealDevice", "IDEAL", "PRESETS",
@@ -82,6 +88,10 @@ class ClutchedSpring(Parameters):
                                 doc="stride phase at which the clutch engages (foot flat)")
     release_phase: float = param(0.62, unit="-", lo=0.3, hi=1.0,
                                  doc="stride phase past which the clutch opens")
+    ratchet: bool = effect(False, doc="while engaged, the clutch takes up slack: an ankle "
+                           "that plantarflexes below the engagement angle moves the spring's "
+                           "slack angle with it (a ratchet and pawl), so the spring stretches "
+                           "from the lowest angle of the stance, wherever foot flat falls")
 
     def check(self) -> None:
         if self.engage_phase >= self.release_phase:
@@ -250,6 +260,8 @@ class IdealDevice:
             self.used[s] = True
         if math.isnan(self.theta_engaged[s]):
             return None
+        if sp.ratchet and theta < self.theta_engaged[s]:
+            self.theta_engaged[s] = theta          # the ratchet takes up the slack
         return max(theta - self.theta_engaged[s], 0.0)
 
     def end_step(self, velocity_new_rad_s):

@@ -87,6 +87,8 @@ class Assistance:
     spring_nm_per_rad: float = 180.0
     spring_engage_phase: float = 0.10
     spring_release_phase: float = 0.62
+    #: the engaged clutch takes up slack (:class:`afo_mj.devices.ideal.ClutchedSpring`)
+    spring_ratchet: bool = False
     hafo_peak_torque_nm: float = 40.0
     hafo_preset: str = "hafo_gait"
     #: ideal conditions: the torque rises linearly over this many strides of the phase
@@ -105,6 +107,9 @@ class Assistance:
         if self.hafo_preset not in DEVICE_PRESETS:
             raise ValueError(f"assistance.hafo_preset = {self.hafo_preset!r}; allowed: "
                              f"{', '.join(DEVICE_PRESETS)}")
+        if not isinstance(self.spring_ratchet, bool):
+            raise ValueError(f"assistance.spring_ratchet = {self.spring_ratchet!r}; allowed: "
+                             "True, False")
         if isinstance(self.ramp_strides, bool) or not isinstance(self.ramp_strides, int) \
                 or not 0 <= self.ramp_strides <= 100:
             raise ValueError(f"assistance.ramp_strides = {self.ramp_strides!r}; allowed: an "
@@ -124,7 +129,8 @@ class Assistance:
         if self.kind == "zhang":
             return f"zhang {self.zhang_peak_nm_per_kg:g} N·m/kg"
         if self.kind == "clutched_spring":
-            return f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
+            return (f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
+                    + (", ratchet" if self.spring_ratchet else ""))
         if self.kind == "hafo":
             name = device_entry(self.hafo_preset).label
             return f"{name} ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
@@ -139,7 +145,8 @@ class _IdealTorque:
 
     def __init__(self, a: Assistance, body_mass_kg: float):
         spring = (ClutchedSpring(a.spring_nm_per_rad, a.spring_engage_phase,
-                                 a.spring_release_phase) if a.kind == "clutched_spring"
+                                 a.spring_release_phase, a.spring_ratchet)
+                  if a.kind == "clutched_spring"
                   else None)
         profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
                                       *ZHANG_TIMING_PCT) if a.kind == "zhang" else None)

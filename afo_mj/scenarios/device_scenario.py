@@ -21,6 +21,7 @@ Schema (added to :mod:`afo_mj.scenarios.walk_scenario`)::
     spring_nm_per_rad = 180.0         # profile = "clutched_spring": stiffness, the clutch
     engage_pct = 10.0                 # engaging at this % of the stride (spring slack there)
     release_pct = 62.0                # and opening past this % or at toe off
+    ratchet = false                   # true: the engaged clutch takes up slack
     ramp_strides = 3                  # preset "ideal": the torque ramps on linearly over the
                                       # first strides its phase estimator measures (0: at once)
 
@@ -74,6 +75,8 @@ ASSISTANCE = Table("assistance", (
         group="clutched_spring"),
     Key("engage_pct", "number", (0.0, 50.0), 10.0, "% stride", group="clutched_spring"),
     Key("release_pct", "number", (30.0, 100.0), 62.0, "% stride", group="clutched_spring"),
+    Key("ratchet", "bool", default=False, doc="the engaged clutch takes up slack (the spring "
+        "stretches from the stance's lowest angle after engagement)", group="clutched_spring"),
     Key("ramp_strides", "integer", (0, 100), 0, doc="the ideal device: strides over which "
         "the torque ramps on")))
 
@@ -272,7 +275,8 @@ def _clutched_spring(ass: dict, preset: str, fail):
                    f"ideal device; {preset!r} cannot latch the ankle angle at engagement: "
                    "emulate a spring on it with profile = \"impedance\", clutched = true)")
     vals = {}
-    for key in ASSISTANCE.group("clutched_spring"):
+    for key in (k for k in ASSISTANCE.group("clutched_spring")
+                if ASSISTANCE[k].kind == "number"):
         v = ass.get(key, ASSISTANCE.default(key))
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise fail(f"assistance.{key}", v, "a finite number")
@@ -284,7 +288,10 @@ def _clutched_spring(ass: dict, preset: str, fail):
             raise fail(f"assistance.{key}", v, f"{lo:g} … {hi:g}")
     if eng >= rel:
         raise fail("assistance.engage_pct", eng, f"below assistance.release_pct = {rel:g}")
-    return ClutchedSpring(k, eng / 100.0, rel / 100.0)
+    ratchet = ass.get("ratchet", False)
+    if not isinstance(ratchet, bool):
+        raise fail("assistance.ratchet", ratchet, "true or false")
+    return ClutchedSpring(k, eng / 100.0, rel / 100.0, ratchet)
 
 
 def _impedance_rows(ass: dict, fail):
