@@ -61,7 +61,7 @@ from afo_mj.devices.registry import device_spec
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.transmission import play_operator
 
-__all__ = ["BenchReplay", "HOLDS", "HELD_CHANNELS", "CIRCUIT_OUTPUTS", "ReplayError",
+__all__ = ["BenchReplay", "PreparedRun", "HOLDS", "HELD_CHANNELS", "CIRCUIT_OUTPUTS", "ReplayError",
            "circuit_geometry", "circuit_roles"]
 
 
@@ -116,6 +116,25 @@ def ankle_velocity(theta_rad: np.ndarray, dt_s: float) -> np.ndarray:
     if win < 5:
         return np.gradient(theta_rad, dt_s)
     return savgol_filter(theta_rad, win, 3, deriv=1, delta=dt_s, mode="interp")
+
+
+@dataclasses.dataclass(frozen=True)
+class PreparedRun:
+    """A replay's inputs as the circuit sees them (:meth:`BenchReplay.prepare`)."""
+
+    command_channel: str
+    hold: str                   #: how the command is held (:data:`HOLDS`)
+    time_s: np.ndarray
+    dt_s: float                 #: the record's sample period (median interval), s
+    substeps: int               #: equal sub-steps per sample interval
+    command: np.ndarray         #: the command per sample
+    theta: np.ndarray           #: imposed angle per sample, rad (zeros with a load)
+    theta_dot: np.ndarray       #: its velocity, rad/s
+    temperature_k: np.ndarray   #: oil temperature per sample, K
+    load: JointLoad | None      #: the simulated load with this run's parameters
+    changes: dict               #: packed parameters to set (label → value)
+    open_loop: bool             #: the command is the open-loop actuation (not a torque)
+    imposed: bool               #: the command is written to the circuit's ``command`` input
 
 
 class BenchReplay:
@@ -307,15 +326,16 @@ class BenchReplay:
                 + f"; the record has {sorted(channels)}")
         return (cmds[0], "ankle_angle_rad") if need_angle else (cmds[0],)
 
-    def simulate(self, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
-                 row_changes: Mapping[str, float] | None = None, backlash_rad: float = 0.0,
-                 temperature_rate_k_s: float = 0.0) -> dict[str, np.ndarray]:
-        """Replay: the model's output channels (:data:`REPLAY_OUTPUTS`) at ``time_s``.
-
-        ``row_changes``: packed circuit parameters to set for this run (label → value);
-        ``backlash_rad``: total play of the cable on the pulley; ``temperature_rate_k_s``: oil
-        temperature drift when the record has no temperature input. Raises
-        :class:`ReplayError` when a state becomes non-finite (never returns NaN)."""
+    def prepare(self, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
+                row_changes: Mapping[str, float] | None = None, backlash_rad: float = 0.0,
+                temperature_rate_k_s: float = 0.0) -> "PreparedRun":
+        """What a replay of ``inputs`` drives the circuit with (:class:`PreparedRun`): the
+        command channel and its samples, the imposed angle (after the backlash's play
+        operator) and its Savitzky–Golay velocity, or the simulated load with the run's load
+        parameters, the oil temperature per sample, the packed parameters to set (the
+        open-loop switch included) and the sub-steps per sample. :meth:`simulate` integrates
+        it with the circuit's stepper; :mod:`afo_mj.experiments.replay_reference` with
+        Radau."""
         cmd_name = self.check_inputs(inputs)[0]
         t = np.asarray(time_s, dtype=float)
         dt = float(np.median(np.diff(t)))
@@ -340,15 +360,34 @@ class BenchReplay:
             temp = np.ascontiguousarray(inputs["fluid_temperature_k"], dtype=float)
         else:
             temp = self.ambient_temperature_k + temperature_rate_k_s * (t - t[0])
-        dev = CircuitDevice(self.cc, timestep_s=dt / sub)
-        for label, v in self.initial_state.items():
-            dev.Y[0, self.cc.index(label)] = v
         open_loop = cmd_name != TORQUE_CHANNEL
-        imposed = None
+        imposed = False
         if open_loop and self.spec.open_loop_switch is not None:
             changes[self.spec.open_loop_switch] = 1.0
         elif open_loop:
-            imposed = {"command": u[:-1]}
+            imposed = True
+        return PreparedRun(cmd_name, self.hold_of(cmd_name), t, dt, sub, u, theta, theta_dot,
+                           temp, load, changes, open_loop, imposed)
+
+    def simulate(self, time_s: np.ndarray, inputs: Mapping[str, np.ndarray],
+                 row_changes: Mapping[str, float] | None = None, backlash_rad: float = 0.0,
+                 temperature_rate_k_s: float = 0.0) -> dict[str, np.ndarray]:
+        """Replay: the model's output channels (:data:`REPLAY_OUTPUTS`) at ``time_s``.
+
+        ``row_changes``: packed circuit parameters to set for this run (label → value);
+        ``backlash_rad``: total play of the cable on the pulley; ``temperature_rate_k_s``: oil
+        temperature drift when the record has no temperature input. Raises
+        :class:`ReplayError` when a state becomes non-finite (never returns NaN)."""
+        run = self.prepare(time_s, inputs, row_changes, backlash_rad, temperature_rate_k_s)
+        t, sub, load, theta, theta_dot, u, temp = (run.time_s, run.substeps, run.load,
+                                                   run.theta, run.theta_dot, run.command,
+                                                   run.temperature_k)
+        changes = run.changes
+        cmd_name = run.command_channel
+        dev = CircuitDevice(self.cc, timestep_s=run.dt_s / sub)
+        for label, v in self.initial_state.items():
+            dev.Y[0, self.cc.index(label)] = v
+        imposed = {"command": u[:-1]} if run.imposed else None
         for label, v in changes.items():
             dev.P[0, self.index(label)] = v
         cmd, run_sub, take = u[:-1], sub, slice(None)
@@ -374,10 +413,20 @@ class BenchReplay:
         except FloatingPointError as exc:
             raise ReplayError(f"replay of {self.preset!r} became non-finite: {exc}; "
                               f"parameters {dict(row_changes or {})}") from None
+        return self.outputs_of(log, temp, load, row_changes)
+
+    def outputs_of(self, log: Mapping[str, np.ndarray], temperature_k: np.ndarray,
+                   load: JointLoad | None, row_changes=None,
+                   channels=None) -> dict[str, np.ndarray]:
+        """The output channels (``channels``, default :attr:`outputs`) from a run's log of
+        signals at the end of each sample interval (states, probes, ``torque_nm``,
+        ``angle_rad``, ...): sample 0 is the initial state (a signal that is no state starts
+        at its value over the first step); the piston position is taken from mid-stroke.
+        Raises :class:`ReplayError` on a non-finite value."""
         out = {}
-        for name in self.outputs:
+        for name in (self.outputs if channels is None else channels):
             if name == "fluid_temperature_k":
-                out[name] = temp.copy()
+                out[name] = np.array(temperature_k, dtype=float)
                 continue
             if name == "ankle_angle_rad" and load is not None:
                 out[name] = np.concatenate(([load.initial_angle_rad], log["angle_rad"]))
@@ -395,3 +444,8 @@ class BenchReplay:
             raise ReplayError(f"replay of {self.preset!r} became non-finite in "
                               f"{bad}; parameters {dict(row_changes or {})}")
         return out
+
+    def signal_of(self, channel: str) -> str | None:
+        """The circuit signal (state, probe or log column) behind output ``channel``; None
+        for the oil temperature and a simulated load's angle."""
+        return self._columns.get(channel)
