@@ -109,6 +109,7 @@ class _Verdict:
     verdict: str
     where: str | None
     discrepancy: dict | None
+    attribution: dict | None = None     # a described rig beyond its noise: what explains it
 
 
 def _refit_line(rec: dict) -> str:
@@ -414,8 +415,28 @@ class Calibration(CalibrationModel):
         before = self.baseline(declared_fit)                  # 3. its residual
         search = self.search_effects(declared_fit, structure)  # 4.-5. ranking, refits
         after = self.analyse_residuals(before, search.model)  # 3. both residuals
-        verdict = self.verdict(before, after, bool(search.steps))  # 6. verdict
-        return self.report(t_start, lean_err, declared_fit, before, search, after, verdict)
+        numerical = self.numerical_check(search.model)        # the replay's own error
+        verdict = self.verdict(before, after, bool(search.steps), numerical)  # 6. verdict
+        return self.report(t_start, lean_err, declared_fit, before, search, after, verdict,
+                           numerical)
+
+    def numerical_check(self, m: _Model) -> dict:
+        """The final model ``m`` integrated by Radau beside the replay on the record's first
+        ``numerical_check_s`` (:func:`afo_mj.calibration.numerical_check.
+        numerical_error_check`): the replay's own numerical error per channel against the
+        noise σ and the residual. A check, not a fit."""
+        from afo_mj.calibration.numerical_check import numerical_error_check
+        w = float(self.options.numerical_check_s)
+        if w > 0.0:
+            progress.reporter().stage(f"calibration: numerical check of the replay against "
+                                      f"Radau on the first {w:g} s…")
+        out = numerical_error_check(self, m.effects, m.x, w,
+                                    self.options.baseline_noise_multiple)
+        if out.get("run"):
+            progress.reporter().stage(
+                f"calibration: numerical check done in {out['wall_s']:.1f} s; largest "
+                f"replay − Radau difference {out['max_ratio']:.2f}× a channel's noise σ")
+        return out
 
     def drop_fitted_candidates(self) -> None:
         """A described rig: an effect writing a fitted declared parameter is that parameter,
@@ -596,13 +617,17 @@ class Calibration(CalibrationModel):
         after.channels = self._channel_summaries(after.out)
         return after
 
-    def verdict(self, before: _Residual, after: _Residual, found: bool) -> _Verdict:
+    def verdict(self, before: _Residual, after: _Residual, found: bool,
+                numerical: Mapping | None = None) -> _Verdict:
         """Step 6: ``effect_found`` when an effect was added (``found``); on a described rig
         whose declared fit misses its noise multiple, ``structure_wrong`` (and where, in the
-        baseline); ``unexplained_residual`` when the declared fit's residual is structured
-        (not on a described rig that reaches its noise multiple); else
-        ``no_missing_effect``. With where the final residual's structure lives and, when
-        no physical effect explains it, the data-driven discrepancy."""
+        baseline) unless every channel beyond the multiple is accounted for
+        (:meth:`attribution`: the replay's numerical error, a named drift, transient or
+        resonance, or the data-driven discrepancy), then ``unexplained_residual``;
+        ``unexplained_residual`` when the declared fit's residual is structured (not on a
+        described rig that reaches its noise multiple); else ``no_missing_effect``. With
+        where the final residual's structure lives (the numerical check's part included)
+        and, when no physical effect explains it, the data-driven discrepancy."""
         baseline = before.baseline
         structured_after = [c for c, s in after.channels.items() if s["structured"]]
         structured_before = [c for c, s in before.channels.items() if s["structured"]]
@@ -622,9 +647,47 @@ class Calibration(CalibrationModel):
         if verdict in ("unexplained_residual", "structure_wrong") or (
                 self.described and not found and structured_after):
             discrepancy = self.data_driven_discrepancy(after.out)
+        attribution = None
+        if verdict == "structure_wrong":
+            attribution = self.attribution(before, after, numerical, discrepancy)
+            if not attribution["unexplained"]:
+                verdict = "unexplained_residual"
+                where = where or ra.locate_structure(after.channels)
         unexplained = verdict in ("unexplained_residual", "structure_wrong") or (
             verdict == "effect_found" and bool(structured_after))
-        return _Verdict(verdict, where if unexplained else None, discrepancy)
+        from afo_mj.calibration.numerical_check import numerical_where
+        num_where = numerical_where(numerical)
+        if unexplained and num_where:
+            where = f"{where}; {num_where}" if where else num_where
+        return _Verdict(verdict, where if unexplained else None, discrepancy, attribution)
+
+    def attribution(self, before: _Residual, after: _Residual, numerical: Mapping | None,
+                    discrepancy: Mapping | None) -> dict:
+        """What accounts for each channel a described rig's declared fit leaves beyond its
+        noise multiple (no effect was named): ``numerical_error`` (the replay's residual
+        misses the multiple on the check's window and Radau's reaches it), the "where"
+        findings on that channel (:func:`afo_mj.calibration.residual_analysis.
+        where_findings`: a slow drift, a common-mode or differential drift, a transient after
+        input steps, a resonance), ``data_driven_discrepancy`` (found, and its held-out RMS
+        within the multiple of the noise). ``unexplained``: the channels nothing accounts
+        for; only these make the verdict ``structure_wrong``."""
+        base = before.baseline
+        mult = float(base["noise_multiple"])
+        findings = ra.where_findings(after.channels)
+        num = set((numerical or {}).get("explains_excess") or [])
+        rows = {}
+        for c, r in base["ratio"].items():
+            if r <= mult:
+                continue
+            by = ["numerical_error"] if c in num else []
+            by += sorted({f["kind"] for f in findings if c in f["channels"]})
+            d = (discrepancy or {}).get(c)
+            if (isinstance(d, Mapping) and d.get("found")
+                    and d["held_out_rms_after"] <= mult * self.noise[c]):
+                by.append("data_driven_discrepancy")
+            rows[c] = {"baseline_ratio": float(r), "explained_by": by}
+        return {"noise_multiple": mult, "channels": rows,
+                "unexplained": [c for c, v in rows.items() if not v["explained_by"]]}
 
     def final_parameters(self, m: _Model) -> tuple[dict, dict, list[dict]]:
         """The final model's parameters in SI, their standard deviations (``None`` where
@@ -645,7 +708,8 @@ class Calibration(CalibrationModel):
         return params, sd_phys, deviations
 
     def report(self, t_start: float, lean_err: dict, declared_fit: _Model, before: _Residual,
-               search: _Search, after: _Residual, verdict: _Verdict) -> dict:
+               search: _Search, after: _Residual, verdict: _Verdict,
+               numerical: dict | None = None) -> dict:
         """The report dictionary (:mod:`afo_mj.outputs.calibration_report` writes it)."""
         params, sd_phys, deviations = self.final_parameters(search.model)
         for st in search.steps:
@@ -679,6 +743,8 @@ class Calibration(CalibrationModel):
             "channels_before": before.channels, "channels_after": after.channels,
             "verdict": verdict.verdict,
             "unexplained_where": verdict.where,
+            "numerical_error": numerical,
+            "residual_attribution": verdict.attribution,
             "data_driven_discrepancy": verdict.discrepancy,
             "evaluations": self.evaluations,
             "wall_time_s": time.perf_counter() - t_start,

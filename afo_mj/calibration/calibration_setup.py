@@ -62,6 +62,10 @@ class CalibrationOptions:
     #: channel → ``"zero_order"`` or ``"linear"``; overrides the sidecar's ``[hold]``); a
     #: mapping is stored as sorted ``(channel, hold)`` pairs
     hold: tuple[tuple[str, str], ...] = ()
+    #: seconds from the record's start on which the final model is also integrated by Radau
+    #: (:mod:`afo_mj.calibration.numerical_check`: the replay's own numerical error against
+    #: the noise); 0: not checked
+    numerical_check_s: float = 2.0
 
     def __post_init__(self):
         def bad(key, allowed):
@@ -92,6 +96,10 @@ class CalibrationOptions:
             bad("max_nfev", ">= 5")
         if not 1.0 <= self.baseline_noise_multiple <= 100.0:
             bad("baseline_noise_multiple", "1 … 100")
+        if (isinstance(self.numerical_check_s, bool)
+                or not isinstance(self.numerical_check_s, (int, float))
+                or not 0.0 <= self.numerical_check_s <= 60.0):
+            bad("numerical_check_s", "a number of seconds 0 … 60 (0: no check)")
         if self.min_refit_score is not None and not 0.0 <= self.min_refit_score < 1.0:
             bad("min_refit_score", "0 <= score < 1")
         if self.uncalibrated_channels is not None and not all(

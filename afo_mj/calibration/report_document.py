@@ -29,8 +29,10 @@ _DETAILS_DOC = ("every other key of the calibration's report, in its order (writ
                 "error_preset, declared_fit, declared_held, declared_deviations, "
                 "identifiability, baseline, parameter_sd (parameter units), candidates, "
                 "residual_whiteness_before/after, channels_before/after, unexplained_where, "
-                "data_driven_discrepancy, evaluations, wall_time_s (s); see "
-                "docs/calibration.md")
+                "numerical_error (the replay against Radau on the record's first seconds, per "
+                "channel against the noise), residual_attribution (what accounts for each "
+                "channel beyond the noise multiple), data_driven_discrepancy, evaluations, "
+                "wall_time_s (s); see docs/calibration.md")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -256,6 +256,7 @@ def verdict_sentence(report: Mapping) -> str:
              "description (components, connections, sensors, signs) before reading any "
              "parameter.")
         s += f"\n\nWhere the structure lives: {where or 'not located'}."
+        s += _attribution_sentence(report)
         return s
     if verdict == "unexplained_residual":
         s = ("**Unexplained residual:** the held-out residual of the declared model is "
@@ -264,8 +265,69 @@ def verdict_sentence(report: Mapping) -> str:
              "stayed identifiable all at once. The model misses something the library does "
              f"not contain (held-out NRMSE {_f(before, '.4f')}).")
         s += f"\n\nWhere the structure lives: {where or 'not located'}."
+        s += _attribution_sentence(report)
         return s
     return f"**Verdict: {verdict!r}** (unknown verdict)."
+
+
+_EXPLAINED = {"numerical_error": "the replay's numerical error",
+              "data_driven_discrepancy": "the data-driven discrepancy",
+              "common_mode_drift": "a common-mode drift", "differential_drift":
+              "a differential drift", "drift": "a slow drift",
+              "step_transient": "a transient after input steps", "resonance": "a resonance"}
+
+
+def _attribution_sentence(report: Mapping) -> str:
+    """What accounts for each channel a described rig leaves beyond its noise multiple
+    (the report's ``residual_attribution``); empty without one."""
+    att = report.get("residual_attribution")
+    if not isinstance(att, Mapping) or not att.get("channels"):
+        return ""
+    parts = []
+    for c, v in att["channels"].items():
+        by = [_EXPLAINED.get(k, k) for k in v.get("explained_by") or []]
+        parts.append(f"`{c}` {v.get('baseline_ratio', float('nan')):.2f}× its floor: "
+                     + (", ".join(by) if by else "**nothing accounts for it**"))
+    return (f"\n\nBeyond {att.get('noise_multiple', 2.0):g}× the noise floor, and what "
+            "accounts for it: " + "; ".join(parts) + ". `structure_wrong` is kept for a "
+            "channel nothing accounts for.")
+
+
+def _numerical_section(num: Mapping | None) -> list[str]:
+    """The report's "Numerical error of the replay" section (``numerical_error``)."""
+    if num is None:
+        return []
+    L = ["## Numerical error of the replay (against Radau)\n"]
+    if not num.get("run"):
+        L.append(f"Not checked: {num.get('reason', '—')}.\n")
+        return L
+    t0, t1 = num["window_s"]
+    L.append(f"The final model integrated by `solve_ivp(Radau)` at rtol {num['rtol']:g} on "
+             f"the record's inputs, {t0:.3g}–{t1:.3g} s (scored from {num['scored_from_s']:.3g}"
+             f" s), beside the replay the calibration fits with: their difference is the "
+             f"replay's own numerical error, a check, not a fit ({num['rhs_evaluations']} "
+             f"right-hand-side evaluations, {num['wall_s']:.1f} s).\n")
+    rows = []
+    for c, v in num["channels"].items():
+        unit = _channel_unit(c)
+        share = v.get("share")
+        rows.append([f"`{c}`", f"{_f(v['noise_sigma'])} {unit}".strip(),
+                     f"{_f(v['rms_difference'])} {unit}".strip(), _f(v.get("ratio"), ".2f"),
+                     "—" if share is None else f"{100 * share:.0f}",
+                     _f(v.get("residual_ratio_replay"), ".2f"),
+                     _f(v.get("residual_ratio_reference"), ".2f"),
+                     "yes" if v.get("explains_excess") else ""])
+    L.append(_md_table(["channel", "noise σ", "replay − Radau RMS", "/ σ",
+                        "share of residual [%]", "residual / σ (replay)",
+                        "residual / σ (Radau)", "explains the excess"], rows) + "\n")
+    if num.get("not_compared"):
+        L.append("Not compared: " + "; ".join(f"`{c}` ({r})" for c, r in
+                                              num["not_compared"].items()) + ".\n")
+    if num.get("below_floor_samples"):
+        L.append(f"The Radau run has {num['below_floor_samples']} samples with a pressure "
+                 "below the vapour floor, which the replay's stepper raises to it: the two "
+                 "differ there by construction.\n")
+    return L
 
 
 def _best_refit(entry: Mapping) -> Mapping | None:
@@ -325,6 +387,7 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
                  "that best aligns them (positive: the measurement lags).\n")
         L.append("Reaches the noise: **" + ("yes" if base.get("reaches_noise") else "no")
                  + "**.\n")
+    L += _numerical_section(report.get("numerical_error"))
     ident = report.get("identifiability")
     if ident:
         L.append("## Identifiability\n")
