@@ -18,7 +18,7 @@ from afo_mj.circuits import valves as _v
 #: component kind → class
 COMPONENT_KINDS = {c.kind: c for c in (
     _c.Battery, _c.MotorDriver, _c.Pump, _c.Hose, _c.ReliefValve, _c.CheckValve,
-    _c.FlushingValve, _c.Reservoir, _c.Volume, _c.GasAccumulator, _c.PulleyCylinders,
+    _c.Drain, _c.FlushingValve, _c.Reservoir, _c.Volume, _c.GasAccumulator, _c.PulleyCylinders,
     _c.SpringReturnCylinder) + _v.COMPONENTS}
 
 #: controller kind → class

@@ -79,6 +79,12 @@ class Circuit:
         self.options = options
         self.controller = controller
         self.controller_owner = _ControllerOwner()
+        #: build every optional term of its components (a play in a cable transmission, a
+        #: check valve's seat leakage) even where the description leaves it at 0, so that a
+        #: calibration can switch it on by its packed label without recompiling
+        #: (:meth:`with_optional_terms`); off, a term at 0 is not built and the generated
+        #: code is that of a circuit without it
+        self.optional_terms = False
         by_name: dict = {}
         for c in self.components:
             if not isinstance(c, Component):
@@ -151,6 +157,35 @@ class Circuit:
 
     def nodes_of_domain(self, domain: str) -> list:
         return [n for n, d in self.node_domain.items() if d == domain]
+
+    def with_optional_terms(self) -> "Circuit":
+        """This description with its optional terms built at their described values (0 where
+        it has none; :attr:`optional_terms`) and, where a pump feeds a charge circuit (a
+        check valve on one of its port nodes) and has no drain there yet, a ``drain``
+        component at 0 on each of its port nodes (``<pump>_drain_a``, ``<pump>_drain_b``):
+        a calibration's candidate terms, every one of them off. Simulated as it is, this
+        circuit gives what the description gives (each added term is an exact 0)."""
+        from afo_mj.circuits.catalogue import COMPONENT_KINDS
+        comps = list(self.components)
+        nodes = {n: list(refs) for n, refs in self.nodes.items()}
+        drain_t = COMPONENT_KINDS["drain"]
+        names = {c.name for c in comps}
+        for pump in [c for c in comps if c.kind == "pump"]:
+            for port in ("a", "b"):
+                node = self.port_node[(pump.name, port)]
+                kinds = {self._by_name[r.split(".")[0]].kind for r in nodes[node]}
+                if "check_valve" not in kinds or "drain" in kinds:
+                    continue
+                name = f"{pump.name}_drain_{port}"
+                while name in names:
+                    name += "_"
+                names.add(name)
+                comps.append(drain_t(name, drain_t.params_type(conductance_m3=0.0)))
+                nodes[node].append(f"{name}.port")
+        out = Circuit(self.name, comps, nodes, self.controller, fluid=self.fluid,
+                      thermal=self.thermal, options=self.options)
+        out.optional_terms = True
+        return out
 
     # -- description as data ---------------------------------------------------------------
     @classmethod

@@ -188,6 +188,13 @@ class Emitter:
         self.P_labels.append(label)
         return f"P[{len(self.P) - 1}]"
 
+    def optional(self, value) -> bool:
+        """Whether an optional term whose parameter is ``value`` is built: when the value is
+        not 0, or when the circuit builds every optional term
+        (:attr:`~afo_mj.circuits.circuit.Circuit.optional_terms`). A term not built leaves
+        the generated code as it is without it."""
+        return float(_unwrap(value)) != 0.0 or bool(getattr(self.c, "optional_terms", False))
+
     def param_ref(self, comp, key: str) -> str:
         label = f"{comp.name}.{key}"
         if label not in self.p_index:

@@ -326,16 +326,26 @@ class CheckValveParams(Parameters):
     cracking_pa: float = param(0.0, unit="Pa", lo=0.0, hi=1e7, doc="cracking pressure drop")
     band_pa: float = param(2e4, unit="Pa", lo=1.0, hi=1e6,
                            doc="width of the C¹ opening corner")
+    seat_leakage_m3: float = param(0.0, unit="m^3", lo=0.0, hi=1e-10,
+                                   doc="laminar conductance G_s of a worn seat: Q = G_s Δp/μ "
+                                       "both ways, open or shut (0: a tight seat; built only "
+                                       "when not 0)")
 
 
 class CheckValve(Component):
     """Check valve from ``a`` to ``b``: ``Q = G ramp(Δp − p_crack)``
-    (:func:`~afo_mj.hydraulics.laws.check_valve_flow_m3_s`). Loss: ``throttling``."""
+    (:func:`~afo_mj.hydraulics.laws.check_valve_flow_m3_s`). A worn or dirty seat leaks both
+    ways whether the valve is open or shut: ``Q_s = G_s Δp/μ`` through the seat's gap
+    (:func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s`, laminar clearance flow, Merritt,
+    *Hydraulic Control Systems*, 1967, §3.2; a make-up valve's seat leakage in a closed
+    loop, Watton, *Fundamentals of Fluid Power Control*, 2009, the closed-circuit
+    chapter), built when ``seat_leakage_m3`` is not 0 (or for a calibration,
+    :meth:`~afo_mj.circuits.circuit.Circuit.with_optional_terms`). Loss: ``throttling``."""
 
     kind = "check_valve"
     ports = {"a": HYDRAULIC, "b": HYDRAULIC}
     params_type = CheckValveParams
-    summary = "check valve: conductance with a cracking pressure"
+    summary = "check valve: conductance with a cracking pressure (and seat leakage)"
 
     def emit(self, g, p):
         gc = g.param(self, "conductance", p.conductance_m3_s_pa)
@@ -343,10 +353,48 @@ class CheckValve(Component):
         band = g.param(self, "band", p.band_pa)
         pa, pb = g.p(self, "a"), g.p(self, "b")
         q = g.local(self, "q")
-        g.line(f"{q} = check_valve_flow_m3_s({pa} - {pb}, {gc}, {crack}, {band})")
+        if g.optional(p.seat_leakage_m3):
+            gs = g.param(self, "seat_leak", p.seat_leakage_m3)
+            g.line(f"{q} = check_valve_flow_m3_s({pa} - {pb}, {gc}, {crack}, {band}) + "
+                   f"laminar_gap_flow_m3_s({pa} - {pb}, {gs}, U[U_MU])")
+        else:
+            g.line(f"{q} = check_valve_flow_m3_s({pa} - {pb}, {gc}, {crack}, {band})")
         g.flow(self, "a", f"-{q}")
         g.flow(self, "b", q)
         g.loss(self, "throttling", f"({pa} - {pb}) * {q}")
+        g.probe(self, "flow_m3_s", q)
+
+
+@dataclasses.dataclass(frozen=True)
+class DrainParams(Parameters):
+    """An external leak to the tank (a pump's case drain, a leaking fitting)."""
+
+    conductance_m3: float = param(1e-15, unit="m^3", lo=0.0, hi=1e-10,
+                                  doc="laminar conductance G_d: Q = G_d p/μ to the tank at "
+                                      "0 gauge")
+
+
+class Drain(Component):
+    """A laminar leak from its node to the tank at atmospheric pressure (0 gauge):
+    ``Q = G_d p/μ`` (:func:`~afo_mj.hydraulics.laws.laminar_gap_flow_m3_s`; the external
+    leakage of a pump to its case drain, Watton, *Fundamentals of Fluid Power Control*,
+    2009, the pump chapter; Merritt, *Hydraulic Control Systems*, 1967, §3.2 for the
+    laminar gap). In a closed loop with a charge circuit the oil it loses is made up by the
+    check valves: the loop's common-mode pressure bleeds back to the charge pressure. Loss:
+    ``drain`` (``p Q``: the oil leaves at 0 gauge, its pressure energy throttled)."""
+
+    kind = "drain"
+    ports = {"port": HYDRAULIC}
+    params_type = DrainParams
+    summary = "drain: laminar leak to the tank at 0 gauge (a pump's case drain)"
+
+    def emit(self, g, p):
+        gd = g.param(self, "conductance", p.conductance_m3)
+        pp = g.p(self, "port")
+        q = g.local(self, "q")
+        g.line(f"{q} = laminar_gap_flow_m3_s({pp}, {gd}, U[U_MU])")
+        g.flow(self, "port", f"-{q}")
+        g.loss(self, "drain", f"{pp} * {q}")
         g.probe(self, "flow_m3_s", q)
 
 
@@ -487,7 +535,25 @@ class PulleyCylinders(Component):
     ``−r θ̇ + δ̇`` and the cable's store ``series_spring`` at ``F_c δ̇`` (its energy
     ``½ r² (1/k) F_c²``), which closes the ledger exactly (the oil's work on the pistons
     ``n A Δp (ẋ_kin + δ̇) = F_c ẋ_kin + F_c δ̇ + F_seal (ẋ_kin + δ̇) − F_stop (ẋ_kin + δ̇)``).
-    A rigid cable (``1/k = 0``) adds nothing. Cable-seal (external) drag-out is refused:
+    A rigid cable (``1/k = 0``) adds nothing.
+
+    Backlash (``backlash_rad`` = b, built when not 0): a dead band of total width b at the
+    pulley, i.e. ``±β`` with ``β = b r/2`` of cable travel, in series with the cable spring:
+    the dead-zone model of a compliant transmission with play (Nordin & Gutman, "Controlling
+    mechanical systems with backlash — a survey", *Automatica* 38 (2002) 1633, eq. 2:
+    ``F = k dz(δ)``, ``dz(δ) = δ − β sgn δ`` outside ``|δ| ≤ β``, 0 inside). With massless
+    pistons it is written as the travel the play takes up under the cable force,
+    ``δ_b(F) = β sgn(F)`` for ``F ≠ 0`` and anything in ``[−β, β]`` at ``F = 0``: the pistons
+    cross the gap carrying no cable force while the joint moves freely. Regularised,
+    ``δ_b = clip(β F/(n F_b), −β, β)`` with hyperbolic corners of radius ``β/20``
+    (:func:`~afo_mj.hydraulics.laws.soft_clip`; ``F_b`` = ``backlash_take_up_force_n``, the
+    force per cylinder that takes the play up: a soft spring of rate ``F_b/β`` inside the
+    gap), evaluated at the whole cable force ``F_c`` and entered like the cable's ``G`` part,
+    as the backward-Euler difference quotient ``(δ_b(F_c) − δ_b,n)/h``. The pistons sweep
+    ``n A δ̇_b`` besides; ``δ_b`` joins the piston-position probe and ``F_c δ̇_b`` the store
+    ``series_spring``.
+
+    Cable-seal (external) drag-out is refused:
     the film returns on the in-stroke and the circuit has no ambient node for it. Probes:
     ``piston_position_m`` (kinematic plus the stretch), ``hydraulic_torque_nm`` and
     ``end_stop_torque_nm`` (the stops' share of the joint torque, ``−r F_stop``; 0 off the
@@ -507,6 +573,14 @@ class PulleyCylinders(Component):
             0.0, unit="rad/(N m)", lo=0.0, hi=1.0,
             doc="1/k of the cable between pulley and pistons (0: rigid); always built, so "
                 "that a fit can vary it without recompiling")
+        backlash_rad: float = param(
+            0.0, unit="rad", lo=0.0, hi=0.5,
+            doc="total play of the cable on the pulley, as an angle of the joint (a dead "
+                "band in the transmission; 0: none, not built)")
+        backlash_take_up_force_n: float = param(
+            5.0, unit="N", lo=1e-3, hi=1e4,
+            doc="cable force (per cylinder) that takes up the play: the dead band "
+                "regularised as a soft spring of rate F/β inside the gap")
 
     params_type = Params
 
@@ -561,28 +635,42 @@ class PulleyCylinders(Component):
         g_n = g.held(self, "cable_force_other_n", f_g)
         g.line(f"{xs} = (cable_stretch_m({r}, {comp_s}, {f_g}) - cable_stretch_m({r}, {comp_s}, "
                f"{g_n})) * U[U_INV_H]")
+        play = ""
+        if g.optional(p.backlash_rad):
+            # the dead band: the travel the play takes up under the cable force (docstring)
+            b_rad = g.param(self, "backlash", p.backlash_rad)
+            f_b = g.param(self, "backlash_force", p.backlash_take_up_force_n)
+            half, xb, xbd = (g.local(self, k) for k in ("half_play", "xb", "xbd"))
+            g.line(f"{half} = 0.5 * {b_rad} * {r}")
+            g.line(f"{xb} = soft_clip(({n} * {area} * ({pa} - {pb}) + {f_g}) * {half} / "
+                   f"({n} * {f_b}), -{half}, {half}, 0.05 * {half})")
+            xb_n = g.held(self, "backlash_take_up_m", xb)
+            g.line(f"{xbd} = ({xb} - {xb_n}) * U[U_INV_H]")
+            play = f" + {xbd}"
+        else:
+            _ = p.backlash_take_up_force_n      # read: a play of 0 needs no take-up force
         g.line(f"{q_l} = {n} * laminar_gap_flow_m3_s({pa} - {pb}, {gl}, U[U_MU])")
         g.line(f"{q_d} = {n} * seal_dragout_flow_m3_s({xd}, U[U_MU], {dbore}, {w_grad}) "
                f"if {drag_on} != 0.0 else 0.0")
         # chamber a grows as x grows: its net inflow from the piston is −n A ẋ
-        g.flow(self, "a", f"-{n} * {area} * ({xd} + {xs}) - {q_l} + {q_d}")
-        g.flow(self, "b", f"{n} * {area} * ({xd} + {xs}) + {q_l} - {q_d}")
+        g.flow(self, "a", f"-{n} * {area} * ({xd} + {xs}{play}) - {q_l} + {q_d}")
+        g.flow(self, "b", f"{n} * {area} * ({xd} + {xs}{play}) + {q_l} - {q_d}")
         g.volume(self, "a", f"{n} * max({va0} + {area} * {x}, 0.5 * {va0})")
         g.volume(self, "b", f"{n} * max({vb0} + {area} * ({stroke} - {x}), 0.5 * {vb0})")
         # force on the pistons towards +x: n A (p_a − p_b) − F_seal + F_stop; τ = F dx/dθ
         g.joint_torque(self, f"-{r} * ({n} * {area} * ({pa} - {pb}) - {f_s} + {f_e})")
         # the pistons' speed, the cable's stretch rate included: the hydraulic part
         # c_s Δṗ/(n A) and the rest xs
-        vp = f"({xd} + {c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})"
+        vp = f"({xd} + {c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs}{play})"
         g.loss(self, "seal_friction", f"{f_s} * {vp}")
         g.loss(self, "leakage", f"({pa} - {pb}) * {q_l} + ({pb} - {pa}) * {q_d}")
         g.store_rate(self, "end_stops", f"-{f_e} * {vp}")
         # the cable's energy ½ r²(1/k) F_c², booked as F_c δ̇ (δ̇ = vp − ẋ_kin)
         g.store_rate(self, "series_spring", f"({n} * {area} * ({pa} - {pb}) + {f_g}) * "
-                     f"({c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})")
+                     f"({c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs}{play})")
         # the pistons' travel: kinematic plus the cable's stretch under its whole force
         g.probe(self, "piston_position_m", f"{x} + cable_stretch_m({r}, {comp_s}, {n} * "
-                f"{area} * ({pa} - {pb}) + {f_g})")
+                f"{area} * ({pa} - {pb}) + {f_g})" + (f" + {xb}" if play else ""))
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
         # the end stops' share of the joint torque (0 unless a piston is past a stroke end):
         # what the run's summary reports as stop contact, apart from the torque delivered

@@ -85,7 +85,8 @@ def regroup(values: Mapping[str, float], table: Mapping[str, tuple[str, ...]],
 _ROLE_KINDS = {"cylinders": ("pulley_cylinders",), "pump": ("pump", "variable_pump"),
                "motor": ("motor",), "hose_a": ("hose",), "hose_b": ("hose",),
                "charge": ("reservoir",), "check_a": ("check_valve",),
-               "check_b": ("check_valve",), "servo": ("servo_valve",)}
+               "check_b": ("check_valve",), "servo": ("servo_valve",),
+               "drain_a": ("drain",), "drain_b": ("drain",)}
 
 
 def circuit_roles(circuit: Circuit) -> dict[str, str]:
