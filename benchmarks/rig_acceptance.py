@@ -95,7 +95,7 @@ RIG2_TRUTH = {
     "softer_cable": ("series_compliance",),
     "backlash": ("backlash",),
     "seal_pressure_friction": ("seal_pressure_friction", "pressure_friction"),
-    "charge_loss": (),
+    "charge_loss": ("charge_loss",),
 }
 QUICK = {"rig1_stepped": ["clean", "current_limit", "pressure_friction", "cable_compliance"],
          "rig2": ["clean", "current_limit", "seal_pressure_friction", "backlash"]}

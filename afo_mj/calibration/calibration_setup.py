@@ -120,9 +120,14 @@ class CalibrationSetup:
     signals: dict = dataclasses.field(default_factory=dict)
 
     def replay(self) -> BenchReplay:
-        """The replay this setup calibrates."""
+        """The replay this setup calibrates: a described circuit with its optional terms
+        built, every one at its described value (0: off), so that the candidate effects that
+        are terms of its components (a dead band in the cable, a drain, check-valve seat
+        leakage) switch on by label (:meth:`~afo_mj.circuits.circuit.Circuit.
+        with_optional_terms`)."""
         if self.circuit is not None:
-            return BenchReplay(circuit=self.circuit, load=self.load, signals=self.signals)
+            return BenchReplay(circuit=self.circuit.with_optional_terms(), load=self.load,
+                               signals=self.signals)
         return BenchReplay(self.preset, self.overrides)
 
 

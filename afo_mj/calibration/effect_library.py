@@ -32,10 +32,16 @@ piston_leakage              cylinder: ``Q = G_l Δp/μ`` across each piston (lam
 pump_leakage                pump: extra ``Q = G_p Δp/μ`` between the ports (worn port plate)
 motor_current_limit         driver: voltage clamped to ``Kω ± R I_max`` (current limit)
 series_compliance           cable: differential capacitance ``(n A r)²/k`` (transmission)
-backlash                    cable: play operator of width ``b`` on the kinematics
+backlash                    cable: play operator of width ``b`` on the kinematics (an
+                            imposed angle); a described circuit: dead band ``±b r/2`` in
+                            the cable (Nordin & Gutman 2002 dead-zone model), also on a
+                            simulated load
 viscosity_drift             oil: ``T = T_0 + Ṫ t`` → ``μ(T)`` (Walther, ASTM D341)
 check_valve_cracking        charge check valves: flow only past ``p_crack`` (described
                             circuits; Manring §4.5)
+charge_loss                 charge circuit: a drain ``Q = G_d p/μ`` from each pump port to
+                            the tank and seat leakage ``Q = G_s Δp/μ`` through each check
+                            valve (described circuits; Watton 2009, Merritt §3.2)
 motor_friction              motor: ``T_c tanh(ω/ω_c) + b ω`` (described circuits whose motor
                             has no friction declared)
 sensor_delay                sensors: every output read ``d`` late
@@ -213,6 +219,9 @@ _LAP = "servo.lap"
 _CHECK_CRACK = ("check_a.cracking", "check_b.cracking")
 _MOTOR_FRICTION = ("motor.coulomb_nm", "motor.viscous")
 _SPOOL_TAU = "servo.tau"
+_PLAY = "cylinders.backlash"
+_DRAIN = ("drain_a.conductance", "drain_b.conductance")
+_SEAT = ("check_a.seat_leak", "check_b.seat_leak")
 
 
 def _common_effects() -> list[Effect]:
@@ -296,6 +305,21 @@ def _common_effects() -> list[Effect]:
                _row(_CHECK_CRACK), described_only=True,
                signature="the low line sags below the charge pressure before the check "
                          "valve feeds it", labels=_flat(_CHECK_CRACK)),
+        Effect("charge_loss", "charge circuit",
+               "Q = G_d p/μ from each pump port to the tank (case drain) and Q = G_s Δp/μ "
+               "through each check valve's seat, both ways; the charge circuit makes up "
+               "what is lost",
+               "Watton, Fundamentals of Fluid Power Control (2009), pump external leakage "
+               "and the closed circuit's make-up; Merritt (1967) §3.2 (laminar leakage); "
+               "afo_mj.circuits.components.Drain, CheckValve",
+               (P("drain_conductance_m3", "m^3", 0.0, 1e-13, 2e-15,
+                  "G_d per pump port (Q = G_d p/μ)"),
+                P("seat_leakage_m3", "m^3", 0.0, 1e-13, 5e-16,
+                  "G_s per check valve (Q = G_s Δp/μ)")),
+               _row(_DRAIN, _SEAT), described_only=True,
+               signature="the loop's common-mode pressure drifts back to the charge "
+                         "pressure (oil lost to the drain, made up by the check valves)",
+               labels=_flat(_DRAIN, _SEAT)),
         Effect("motor_friction", "motor",
                "T_f = T_c tanh(ω/ω_c) + b ω on the motor shaft (bearing, brush, seal drag)",
                "afo_mj.hydraulics.laws.motor_friction_torque_nm (Armstrong-Hélouvry 1994)",
@@ -309,6 +333,23 @@ def _common_effects() -> list[Effect]:
                (P("delay_s", "s", 0.0, 0.05, 0.003, "d"),),
                _set_delay, signature="residual ∝ −d·dy/dt"),
     ]
+
+
+def _circuit_backlash() -> Effect:
+    """The backlash of a described circuit: the cable's dead band inside the circuit
+    (:class:`afo_mj.circuits.components.PulleyCylinders`, ``backlash_rad``), so it acts on a
+    simulated load as on an imposed angle."""
+    return Effect("backlash", "transmission",
+                  "dead band of total width b in the cable at the pulley, in series with the "
+                  "cable spring: F = k dz(δ), no force inside |δ| ≤ b r/2",
+                  "Nordin & Gutman, Automatica 38 (2002) 1633, eq. 2 (dead-zone model); "
+                  "afo_mj.circuits.components.PulleyCylinders",
+                  (EffectParameter("backlash_rad", "rad", 0.0, 0.2, 0.01, "b",
+                                   probe_values=(0.003, 0.03)),),
+                  _row(_PLAY), described_only=True,
+                  signature="no torque while the joint crosses the gap after each force "
+                            "reversal: angle and torque residuals at reversals",
+                  labels=(_PLAY,))
 
 
 def _gain_offset_effect(channel: str, spread: float) -> Effect:
@@ -370,7 +411,9 @@ _LEAN_ROW = {_STRIBECK[0]: 0.0, _CP: 0.0, _CP_CHAMBER: 0.0, _AIR: 0.0, _WALL[0]:
 #: what "switched off" means in a described circuit (the lean values and the effects only a
 #: described circuit is offered)
 _OFF_VALUES = dict(_LEAN_ROW, **{_CHECK_CRACK[0]: 0.0, _CHECK_CRACK[1]: 0.0,
-                                 _MOTOR_FRICTION[0]: 0.0, _MOTOR_FRICTION[1]: 0.0})
+                                 _MOTOR_FRICTION[0]: 0.0, _MOTOR_FRICTION[1]: 0.0,
+                                 _PLAY: 0.0},
+                   **{lab: 0.0 for lab in _DRAIN + _SEAT})
 #: the servo valve's: critical-centre spool, and a fast one (0.5 ms: 320 Hz)
 _LEAN_VALVE = {_LAP: 0.0, _SPOOL_TAU: 5e-4}
 
@@ -398,6 +441,10 @@ def effects_for(outputs: Sequence[str],
     and a first-order lag per output besides."""
     out = [e for e in _common_effects() + _valve_effects()
            if described or not e.described_only]
+    if described:
+        # a described circuit's backlash is its cable's dead band (a simulated load has no
+        # imposed angle for the play operator)
+        out = [_circuit_backlash() if e.name == "backlash" else e for e in out]
     out = [e for e in out if e.labels or not described or e.name in _CIRCUIT_OTHER]
     out = [e for e in out if _offered(e, available, is_off if described else None)]
     spread = output_spread or {}
@@ -424,7 +471,7 @@ def described_off(e: Effect, value: Callable[[str], float]) -> bool:
 
 
 #: the effects a described circuit's replay offers besides those writing circuit labels
-#: (a simulated load has no imposed angle for the backlash's play operator)
+#: (its backlash is the cable's dead band, a circuit label: :func:`_circuit_backlash`)
 _CIRCUIT_OTHER = ("viscosity_drift", "sensor_delay")
 
 
@@ -507,7 +554,11 @@ _CIRCUIT_DECLARED = (
                       above=("entrained_air", "hose_wall_compliance", "series_compliance")),
     DeclaredParameter("charge_pressure_pa", "Pa", ("charge.pressure",), 0.5, 2.0,
                       "charge reservoir pressure", 0.1,
-                      below=("check_valve_cracking", "charge pressure below its setting")),
+                      # a drain or leaking check-valve seats bleed the loop's common-mode
+                      # pressure back towards the charge circuit: a declared fit lowers the
+                      # charge pressure for it (rig 2's charge_loss record)
+                      below=("charge_loss", "check_valve_cracking",
+                             "charge pressure below its setting")),
     DeclaredParameter("load_inertia_kg_m2", "kg m^2", ("load.inertia_kg_m2",), 0.5, 2.0,
                       "foot + load inertia on the joint", 0.2,
                       above=("line_inertance (the hoses' oil column, reflected to the "
