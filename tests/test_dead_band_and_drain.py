@@ -7,7 +7,6 @@ and that a description without them generates the code it generated before.
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 R_PULLEY = 0.04
 PLAY_RAD = 0.02
