@@ -295,6 +295,15 @@ def _sym_reservoir(c):
     return Symbol(s, {"port": (0, -16, 0, -1)}, 18, 16, texts, name="reservoir")
 
 
+def _sym_drain(c):
+    """A laminar restriction (two facing arcs, the orifice's look turned upright) to an
+    open tank: a pump's case drain or a seal's leak to ambient."""
+    s = [_line(0, -22, 0, 10), _path("M -7 -12 C -2 -7 -2 -1 -7 4", "s"),
+         _path("M 7 -12 C 2 -7 2 -1 7 4", "s"),
+         _poly([(-12, 10), (-12, 22), (12, 22), (12, 10)])]
+    return Symbol(s, {"port": (0, -22, 0, -1)}, 12, 22, name="drain")
+
+
 def _sym_volume(c):
     s = [_line(0, -14, 0, -7), _rect(-10, -7, 20, 14, "s", rx=3),
          _line(-10, 0, 10, 0, "thin")]
@@ -414,6 +423,7 @@ SYMBOLS = {
     "supply_accumulator": _sym_supply_accumulator, "pulley_cylinders": _sym_pulley_cylinders,
     "spring_return_cylinder": _sym_spring_return, "servo_valve": _sym_servo,
     "onoff_valve": _sym_onoff, "unloading_valve": _sym_unloading, "orifice": _sym_orifice,
+    "drain": _sym_drain,
 }
 
 
@@ -535,6 +545,10 @@ def _labels_orifice(p):
     return [f"{_g(p.area_m2 * 1e6)} mm²"]
 
 
+def _labels_drain(p):
+    return [f"to tank, G {p.conductance_m3:.3g} m³", "laminar (q = G Δp / μ)"]
+
+
 #: component kind → its key parameters as label lines (engineering units, unit stated)
 LABELS = {
     "battery": _labels_battery, "motor": _labels_motor, "pump": _labels_pump,
@@ -545,7 +559,7 @@ LABELS = {
     "supply_accumulator": _labels_supply_accumulator, "pulley_cylinders": _labels_pulley,
     "spring_return_cylinder": _labels_spring_return, "servo_valve": _labels_servo,
     "onoff_valve": _labels_onoff, "unloading_valve": _labels_unloading,
-    "orifice": _labels_orifice,
+    "orifice": _labels_orifice, "drain": _labels_drain,
 }
 
 
