@@ -42,7 +42,6 @@ from afo_mj.gait.walk import run_walk  # noqa: E402
 from afo_mj.experiments.device_walk import condition_summary  # noqa: E402
 from afo_mj.scenarios.device_scenario import device_config  # noqa: E402
 from afo_mj.scenarios.walk_scenario import load_scenario  # noqa: E402
-from afo_mj.gait import walk  # noqa: E402
 from afo_mj.human.walker import WalkerPhysics, build_walker  # noqa: E402
 
 import numba  # noqa: E402
@@ -131,7 +130,7 @@ def bare_native_step(sc, cfg, ref, T, dt) -> tuple[float, float]:
     dev = HafoDevice(cfg.params, sides=cfg.sides, profile=cfg.profile, timestep_s=dt,
                      max_steps=steps)
     captured, start = [], {}
-    original = walk.mujoco.mj_step
+    original = mujoco.mj_step
 
     def capture(model, data):
         if not start:
@@ -143,12 +142,12 @@ def bare_native_step(sc, cfg, ref, T, dt) -> tuple[float, float]:
         original(model, data)
         start["end"] = data.qpos.copy()
 
-    walk.mujoco.mj_step = capture
+    mujoco.mj_step = capture
     try:
         run_walk(sc.walker, ref, T, sc.strides, sc.controller_params(),
                  worn_masses=dev.worn_masses(), device=dev, loop="python")
     finally:
-        walk.mujoco.mj_step = original
+        mujoco.mj_step = original
     model = start["model"]
     arrays = [np.array([c[j] for c in captured]) for j in range(4)]
     fn = native_step().mj_step_address

@@ -70,7 +70,7 @@ def bare_step_us(strides: int = 10) -> tuple[float, float]:
     the Python loop): (native, from compiled code; through the Python bindings)."""
     captured: list[tuple[np.ndarray, np.ndarray]] = []
     start: dict[str, np.ndarray] = {}
-    original = walk.mujoco.mj_step
+    original = mujoco.mj_step
 
     def capture(model, data):
         if not start:
@@ -78,11 +78,11 @@ def bare_step_us(strides: int = 10) -> tuple[float, float]:
         captured.append((data.ctrl.copy(), model.jnt_actfrcrange.copy()))
         original(model, data)
 
-    walk.mujoco.mj_step = capture
+    mujoco.mj_step = capture
     try:
         _walk_once(strides, "python")
     finally:
-        walk.mujoco.mj_step = original
+        mujoco.mj_step = original
     model = start["model"]
 
     def fresh():

@@ -71,10 +71,12 @@ import numpy as np
 __all__ = ["HumanController", "ControllerSetup", "ControllerError", "CompiledStep",
            "register_controller",
            "unregister_controller", "controller_class", "controller_names", "BUILTIN",
-           "ACTUATOR_GROUPS", "READS", "EV_NONE", "EV_HEEL_STRIKE", "EV_TOE_OFF"]
+           "ACTUATOR_GROUPS", "READS", "EV_NONE", "EV_HEEL_STRIKE", "EV_TOE_OFF",
+           "EV_SWING_CONTACT"]
 
-#: gait event codes a step returns per side
-EV_NONE, EV_HEEL_STRIKE, EV_TOE_OFF = 0, 1, 2
+#: gait event codes a step returns per side (a swing contact: the start of a floor contact of
+#: a swinging foot, a scuff, recorded in ``GaitEvents.swing_toe_contacts``)
+EV_NONE, EV_HEEL_STRIKE, EV_TOE_OFF, EV_SWING_CONTACT = 0, 1, 2, 3
 #: the walker's actuator groups a controller may drive
 ACTUATOR_GROUPS = ("ff", "pd", "residual")
 #: what a controller may read each step
@@ -213,6 +215,12 @@ class HumanController(abc.ABC):
         """(2, 2) extra damping on the [knee, ankle] joints per side that MuJoCo should
         integrate implicitly this step (N·m·s/rad), or None for none (the default)."""
         return None
+
+    def answer_device(self, phys, torque_nm: np.ndarray) -> None:
+        """Called each step a device is worn, after the device's torque is applied and before
+        ``mj_step``, with the torque it is expected to deliver this step per side (N·m, the
+        end-of-step torque of a coupled device at the present ankle velocity): a controller
+        with a written-in answer to the device changes its ``ctrl`` here. Default: none."""
 
     def fall_limits(self, phys) -> tuple[float, float]:
         """``(pelvis_z_min, tilt_max_rad)``, called after :meth:`start`: the walk is a fall

@@ -34,7 +34,8 @@ import math
 import mujoco
 import numpy as np
 
-from afo_mj.gait.controller import EV_HEEL_STRIKE, EV_TOE_OFF, HumanController
+from afo_mj.gait.controller import (EV_HEEL_STRIKE, EV_SWING_CONTACT, EV_TOE_OFF,
+                                    HumanController)
 from afo_mj.gait.record import GaitEvents, GaitRecord, phase_from_events
 from afo_mj.gait.stepped import SteppedWalk
 
@@ -86,7 +87,7 @@ class ControllerWalk(SteppedWalk):
         ctl.start(phys)
         self.phys, self.model, self.data, self._h = phys, m, d, h
         self.events = GaitEvents()
-        self.n_max = int(self.duration_s / h) + 1
+        self.n_max = self._max_steps(h)
         n = self.n_max
         self._buf = {"time": np.zeros(n), "qpos": np.zeros((n, m.nq)),
                      "qvel": np.zeros((n, m.nv)), "sens": np.zeros((n, m.nsensordata)),
@@ -119,6 +120,10 @@ class ControllerWalk(SteppedWalk):
         self._lim_was = False
         self._no_extra = np.zeros((2, 2))
         self._run_compiled = self._compiled_runner()
+
+    def _max_steps(self, h: float) -> int:
+        """The rows the walk may record (its buffers' length) at MuJoCo's step ``h``."""
+        return int(self.duration_s / h) + 1
 
     @property
     def compiled(self) -> bool:
@@ -185,6 +190,8 @@ class ControllerWalk(SteppedWalk):
                 self._right_strides += s == 0
             elif codes[s] == EV_TOE_OFF:
                 self.events.toe_offs_s[s].append(t)
+            elif codes[s] == EV_SWING_CONTACT:
+                self.events.swing_toe_contacts.append((t, s))
         if self.strides is not None and self._right_strides > self.strides:
             self._done[0] = True
             return
@@ -203,11 +210,13 @@ class ControllerWalk(SteppedWalk):
             dev, extra2 = device.begin_step(t, d.qpos[ank_q], d.qvel[dank], ctl.stance)
             d.qfrc_applied[dank] = dev
             m.dof_damping[dank] = self._base_limit[:, 1] + extra[:, 1] + extra2
+            ctl.answer_device(phys, dev - extra2 * d.qvel[dank])
         elif device is not None:
             phase = self.phase if getattr(device, "needs_phase", True) else None
             dev = np.asarray(device.torque_nm(t, d.qpos[ank_q], d.qvel[dank], phase,
                                               ctl.stance), float)
             d.qfrc_applied[dank] = dev
+            ctl.answer_device(phys, dev)
         if action is not None or self._acted:
             a2 = np.zeros(2) if action is None else np.array([float(action[0]),
                                                                float(action[1])])
@@ -270,8 +279,11 @@ class ControllerWalk(SteppedWalk):
 
     @property
     def phase(self) -> np.ndarray:
-        """(2,) gait phase per leg now from the recorded heel strikes (0 before a leg's second
-        heel strike)."""
+        """(2,) gait phase per leg now: the controller's own estimate where it declares one
+        (the signal ``gait_phase``), else from the recorded heel strikes (0 before a leg's
+        second heel strike)."""
+        if "gait_phase" in self._sig_layout:
+            return np.array(self.controller.signal_values()["gait_phase"], dtype=float)
         t = np.array([self.data.time])
         return phase_from_events(t, self.events)[0]
 
@@ -323,11 +335,14 @@ class ControllerWalk(SteppedWalk):
             pelvis_tilt_rad=_columns(qq, phys.pelvis_qpos[2]),
             residual_force_n=_read_only(b["res"][:, :2]),
             residual_moment_nm=_read_only(b["res"][:, 2]),
-            gait_phase=phase_from_events(b["time"], self.events), qpos=_read_only(qq),
-            model_xml=phys.xml,
+            gait_phase=None, qpos=_read_only(qq), model_xml=phys.xml,
             signals={name: _read_only(self._sig[:k, off:off + int(np.prod(shape))]
                                       .reshape((k,) + shape))
                      for name, (off, shape) in self._sig_layout.items()})
+        # a controller's own phase estimate is the record's gait phase (not a signal beside it)
+        own = record.signals.pop("gait_phase", None)
+        record.gait_phase = (phase_from_events(b["time"], self.events) if own is None
+                             else own)
         record.events = copy.deepcopy(self.events)
         return record
 

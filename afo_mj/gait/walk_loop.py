@@ -149,15 +149,17 @@ def record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact, b_time, b_qpos,
 
 @cached_njit(depends_on=(law, "afo_mj.gait.native_step"), fastmath=False, _nrt=False)
 def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_step, const,
-               index, ctrl, actfrc, qfrc_actuator, actuator_force, contact_geoms,
-               b_time, b_qpos, b_qvel, b_qfrc, b_act, b_sens, b_cz, b_phase,
+               index, ctrl, actfrc, qfrc_actuator, contact_geoms, leg_dof, pelvis_dof,
+               b_time, b_qpos, b_qvel, b_tau, b_res, b_sens, b_cz, b_phase,
                ev_time, ev_code, loop_const, loop_index, qfrc_applied, dof_damping, dev_io,
                dev_force2, dev_damping2, dev_delivered2, b_dev):  # pragma: no cover
     """Run steps ``k … k_end − 1``; returns ``(code, k)`` with ``k`` the rows recorded.
 
     ``time1``: one-element view of ``mjData.time``; ``qpos … actfrc``, ``qfrc_actuator``,
-    ``actuator_force``, ``qfrc_applied``, ``dof_damping``: MuJoCo's live arrays; ``state …
-    index``: the control law's packed arrays; ``b_*``: the record buffers (rows ``k`` on);
+    ``qfrc_applied``, ``dof_damping``: MuJoCo's live arrays; ``state … index``: the control
+    law's packed arrays; ``leg_dof`` (2, 3), ``pelvis_dof`` (3,): the dof addresses whose
+    actuator forces are recorded as the joint moments (``b_tau``, (n, 2, 3)) and the pelvis
+    residuals (``b_res``, (n, 3)); ``b_*``: the record buffers (rows ``k`` on);
     ``ev_time``/``ev_code`` (``(n, 2)``: side, code): event buffers filled from
     ``loop_index[LI_N_EVENTS]`` on; ``dev_io`` (6): the device's input block (its address
     is ``loop_index[LI_P_IO]``); ``dev_force2 … dev_delivered2``: views of the device buffer's
@@ -170,8 +172,6 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
     fn = loop_index[LI_FN]
     m_addr = loop_index[LI_MODEL]
     d_addr = loop_index[LI_DATA]
-    nv = qvel.shape[0]
-    nu = actuator_force.shape[0]
     dev_begin = loop_index[LI_DEV_BEGIN]
     dev_end = loop_index[LI_DEV_END]
     p_io = loop_index[LI_P_IO]
@@ -243,10 +243,11 @@ def walk_steps(k, k_end, time1, qpos, qvel, sens, gxpos, state, table, table_ste
         # --- record the raw state --------------------------------------------------------
         record_raw_state(k, time1, qpos, qvel, sens, gxpos, contact_geoms, b_time, b_qpos,
                          b_qvel, b_sens, b_cz)
-        for j in range(nv):
-            b_qfrc[k, j] = qfrc_actuator[j]
-        for j in range(nu):
-            b_act[k, j] = actuator_force[j]
+        for s in range(2):
+            for j in range(3):
+                b_tau[k, s, j] = qfrc_actuator[leg_dof[s, j]]
+        for j in range(3):
+            b_res[k, j] = qfrc_actuator[pelvis_dof[j]]
         b_phase[k, 0] = state[law.S_PHASE]
         b_phase[k, 1] = state[law.S_PHASE + 1]
         k += 1

@@ -58,9 +58,6 @@ def _torque_stepper(scenario, reference, device, worn):
                 scenario.controller_params(), worn_masses=worn, device=device)
 
 
-def _torque_moments(w):
-    k = w.steps - 1
-    return w._buf.qfrc_actuator[k][w.phys.leg_dof[:, 2]], w._buf.device[k]
 
 
 def _walk_muscle(scenario, reference, dev, worn, label):
@@ -77,10 +74,6 @@ def _muscle_duration_s(scenario, reference) -> float:
 def _muscle_stepper(scenario, reference, device, worn):
     from afo_mj.gait.muscle_scenario import muscle_scenario_stepper
     return muscle_scenario_stepper(scenario, device=device, worn_masses=worn)
-
-
-def _muscle_moments(w):
-    return w.joint_moment_nm[:, 2], w.device_moment_nm
 
 
 def _controller(scenario, reference):
@@ -113,8 +106,10 @@ CONTROLLER_WALKER = WalkerModel(_walk_controller, _torque_duration_s, _controlle
 
 #: The walker models by ``walker.model`` name.
 WALKER_MODELS = {
-    "torque": WalkerModel(_walk_torque, _torque_duration_s, _torque_stepper, _torque_moments),
-    "muscle": WalkerModel(_walk_muscle, _muscle_duration_s, _muscle_stepper, _muscle_moments),
+    "torque": WalkerModel(_walk_torque, _torque_duration_s, _torque_stepper,
+                          _controller_moments),
+    "muscle": WalkerModel(_walk_muscle, _muscle_duration_s, _muscle_stepper,
+                          _controller_moments),
 }
 
 
