@@ -2,8 +2,9 @@
 servo targets and feedforward, foot placement, toe-clearance reflex, trunk control, pelvis
 residuals and the Hill-limited plantarflexor range.
 
-What each part does and where it comes from is described in :mod:`afo_mj.gait.walk`, which
-builds the packed arrays this function reads (``const``: scalars, ``index``: MuJoCo addresses,
+What each part does and where it comes from is described in
+:mod:`afo_mj.gait.tracking_controller`, whose :class:`~afo_mj.gait.tracking_controller.
+TrackingController` builds the packed arrays this function reads (``const``: scalars, ``index``: MuJoCo addresses,
 ``state``: the controller's memory) and calls it once per MuJoCo step. Keeping the law in one
 compiled function keeps Python out of the 1 ms loop (``benchmarks/gait_step.py``).
 
@@ -44,7 +45,7 @@ N_STATE = 12
  I_FF, _I_FF1, _I_FF2, _I_FF3, _I_FF4, _I_FF5,   # torque motors, same order
  I_RES_X, I_RES_Z, I_RES_T, N_INDEX) = range(36)
 
-# Reference table columns (see afo_mj.gait.walk.ReferenceTable)
+# Reference table columns (see afo_mj.gait.tracking_controller.ReferenceTable)
 _ANGLE, _RATE, _MOMENT, _AHEAD_RATE = 0, 3, 6, 10
 
 

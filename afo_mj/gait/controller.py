@@ -30,15 +30,17 @@ scenario (``afo-mj run``, ``compare``, ``sweep``, ``render``, ``walk_batch``, th
 environment) walks it once it is registered with :func:`register_controller` — one new file
 and one registry line, no change to the walks, the loops or the application.
 
-The two built-in controllers have their own compiled steppers and are registered the same way
-(:data:`BUILTIN`): ``"torque"`` — the PD tracking controller of
-:mod:`afo_mj.gait.control_law`, stepped by :class:`afo_mj.gait.walk.Walk` in the compiled loop
-of :mod:`afo_mj.gait.walk_loop`; ``"muscle"`` — the reflex controller of
-:mod:`afo_mj.gait.reflex_law` (Geyer & Herr 2010), stepped by
-:class:`afo_mj.gait.muscle_walk.MuscleWalkStepper`. :class:`afo_mj.gait.reflex_controller.
-ReflexController` is the same reflex law written against this interface, so that the interface
-itself is exercised by a real controller (``tests/test_controller_interface.py`` checks that
-it walks what the dedicated stepper walks, bit for bit).
+The two built-in controllers are written against this interface too and have their own
+steppers, :class:`~afo_mj.gait.controller_walk.ControllerWalk` subclasses (:data:`BUILTIN`,
+resolved by :mod:`afo_mj.gait.walkers`, not registered): ``"torque"`` — the PD tracking
+controller :class:`afo_mj.gait.tracking_controller.TrackingController` (its law
+:mod:`afo_mj.gait.control_law`), stepped by :class:`afo_mj.gait.walk.Walk`, which keeps the
+dedicated compiled loop of :mod:`afo_mj.gait.walk_loop`; ``"muscle"`` — the reflex controller
+:class:`afo_mj.gait.reflex_controller.ReflexController` (its law :mod:`afo_mj.gait.reflex_law`,
+Geyer & Herr 2010), stepped by :class:`afo_mj.gait.muscle_walk.MuscleWalkStepper` in
+:mod:`afo_mj.gait.controller_loop`. Either walked by the plain ``ControllerWalk`` is the
+dedicated stepper's walk bit for bit (``tests/test_controller_interface.py``,
+``tests/test_tracking_controller.py``).
 
 Example (a controller that holds every joint at 0 with PD torques; it falls)::
 

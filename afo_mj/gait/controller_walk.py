@@ -1,11 +1,12 @@
 """The walk of any :class:`~afo_mj.gait.controller.HumanController`: a Python loop around the
 controller's step, a worn device and MuJoCo's step, with the record every walk gives.
 
-Per 1 ms step (the order the built-in walks use, :mod:`afo_mj.gait.walk` and
-:mod:`afo_mj.gait.muscle_walk`):
+Per 1 ms step (the built-in walks, :class:`afo_mj.gait.walk.Walk` and
+:class:`afo_mj.gait.muscle_walk.MuscleWalkStepper`, are this walk with compiled loops):
 
 1. ``controller.step(t, phys)`` writes its actuators' controls and returns its events (heel
-   strike, toe off per side), which go to the record's :class:`~afo_mj.gait.record.GaitEvents`;
+   strike, toe off, swing contact per side), which go to the record's
+   :class:`~afo_mj.gait.record.GaitEvents`;
    the walk ends before stepping once the right leg has completed the requested strides;
 2. extra joint damping the controller asks for (:meth:`~afo_mj.gait.controller.
    HumanController.joint_damping_nm_s_per_rad`, e.g. soft joint limits) is added to the
@@ -14,7 +15,8 @@ Per 1 ms step (the order the built-in walks use, :mod:`afo_mj.gait.walk` and
    angles, velocities and the controller's stance state (``begin_step``); its joint force
    goes to ``qfrc_applied`` and its extra damping onto the ankles' damping (the end-of-step
    torque ``F − D q̇ₙ₊₁``, :mod:`afo_mj.circuits.stepper`); an uncoupled one returns its
-   torque (``torque_nm``); an ``action`` (N·m per ankle, + dorsiflexion) adds to it;
+   torque (``torque_nm``); the controller hears of the torque (:meth:`~afo_mj.gait.controller.
+   HumanController.answer_device`); an ``action`` (N·m per ankle, + dorsiflexion) adds to it;
 4. ``mujoco.mj_step``; a coupled device closes its step with the new ankle velocities
    (``end_step``), the delivered torque is recorded;
 5. the raw state, the controller's joint moments and its declared signals are recorded; a
@@ -306,7 +308,10 @@ class ControllerWalk(SteppedWalk):
         controller's ``signals`` — is a read-only view of them, not a copy (a row once
         stepped is never written again; :meth:`reset` makes new buffers), so two records of
         one walk share them unchanged and a record copies nothing of the walk; the GRF, the
-        contact heights, the pelvis position and the gait phase are computed (new arrays).
+        contact heights, the pelvis position and the gait phase are computed (new arrays) —
+        the gait phase from the heel strikes, or, for a controller that declares its own
+        estimate as the signal ``gait_phase`` (2,), that signal's view (then not in
+        ``signals``).
         Raises FloatingPointError when MuJoCo met a non-finite or huge control or
         acceleration on the way."""
         d, phys, k = self.data, self.phys, self._k

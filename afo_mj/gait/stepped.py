@@ -1,4 +1,5 @@
-"""What every steppable walk (:class:`afo_mj.gait.walk.Walk`,
+"""What every steppable walk (:class:`afo_mj.gait.controller_walk.ControllerWalk` and its
+built-in subclasses :class:`afo_mj.gait.walk.Walk`,
 :class:`afo_mj.gait.muscle_walk.MuscleWalkStepper`) reads the same way: the named accessors
 of the MuJoCo state they share, written once. A walk provides ``data`` (its ``MjData``),
 ``phys`` (its :class:`~afo_mj.human.walker.WalkerPhysics`), ``events`` (its

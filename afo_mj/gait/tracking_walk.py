@@ -124,19 +124,18 @@ class Walk(ControllerWalk):
         (refused with the reason when ``loop = "compiled"``)."""
         if self.loop == "python":
             return None
-        device, nc, why = self.device, None, None
+        device, nc = self.device, None
         if device is not None:
             nc = device.native_coupling() if (self._coupled and hasattr(
                 device, "native_coupling")) else None
             if nc is None:
-                why = (f"the device {type(device).__name__} is stepped in Python (a torque "
-                       f"callback, or no compiled entry points: native_coupling)")
-        if why is not None:
-            if self.loop == "compiled":
-                raise ValueError(f"loop = 'compiled' needs no device or a coupled device with "
-                                 f"compiled entry points (native_coupling): {why}; allowed: "
-                                 f"'auto', 'python'")
-            return None
+                if self.loop == "compiled":
+                    raise ValueError(
+                        f"loop = 'compiled' needs no device or a coupled device with compiled "
+                        f"entry points (native_coupling); the device {type(device).__name__} "
+                        f"is a Python callback of its torque (or has no compiled entry "
+                        f"points) and runs in the Python loop; allowed: 'auto', 'python'")
+                return None
         return _TrackingRun(self, nc)
 
     # -- stepping --------------------------------------------------------------------------

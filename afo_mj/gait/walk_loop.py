@@ -2,9 +2,10 @@
 and the fall and finiteness checks, with no Python per step.
 
 :func:`walk_steps` runs steps ``k … k_end − 1`` of a walk (or stops earlier) and returns why it
-stopped; :func:`afo_mj.gait.walk.run_walk` calls it in chunks (one call per progress update,
-or one for the whole walk) and turns its buffers into a
-:class:`~afo_mj.gait.record.GaitRecord`. It is the loop of ``run_walk`` step for step — the
+stopped; the torque walker's walk (:class:`afo_mj.gait.tracking_walk.Walk`, a
+:class:`~afo_mj.gait.controller_walk.ControllerWalk`) calls it on its own buffers in chunks
+(one call per progress update, or one for the whole walk, or one per ``step()``). It is that
+walk's Python step, step for step — the
 same compiled control law (:func:`afo_mj.gait.control_law.control_step`), MuJoCo's own C
 ``mj_step`` called through :func:`afo_mj.gait.native_step.call_mj_step`, the same copies in
 the same order — so its records equal the Python loop's bit for bit
@@ -20,12 +21,13 @@ Per step:
    :mod:`afo_mj.circuits.native_entry`) gets the ankle angles, velocities and stance flags;
    its joint force goes to ``qfrc_applied`` and its extra damping onto the ankles' base
    damping, and the wearer's ankle feedforward drops by ``adapt`` × the torque at the present
-   velocity (as in :func:`afo_mj.gait.walk.run_walk`);
+   velocity (:meth:`afo_mj.gait.tracking_controller.TrackingController.answer_device`);
 3. ``mj_step``;
 4. with a device, its ``end`` entry point gets the new ankle velocities and leaves the
    delivered torque (code 0, a non-finite device state, stops the loop:
    :data:`DEVICE_NON_FINITE`);
-5. the raw state is copied into row ``k`` of the preallocated buffers;
+5. the raw state, the leg joints' and the pelvis residuals' actuator forces and the
+   controller's phase estimate are copied into row ``k`` of the walk's buffers;
 6. a non-finite ``qpos``/``qvel`` stops the loop (:data:`NON_FINITE`); a hip below the fall
    height or a trunk pitched past the fall tilt stops it (:data:`FELL`).
 
