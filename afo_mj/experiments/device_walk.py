@@ -282,8 +282,9 @@ def human_response(scenario) -> dict:
     """How the simulated wearer answers a worn device, for a device run's summary.
 
     The torque walker has no answer of its own: it lowers its ankle feedforward by
-    ``controller.assistance_adaptation`` × the device's torque (:mod:`afo_mj.gait.tracking_controller`), so
-    any change of the human ankle's work with a device rests on that rule. The block is
+    ``controller.assistance_adaptation`` × the device's torque
+    (:mod:`afo_mj.gait.tracking_controller`), so any change of the human ankle's work with a
+    device rests on that rule. The block is
     ``{"walker_model": "torque", "rule": "assistance_adaptation", "assistance_adaptation":
     <the scenario's value>, "note": ...}``. The muscle walker's reflexes respond to the
     device by themselves: ``{"walker_model": "muscle", "rule": None, "assistance_adaptation":

@@ -4,9 +4,11 @@ residuals and the Hill-limited plantarflexor range.
 
 What each part does and where it comes from is described in
 :mod:`afo_mj.gait.tracking_controller`, whose :class:`~afo_mj.gait.tracking_controller.
-TrackingController` builds the packed arrays this function reads (``const``: scalars, ``index``: MuJoCo addresses,
-``state``: the controller's memory) and calls it once per MuJoCo step. Keeping the law in one
-compiled function keeps Python out of the 1 ms loop (``benchmarks/gait_step.py``).
+TrackingController` builds the packed arrays this function reads (``const``: scalars,
+``index``: MuJoCo addresses, ``state``: the controller's memory) and calls it once per MuJoCo
+step (its Python step; the compiled loop :mod:`afo_mj.gait.walk_loop` calls it too). Keeping
+the law in one compiled function keeps Python out of the 1 ms loop
+(``benchmarks/gait_step.py``).
 
 Event codes written to ``state[S_EVENT + side]``: 0 none, 1 heel strike, 2 toe off,
 3 start of a swing-phase floor contact (scuff).
