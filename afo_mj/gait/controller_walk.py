@@ -199,10 +199,11 @@ class ControllerWalk(SteppedWalk):
             return
         dank, ank_q = self._dank, self._ank_q
         extra = ctl.joint_damping_nm_s_per_rad(phys)
-        if extra is None:
-            extra = self._no_extra
         # written only while the controller asks for damping (or did the step before)
-        lim_now = bool(extra.any())
+        if extra is None:
+            extra, lim_now = self._no_extra, False
+        else:
+            lim_now = bool(extra.any())
         if lim_now or self._lim_was:
             m.dof_damping[self._dlim] = self._base_limit + extra
         self._lim_was = lim_now
@@ -249,8 +250,10 @@ class ControllerWalk(SteppedWalk):
             views[name][k] = val
         self._k = k + 1
         state = ctl.state_array()
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()
-                and (state is None or np.isfinite(state).all())):
+        # one sum per array: NaN or ±inf anywhere makes it non-finite (so does a sum beyond
+        # 1e308, a state long diverged)
+        if not (math.isfinite(d.qpos.sum() + d.qvel.sum())
+                and (state is None or math.isfinite(state.sum()))):
             self._done[0] = True
             raise FloatingPointError(f"{ctl.name} walk: non-finite state at t = "
                                      f"{d.time:.4f} s")
