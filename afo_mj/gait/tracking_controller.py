@@ -212,7 +212,10 @@ class TrackingController(HumanController):
     ``initial_speed_m_s``, keeps its own gait-phase estimate (the signal ``gait_phase``, which
     the walk records as the record's ``gait_phase``), detects scuffs (event code 3) and lowers
     the ankle feedforward by ``assistance_adaptation`` × a worn device's torque
-    (:meth:`answer_device`)."""
+    (:meth:`answer_device`). It gives no compiled step for the generic loop
+    (:mod:`afo_mj.gait.controller_loop` has no device answer nor scuff events): walked by a
+    plain ``ControllerWalk`` it steps in Python; :class:`afo_mj.gait.walk.Walk` walks it in
+    its own compiled loop (:mod:`afo_mj.gait.walk_loop`), the same walk bit for bit."""
 
     name = "torque"
     Params = ControllerParams
