@@ -297,8 +297,8 @@ def test_sensor_lag_estimate_recovers_a_known_shift():
 
 def test_declared_value_beyond_tolerance_names_its_equivalent_effects():
     """Charge pressure fitted at 0.69× its datasheet value (tolerance ±10 %, SE 1 %) is
-    reported with the charge circuit's oil loss and check-valve cracking; pump slip at 1.5× (tolerance ±100 %) and a motor R
-    at 1.3× with an SE of 0.2 (not 3 SE beyond) are not."""
+    reported with the charge circuit's oil loss and check-valve cracking; pump slip at 1.5×
+    (tolerance ±100 %) and a motor R at 1.3× with an SE of 0.2 (not 3 SE beyond) are not."""
     from types import SimpleNamespace
 
     from afo_mj.calibration.calibrate import Calibration

@@ -24,7 +24,6 @@ JSON object.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -36,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tools"))
 
+from doc_block import mode_parser, write_or_check  # noqa: E402
 from afo_mj.experiments import spring_mechanics as sm  # noqa: E402
 from afo_mj.experiments.muscle_assistance import (Assistance, assistance_summary,  # noqa: E402
                                                   assistance_walk)
@@ -162,39 +162,15 @@ def _summary(res: dict) -> dict:
     return out
 
 
-def _block(text: str) -> tuple[int, int]:
-    i, j = text.find(BEGIN), text.find(END)
-    if i < 0 or j < i:
-        raise SystemExit(f"{DOC}: markers {BEGIN} … {END} not found")
-    return i + len(BEGIN), j
-
-
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    g = ap.add_mutually_exclusive_group()
-    g.add_argument("--check", action="store_true", help="compare with docs; exit 1 on drift")
-    g.add_argument("--write", action="store_true", help="rewrite the docs block")
-    args = ap.parse_args(argv)
+    args = mode_parser(__doc__.split("\n\n")[0]).parse_args(argv)
     res = analyse()
     body = format_tables(res)
     if not (args.check or args.write):
         print(body)
         print(json.dumps(_summary(res)))
         return 0
-    from readme_tables import drift_lines, same_at_printed_precision
-    text = DOC.read_text(encoding="utf-8")
-    i, j = _block(text)
-    old = text[i:j].strip("\n")
-    if args.write:
-        DOC.write_text(text[:i] + "\n" + body + "\n" + text[j:], encoding="utf-8")
-        return 0
-    if same_at_printed_precision(old, body):
-        print("spring-mechanics: current")
-        return 0
-    print("spring-mechanics: docs/muscle_walker.md differs from a fresh run:", file=sys.stderr)
-    for ln in drift_lines(old, body):
-        print("  " + ln, file=sys.stderr)
-    return 1
+    return write_or_check(DOC, BEGIN, END, body, "spring-mechanics", args.write)
 
 
 if __name__ == "__main__":

@@ -355,6 +355,24 @@ class ControllerWalk(SteppedWalk):
         return record
 
 
+def pack_native_device(li: np.ndarray, L, nc, dev_io: np.ndarray) -> None:
+    """Write a worn device's native coupling (``nc``: its compiled begin/end step addresses,
+    buffer, layout and log) into a compiled walk loop's index array ``li``, with ``L`` the
+    loop module naming the slots (``LI_DEV_BEGIN`` … ``LI_LOG_S``; the torque walker's
+    :mod:`afo_mj.gait.walk_loop` and :mod:`afo_mj.gait.controller_loop` use the same names)
+    and ``dev_io`` the 6-slot exchange array the loop shares with the device."""
+    log = nc.log
+    if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
+            and nc.meta.flags.c_contiguous and log.ndim == 3):
+        raise AssertionError("device coupling: buffer, layout and log must be C arrays")
+    li[L.LI_DEV_BEGIN], li[L.LI_DEV_END] = nc.begin_address, nc.end_address
+    li[L.LI_P_IO] = dev_io.ctypes.data
+    li[L.LI_P_BUF] = nc.buffer.ctypes.data
+    li[L.LI_P_META] = nc.meta.ctypes.data
+    li[L.LI_P_LOG] = log.ctypes.data
+    li[L.LI_LOG_N:L.LI_LOG_S + 1] = log.shape
+
+
 def _read_only(a: np.ndarray) -> np.ndarray:
     """A read-only view of ``a``."""
     v = a.view()
@@ -413,16 +431,7 @@ class _CompiledRun:
         dev_io = np.zeros(6)
         outs = (np.zeros(2), np.zeros(2), np.zeros(2))
         if nc is not None:
-            log = nc.log
-            if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
-                    and nc.meta.flags.c_contiguous and log.ndim == 3):
-                raise AssertionError("device coupling: buffer, layout and log must be C arrays")
-            li[cl.LI_DEV_BEGIN], li[cl.LI_DEV_END] = nc.begin_address, nc.end_address
-            li[cl.LI_P_IO] = dev_io.ctypes.data
-            li[cl.LI_P_BUF] = nc.buffer.ctypes.data
-            li[cl.LI_P_META] = nc.meta.ctypes.data
-            li[cl.LI_P_LOG] = log.ctypes.data
-            li[cl.LI_LOG_N:cl.LI_LOG_S + 1] = log.shape
+            pack_native_device(li, cl, nc, dev_io)
             lc[cl.L_DEV_DT] = float(device.timestep_s)
             outs = (nc.force2, nc.damping2, nc.delivered2)
         sig_index = np.concatenate(

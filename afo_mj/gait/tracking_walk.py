@@ -17,7 +17,7 @@ import numpy as np
 from afo_mj import progress
 from afo_mj.gait import control_law as law
 from afo_mj.gait.controller import ControllerSetup
-from afo_mj.gait.controller_walk import ControllerWalk
+from afo_mj.gait.controller_walk import ControllerWalk, pack_native_device
 from afo_mj.gait.record import GaitRecord
 from afo_mj.gait.tracking_controller import ControllerParams, TrackingController
 from afo_mj.human.walker import WalkerParams
@@ -232,16 +232,7 @@ class _TrackingRun:
         dev_io = np.zeros(6)
         outs = (np.zeros(2), np.zeros(2), np.zeros(2))
         if nc is not None:
-            log = nc.log
-            if not (log.flags.c_contiguous and nc.buffer.flags.c_contiguous
-                    and nc.meta.flags.c_contiguous and log.ndim == 3):
-                raise AssertionError("device coupling: buffer, layout and log must be C arrays")
-            li[wl.LI_DEV_BEGIN], li[wl.LI_DEV_END] = nc.begin_address, nc.end_address
-            li[wl.LI_P_IO] = dev_io.ctypes.data
-            li[wl.LI_P_BUF] = nc.buffer.ctypes.data
-            li[wl.LI_P_META] = nc.meta.ctypes.data
-            li[wl.LI_P_LOG] = log.ctypes.data
-            li[wl.LI_LOG_N:wl.LI_LOG_S + 1] = log.shape
+            pack_native_device(li, wl, nc, dev_io)
             li[wl.LI_ANK_R], li[wl.LI_ANK_L] = walk._ank_q
             li[wl.LI_DANK_R], li[wl.LI_DANK_L] = walk._dank
             li[wl.LI_FF_R], li[wl.LI_FF_L] = ctl._ff_ankle
