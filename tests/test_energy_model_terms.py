@@ -59,6 +59,29 @@ def test_terms_sum_to_the_rates_on_a_grid_of_states():
     assert (bh["work"] >= 0).all()
 
 
+def test_published_umberger_2010_form_by_hand():
+    """``negative_work=False``: Umberger's published 2010 form. A lengthening muscle (v = 0.4
+    l_opt/s at l_opt, u = a = 0.3) by hand: heat ``S A^0.6 (128 f_FT + 25) + S A 0.3 α_ST v``
+    (α_ST = 250/v_max), no work, against ``4 α_ST`` and the negative work in the default; a
+    shortening muscle is the same in both."""
+    S, A, vmax, v, fst, m, lopt, fa = 1.5, 0.3, 12.0, 0.4, 0.5, 0.7, 0.05, 900.0
+    am = S * A ** 0.6 * (128 * (1 - fst) + 25)
+    a_st = 250.0 / vmax
+    pub = me.umberger2010_terms_w(A, A, 1.0, v, fa, 1.0, vmax, lopt, m, fst,
+                                  negative_work=False)
+    total = sum(float(x) for x in pub.values())
+    assert total == pytest.approx((am + S * A * 0.3 * a_st * v) * m, rel=1e-12)
+    assert float(pub["work_negative"]) == 0.0 and float(pub["nonnegative_raise"]) == 0.0
+    dflt = me.umberger2010_terms_w(A, A, 1.0, v, fa, 1.0, vmax, lopt, m, fst)
+    w_neg = -fa * v * lopt / m
+    raw = am + S * A * 4.0 * a_st * v + w_neg
+    assert sum(float(x) for x in dflt.values()) == pytest.approx(max(raw, 0.0) * m + max(
+        1.0 - (am + S * A * 4.0 * a_st * v - min(raw, 0.0)), 0.0) * m, rel=1e-12)
+    short = [me.umberger2010_terms_w(A, A, 1.0, -2.0, fa, 1.0, vmax, lopt, m, fst,
+                                     negative_work=nw) for nw in (True, False)]
+    assert sum(short[0].values()) == pytest.approx(sum(short[1].values()), rel=1e-15)
+
+
 def test_terms_sum_to_a_walks_recorded_rates_and_the_floor_costs_less_than_the_walk():
     """A 4 s walk of the shipped 1.25 set: the terms from the record (CE length summed from
     its velocities) sum to the recorded Umberger and Bhargava rates within 1e-9 of the terms'

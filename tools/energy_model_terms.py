@@ -43,6 +43,9 @@ SET_PATH = ROOT / "afo_mj" / "data" / "reflex_params_1.25.json"
 DOC = ROOT / "docs" / "muscle_walker.md"
 BEGIN, END = "<!-- energy-terms:begin -->", "<!-- energy-terms:end -->"
 DURATION_S = 10.0
+#: adults' net metabolic energy per stride at their economical walking speeds (J/kg;
+#: Weyand et al. 2010, J Exp Biol 213:3972: 2.74 ± 0.12)
+WEYAND_J_PER_KG = 2.74
 WINDOW_S = 5.0
 #: the excitation floor (Geyer & Herr's pre-activation, :data:`afo_mj.human.muscle.PREACTIVATION`)
 FLOOR = mu.PREACTIVATION
@@ -96,12 +99,13 @@ def muscle_states(walk, T: np.ndarray, lce0_m: np.ndarray, u=None, a=None) -> di
             "slow_twitch": np.broadcast_to(T[:, rl.T_SLOW], v.shape)}
 
 
-def model_terms(st: dict) -> tuple[dict, dict]:
+def model_terms(st: dict, negative_work: bool = True) -> tuple[dict, dict]:
     """``(Umberger terms, Bhargava terms)``, each ``{name: (n, 2, 7) W}``, from
-    :func:`muscle_states`."""
+    :func:`muscle_states`; ``negative_work=False``: Umberger's published 2010 form
+    (:func:`afo_mj.human.metabolics.umberger2010_terms_w`)."""
     um = me.umberger2010_terms_w(st["u"], st["a"], st["l_norm"], st["v_lopt_s"],
                                  st["f_active_n"], st["f_length"], st["v_max"], st["l_opt_m"],
-                                 st["mass_kg"], st["slow_twitch"])
+                                 st["mass_kg"], st["slow_twitch"], negative_work)
     bh = me.bhargava2004_terms_w(st["u"], st["l_norm"], st["v_m_s"], st["f_fiber_n"],
                                  st["f_active_n"], st["mass_kg"], st["slow_twitch"])
     return um, bh
@@ -149,6 +153,9 @@ def analyse(params=None, duration_s: float = DURATION_S, window_s: float = WINDO
 
     out = {"speed_m_s": speed, "stride_s": stride_s, "stride_m": speed * stride_s,
            "terms_sum_mismatch": mism, "window_s": (t0, t_end)}
+    pub = sum(per_kg(x) for x in model_terms(st, negative_work=False)[0].values())
+    out["umberger_published"] = {"net_w_per_kg": pub, "cot_j_per_kg_m": pub / speed,
+                                 "stride_j_per_kg": pub * stride_s}
     for name, terms, floor in (("umberger", um, fl_um), ("bhargava", bh, fl_bh)):
         rates = {k: per_kg(x) for k, x in terms.items()}
         net = sum(rates.values())
@@ -191,6 +198,17 @@ def format_tables(res: dict) -> str:
                  f" | {100 * (u['floor_w_per_kg'] - b['floor_w_per_kg']) / diff:.1f} % |")
     lines.append(f"| the same as COT J/(kg m) | {u['floor_cot_j_per_kg_m']:.2f} | "
                  f"{b['floor_cot_j_per_kg_m']:.2f} | | |")
+    lines += ["", "| model, form | net W/kg | net COT J/(kg m) | net J/kg per stride | "
+              "against Weyand et al. 2010 (2.74 ± 0.12 J/kg per stride) |",
+              "|---|---|---|---|---|"]
+    for label, m in (("Umberger 2010 as the walker records it (negative work, lengthening "
+                      "4 α_ST, total ≥ 0: OpenSim's probe defaults, Uchida et al. 2016)", u),
+                     ("Umberger 2010 as published (no negative work, lengthening 0.3 α_ST)",
+                      res["umberger_published"]),
+                     ("Bhargava 2004", b)):
+        lines.append(f"| {label} | {m['net_w_per_kg']:.3f} | {m['cot_j_per_kg_m']:.2f} | "
+                     f"{m['stride_j_per_kg']:.2f} | "
+                     f"{m['stride_j_per_kg'] / WEYAND_J_PER_KG:.2f} × |")
     t0, t1 = res["window_s"]
     lines += ["", f"Umberger / Bhargava: {u['net_w_per_kg'] / b['net_w_per_kg']:.2f} "
               f"(net rates); walk {t0:.1f}–{t1:.1f} s of the `1.25` set at "

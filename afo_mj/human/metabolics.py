@@ -8,8 +8,13 @@ the net rate (what assistance studies report: Zhang et al. 2017, Collins et al. 
 the gross rate less the standing or basal rate.
 
 **Umberger 2010** — Umberger, "Stance and swing phase costs in human walking", J. R. Soc.
-Interface 7 (2010) 1329, the 2003 model (Umberger, Gerritsen & Martin, Comput. Methods
-Biomech. Biomed. Eng. 6 (2003) 99) with negative CE work counted; rates per kg of muscle,
+Interface 7 (2010) 1329, built on the 2003 model (Umberger, Gerritsen & Martin, Comput.
+Methods Biomech. Biomed. Eng. 6 (2003) 99), in the form OpenSim's
+``Umberger2010MuscleMetabolicsProbe`` computes by default and Uchida et al. (2016, PLoS ONE
+11:e0150378) used: negative CE work counted, the 2003 model's lengthening heat ``4 α_ST``, the
+total kept non-negative. Umberger's published 2010 form counts no negative work and lowers
+the lengthening heat to ``0.3 α_ST``; :func:`umberger2010_terms_w` computes it too
+(``negative_work=False``) for comparison, the walker records this one. Rates per kg of muscle,
 ``S = 1.5`` for aerobic work, ``f_ST`` the slow-twitch fraction, ``A = u`` when ``u > a``,
 else ``(u + a)/2``:
 
@@ -180,10 +185,24 @@ BHARGAVA_TERMS = ("activation", "maintenance", "shortening", "heat_floor", "work
 
 
 def umberger2010_terms_w(u, a, l_norm, v_lopt_s, f_active_n, f_length, v_max_lopt_s,
-                         l_opt_m, mass_kg, slow_twitch) -> dict[str, np.ndarray]:
+                         l_opt_m, mass_kg, slow_twitch,
+                         negative_work: bool = True) -> dict[str, np.ndarray]:
     """:func:`umberger2010_rate_w` split into its terms (W each), for arrays of muscle states
     (the arguments broadcast; :func:`umberger2010_rate_w`'s meanings). An analysis path, not
-    the reflex law's: the terms' sum is that function's total to rounding.
+    the reflex law's: with ``negative_work`` (the default) the terms' sum is that function's
+    total to rounding.
+
+    ``negative_work=False`` gives the model as Umberger (2010) published it: negative CE
+    work is not counted (``Ẇ ≥ 0``) and the lengthening heat is ``S A 0.3 α_ST v`` (a
+    tenth-odd of the 2003 model's ``4 α_ST``), so no raise is needed to keep the total
+    non-negative. The default (negative work counted, ``4 α_ST``, the total kept ≥ 0) is
+    the variant Uchida et al. (2016, *PLoS ONE* 11:e0150378) used and OpenSim's
+    ``Umberger2010MuscleMetabolicsProbe`` computes by default
+    (``include_negative_mechanical_work`` true, ``forbid_negative_total_power`` true); both
+    forms as implemented by Falisse et al.'s predictive-simulation code (3dpredictsim,
+    ``getMetabolicEnergySmooth2010all`` and ``…2016all``) and by OpenSim's probe, which
+    switches the lengthening coefficient between ``4`` and ``0.3 α_ST`` with the negative
+    work.
 
     With ``S = 1.5``, ``A = u`` if ``u > a`` else ``(u + a)/2`` (Umberger et al. 2003, p. 104;
     Umberger 2010, eqs. A1–A6), per kg of muscle:
@@ -218,10 +237,13 @@ def umberger2010_terms_w(u, a, l_norm, v_lopt_s, f_active_n, f_length, v_max_lop
     a_ft = 153.0 * inv_v_max
     short = v <= 0.0
     st = np.minimum(-a_st * v, 100.0)
+    k_len = 4.0 if negative_work else 0.3
     sl = np.where(short, AEROBIC_SCALE * A * A * (st * fst - a_ft * v * (1.0 - fst)),
-                  AEROBIC_SCALE * A * (4.0 * a_st * v))
+                  AEROBIC_SCALE * A * (k_len * a_st * v))
     sl = np.where(ln > 1.0, sl * fl, sl)
     w = -np.maximum(fa, 0.0) * v * lopt / m
+    if not negative_work:
+        w = np.maximum(w, 0.0)
     raw = am + sl + w
     sl2 = np.where(raw < 0.0, sl - raw, sl)
     raise_ = sl2 - sl
