@@ -383,9 +383,10 @@ def _expr_sum(terms, empty="0.0"):
     return " + ".join(f"({t})" for t in terms) if terms else empty
 
 
-def generate(circuit: Circuit):
-    """Emit every component and assemble the module text. Returns ``(source, emitter)``."""
-    g = Emitter(circuit)
+def _emit_fluid_thermal(g: "Emitter", circuit: Circuit) -> tuple:
+    """Pack the oil's and the thermal node's parameters (every fluid field must reach one);
+    returns their references ``(B_l, air, n, p_atm, floor, walther_b, walther_c, rho0, beta,
+    T_ref, heat capacity, thermal resistance, ambient)``."""
     fl = Fluid(circuit.fluid)
     fu = circuit.fluid
     used_fluid: set = set()
@@ -416,7 +417,41 @@ def generate(circuit: Circuit):
     tc = g.param(towner, "heat_capacity", th.heat_capacity_j_k)
     tr = g.param(towner, "resistance", th.thermal_resistance_k_w)
     ta = g.param(towner, "ambient", th.ambient_temperature_k)
-    g.initial_work("TEMP_K", th.ambient_temperature_k)
+    return b_l, air, npoly, p_atm, floor, wb, wc, rho0, beta, tref, tc, tr, ta
+
+
+def packed_values(circuit: Circuit, parts) -> dict[str, float]:
+    """The packed parameter values (label → value) that the ``parts`` of ``circuit`` write:
+    component names, ``"fluid"`` and ``"thermal"`` (the oil's and the thermal node's rows).
+    Each part is emitted exactly as :func:`generate` emits it, but alone, and no code is
+    assembled: what a fit that moves a described value (a bore, a seal's friction scale)
+    needs to know of the row without generating or compiling the circuit again."""
+    parts = set(parts)
+    known = {c.name for c in circuit.components} | {"fluid", "thermal"}
+    unknown = parts - known
+    if unknown:
+        raise CircuitError(f"packed_values: parts {sorted(unknown)}; allowed: "
+                           f"{', '.join(sorted(known))}")
+    g = Emitter(circuit)
+    out: dict[str, float] = {}
+    if parts & {"fluid", "thermal"}:
+        _emit_fluid_thermal(g, circuit)
+        out.update({lab: v for lab, v in zip(g.P_labels, g.P)
+                    if lab.split(".", 1)[0] in parts})
+    for comp in circuit.components:
+        if comp.name in parts:
+            g1 = Emitter(circuit)
+            comp.emit(g1, _Recorder(comp.params, set()))
+            out.update(zip(g1.P_labels, g1.P))
+    return out
+
+
+def generate(circuit: Circuit):
+    """Emit every component and assemble the module text. Returns ``(source, emitter)``."""
+    g = Emitter(circuit)
+    b_l, air, npoly, p_atm, floor, wb, wc, rho0, beta, tref, tc, tr, ta = \
+        _emit_fluid_thermal(g, circuit)
+    g.initial_work("TEMP_K", circuit.thermal.ambient_temperature_k)
 
     for comp in circuit.components:
         used: set = set()
@@ -748,5 +783,5 @@ def build(circuit: Circuit) -> CompiledCircuit:
         state_stores=tuple(s["kind"] != "own" or s["store"] is not None for s in g.states))
 
 
-__all__ = ["build", "generate", "write_once", "CompiledCircuit", "Emitter", "cache_dir",
-           "leaf_fields"]
+__all__ = ["build", "generate", "packed_values", "write_once", "CompiledCircuit", "Emitter",
+           "cache_dir", "leaf_fields"]
