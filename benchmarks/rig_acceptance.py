@@ -74,13 +74,25 @@ SINGLES = [c for c in CASES if c not in ("clean", "pair", "out_of_library")]
 
 
 def named(report: dict) -> list[str]:
-    """What the report names, in order: the effects selected, then (when none was) the
-    effects the declared parameters beyond tolerance are indistinguishable from."""
+    """What the report names, in order: the effects selected, then (when none was) each
+    declared value beyond its tolerance (a described rig's value: the cable's compliance is
+    named as itself) and what it is indistinguishable from."""
     out = [s["effect"] for s in report["effects_selected"]]
     if not out:
         for d in report.get("declared_deviations") or []:
-            out += [e.split(" (")[0] for e in d["equivalent_to"]]
+            out += [e.split(" (")[0] for e in d["equivalent_to"]] + [d["parameter"]]
     return out
+
+
+def first_named(report: dict) -> list[str]:
+    """The first thing the report names: the first effect selected, or the first declared
+    value beyond its tolerance with its equivalents (one finding, several names)."""
+    if report["effects_selected"]:
+        return [report["effects_selected"][0]["effect"]]
+    devs = report.get("declared_deviations") or []
+    if not devs:
+        return []
+    return [devs[0]["parameter"]] + [e.split(" (")[0] for e in devs[0]["equivalent_to"]]
 
 
 #: the second rig's cases: rig effect → the library names that count as naming it (an
@@ -92,7 +104,7 @@ RIG2_TRUTH = {
     "entrained_air": ("entrained_air",),
     "viscosity_drift": ("viscosity_drift",),
     "current_limit": ("motor_current_limit",),
-    "softer_cable": ("series_compliance",),
+    "softer_cable": ("series_compliance", "cylinder.series_compliance_rad_per_nm"),
     "backlash": ("backlash",),
     "seal_pressure_friction": ("seal_pressure_friction", "pressure_friction"),
     "charge_loss": ("charge_loss",),
@@ -109,7 +121,7 @@ def _row(rep: dict, truth, wall: float) -> dict:
     return {"verdict": rep["verdict"], "named": names[:3],
             "baseline_max": round(max(rep["baseline"]["ratio"].values()), 2),
             "final_max": round(final[worst], 2), "worst_channel": worst,
-            "hit": bool(truth) and bool(names) and names[0] in truth,
+            "hit": bool(truth) and bool(set(first_named(rep)) & set(truth)),
             "wall_s": round(wall, 1)}
 
 
@@ -218,7 +230,7 @@ def main() -> None:
                                                for d in disc.values()),
                    "discrepancy": {ch: d["expression"] for ch, d in disc.items()
                                    if isinstance(d, dict) and d.get("found")},
-                   "first_ok": bool(truth) and bool(names) and names[0] in truth,
+                   "first_ok": bool(truth) and bool(set(first_named(rep)) & set(truth)),
                    "all_named": all(t in names for t in truth)}
             rows[case] = row
             print(f"{case:18s} {row['verdict']:18s} named {names[:3]} baseline "

@@ -295,47 +295,74 @@ def test_sensor_lag_estimate_recovers_a_known_shift():
     assert lags["b"] == pytest.approx(0.0, abs=2e-4)
 
 
-def test_declared_value_beyond_tolerance_names_its_equivalent_effects():
-    """Charge pressure fitted at 0.69× its datasheet value (tolerance ±10 %, SE 1 %) is
-    reported with the charge circuit's oil loss and check-valve cracking; pump slip at 1.5×
-    (tolerance ±100 %) and a motor R at 1.3× with an SE of 0.2 (not 3 SE beyond) are not."""
+def _deviation_fake(n=3000, seed=0):
+    """Sensitivity columns with a known geometry (whitened by unit weights): the oil's bulk
+    modulus ``b``; a cable compliance whose column is ``−b`` plus 10 % of an orthogonal
+    direction (cos = −0.995: raising the compliance acts like lowering the modulus); a hose
+    wall effect ``−b`` plus 40 % of another (cos ≈ −0.93 with b, +0.93 with the lowered b:
+    below 0.95); a pump leakage orthogonal to all."""
+    from types import SimpleNamespace
+    rng = np.random.default_rng(seed)
+    b, u, v, o = (rng.normal(size=n) for _ in range(4))
+    for x in (u, v, o):
+        x -= (x @ b) / (b @ b) * b
+    u *= np.linalg.norm(b) / np.linalg.norm(u)
+    v *= np.linalg.norm(b) / np.linalg.norm(v)
+    o *= np.linalg.norm(b) / np.linalg.norm(o)
+    cable = -b + 0.1 * u
+    wall = -b + 0.4 * v
+    eff = lambda name: SimpleNamespace(name=name, parameters=(  # noqa: E731
+        SimpleNamespace(lo=0.0),))
+    return SimpleNamespace(
+        row_weights=np.ones(n),
+        screen_columns={"fluid.liquid_bulk_modulus_pa": b,
+                        "cylinder.series_compliance_rad_per_nm": cable,
+                        "pump.slip_coefficient": o},
+        rank_columns={"declared": {}, "effects": {"hose_wall_compliance": 3.0 * wall,
+                                                  "pump_leakage": o,
+                                                  "entrained_air": 0.5 * (-b + 0.05 * u)}},
+        library=[eff("hose_wall_compliance"), eff("pump_leakage"), eff("entrained_air")])
+
+
+def test_a_softened_oil_lists_the_cable_spring_by_sensitivity():
+    """Issue 41 item 2: a bulk modulus fitted below its tolerance lists what points the same
+    way in the whitened sensitivities (cosine ≥ 0.95), from the columns alone: the cable
+    compliance *raised* (cos 0.995) and entrained air (an effect switched on, cos 0.999), not
+    the hose wall at cos 0.93 nor the orthogonal pump slip or leakage; the modulus raised
+    instead lists nothing (the effects act one way only)."""
+    from afo_mj.calibration.calibrate import Calibration
+    fake = _deviation_fake()
+    low = Calibration.equivalents(fake, "fluid.liquid_bulk_modulus_pa", -0.48)
+    assert [(q["name"], q["direction"]) for q in low] == [
+        ("entrained_air", ""), ("cylinder.series_compliance_rad_per_nm", "raised")]
+    assert low[1]["similarity"] == pytest.approx(1 / np.sqrt(1.01), rel=1e-9)
+    high = Calibration.equivalents(fake, "fluid.liquid_bulk_modulus_pa", +0.48)
+    assert [(q["name"], q["direction"]) for q in high] == [
+        ("cylinder.series_compliance_rad_per_nm", "lowered")]
+    # a softer cable fitted as the cable itself lists the oil lowered among its equivalents
+    cab = Calibration.equivalents(fake, "cylinder.series_compliance_rad_per_nm", +3.9)
+    assert ("fluid.liquid_bulk_modulus_pa", "lowered") in [(q["name"], q["direction"])
+                                                            for q in cab]
+
+
+def test_declared_deviation_beyond_tolerance_and_3_se_only():
+    """A described value beyond its tolerance by more than 3 SE is listed with its
+    equivalents; within tolerance, or beyond it but within 3 SE, it is not."""
     from types import SimpleNamespace
 
     from afo_mj.calibration.calibrate import Calibration
-    from afo_mj.calibration.effect_library import declared_parameters
-    by = {d.name: d for d in declared_parameters("motor_voltage_v", described=True)}
-    names = ["charge_pressure_pa", "pump_slip_coefficient", "motor_resistance_ohm"]
-    values = {"charge.pressure": 5e5, "pump.slip": 7e-8, "motor.R": 0.6}
-    fake = SimpleNamespace(declared=[by[n] for n in names],
-                           declared_labels=[by[n].labels for n in names],
-                           replay=SimpleNamespace(value=values.__getitem__))
-    m = SimpleNamespace(x=np.array([0.69, 1.5, 1.3]))
+    from afo_mj.calibration.effect_library import DeclaredParameter as D
+    fake = _deviation_fake()
+    names = ["fluid.liquid_bulk_modulus_pa", "pump.slip_coefficient",
+             "cylinder.series_compliance_rad_per_nm"]
+    fake.declared = [D(n, "-", (n,), 0.1, 10.0, tolerance=t, path=n, value=v)
+                     for n, t, v in zip(names, (0.3, 1.0, 0.3), (1.6e9, 1e-7, 5.4e-4))]
+    fake.declared_labels = [d.labels for d in fake.declared]
+    fake.declared_value = lambda d, labels: d.value
+    fake.equivalents = lambda name, change: Calibration.equivalents(fake, name, change)
+    m = SimpleNamespace(x=np.array([0.52, 1.9, 1.5]))
     out = Calibration.declared_deviations(fake, m, {"sd": np.array([0.01, 0.05, 0.2])})
-    assert [d["parameter"] for d in out] == ["charge_pressure_pa"]
-    d = out[0]
-    assert d["fitted"] == pytest.approx(3.45e5) and d["relative_change"] == pytest.approx(-0.31)
-    # the charge circuit's oil loss (drain, seat leakage) first, check-valve cracking beside it
-    assert d["equivalent_to"][0].startswith("charge_loss")
-    assert any(e.startswith("check_valve_cracking") for e in d["equivalent_to"])
-
-
-def test_a_softened_oil_names_the_cable_spring_among_its_equivalents():
-    """Issue 41 item 2: an oil bulk modulus fitted 48 % below its datasheet value (what a rig
-    whose cable stiffness was left out of the description gives: the series combination of oil
-    and cable) lists the cable spring (the library's series_compliance) beside the hose wall
-    and entrained air; a raised air fraction likewise."""
-    from types import SimpleNamespace
-
-    from afo_mj.calibration.calibrate import Calibration
-    from afo_mj.calibration.effect_library import declared_parameters
-    by = {d.name: d for d in declared_parameters("motor_voltage_v", described=True)}
-    names = ["liquid_bulk_modulus_pa", "air_fraction"]
-    values = {"fluid.liquid_bulk_modulus": 1.6e9, "fluid.air_fraction": 0.005}
-    fake = SimpleNamespace(declared=[by[n] for n in names],
-                           declared_labels=[by[n].labels for n in names],
-                           replay=SimpleNamespace(value=values.__getitem__))
-    m = SimpleNamespace(x=np.array([0.52, 4.0]))
-    out = {d["parameter"]: d for d in Calibration.declared_deviations(
-        fake, m, {"sd": np.array([0.01, 0.1])})}
-    assert "series_compliance" in out["liquid_bulk_modulus_pa"]["equivalent_to"]
-    assert "series_compliance" in out["air_fraction"]["equivalent_to"]
+    assert [d["parameter"] for d in out] == ["fluid.liquid_bulk_modulus_pa"]
+    assert out[0]["fitted"] == pytest.approx(0.52 * 1.6e9)
+    assert out[0]["equivalent_to"][1].startswith(
+        "cylinder.series_compliance_rad_per_nm (declared value raised, similarity 1.00)")

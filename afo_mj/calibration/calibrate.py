@@ -154,6 +154,11 @@ class Calibration(CalibrationModel):
         self.candidates = pool
         self.min_refit_score = (options.min_refit_score if options.min_refit_score is not None
                                 else 0.05 if self.described else 1e-4)
+        #: the first ranking's sensitivities (declared values at the declared fit, each
+        #: candidate's change at its best probe; :meth:`rank`)
+        self.rank_columns: dict | None = None
+        self.screen_columns: dict = {}
+        self.row_weights: np.ndarray | None = None
 
     # ---------------------------------------------------------------- ranking
     def _declared_jacobian(self, m: _Model, f0: np.ndarray) -> np.ndarray:
@@ -204,6 +209,13 @@ class Calibration(CalibrationModel):
         r = -f0
         rr = float(r @ r)
         base_fit = _projected(J, r)
+        first = self.rank_columns is None
+        if first:
+            # the declared fit's sensitivities and each candidate's change at its best
+            # probe: what a declared value beyond its tolerance is compared with
+            self.rank_columns = {"declared": {d.name: J[:, j]
+                                              for j, d in enumerate(self.declared)},
+                                 "effects": {}}
         scores = []
         kd = len(self.declared)
         for e in pool:
@@ -242,6 +254,9 @@ class Calibration(CalibrationModel):
                         # the linearised optimum: the probe's change scaled by c_Δ
                         xe = [coef[-1] * xp[0]] + xp[1:]
                 sc = max(gain, 0.0) / max(rr, 1e-300)
+                if first and not e.name.startswith("sensor_gain_offset") and (
+                        e.name not in self.rank_columns["effects"] or sc > best["score"]):
+                    self.rank_columns["effects"][e.name] = f1 - f0
                 if sc > best["score"]:
                     best = {"effect": e.name, "score": float(sc), "probe": probe,
                             "probe_cost": self._robust_cost(f1), "linear_start": (
@@ -289,10 +304,17 @@ class Calibration(CalibrationModel):
         floor = self.noise_floor()
         n1 = len(self.train_idx)
         w = np.concatenate([np.full(n1, 1.0 / max(floor[c], 1e-12)) for c in self.outputs])
-        movable = [self.replay.value(labels[0]) != 0.0 for labels in self.declared_labels]
-        ident = select_parameters(J, [d.name for d in self.declared], w, movable=movable)
+        movable = [self.declared_value(d, labels) != 0.0
+                   for d, labels in zip(self.declared, self.declared_labels)]
+        ident = select_parameters(J, [d.name for d in self.declared], w, movable=movable,
+                                  tolerances=[d.tolerance for d in self.declared])
         self.identifiability_table = ident
-        self.held_declared = {d.name: self.replay.value(labels[0])
+        #: the screen's sensitivities of every screened declared value (at the described
+        #: values) and the whitening: what a deviation is compared with (
+        #: :meth:`equivalents`)
+        self.screen_columns = {d.name: J[:, j] for j, d in enumerate(self.declared)}
+        self.row_weights = w
+        self.held_declared = {d.name: self.declared_value(d, labels)
                               for i, (d, labels) in enumerate(zip(self.declared,
                                                                   self.declared_labels))
                               if i not in ident.selected}
@@ -380,8 +402,10 @@ class Calibration(CalibrationModel):
     def declared_deviations(self, m: _Model, ident: dict) -> list[dict]:
         """Fitted declared parameters beyond their datasheet tolerance
         (:attr:`DeclaredParameter.tolerance`) by more than 3 standard errors, largest first
-        (in tolerances), each with the effects such a deviation is indistinguishable from
-        (:attr:`DeclaredParameter.above`/``below``)."""
+        (in tolerances), each with what such a deviation is indistinguishable from: on a
+        described rig the effects and other declared values whose sensitivity points the
+        same way (:meth:`equivalents`), on a preset the hand-written
+        :attr:`DeclaredParameter.above`/``below``."""
         out = []
         for j, (d, labels) in enumerate(zip(self.declared, self.declared_labels)):
             if d.tolerance <= 0.0:
@@ -391,14 +415,63 @@ class Calibration(CalibrationModel):
             change = f - 1.0
             if not (abs(change) > d.tolerance and abs(change) > 3.0 * sd):
                 continue
-            side = d.above if change > 0 else d.below
-            datasheet = self.replay.value(labels[0])
-            out.append({"parameter": d.name, "unit": d.unit, "datasheet": datasheet,
-                        "fitted": datasheet * f, "relative_change": change,
-                        "relative_sd": sd if math.isfinite(sd) else None,
-                        "tolerance": d.tolerance, "equivalent_to": list(side),
-                        "in_tolerances": abs(change) / d.tolerance})
+            datasheet = self.declared_value(d, labels)
+            row = {"parameter": d.name, "unit": d.unit, "datasheet": datasheet,
+                   "fitted": datasheet * f, "relative_change": change,
+                   "relative_sd": sd if math.isfinite(sd) else None,
+                   "tolerance": d.tolerance, "in_tolerances": abs(change) / d.tolerance}
+            if d.path:
+                eq = self.equivalents(d.name, change)
+                row["equivalents"] = eq
+                row["equivalent_to"] = [
+                    f"{q['name']} ({q['type']}{' ' + q['direction'] if q['direction'] else ''}"
+                    f", similarity {q['similarity']:.2f})" for q in eq]
+            else:
+                row["equivalent_to"] = list(d.above if change > 0 else d.below)
+            out.append(row)
         out.sort(key=lambda r: -r["in_tolerances"])
+        return out
+
+    def equivalents(self, name: str, change: float) -> list[dict]:
+        """What declared value ``name`` moved by the relative ``change`` is indistinguishable
+        from in this record: every candidate effect (switched on) and every other declared
+        value (raised or lowered) whose change of the outputs points the same way as the
+        deviation's, by the cosine of their noise-whitened sensitivity columns
+        (:func:`afo_mj.calibration.identifiability.similarity`) at least
+        :data:`EQUIVALENT_SIMILARITY`, most similar first. The columns are the identifiability
+        screen's (declared values, at the described values) and the first ranking's (the
+        declared fit's fitted values; each candidate's change at its best probe): no replay
+        is run for this."""
+        from afo_mj.calibration.identifiability import similarity
+        w = self.row_weights
+        rank = self.rank_columns or {"declared": {}, "effects": {}}
+        # each pair compared at one point: declared values at the described values (the
+        # screen's), the deviation and the effects at the declared fit (the ranking's)
+        cols = self.screen_columns
+        col = cols.get(name)
+        if col is None or w is None:
+            return []
+        sign = 1.0 if change > 0 else -1.0
+        out = []
+        for other, c in cols.items():
+            if other == name:
+                continue
+            s = similarity(sign * col, c, w)
+            if abs(s) >= EQUIVALENT_SIMILARITY:
+                out.append({"name": other, "type": "declared value",
+                            "direction": "raised" if s > 0 else "lowered",
+                            "similarity": abs(s)})
+        col = rank["declared"].get(name, col)
+        for e in self.library:
+            c = rank["effects"].get(e.name)
+            if c is None:
+                continue
+            s = similarity(sign * col, c, w)
+            two_sided = e.parameters[0].lo < 0.0
+            if s >= EQUIVALENT_SIMILARITY or (two_sided and -s >= EQUIVALENT_SIMILARITY):
+                out.append({"name": e.name, "type": "effect", "direction": "",
+                            "similarity": abs(s)})
+        out.sort(key=lambda q: -q["similarity"])
         return out
 
     # ---------------------------------------------------------------- the whole method
@@ -697,7 +770,7 @@ class Calibration(CalibrationModel):
         sd_phys = {}
         k = 0
         for d, labels in zip(self.declared, self.declared_labels):
-            sd_phys[d.name] = float(ident["sd"][k] * self.replay.value(labels[0]))
+            sd_phys[d.name] = float(ident["sd"][k] * self.declared_value(d, labels))
             k += 1
         for e in m.effects:
             for p in e.parameters:
@@ -732,6 +805,9 @@ class Calibration(CalibrationModel):
             "declared_fit": self.physical(declared_fit.effects, declared_fit.x),
             "declared_held": dict(self.held_declared),
             "declared_deviations": deviations,
+            "declared_set": (None if self.described_set is None else {
+                "values": self.described_set.table,
+                "excluded": dict(self.described_set.excluded)}),
             "identifiability": (None if self.identifiability_table is None
                                 else self.identifiability_table.as_dict()),
             "baseline": before.baseline,
@@ -807,6 +883,12 @@ class Calibration(CalibrationModel):
         return {c: ra.analyse_channel(c, t, self.meas[c][idx], out[c][idx], ins, states, sig,
                                       self.noise[c], cycles or None)
                 for c in self.outputs}
+
+
+#: a declared value's deviation and another change of the outputs are indistinguishable when
+#: the cosine of their noise-whitened columns is at least this: the other explains at least
+#: 90 % (0.95²) of the deviation's signature, and the rest is what separates them
+EQUIVALENT_SIMILARITY = 0.95
 
 
 def _projected(A: np.ndarray, r: np.ndarray) -> float:

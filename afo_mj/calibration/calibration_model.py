@@ -28,6 +28,7 @@ from afo_mj.calibration.measured_data import MeasuredData
 from afo_mj.calibration.record_checks import check_record, declared_charge_pa
 from afo_mj.calibration.sampling import check_holds
 from afo_mj.experiments.bench_replay import HELD_CHANNELS, BenchReplay, ReplayError
+from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
 
 __all__ = ["CalibrationModel", "declared_labels", "model_outputs", "sensor_outputs",
@@ -191,16 +192,29 @@ class CalibrationModel:
             sig = data.noise.get(c)
             self.noise[c] = float(sig) if sig else ra.noise_sigma_estimate(self.meas[c])
         self.context = {}
-        self.declared = declared_parameters(self.command, self.described)
         self.available = (set(self.replay.param_labels) if not self.described
                           else _Resolving(self.replay))
+        #: a described rig's declared set: every numeric value of its description
+        #: (:mod:`afo_mj.calibration.declared_set`); None for a preset
+        self.described_set = None
         if self.described:
-            self.declared = tuple(d for d in self.declared
-                                  if any(self.replay.has(lab) for lab in d.labels))
+            from afo_mj.calibration.declared_set import described_parameters
+            self.described_set = described_parameters(
+                self.replay, dict(options.tolerances), options.fixed)
+            self.declared = self.described_set.parameters
+            self.declared_labels = [d.labels for d in self.declared]
+        else:
+            if options.tolerances or options.fixed:
+                key = "tolerances" if options.tolerances else "fixed"
+                raise CalibrationError(
+                    f"calibration.{key}: per-value tolerances and fixed values apply to a rig "
+                    "described as a circuit ([circuit]); a preset's declared set is fixed "
+                    f"(allowed: no calibration.{key} with a preset)")
+            self.declared = declared_parameters(self.command)
+            #: per declared parameter, the packed labels this circuit has (scaled together)
+            self.declared_labels = [declared_labels(self.replay, d) for d in self.declared]
         #: the identifiability analysis of a described rig (None for the presets)
         self.identifiability_table = None
-        #: per declared parameter, the packed labels this circuit has (all scaled together)
-        self.declared_labels = [declared_labels(self.replay, d) for d in self.declared]
         noise_norm = [self.noise[c] / self.scale[c] for c in self.outputs]
         self.f_scale = 3.0 * float(np.median(noise_norm))
         self.evaluations = 0
@@ -226,9 +240,19 @@ class CalibrationModel:
     def setting(self, effects: Sequence[Effect], x: np.ndarray) -> ModelSetting:
         """The :class:`ModelSetting` of a structure at normalised parameters ``x``."""
         s = lean_setting(self.available, self.described)
-        for labels, f in zip(self.declared_labels, x):
-            for lab in labels:
-                s.row[lab] = self.replay.value(lab) * float(f)
+        if self.described_set is not None:
+            # the description's values moved by their factors, the row as building the
+            # circuit would pack it (a bore moves the area, seal friction and drag-out)
+            try:
+                s.row.update(self.described_set.row(
+                    {d.path: d.value * float(f) for d, f in zip(self.declared, x)}))
+            except ParameterError as exc:
+                # a value outside its field's range (a fit's step): no replay of it
+                raise ReplayError(str(exc)) from None
+        else:
+            for labels, f in zip(self.declared_labels, x):
+                for lab in labels:
+                    s.row[lab] = self.replay.value(lab) * float(f)
         k = len(self.declared)
         for e in effects:
             vals = [float(x[k + j] * p.scale) for j, p in enumerate(e.parameters)]
@@ -240,13 +264,18 @@ class CalibrationModel:
         """Parameter name → value in SI of a structure at ``x``."""
         out = {}
         for d, labels, f in zip(self.declared, self.declared_labels, x):
-            out[d.name] = self.replay.value(labels[0]) * float(f)
+            out[d.name] = self.declared_value(d, labels) * float(f)
         k = len(self.declared)
         for e in effects:
             for p in e.parameters:
                 out[f"{e.name}.{p.name}"] = float(x[k] * p.scale)
                 k += 1
         return out
+
+    def declared_value(self, d: DeclaredParameter, labels: Sequence[str]) -> float:
+        """The described (datasheet) value of declared parameter ``d``: a described rig's
+        field value, else the preset's packed value of its first label."""
+        return float(d.value) if d.path else self.replay.value(labels[0])
 
     def simulate(self, effects: Sequence[Effect], x: np.ndarray, n: int | None = None
                  ) -> dict[str, np.ndarray]:

@@ -66,6 +66,13 @@ class CalibrationOptions:
     #: (:mod:`afo_mj.calibration.numerical_check`: the replay's own numerical error against
     #: the noise); 0: not checked
     numerical_check_s: float = 2.0
+    #: a described rig: datasheet tolerances stated per declared value (the scenario's
+    #: ``[calibration.tolerances]``: ``"component.field" = relative tolerance``, over the
+    #: defaults by kind of :mod:`afo_mj.calibration.declared_set`); a mapping is stored as
+    #: sorted ``(name, tolerance)`` pairs. The names are checked against the description
+    tolerances: tuple[tuple[str, float], ...] = ()
+    #: a described rig: declared values held at the description's value (never fitted)
+    fixed: tuple[str, ...] = ()
 
     def __post_init__(self):
         def bad(key, allowed):
@@ -73,6 +80,16 @@ class CalibrationOptions:
                                  f"{allowed}")
         if isinstance(self.hold, Mapping):
             object.__setattr__(self, "hold", tuple(sorted(self.hold.items())))
+        if isinstance(self.tolerances, Mapping):
+            object.__setattr__(self, "tolerances", tuple(sorted(self.tolerances.items())))
+        for name, tol in self.tolerances:
+            if (not isinstance(name, str) or isinstance(tol, bool)
+                    or not isinstance(tol, (int, float)) or not math.isfinite(tol)
+                    or not 0.0 < tol <= 10.0):
+                raise ParameterError(f"calibration.tolerances.{name} = {tol!r}; allowed: a "
+                                     "relative tolerance 0 < t <= 10 (0.1: +-10 %)")
+        if isinstance(self.fixed, str) or not all(isinstance(n, str) for n in self.fixed):
+            bad("fixed", "a list of declared value names (\"component.field\")")
         for ch, h in self.hold:
             if ch not in CHANNELS:
                 raise ParameterError(f"calibration.hold.{ch}: unknown channel; allowed: "

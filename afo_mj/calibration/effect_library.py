@@ -164,6 +164,11 @@ class DeclaredParameter:
     tolerance: float = 0.0
     above: tuple[str, ...] = ()
     below: tuple[str, ...] = ()
+    #: a described rig's value (:mod:`afo_mj.calibration.declared_set`): its place in the
+    #: description (the fit sets it there and the row follows), described value, kind
+    path: str = ""
+    value: float | None = None
+    kind: str = ""
 
 
 # ---------------------------------------------------------------------------- the effects
@@ -490,15 +495,13 @@ def lean_setting(available: Collection[str] | None = None,
     return ModelSetting(row=row)
 
 
-def declared_parameters(command: str, described: bool = False
-                        ) -> tuple[DeclaredParameter, ...]:
-    """The declared model's parameters the calibration fits before looking for effects: a
-    described rig's broad set (:data:`_CIRCUIT_DECLARED`); else the oil and seal values and
-    those of the element the open-loop ``command`` drives (the motor for a motor voltage,
-    the metering valve for a valve command)."""
+def declared_parameters(command: str) -> tuple[DeclaredParameter, ...]:
+    """A preset's declared parameters, which the calibration fits before looking for
+    effects: the oil and seal values and those of the element the open-loop ``command``
+    drives (the motor for a motor voltage, the metering valve for a valve command). A
+    described rig declares every value of its description instead
+    (:mod:`afo_mj.calibration.declared_set`)."""
     D = DeclaredParameter
-    if described:
-        return _CIRCUIT_DECLARED
     common = (D("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 20.0,
                 "Coulomb friction of one cylinder's seals"),
               D("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
@@ -512,59 +515,3 @@ def declared_parameters(command: str, described: bool = False
     # the servo valve's metering area, or the digital circuit's open edges sized like it
     return (D("valve_full_area_m2", "m^2", ("servo.full_area", "edge_pa.area", "edge_bt.area"),
               0.5, 2.0, "servo valve metering area at full stroke"),) + common
-
-
-#: The broad declared set of a described circuit (labels by role,
-#: :func:`afo_mj.circuits.device_spec.circuit_roles`): every datasheet value a record of
-#: the rig may or may not be able to estimate. The calibration's identifiability analysis
-#: (:func:`afo_mj.calibration.identifiability.select_parameters`) decides which are fitted;
-#: the rest stay at the description's values and are reported. A parameter whose label the
-#: circuit lacks, or whose described value is 0 (a factor cannot move it), is held.
-_CIRCUIT_DECLARED = (
-    DeclaredParameter("motor_resistance_ohm", "ohm", ("motor.R",), 0.5, 2.0,
-                      "winding resistance", 0.2,
-                      above=("winding temperature rise", "connector/driver resistance")),
-    DeclaredParameter("torque_constant_nm_a", "N m/A", ("motor.K",), 0.7, 1.4,
-                      "motor torque/back-EMF constant", 0.1,
-                      below=("magnet demagnetisation (hot motor)",)),
-    DeclaredParameter("motor_coulomb_torque_nm", "N m", ("motor.coulomb_nm",), 0.0, 5.0,
-                      "motor + pump Coulomb friction torque", 0.5,
-                      above=("motor_friction (bearing/brush wear)",)),
-    DeclaredParameter("motor_viscous_nm_s_rad", "N m s/rad", ("motor.viscous",), 0.0, 10.0,
-                      "motor viscous friction", 0.5, above=("motor_friction",)),
-    DeclaredParameter("pump_slip_coefficient", "-", ("pump.slip",), 0.1, 10.0,
-                      "pump slip (laminar leakage) coefficient", 1.0,
-                      above=("pump_leakage (worn pump)",
-                             "piston_leakage (both leak line a into line b; the hose "
-                             "resistance between them is too small to tell them apart)")),
-    DeclaredParameter("seal_coulomb_force_n", "N", ("cylinders.seal_fc",), 0.0, 5.0,
-                      "Coulomb friction of the cylinder seals", 0.4,
-                      above=("pressure_friction", "seal_pressure_friction",
-                             "seal squeeze above datasheet")),
-    DeclaredParameter("seal_viscous_n_s_m", "N s/m", ("cylinders.seal_fv",), 0.0, 10.0,
-                      "viscous friction of the cylinder seals", 0.5),
-    DeclaredParameter("liquid_bulk_modulus_pa", "Pa", ("fluid.liquid_bulk_modulus",), 0.3, 2.0,
-                      "oil bulk modulus", 0.3,
-                      # a compliance in series with the oil lowers the effective modulus:
-                      # a hose wall, air, or a cable between pulley and pistons (1/B_eff =
-                      # 1/B + the cable's compliance seen through the chambers)
-                      below=("hose_wall_compliance", "entrained_air", "series_compliance")),
-    DeclaredParameter("air_fraction", "-", ("fluid.air_fraction",), 0.0, 10.0,
-                      "entrained air volume fraction at 1 atm", 1.0,
-                      above=("entrained_air", "hose_wall_compliance", "series_compliance")),
-    DeclaredParameter("charge_pressure_pa", "Pa", ("charge.pressure",), 0.5, 2.0,
-                      "charge reservoir pressure", 0.1,
-                      # a drain or leaking check-valve seats bleed the loop's common-mode
-                      # pressure back towards the charge circuit: a declared fit lowers the
-                      # charge pressure for it (rig 2's charge_loss record)
-                      below=("charge_loss", "check_valve_cracking",
-                             "charge pressure below its setting")),
-    DeclaredParameter("load_inertia_kg_m2", "kg m^2", ("load.inertia_kg_m2",), 0.5, 2.0,
-                      "foot + load inertia on the joint", 0.2,
-                      above=("line_inertance (the hoses' oil column, reflected to the "
-                             "joint as 2 (n A r)² ρ l / A_hose)", "piston/rod mass")),
-    DeclaredParameter("load_stiffness_nm_rad", "N m/rad", ("load.stiffness_nm_rad",), 0.5, 2.0,
-                      "bench load spring", 0.1),
-    DeclaredParameter("load_damping_nm_s_rad", "N m s/rad", ("load.damping_nm_s_rad",), 0.0,
-                      5.0, "bench load damper", 0.5),
-)

@@ -31,7 +31,7 @@ from typing import Sequence
 import numpy as np
 from scipy.linalg import qr
 
-__all__ = ["ParameterRow", "Identifiability", "select_parameters"]
+__all__ = ["ParameterRow", "Identifiability", "select_parameters", "similarity"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,7 +67,8 @@ class Identifiability:
 
 def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.ndarray,
                       *, movable: Sequence[bool] | None = None, max_condition: float = 300.0,
-                      max_relative_se: float = 0.05) -> Identifiability:
+                      max_relative_se: float = 0.05,
+                      tolerances: Sequence[float] | None = None) -> Identifiability:
     """Select the parameters a record can estimate (module docstring).
 
     ``jac``: sensitivities (samples × parameters) of the normalised residuals to each
@@ -75,6 +76,13 @@ def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.nda
     channel (whitening); ``movable``: False for a parameter a factor cannot move (its
     described value is 0). Example: two identical columns → the second is held as
     "a combination of ...".
+
+    ``tolerances`` (relative, per parameter: what the datasheet already knows): the pivoted
+    QR then orders the columns scaled by them, i.e. by the change of the outputs over one
+    datasheet tolerance (a ±2 % bore and a ±30 % cable compliance compared by what their
+    uncertainty does to the record, not per unit change), and a parameter whose predicted
+    standard error is not below its tolerance is held (the record would know it no better
+    than the datasheet does).
     """
     J = np.asarray(jac, dtype=float)
     w = np.asarray(row_weights, dtype=float)
@@ -86,8 +94,12 @@ def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.nda
         raise ValueError("jac has non-finite entries (a replay failed at a probe)")
     n, p = J.shape
     movable = [True] * p if movable is None else list(movable)
+    tol = np.ones(p) if tolerances is None else np.asarray(tolerances, dtype=float)
+    if tol.shape != (p,) or not np.all(np.isfinite(tol)) or np.any(tol <= 0):
+        raise ValueError(f"tolerances shape {tol.shape}; allowed: ({p},), finite, > 0")
     Jw = J * w[:, None]
     sens = np.sqrt(np.sum(Jw ** 2, axis=0) / max(n, 1))
+    Js = Jw * tol[None, :]
     sv = np.linalg.svd(Jw, compute_uv=False) if p else np.zeros(0)
     cand = [j for j in range(p) if movable[j] and sens[j] > 0.0]
     reason = {j: ("described value is 0: a factor cannot move it" if not movable[j]
@@ -96,7 +108,7 @@ def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.nda
     rank: dict[int, int] = {}
     sel: list[int] = []
     if cand:
-        _, R, piv = qr(Jw[:, cand], mode="economic", pivoting=True)
+        _, R, piv = qr(Js[:, cand], mode="economic", pivoting=True)
         d = np.abs(np.diag(R))
         for k, jj in enumerate(piv):
             j = cand[jj]
@@ -106,8 +118,8 @@ def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.nda
                 sel.append(j)
             else:
                 prev = [cand[q] for q in piv[:k]]
-                coef, *_ = np.linalg.lstsq(Jw[:, prev], Jw[:, j], rcond=None)
-                share = np.abs(coef) * np.linalg.norm(Jw[:, prev], axis=0)
+                coef, *_ = np.linalg.lstsq(Js[:, prev], Js[:, j], rcond=None)
+                share = np.abs(coef) * np.linalg.norm(Js[:, prev], axis=0)
                 top = [names[prev[q]] for q in np.argsort(-share)[:3]]
                 reason[j] = (f"nearly a combination of {', '.join(top)}"
                              + (f" and {len(prev) - 3} more" if len(prev) > 3 else "")
@@ -118,14 +130,31 @@ def select_parameters(jac: np.ndarray, names: Sequence[str], row_weights: np.nda
         cov = np.linalg.pinv(A.T @ A)
         s = np.sqrt(np.maximum(np.diag(cov), 0.0))
         se = {j: float(v) for j, v in zip(sel, s)}
-        worst = int(np.argmax(s))
-        if s[worst] <= max_relative_se:
+        limit = np.minimum(max_relative_se, tol[sel]) if tolerances is not None else \
+            np.full(len(sel), max_relative_se)
+        worst = int(np.argmax(s / limit))
+        if s[worst] <= limit[worst]:
             break
         j = sel.pop(worst)
-        reason[j] = (f"predicted relative SE {s[worst]:.2g} > {max_relative_se:g} with the "
-                     "others fitted")
+        reason[j] = (f"predicted relative SE {s[worst]:.2g} > {limit[worst]:g} with the "
+                     "others fitted" + (" (its datasheet tolerance)" if limit[worst]
+                                        < max_relative_se else ""))
     rows = tuple(ParameterRow(
         names[j], float(sens[j]), rank.get(j), float(ratio[j]),
         se.get(j) if j in sel else None, j in sel,
         "fitted" if j in sel else reason.get(j, "held")) for j in range(p))
     return Identifiability(rows, tuple(float(v) for v in sv), tuple(sorted(sel)))
+
+
+def similarity(a: np.ndarray, b: np.ndarray, row_weights: np.ndarray) -> float:
+    """The cosine of two sensitivity columns whitened by ``row_weights`` (1 over each
+    sample's noise): +1 when one change of the outputs is a positive multiple of the other
+    (no record with that noise separates them), 0 when orthogonal. The two-column case of
+    the screen's pivoted QR: the second pivot's ratio is ``sqrt(1 − cos²)``."""
+    w = np.asarray(row_weights, dtype=float)
+    x = np.asarray(a, dtype=float) * w
+    y = np.asarray(b, dtype=float) * w
+    nx, ny = float(np.linalg.norm(x)), float(np.linalg.norm(y))
+    if not (nx > 0.0 and ny > 0.0 and np.isfinite(nx) and np.isfinite(ny)):
+        return 0.0
+    return float(x @ y) / (nx * ny)

@@ -176,8 +176,13 @@ def _parameter_units(report: Mapping) -> dict[str, str]:
         from afo_mj.calibration.effect_library import declared_parameters, effects_for
         described = bool(report.get("described"))
         outputs = list(report.get("outputs") or [])
-        for d in declared_parameters(report.get("command_channel"), described):
-            units[d.name] = _UNIT_PRETTY.get(d.unit, d.unit)
+        if described:
+            # a described rig's declared set: every value of its description, with its unit
+            for row in (report.get("declared_set") or {}).get("values", []):
+                units[row["name"]] = _UNIT_PRETTY.get(row["unit"], row["unit"])
+        else:
+            for d in declared_parameters(report.get("command_channel")):
+                units[d.name] = _UNIT_PRETTY.get(d.unit, d.unit)
         for e in effects_for(outputs, described=described):
             for p in e.parameters:
                 units[f"{e.name}.{p.name}"] = _UNIT_PRETTY.get(p.unit, p.unit)
@@ -411,6 +416,23 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
         if sv:
             L.append("Whitened singular values: " + ", ".join(_f(v, ".3g") for v in sv)
                      + ".\n")
+    dset = report.get("declared_set")
+    if dset:
+        excl = dset.get("excluded") or {}
+        tol = {r["name"]: r for r in dset.get("values", [])}
+        L.append("### The declared set\n")
+        L.append(f"Every numeric value of the description is a declared value "
+                 f"({len(tol)}); each carries a datasheet tolerance by kind of quantity, "
+                 "or the one stated in `[calibration.tolerances]`. Screened above: "
+                 f"{len(tol) - len(excl)}. Not screened ({len(excl)}):\n")
+        rows = [[f"`{n}`", _f(tol.get(n, {}).get("value"), ".4g"),
+                 tol.get(n, {}).get("kind", "—"), why] for n, why in excl.items()]
+        if rows:
+            L.append(_md_table(["value", "described", "kind", "why not fitted"], rows) + "\n")
+        stated = [r for r in tol.values() if r.get("tolerance_source", "").startswith("[")]
+        if stated:
+            L.append("Tolerances stated by the user: " + ", ".join(
+                f"`{r['name']}` ±{100 * r['tolerance']:.3g} %" for r in stated) + ".\n")
 
     # ---- declared parameters beyond their datasheet tolerance
     devs = report.get("declared_deviations")
