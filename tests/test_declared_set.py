@@ -33,12 +33,13 @@ def test_the_declared_set_is_every_numeric_value_of_the_description():
     from afo_mj.calibration.calibration_setup import load_calibration_scenario
     from afo_mj.calibration.declared_set import described_parameters
     setup = load_calibration_scenario(str(SECOND))
-    circuit = setup.circuit
+    replay = setup.replay()
+    circuit = replay.circuit          # the replayed circuit (the candidates' drains included)
     want = _numeric_names(circuit.fluid, "fluid") | _numeric_names(circuit.thermal, "thermal")
     for comp in circuit.components:
         want |= _numeric_names(comp.params, comp.name)
     want |= {"load.inertia_kg_m2", "load.stiffness_nm_rad", "load.damping_nm_s_rad"}
-    ds = described_parameters(setup.replay())
+    ds = described_parameters(replay)
     names = [r["name"] for r in ds.table]
     assert len(names) == len(set(names)) and set(names) == want
     screened = {d.name: d for d in ds.parameters}
