@@ -502,6 +502,12 @@ class GasAccumulator(Component):
         g.monitor(self, "pressure_over_rating", f"({pp} + P_ATM) / {pmax}")
 
 
+#: the stiffness at the pistons taken for a rigid cable (``series_compliance_rad_per_nm = 0``)
+#: in :class:`PulleyCylinders`' massive-piston model (built with a backlash): 1e10 N/m, a
+#: stretch of 0.3 µm under 3 kN, against the 1e6-1e7 N/m of a steel rope of a few mm
+RIGID_CABLE_STIFFNESS_N_M = 1.0e10
+
+
 class PulleyCylinders(Component):
     """``count`` piston-cable cylinders whose cable loops over a joint pulley of radius
     ``r`` (the HAFO's antagonistic pair; one such cylinder is the lab bench's double-acting
@@ -537,21 +543,40 @@ class PulleyCylinders(Component):
     ``n A Δp (ẋ_kin + δ̇) = F_c ẋ_kin + F_c δ̇ + F_seal (ẋ_kin + δ̇) − F_stop (ẋ_kin + δ̇)``).
     A rigid cable (``1/k = 0``) adds nothing.
 
-    Backlash (``backlash_rad`` = b, built when not 0): a dead band of total width b at the
-    pulley, i.e. ``±β`` with ``β = b r/2`` of cable travel, in series with the cable spring:
-    the dead-zone model of a compliant transmission with play (Nordin & Gutman, "Controlling
-    mechanical systems with backlash — a survey", *Automatica* 38 (2002) 1633, eq. 2:
-    ``F = k dz(δ)``, ``dz(δ) = δ − β sgn δ`` outside ``|δ| ≤ β``, 0 inside). With massless
-    pistons it is written as the travel the play takes up under the cable force,
-    ``δ_b(F) = β sgn(F)`` for ``F ≠ 0`` and anything in ``[−β, β]`` at ``F = 0``: the pistons
-    cross the gap carrying no cable force while the joint moves freely. Regularised,
-    ``δ_b = clip(β F/(n F_b), −β, β)`` with hyperbolic corners of radius ``β/20``
-    (:func:`~afo_mj.hydraulics.laws.soft_clip`; ``F_b`` = ``backlash_take_up_force_n``, the
-    force per cylinder that takes the play up: a soft spring of rate ``F_b/β`` inside the
-    gap), evaluated at the whole cable force ``F_c`` and entered like the cable's ``G`` part,
-    as the backward-Euler difference quotient ``(δ_b(F_c) − δ_b,n)/h``. The pistons sweep
-    ``n A δ̇_b`` besides; ``δ_b`` joins the piston-position probe and ``F_c δ̇_b`` the store
-    ``series_spring``.
+    Backlash (``backlash_rad`` = b, built when not 0, or with the circuit's optional
+    terms): a dead band of total width b at the pulley, i.e. ``±β`` with ``β = b r/2`` of
+    cable travel, in series with the cable spring: the dead-zone model of a compliant
+    transmission with play (Nordin & Gutman, "Controlling mechanical systems with backlash —
+    a survey", *Automatica* 38 (2002) 1633, eq. 2: ``F = k dz(δ)``, ``dz(δ) = δ − β sgn δ``
+    outside ``|δ| ≤ β``, 0 inside; written ``dz(δ) = δ − clip(δ, −β, β)`` with the clip's
+    corners rounded over ``β/20``, :func:`~afo_mj.hydraulics.laws.soft_clip`). Inside the gap
+    the cable carries nothing, so the pistons are no longer tied to the joint: they move
+    under the oil, their seals and their own inertia, and the model above (massless pistons
+    on the cable) gives way to the pistons as a mass with two states of their own, the
+    cable's travel ``δ = x − x_kin`` (``x_kin = s/2 − r θ``) and the pistons' speed ``v``:
+
+    * ``δ̇ = v + r θ̇``;
+    * ``n m v̇ = n A (p_a − p_b) − F_seal(v) + F_stop(x, v) − F_c``, Newton's second law of
+      the pistons (with their cable share, ``cylinder.piston_mass_kg`` per cylinder): the
+      force balance of a hydraulic piston on its load (Merritt, *Hydraulic Control Systems*,
+      1967, the chapter on hydraulic power elements; Jelali & Kroll, *Hydraulic
+      Servo-systems*, 2003, the cylinder's mechanical model), with the seals and the stops
+      at the pistons' own speed and position ``x = x_kin + δ``;
+    * ``F_c = k dz(δ)``, ``k = 1/(r² (1/k_θ))`` the cable's stiffness at the pistons
+      (``series_compliance_rad_per_nm`` = ``1/k_θ``; a rigid cable, ``1/k_θ = 0``, is
+      :data:`RIGID_CABLE_STIFFNESS_N_M`, stiff enough that its stretch stays far below any
+      angle sensor's step); the joint torque is the cable's pull ``τ = −r F_c``;
+    * the chambers see the pistons' own speed, ``Q_a = −n A v``, and their volumes the
+      pistons' position.
+
+    The ledger: the oil's work on the pistons ``n A Δp v`` is the seals' loss ``F_seal v``,
+    the stops' store ``−F_stop v``, the pistons' kinetic energy ``½ n m v²`` (the store of
+    the state ``v``), the cable's store ``series_spring`` ``F_c δ̇`` and the joint's work
+    ``F_c (−r θ̇) = τ θ̇``: it closes exactly at every step. The probe ``end_stop_torque_nm``
+    is then the stops' force referred to the joint, ``−r F_stop`` (the force reaches the
+    joint through the cable). With no play (``b = 0``, the optional term built at 0) this is
+    the massive-piston version of the cable above: the same statics, plus the pistons'
+    inertia on the cable spring.
 
     Cable-seal (external) drag-out is refused:
     the film returns on the in-stroke and the circuit has no ambient node for it. Probes:
@@ -577,10 +602,6 @@ class PulleyCylinders(Component):
             0.0, unit="rad", lo=0.0, hi=0.5,
             doc="total play of the cable on the pulley, as an angle of the joint (a dead "
                 "band in the transmission; 0: none, not built)")
-        backlash_take_up_force_n: float = param(
-            5.0, unit="N", lo=1e-3, hi=1e4,
-            doc="cable force (per cylinder) that takes up the play: the dead band "
-                "regularised as a soft spring of rate F/β inside the gap")
 
     params_type = Params
 
@@ -620,9 +641,13 @@ class PulleyCylinders(Component):
         x, xd, f_s, f_e, q_l, q_d, f_g, xs = (g.local(self, k) for k in
                                               ("x", "xd", "fseal", "fstop", "qleak", "qdrag",
                                                "fg", "xs"))
+        comp_s = g.param(self, "series_compliance", p.series_compliance_rad_per_nm)
+        if g.optional(p.backlash_rad):
+            self._emit_piston_mass(g, p, n, r, area, stroke, va0, vb0, gl, ks, cs, seal, cp_own,
+                                   drag_on, w_grad, dbore, v_c, comp_s)
+            return
         # series cable: its hydraulic stretch as the chambers' differential capacitance, the
         # rest (stops less seal friction) as a difference quotient over the step (docstring)
-        comp_s = g.param(self, "series_compliance", p.series_compliance_rad_per_nm)
         c_s = g.local(self, "cs")
         g.line(f"{c_s} = series_spring_capacitance_m3_pa({n} * {area} * {r}, {comp_s})")
         g.couple(self, "a", "b", c_s)
@@ -635,45 +660,76 @@ class PulleyCylinders(Component):
         g_n = g.held(self, "cable_force_other_n", f_g)
         g.line(f"{xs} = (cable_stretch_m({r}, {comp_s}, {f_g}) - cable_stretch_m({r}, {comp_s}, "
                f"{g_n})) * U[U_INV_H]")
-        play = ""
-        if g.optional(p.backlash_rad):
-            # the dead band: the travel the play takes up under the cable force (docstring)
-            b_rad = g.param(self, "backlash", p.backlash_rad)
-            f_b = g.param(self, "backlash_force", p.backlash_take_up_force_n)
-            half, xb, xbd = (g.local(self, k) for k in ("half_play", "xb", "xbd"))
-            g.line(f"{half} = 0.5 * {b_rad} * {r}")
-            g.line(f"{xb} = soft_clip(({n} * {area} * ({pa} - {pb}) + {f_g}) * {half} / "
-                   f"({n} * {f_b}), -{half}, {half}, 0.05 * {half})")
-            xb_n = g.held(self, "backlash_take_up_m", xb)
-            g.line(f"{xbd} = ({xb} - {xb_n}) * U[U_INV_H]")
-            play = f" + {xbd}"
-        else:
-            _ = p.backlash_take_up_force_n      # read: a play of 0 needs no take-up force
         g.line(f"{q_l} = {n} * laminar_gap_flow_m3_s({pa} - {pb}, {gl}, U[U_MU])")
         g.line(f"{q_d} = {n} * seal_dragout_flow_m3_s({xd}, U[U_MU], {dbore}, {w_grad}) "
                f"if {drag_on} != 0.0 else 0.0")
         # chamber a grows as x grows: its net inflow from the piston is −n A ẋ
-        g.flow(self, "a", f"-{n} * {area} * ({xd} + {xs}{play}) - {q_l} + {q_d}")
-        g.flow(self, "b", f"{n} * {area} * ({xd} + {xs}{play}) + {q_l} - {q_d}")
+        g.flow(self, "a", f"-{n} * {area} * ({xd} + {xs}) - {q_l} + {q_d}")
+        g.flow(self, "b", f"{n} * {area} * ({xd} + {xs}) + {q_l} - {q_d}")
         g.volume(self, "a", f"{n} * max({va0} + {area} * {x}, 0.5 * {va0})")
         g.volume(self, "b", f"{n} * max({vb0} + {area} * ({stroke} - {x}), 0.5 * {vb0})")
         # force on the pistons towards +x: n A (p_a − p_b) − F_seal + F_stop; τ = F dx/dθ
         g.joint_torque(self, f"-{r} * ({n} * {area} * ({pa} - {pb}) - {f_s} + {f_e})")
         # the pistons' speed, the cable's stretch rate included: the hydraulic part
         # c_s Δṗ/(n A) and the rest xs
-        vp = f"({xd} + {c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs}{play})"
+        vp = f"({xd} + {c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})"
         g.loss(self, "seal_friction", f"{f_s} * {vp}")
         g.loss(self, "leakage", f"({pa} - {pb}) * {q_l} + ({pb} - {pa}) * {q_d}")
         g.store_rate(self, "end_stops", f"-{f_e} * {vp}")
         # the cable's energy ½ r²(1/k) F_c², booked as F_c δ̇ (δ̇ = vp − ẋ_kin)
         g.store_rate(self, "series_spring", f"({n} * {area} * ({pa} - {pb}) + {f_g}) * "
-                     f"({c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs}{play})")
+                     f"({c_s} * (d{pa} - d{pb}) / ({n} * {area}) + {xs})")
         # the pistons' travel: kinematic plus the cable's stretch under its whole force
         g.probe(self, "piston_position_m", f"{x} + cable_stretch_m({r}, {comp_s}, {n} * "
-                f"{area} * ({pa} - {pb}) + {f_g})" + (f" + {xb}" if play else ""))
+                f"{area} * ({pa} - {pb}) + {f_g})")
         g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
         # the end stops' share of the joint torque (0 unless a piston is past a stroke end):
         # what the run's summary reports as stop contact, apart from the torque delivered
+        g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")
+
+    def _emit_piston_mass(self, g, p, n, r, area, stroke, va0, vb0, gl, ks, cs, seal, cp_own,
+                          drag_on, w_grad, dbore, v_c, comp_s):
+        """The pistons as a mass on the cable's dead-zone spring (built with a play; class
+        docstring, "Backlash"). States: the cable's travel ``δ`` (piston position less the
+        kinematic one) and the pistons' speed ``v``."""
+        pa, pb = g.p(self, "a"), g.p(self, "b")
+        b_rad = g.param(self, "backlash", p.backlash_rad)
+        mass = g.param(self, "piston_mass", p.cylinder.piston_mass_kg)
+        k_rigid = g.param(self, "rigid_cable_k", RIGID_CABLE_STIFFNESS_N_M)
+        # the pistons' speed keeps their kinetic energy ½ n m v² (store n m)
+        dl = g.state(self, "cable_travel_m", typ=1e-4)
+        v = g.state(self, "piston_speed_m_s", typ=1e-2, store=f"{n} * {mass}")
+        x, f_s, f_e, f_c, k_c, half, q_l, q_d = (
+            g.local(self, k) for k in ("x", "fseal", "fstop", "fcable", "kcable", "half_play",
+                                       "qleak", "qdrag"))
+        g.line(f"{x} = 0.5 * {stroke} - {r} * th + {dl}")
+        # seals and stops act on the pistons, at their own position and speed
+        g.line(f"{f_s} = {n} * (seal_friction_n({v}, {pa} - {pb}, {seal}) + "
+               f"chamber_seal_pressure_friction_n({v}, {pa}, {pb}, {cp_own}, {v_c}))")
+        g.line(f"{f_e} = {n} * end_stop_force_n({x}, {v}, {stroke}, {ks}, {cs})")
+        # the cable's stiffness at the piston k = 1/(r² (1/k_θ)); a rigid cable: k_rigid
+        g.line(f"{k_c} = 1.0 / max({r} * {r} * {comp_s}, 1.0 / {k_rigid})")
+        g.line(f"{half} = 0.5 * {b_rad} * {r}")
+        # dead-zone spring F = k (δ − clip(δ, −β, β)), corners rounded over β/20
+        g.line(f"{f_c} = {k_c} * ({dl} - soft_clip({dl}, -{half}, {half}, 0.05 * {half}))")
+        g.deriv(dl, f"{v} + {r} * thd")
+        g.deriv(v, f"({n} * {area} * ({pa} - {pb}) - {f_s} + {f_e} - {f_c}) / ({n} * {mass})")
+        g.line(f"{q_l} = {n} * laminar_gap_flow_m3_s({pa} - {pb}, {gl}, U[U_MU])")
+        g.line(f"{q_d} = {n} * seal_dragout_flow_m3_s({v}, U[U_MU], {dbore}, {w_grad}) "
+               f"if {drag_on} != 0.0 else 0.0")
+        g.flow(self, "a", f"-{n} * {area} * {v} - {q_l} + {q_d}")
+        g.flow(self, "b", f"{n} * {area} * {v} + {q_l} - {q_d}")
+        g.volume(self, "a", f"{n} * max({va0} + {area} * {x}, 0.5 * {va0})")
+        g.volume(self, "b", f"{n} * max({vb0} + {area} * ({stroke} - {x}), 0.5 * {vb0})")
+        # the cable pulls the pulley: τ = −r F_c
+        g.joint_torque(self, f"-{r} * {f_c}")
+        g.loss(self, "seal_friction", f"{f_s} * {v}")
+        g.loss(self, "leakage", f"({pa} - {pb}) * {q_l} + ({pb} - {pa}) * {q_d}")
+        g.store_rate(self, "end_stops", f"-{f_e} * {v}")
+        # the cable's energy ∫F_c dδ, booked as F_c δ̇
+        g.store_rate(self, "series_spring", f"{f_c} * ({v} + {r} * thd)")
+        g.probe(self, "piston_position_m", x)
+        g.probe(self, "hydraulic_torque_nm", f"-{r} * {n} * {area} * ({pa} - {pb})")
         g.probe(self, "end_stop_torque_nm", f"-{r} * {f_e}")
 
 
