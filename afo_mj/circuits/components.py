@@ -506,6 +506,13 @@ class GasAccumulator(Component):
 #: in :class:`PulleyCylinders`' massive-piston model (built with a backlash): 1e10 N/m, a
 #: stretch of 0.3 µm under 3 kN, against the 1e6-1e7 N/m of a steel rope of a few mm
 RIGID_CABLE_STIFFNESS_N_M = 1.0e10
+#: the most cable force over which :class:`PulleyCylinders`' dead band takes its edge: the
+#: edge is rounded over β/20 of travel (a progressive take-up of the slack), or over F_r/k
+#: where that is less, since inside the gap the rounding leaves the slack cable a force
+#: ``k r²/(4 d)`` at a distance d from the edge (r the rounding's travel): a few newtons
+#: for a steel rope, kilonewtons for a rigid cable without this bound; with it, at most
+#: ``F_r²/(4 k d)``
+PLAY_EDGE_FORCE_N = 50.0
 
 
 class PulleyCylinders(Component):
@@ -549,7 +556,8 @@ class PulleyCylinders(Component):
     transmission with play (Nordin & Gutman, "Controlling mechanical systems with backlash —
     a survey", *Automatica* 38 (2002) 1633, eq. 2: ``F = k dz(δ)``, ``dz(δ) = δ − β sgn δ``
     outside ``|δ| ≤ β``, 0 inside; written ``dz(δ) = δ − clip(δ, −β, β)`` with the clip's
-    corners rounded over ``β/20``, :func:`~afo_mj.hydraulics.laws.soft_clip`). Inside the gap
+    corners rounded (:func:`~afo_mj.hydraulics.laws.soft_clip`) over ``min(β/20, F_r/k)``,
+    :data:`PLAY_EDGE_FORCE_N` = ``F_r``; an exact linear spring at ``b = 0``). Inside the gap
     the cable carries nothing, so the pistons are no longer tied to the joint: they move
     under the oil, their seals and their own inertia, and the model above (massless pistons
     on the cable) gives way to the pistons as a mass with two states of their own, the
@@ -696,6 +704,7 @@ class PulleyCylinders(Component):
         b_rad = g.param(self, "backlash", p.backlash_rad)
         mass = g.param(self, "piston_mass", p.cylinder.piston_mass_kg)
         k_rigid = g.param(self, "rigid_cable_k", RIGID_CABLE_STIFFNESS_N_M)
+        f_round = g.param(self, "play_edge_force", PLAY_EDGE_FORCE_N)
         # the pistons' speed keeps their kinetic energy ½ n m v² (store n m)
         dl = g.state(self, "cable_travel_m", typ=1e-4)
         v = g.state(self, "piston_speed_m_s", typ=1e-2, store=f"{n} * {mass}")
@@ -710,8 +719,10 @@ class PulleyCylinders(Component):
         # the cable's stiffness at the piston k = 1/(r² (1/k_θ)); a rigid cable: k_rigid
         g.line(f"{k_c} = 1.0 / max({r} * {r} * {comp_s}, 1.0 / {k_rigid})")
         g.line(f"{half} = 0.5 * {b_rad} * {r}")
-        # dead-zone spring F = k (δ − clip(δ, −β, β)), corners rounded over β/20
-        g.line(f"{f_c} = {k_c} * ({dl} - soft_clip({dl}, -{half}, {half}, 0.05 * {half}))")
+        # dead-zone spring F = k (δ − clip(δ, −β, β)), the clip's corners rounded over
+        # min(β/20, F_r/k) (docstring)
+        g.line(f"{f_c} = {k_c} * ({dl} - soft_clip({dl}, -{half}, {half}, "
+               f"min(0.05 * {half}, {f_round} / {k_c})))")
         g.deriv(dl, f"{v} + {r} * thd")
         g.deriv(v, f"({n} * {area} * ({pa} - {pb}) - {f_s} + {f_e} - {f_c}) / ({n} * {mass})")
         g.line(f"{q_l} = {n} * laminar_gap_flow_m3_s({pa} - {pb}, {gl}, U[U_MU])")
