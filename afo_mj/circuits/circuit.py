@@ -164,7 +164,12 @@ class Circuit:
         check valve on one of its port nodes) and has no drain there yet, a ``drain``
         component at 0 on each of its port nodes (``<pump>_drain_a``, ``<pump>_drain_b``):
         a calibration's candidate terms, every one of them off. Simulated as it is, this
-        circuit gives what the description gives (each added term is an exact 0)."""
+        circuit gives what the description gives (each added term is an exact 0), but for
+        one thing: a pulley drive's backlash term, built, moves its pistons as a mass of
+        their own on the cable spring (:class:`~afo_mj.circuits.components.PulleyCylinders`,
+        the described ``cylinder.piston_mass_kg``), so at no play the pistons' inertia
+        remains (the same statics; a mode of the piston on its cable, far above a bench's
+        band)."""
         from afo_mj.circuits.catalogue import COMPONENT_KINDS
         comps = list(self.components)
         nodes = {n: list(refs) for n, refs in self.nodes.items()}
