@@ -281,8 +281,8 @@ def test_backlash_on_the_simulated_load_is_named(tmp_path):
     described rig's backlash candidate, the cable's dead band in the circuit
     (``PulleyCylinders.backlash_rad``, the pistons a mass of their own while the cable is
     slack), works on the simulated load. Measured: ``backlash`` named first with
-    b = 0.01997 rad, every channel within 2× its noise floor (angle 1.68×, torque 1.03×,
-    chambers 1.05×/1.02×, current 1.23×, speed 1.06×). Before the dead band existed:
+    b = 0.02005 rad, every channel within 2× its noise floor (angle 1.77×, torque 1.03×,
+    chambers 1.06×/1.03×, current 1.10×, speed 1.01×). Before the dead band existed:
     structure_wrong, nothing named, the angle 57.9×; with massless pistons (seals at the
     joint's speed while the pistons crossed the gap): angle 2.64×, chambers 2.53×, current
     2.61×."""
