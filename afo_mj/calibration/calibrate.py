@@ -70,7 +70,7 @@ from afo_mj.calibration.effect_library import Effect, described_off, effects_for
 from afo_mj.calibration.identifiability import select_parameters
 from afo_mj.calibration.measured_data import MeasuredData, MeasuredDataError
 from afo_mj.calibration.record_checks import check_signs
-from afo_mj.experiments.bench_replay import BenchReplay, ReplayError
+from afo_mj.experiments.bench_replay import DEFAULT_MAX_STEP_S, BenchReplay, ReplayError
 from afo_mj.hydraulics.params import ParameterError
 
 __all__ = ["CalibrationOptions", "Calibration", "calibrate", "CalibrationError",
@@ -480,6 +480,7 @@ class Calibration(CalibrationModel):
         dictionary (:func:`calibrate`)."""
         t_start = time.perf_counter()
         self.held_declared: dict[str, float] = {}
+        replay_step = self.choose_step()                      # before any replay is fitted
         self.select_declared()
         self.drop_fitted_candidates()
         structure = list(self.declared_effects)
@@ -491,7 +492,38 @@ class Calibration(CalibrationModel):
         numerical = self.numerical_check(search.model)        # the replay's own error
         verdict = self.verdict(before, after, bool(search.steps), numerical)  # 6. verdict
         return self.report(t_start, lean_err, declared_fit, before, search, after, verdict,
-                           numerical)
+                           numerical, replay_step)
+
+    def choose_step(self) -> dict:
+        """The replay's maximum sub-step, set before the first replay of the method: the
+        scenario's ``replay_max_step_s`` when it states one; on a described rig otherwise the
+        step the numerical check chooses on the described model
+        (:func:`afo_mj.calibration.numerical_check.choose_replay_step`, on the record's first
+        ``numerical_check_s``); a preset keeps the replay's. Returns the report's
+        ``replay_step``."""
+        from afo_mj.calibration.numerical_check import choose_replay_step
+        stated = self.options.replay_max_step_s
+        if stated is not None:
+            self.replay.max_step_s = float(stated)
+            return {"source": "scenario", "max_step_s": float(stated), "tried": [],
+                    "reason": "[calibration] replay_max_step_s (no choice made)"}
+        if not self.described:
+            return {"source": "default", "max_step_s": float(self.replay.max_step_s),
+                    "tried": [], "reason": "a preset's replay keeps its step (the choice is "
+                    "made for a rig described as a circuit)"}
+        rep = progress.reporter()
+        rep.stage("calibration: choosing the replay's step against Radau on the first "
+                  f"{self.options.numerical_check_s:g} s…")
+        self.replay.max_step_s = DEFAULT_MAX_STEP_S
+        out = choose_replay_step(self, float(self.options.numerical_check_s),
+                                 self.options.baseline_noise_multiple, DEFAULT_MAX_STEP_S)
+        tried = ", ".join(f"{1e3 * t['max_step_s']:g} ms: {t['max_ratio']:.2f}σ"
+                          for t in out["tried"] if t["max_ratio"] is not None)
+        rep.stage(f"calibration: replay step {1e3 * out['max_step_s']:g} ms"
+                  + (f" (largest replay − Radau difference {tried})" if tried else "")
+                  + (f"; {out['reason']}" if out.get("reason") else ""))
+        self._replays.clear()
+        return out
 
     def numerical_check(self, m: _Model) -> dict:
         """The final model ``m`` integrated by Radau beside the replay on the record's first
@@ -782,7 +814,7 @@ class Calibration(CalibrationModel):
 
     def report(self, t_start: float, lean_err: dict, declared_fit: _Model, before: _Residual,
                search: _Search, after: _Residual, verdict: _Verdict,
-               numerical: dict | None = None) -> dict:
+               numerical: dict | None = None, replay_step: dict | None = None) -> dict:
         """The report dictionary (:mod:`afo_mj.outputs.calibration_report` writes it)."""
         params, sd_phys, deviations = self.final_parameters(search.model)
         for st in search.steps:
@@ -819,6 +851,7 @@ class Calibration(CalibrationModel):
             "channels_before": before.channels, "channels_after": after.channels,
             "verdict": verdict.verdict,
             "unexplained_where": verdict.where,
+            "replay_step": replay_step,
             "numerical_error": numerical,
             "residual_attribution": verdict.attribution,
             "data_driven_discrepancy": verdict.discrepancy,

@@ -21,7 +21,13 @@ from afo_mj.scenarios.schema import Key, Table, check_table
 
 __all__ = ["CalibrationError", "CalibrationOptions", "CalibrationSetup",
            "load_calibration_scenario", "load_calibration_setup", "LOAD_TABLE", "LOAD_KEYS",
-           "SENSOR_TABLE", "SENSOR_KEYS", "CALIBRATION_TABLE", "CALIBRATION_KEYS"]
+           "SENSOR_TABLE", "SENSOR_KEYS", "CALIBRATION_TABLE", "CALIBRATION_KEYS",
+           "REPLAY_STEP_RANGE_S"]
+
+
+#: the replay steps a scenario may set (``[calibration] replay_max_step_s``), s: from 1 µs
+#: (a 20 s record is then 2·10⁷ steps per replay) to 10 ms (ten 1 kHz samples)
+REPLAY_STEP_RANGE_S = (1e-6, 1e-2)
 
 
 class CalibrationError(RuntimeError):
@@ -73,6 +79,12 @@ class CalibrationOptions:
     tolerances: tuple[tuple[str, float], ...] = ()
     #: a described rig: declared values held at the description's value (never fitted)
     fixed: tuple[str, ...] = ()
+    #: the replay's maximum sub-step, s (:attr:`afo_mj.experiments.bench_replay.BenchReplay.
+    #: max_step_s`). ``None``: on a described rig, chosen before any fit by the numerical
+    #: check (:func:`afo_mj.calibration.numerical_check.choose_replay_step`: from 0.5 ms,
+    #: halved while a channel's replay − Radau error exceeds half its noise σ, down to
+    #: 1/16 ms); a preset keeps the replay's 0.5 ms. A number: this step, no choice made
+    replay_max_step_s: float | None = None
 
     def __post_init__(self):
         def bad(key, allowed):
@@ -117,6 +129,14 @@ class CalibrationOptions:
                 or not isinstance(self.numerical_check_s, (int, float))
                 or not 0.0 <= self.numerical_check_s <= 60.0):
             bad("numerical_check_s", "a number of seconds 0 … 60 (0: no check)")
+        if self.replay_max_step_s is not None and (
+                isinstance(self.replay_max_step_s, bool)
+                or not isinstance(self.replay_max_step_s, (int, float))
+                or not REPLAY_STEP_RANGE_S[0] <= self.replay_max_step_s
+                <= REPLAY_STEP_RANGE_S[1]):
+            bad("replay_max_step_s", f"a number of seconds {REPLAY_STEP_RANGE_S[0]:g} … "
+                f"{REPLAY_STEP_RANGE_S[1]:g} (the replay's maximum sub-step), or leave it "
+                "out for the step chosen by the numerical check")
         if self.min_refit_score is not None and not 0.0 <= self.min_refit_score < 1.0:
             bad("min_refit_score", "0 <= score < 1")
         if self.uncalibrated_channels is not None and not all(

@@ -61,14 +61,17 @@ from afo_mj.devices.registry import device_spec
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.transmission import play_operator
 
-__all__ = ["BenchReplay", "PreparedRun", "HOLDS", "HELD_CHANNELS", "CIRCUIT_OUTPUTS", "ReplayError",
-           "circuit_geometry", "circuit_roles"]
+__all__ = ["BenchReplay", "PreparedRun", "HOLDS", "DEFAULT_MAX_STEP_S", "HELD_CHANNELS",
+           "CIRCUIT_OUTPUTS", "ReplayError", "circuit_geometry", "circuit_roles"]
 
 
 class ReplayError(RuntimeError):
     """The model could not be replayed (a state became non-finite, or inputs are missing)."""
 
 
+#: the replay's maximum sub-step unless set (:attr:`BenchReplay.max_step_s`), s; a calibration
+#: of a described rig chooses its own from here (:mod:`afo_mj.calibration.numerical_check`)
+DEFAULT_MAX_STEP_S = 5e-4
 #: how an input channel is held over a sample interval (see the module docstring)
 HOLDS = ("zero_order", "linear")
 #: the channels whose hold the replay applies: the command channels (the imposed angle, its
@@ -207,7 +210,7 @@ class BenchReplay:
         # of the fitted parameters and the calibration's fit stalls beside the truth (mismatch
         # record: pressure_b residual 1.26× the noise at 1 ms, 1.016× at 0.5 ms, 1.009× at
         # 0.25 ms; the old kernel's 1.01× at 1 ms)
-        self.max_step_s = 5e-4
+        self.max_step_s = DEFAULT_MAX_STEP_S
         if spec.outputs is not None:
             self._columns = {name: self._signal(name) for name in spec.outputs
                              if name != "fluid_temperature_k"}
