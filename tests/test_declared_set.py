@@ -149,3 +149,25 @@ def test_screen_orders_by_the_change_over_one_tolerance():
     weak = select_parameters(np.column_stack([a * 1e-3]), ["k"], w * 1e-1,
                              tolerances=[0.01], max_relative_se=0.5)
     assert weak.selected == () and "datasheet tolerance" in weak.rows[0].reason
+
+
+def test_a_seal_breakaway_velocity_is_numerics_without_its_stribeck_peak(tmp_path):
+    """The seal's ``breakaway_velocity_m_s`` sets the Stribeck velocity v_St = √2 v_brk and the
+    Coulomb smoothing velocity v_C = v_brk/10 (hydraulics/seal.py). With the peak switched off
+    (the second rig's description) only v_C acts: not fitted by default, with that reason;
+    with the peak on it is a friction figure (±50 %), and a stated tolerance brings it in."""
+    from afo_mj.calibration.declared_set import described_parameters
+    name = "cylinder.cylinder.piston_seal.breakaway_velocity_m_s"
+    text = SECOND.read_text(encoding="utf-8")
+    ds = described_parameters(_setup(tmp_path, text).replay())
+    assert "Coulomb smoothing velocity" in ds.excluded[name]
+    assert "Stribeck peak switched off" in ds.excluded[name]
+    assert {r["name"]: r for r in ds.table}[name]["kind"] == "numerical"
+    ds = described_parameters(_setup(tmp_path, text).replay(), {name: 0.5})
+    assert {d.name: d for d in ds.parameters}[name].tolerance == 0.5
+    on = text.replace('"cylinder.piston_seal.stribeck_enabled" = false',
+                      '"cylinder.piston_seal.stribeck_enabled" = true')
+    assert on != text
+    ds = described_parameters(_setup(tmp_path, on).replay())
+    d = {d.name: d for d in ds.parameters}[name]
+    assert d.kind == "friction" and d.tolerance == 0.5

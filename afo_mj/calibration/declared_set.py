@@ -141,6 +141,21 @@ _RULES: tuple[tuple[str, str | None, str], ...] = (
 )
 
 
+#: packed row entries (by key, after the component's name) that are a model's regularisation,
+#: not a part's figure, with what they are: a value that reaches only these (and entries
+#: switched off by :data:`_ACTS_WITH`) is numerics, not fitted by default
+_NUMERICAL_ENTRIES: dict[str, str] = {
+    "seal_v_c": "the seal's Coulomb smoothing velocity v_C = v_brk/10 (F_C tanh(v/v_C) for "
+                "F_C sign(v), a regularisation of the friction law)",
+}
+#: packed row entries that act only while another entry of the same component is non-zero:
+#: key → (that entry, what it is). The Stribeck velocity v_St = √2 v_brk only shapes the
+#: Stribeck term, whose gain is 0 with the peak switched off
+_ACTS_WITH: dict[str, tuple[str, str]] = {
+    "seal_v_st": ("seal_stribeck", "the seal's Stribeck peak"),
+}
+
+
 def kind_of(path: str, unit: str = "") -> str:
     """The kind of quantity of field ``path`` (its dotted name in the description) by the
     first matching rule of :data:`_RULES` on its last name (``load.`` fields on the whole
@@ -253,9 +268,15 @@ class DescribedSet:
                 reason = f"not a datasheet value ({k.why}); state a tolerance to fit it"
             else:
                 labels = self._moved_labels(f)
+                numerics = self._numerics_only(labels)
                 if not labels:
                     reason = ("reaches no equation the replay runs (its effect is switched "
                               "off in the description, or it is metadata)")
+                elif numerics and f.name not in tolerances:
+                    reason = f"not a datasheet value here: {numerics}; state a tolerance " \
+                             "to fit it"
+                    row.update(kind="numerical", tolerance=None,
+                               tolerance_source=f"default for numerical (was {kind})")
             if reason is not None:
                 self.excluded[f.name] = reason
                 row["decision"] = reason
@@ -271,6 +292,24 @@ class DescribedSet:
                 path=f.name, value=f.value, kind=kind))
         #: the declared parameters the identifiability screen considers
         self.parameters: tuple[DeclaredParameter, ...] = tuple(params)
+
+    def _numerics_only(self, labels: Sequence[str]) -> str | None:
+        """Why the packed entries ``labels`` are numerics, when every one that acts is a
+        regularisation of the model (:data:`_NUMERICAL_ENTRIES`; an entry of
+        :data:`_ACTS_WITH` whose gate is 0 in the description does not act), else None."""
+        acting, off = [], []
+        for lab in labels:
+            comp, _, key = lab.partition(".")
+            gate = _ACTS_WITH.get(key)
+            if gate is not None and self._base.get(f"{comp}.{gate[0]}", 1.0) == 0.0:
+                off.append(gate[1])
+                continue
+            acting.append(key)
+        if not acting or not all(k in _NUMERICAL_ENTRIES for k in acting):
+            return None
+        what = "; ".join(_NUMERICAL_ENTRIES[k] for k in dict.fromkeys(acting))
+        return (f"with {', '.join(dict.fromkeys(off))} switched off in the description it "
+                f"only sets {what}" if off else f"it only sets {what}")
 
     # ---------------------------------------------------------------- rows
     @staticmethod
