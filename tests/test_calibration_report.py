@@ -207,3 +207,28 @@ def test_report_is_not_modified(tmp_path):
     assert "_series" in rep
     assert json.dumps(to_jsonable({k: v for k, v in rep.items() if k != "_series"})) \
         == json.dumps(to_jsonable(snapshot))
+
+
+def test_markdown_gives_the_replay_step_and_each_step_tried(tmp_path):
+    """The report's ``replay_step`` (chosen by the numerical check) is its own section: the
+    step chosen and, per step tried, each channel's replay − Radau RMS over σ; a step stated
+    in the scenario is said as such."""
+    rep = make_report()
+    rep["replay_step"] = {
+        "source": "numerical_check", "max_step_s": 1.25e-4, "start_s": 5e-4,
+        "floor_s": 6.25e-5, "target_ratio": 0.25, "window_s": [0.0, 2.0], "reached": True,
+        "stalled": False, "tried": [
+            {"max_step_s": 5e-4, "substeps": 2, "max_ratio": 1.0,
+             "ratios": {"motor_current_a": 1.0, "pressure_a_pa": 0.6}},
+            {"max_step_s": 2.5e-4, "substeps": 4, "max_ratio": 0.5,
+             "ratios": {"motor_current_a": 0.5, "pressure_a_pa": 0.3}},
+            {"max_step_s": 1.25e-4, "substeps": 8, "max_ratio": 0.24,
+             "ratios": {"motor_current_a": 0.24, "pressure_a_pa": 0.15}}]}
+    md = write_calibration_report(rep, tmp_path / "a")["report.md"].read_text()
+    sec = md.split("## Replay step")[1].split("## ")[0]
+    assert "Chosen: **0.125 ms**" in sec and "0.25 of its noise σ" in sec
+    assert "| 0.25 | 4 | 0.50 | 0.30 |" in sec and "`motor_current_a` / σ" in sec
+    rep["replay_step"] = {"source": "scenario", "max_step_s": 2e-4, "tried": [],
+                          "reason": "[calibration] replay_max_step_s (no choice made)"}
+    md = write_calibration_report(rep, tmp_path / "b")["report.md"].read_text()
+    assert "at most 0.2 ms: [calibration] replay_max_step_s" in md

@@ -298,6 +298,38 @@ def _attribution_sentence(report: Mapping) -> str:
             "channel nothing accounts for.")
 
 
+def _step_section(step: Mapping | None) -> list[str]:
+    """The report's "Replay step" section (``replay_step``): the step the replay ran at and,
+    when the numerical check chose it, the replay − Radau error at each step tried."""
+    if not step:
+        return []
+    L = ["## Replay step\n"]
+    h = step.get("max_step_s")
+    if step.get("source") != "numerical_check":
+        L.append(f"The replay ran in sub-steps of at most {_f(1e3 * h, '.4g')} ms: "
+                 f"{step.get('reason', step.get('source', '—'))}.\n")
+        return L
+    t0, t1 = step.get("window_s", [0.0, 0.0])
+    L.append(f"Chosen before any fit: the described model integrated by Radau on "
+             f"{t0:.3g}–{t1:.3g} s beside the replay, whose step was halved from "
+             f"{_f(1e3 * step['start_s'], '.4g')} ms while a channel's replay − Radau RMS "
+             f"exceeded {step['target_ratio']:g} of its noise σ (floor "
+             f"{_f(1e3 * step['floor_s'], '.4g')} ms). Chosen: **{_f(1e3 * h, '.4g')} ms**"
+             + ("" if step.get("reached") else
+                " (the target was not reached" + (": a halving stopped cutting the error)"
+                                                   if step.get("stalled") else
+                                                   " at the floor)"))
+             + ".\n")
+    tried = step.get("tried") or []
+    if tried:
+        chans = list(tried[0]["ratios"])
+        rows = [[f"{_f(1e3 * s['max_step_s'], '.4g')}", str(s["substeps"])]
+                + [_f(s["ratios"].get(c), ".2f") for c in chans] for s in tried]
+        L.append(_md_table(["step [ms]", "sub-steps per sample"]
+                           + [f"`{c}` / σ" for c in chans], rows) + "\n")
+    return L
+
+
 def _numerical_section(num: Mapping | None) -> list[str]:
     """The report's "Numerical error of the replay" section (``numerical_error``)."""
     if num is None:
@@ -392,6 +424,7 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
                  "that best aligns them (positive: the measurement lags).\n")
         L.append("Reaches the noise: **" + ("yes" if base.get("reaches_noise") else "no")
                  + "**.\n")
+    L += _step_section(report.get("replay_step"))
     L += _numerical_section(report.get("numerical_error"))
     ident = report.get("identifiability")
     if ident:
