@@ -15,7 +15,8 @@ none was, the first declared parameter beyond its datasheet tolerance and the ef
 indistinguishable from), the worst channel's held-out NRMSE over its noise floor before
 (baseline) and after, and the wall time. Then the issue's criteria:
 
-* clean: ``no_missing_effect``, nothing named, baseline within 2× the noise floor;
+* clean: ``no_missing_effect``, nothing named (no effect, no declared value beyond its
+  tolerance), baseline within 2× the noise floor;
 * single effects: named first in ≥ 8 of 10 kinds, NRMSE after within 2× the noise floor;
 * two effects at once: both named;
 * an effect outside the library (a torque-sensor resonance): no physical effect named, a
@@ -184,6 +185,7 @@ def matrix(argv: list[str]) -> None:
         singles = [r for r in rr if r["effect"] != "clean"]
         summary[rig_name] = {
             "clean_ok": None if clean is None else (clean["verdict"] == "no_missing_effect"
+                                                    and not clean["named"]
                                                     and clean["final_max"] <= 2.0),
             "singles_hit": f"{sum(r['hit'] for r in singles)}/{len(singles)}",
             "singles_within_2x": f"{sum(r['final_max'] <= 2.0 for r in singles)}/"
