@@ -126,8 +126,7 @@ def _render(args) -> int:
 
 def _build_models(args) -> int:
     from afo_mj.human import test_stand, walker
-    for path in (walker.write_default_xml(), test_stand.write_default_xml()):
-        print(f"wrote {path}")
+    _print(f"wrote {p}" for p in (walker.write_default_xml(), test_stand.write_default_xml()))
     return 0
 
 
@@ -200,13 +199,24 @@ def _optimize(args) -> int:
     return 0
 
 
+def _given(fn, args, skip=()) -> dict:
+    """The parsed options that are keyword parameters of ``fn`` (but ``out`` and ``skip``)."""
+    names = set(__import__("inspect").signature(fn).parameters) - {"out", *skip}
+    return {k: v for k, v in vars(args).items() if k in names}
+
+
 def _optimize_gait(args) -> int:
     """Exit 0 done (resumable: run again to continue), 2 invalid options."""
-    import inspect
     from afo_mj.app.gait_optimization import optimize_reflex_gait
-    names = set(inspect.signature(optimize_reflex_gait).parameters) - {"out"}
-    doc = optimize_reflex_gait(args.out, **{k: v for k, v in vars(args).items() if k in names})
+    doc = optimize_reflex_gait(args.out, **_given(optimize_reflex_gait, args))
     _print(console.gait_optimization_lines(doc, args.out))
+    return 0
+
+
+def _adapt(args) -> int:
+    """Exit 0 done (resumable: run again to continue), 2 invalid options."""
+    from afo_mj.app.adaptation import adapt
+    _print(console.adaptation_lines(adapt(out=args.out, **_given(adapt, args)), args.out))
     return 0
 
 
@@ -253,16 +263,6 @@ def _export_osim(args) -> int:
     return 0
 
 
-def _version() -> str:
-    """The installed package's version (the source tree's when not installed)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("afo_mj")
-    except PackageNotFoundError:
-        from afo_mj import __version__
-        return __version__
-
-
 _ATOMIC = ("hydraulics-demo", "run", "render", "compare")    # write all at once or nothing
 
 # every command of ``afo-mj``, as typed, and its handler (``args -> exit code``); the parser
@@ -271,13 +271,13 @@ COMMANDS: dict[str, Callable[..., int]] = {
     "hydraulics-demo": _demo, "run": _run, "view": _view, "render": _render,
     "compare": _compare, "calibrate": _calibrate, "make-bench-record": _make_bench_record,
     "sweep": _sweep, "study": _study, "optimize": _optimize, "optimize-gait": _optimize_gait,
-    "design": _design, "schematic": _schematic, "export-fmu": _export_fmu,
+    "adapt": _adapt, "design": _design, "schematic": _schematic, "export-fmu": _export_fmu,
     "export-osim": _export_osim, "build-models": _build_models}
 
 
 def main(argv: list[str] | None = None) -> int:
-    from afo_mj.cli_args import build_parser
-    args = build_parser(COMMANDS, _version()).parse_args(argv)
+    from afo_mj.cli_args import build_parser, package_version
+    args = build_parser(COMMANDS, package_version()).parse_args(argv)
     from afo_mj import progress
     from afo_mj.app.errors import AppError
     # progress (stage lines, time left) on stderr only: stdout carries the results

@@ -10,7 +10,17 @@ from __future__ import annotations
 import argparse
 from typing import Callable, Mapping
 
-__all__ = ["build_parser"]
+__all__ = ["build_parser", "package_version"]
+
+
+def package_version() -> str:
+    """The installed package's version (the source tree's when not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("afo_mj")
+    except PackageNotFoundError:
+        from afo_mj import __version__
+        return __version__
 
 
 def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.ArgumentParser:
@@ -189,6 +199,42 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                          "and the HAFO's worn masses (each fall penalised)")
     og.add_argument("--quiet", action="store_true", help="no progress on stderr")
     og.set_defaults(func=handlers["optimize-gait"])
+    ad = sub.add_parser("adapt", help="adapt the muscle walker's wearer to each condition by "
+                        "several CMA-ES restarts from one converged control; reports each "
+                        "rate's restart-to-restart spread and the paired change against the "
+                        "control; resumable")
+    ad.add_argument("conditions", nargs="+", metavar="SCENARIO_OR_KINDS",
+                    help="assistance kinds (none, worn_mass, zhang, clutched_spring, hafo; "
+                         "none, the control, added first) or one muscle-walker scenario file "
+                         "(its conditions, no_device first)")
+    ad.add_argument("--out", required=True, help="directory of the searches and "
+                    "adaptation.json (run again to continue)")
+    ad.add_argument("--restarts", type=int, default=3, help="independent searches per "
+                    "condition (CMA-ES seeds seed, seed+1, ...)")
+    ad.add_argument("--generations", type=int, default=100, help="CMA-ES generations per "
+                    "search in all")
+    ad.add_argument("--popsize", type=int, default=16, help="walks per generation")
+    ad.add_argument("--sigma0", type=float, default=0.04, help="CMA-ES initial step on the "
+                    "log of each parameter (small: the start is converged)")
+    ad.add_argument("--seed", type=int, default=1, help="first restart's CMA-ES seed")
+    ad.add_argument("--window", type=int, default=10, help="convergence window, generations")
+    ad.add_argument("--cost-tol", type=float, default=0.01, help="largest fall of the best "
+                    "cost over the window of a converged search (objective units)")
+    ad.add_argument("--spread-target-pct", type=float, default=1.0, help="largest restarts' "
+                    "spread of a converged condition, %% of its rate")
+    ad.add_argument("--search-walk-s", type=float, default=16.0, help="seconds each search "
+                    "walk lasts (the first 3 not scored)")
+    ad.add_argument("--score-walk-s", type=float, default=20.0, help="seconds of the walk "
+                    "that scores each restart's best set")
+    ad.add_argument("--start", default=None, help="reflex_params.json every search starts "
+                    "from (default: the shipped control, or the scenario's reflex_set)")
+    ad.add_argument("--workers", type=int, default=None, help="worker processes")
+    ad.add_argument("--dask", default=None, metavar="ADDRESS", help="walk on this Dask "
+                    "scheduler (tcp://host:8786), or 'local' for a local Dask cluster")
+    ad.add_argument("--set", dest="overrides", action="append", metavar="KEY=VALUE",
+                    help="override a key of the scenario file (repeatable)")
+    ad.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ad.set_defaults(func=handlers["adapt"])
     de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "
                         "requirements and write it as scenarios afo-mj run accepts")
     de.add_argument("requirements", help="requirements file, e.g. "

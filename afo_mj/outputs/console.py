@@ -14,7 +14,7 @@ __all__ = ["optimization_lines", "gait_optimization_lines", "fmt_stat", "walk_li
            "device_walk_lines", "human_response_line", "device_warnings", "sweep_outcome_counts",
            "sweep_outcome_lines", "bench_lines", "circuit_bench_lines",
            "format_stiffness_summary", "calibration_lines", "schematic_lines", "fmu_lines",
-           "sweep_start_lines", "sweep_result_lines", "osim_lines"]
+           "sweep_start_lines", "sweep_result_lines", "osim_lines", "adaptation_lines"]
 
 
 def fmt_stat(entry, fmt: str = ".2f") -> str:
@@ -430,6 +430,56 @@ def optimization_lines(res: Mapping, out) -> list[str]:
     lines.append(json.dumps({k: res.get(k) for k in (
         "best_point", "best_metric", "best_feasible", "constraint_values", "n_runs", "state",
         "message")}, default=str))
+    return lines
+
+
+def _pct(v, fmt: str = "+.2f") -> str:
+    return "-" if v is None else f"{v:{fmt}} %"
+
+
+def adaptation_lines(res, out) -> list[str]:
+    """``afo-mj adapt``: per condition every restart's net metabolic rate (W/kg, Umberger
+    2010) and convergence, the spread, the wearer and its change against the control (paired
+    by restart and best against best), then a JSON line."""
+    import json
+    p = res.protocol
+    lines = [f"afo-mj adapt: {len(res.conditions)} conditions x {p['restarts']} restarts, "
+             f"CMA-ES popsize {p['popsize']}, sigma0 {p['sigma0']:g}, up to "
+             f"{p['generations']} generations; {res.walks} walks"
+             + ("" if res.cpu_s is None else f", {res.cpu_s:.0f} s CPU"),
+             f"  start {res.start}; converged: window {p['window']} generations, best cost "
+             f"change <= {p['cost_tol']:g}, spread <= {p['spread_target_pct']:g} %"]
+    for c in res.conditions:
+        lines.append(f"  {c.label}: wearer restart {c.best_restart}, "
+                     + ("falls" if c.net_metabolic_w_per_kg is None
+                        else f"{c.net_metabolic_w_per_kg:.3f} W/kg")
+                     + ("" if c.spread_pct is None else
+                        f"; spread {c.spread_w_per_kg:.3f} W/kg = {c.spread_pct:.2f} %")
+                     + f"; {'converged' if c.converged else 'NOT converged'} ({c.reason})")
+        for r in c.restarts:
+            rate = ("falls" if r.net_metabolic_w_per_kg is None
+                    else f"{r.net_metabolic_w_per_kg:.3f} W/kg")
+            lines.append(f"    restart {r.restart} (seed {r.seed}): {rate}, cost "
+                         f"{r.search_cost:.3f} after {r.generations} generations; "
+                         f"{r.convergence}")
+        if c.change_pct_paired is not None:
+            rng = c.change_pct_all_pairs_range
+            lines.append(f"    vs {res.control}: paired "
+                         + ", ".join(_pct(x) for x in c.change_pct_paired)
+                         + f" (mean {_pct(c.change_pct_paired_mean)}, spread "
+                         + ("-" if c.change_pct_paired_spread is None
+                            else f"{c.change_pct_paired_spread:.2f} points")
+                         + f"); best vs best {_pct(c.change_pct_best)}"
+                         + ("" if rng is None else f" (every pairing {rng[0]:+.2f} … "
+                            f"{rng[1]:+.2f} %)"))
+    lines.append(f"  {out}/adaptation.json "
+                 + ("(every condition converged)" if res.converged else
+                    "(not converged: run again with more --generations to continue)"))
+    lines.append(json.dumps({c.name: {"net_metabolic_w_per_kg": c.net_metabolic_w_per_kg,
+                                      "spread_pct": c.spread_pct, "converged": c.converged,
+                                      "change_pct_best": c.change_pct_best,
+                                      "change_pct_paired": c.change_pct_paired}
+                             for c in res.conditions}))
     return lines
 
 

@@ -56,7 +56,7 @@ from afo_mj.human.walker import WalkerParams
 
 __all__ = ["GaitObjective", "ScenarioDevice", "scenario_objective", "WalkVariant",
            "robustness_variants", "gait_cost", "gait_quality", "optimize_gait",
-           "params_from_log", "load_reflex_set"]
+           "params_from_log", "load_reflex_set", "objective_walk", "evaluate_batch"]
 
 #: the reference kinematics at 50 phase points
 _PHASE = np.linspace(0.0, 1.0, 51)[:-1]
@@ -267,6 +267,33 @@ def _walk(objective: GaitObjective, walker: WalkerParams, params, worn_masses=()
                            max_force_scale=scale, worn_masses=worn_masses)
 
 
+def objective_walk(objective: GaitObjective, params, duration_s: float | None = None):
+    """The walk the objective scores, of ``duration_s`` (default the objective's), by the
+    objective's walker wearing its device: ``(walk, device or None)``."""
+    if duration_s is not None:
+        objective = dataclasses.replace(objective, duration_s=float(duration_s))
+    return _walk(objective, objective.walker, params)
+
+
+def evaluate_batch(fn, items, workers: int | None = None, client=None) -> list:
+    """``fn(item)`` for every item, results in input order as
+    :class:`~afo_mj.experiments.batch.BatchResult`: across ``workers`` local processes
+    (:func:`~afo_mj.experiments.batch.run_batch`), or as tasks of the Dask ``client`` (a
+    ``distributed.Client``) when one is given; a task that raised is a result with its
+    error, as a local worker's is."""
+    if client is None:
+        return run_batch(fn, items, workers)
+    from afo_mj.experiments.batch import BatchResult
+    futures = client.map(fn, list(items), pure=False)
+    out = []
+    for f in futures:
+        try:
+            out.append(BatchResult(value=f.result()))
+        except Exception as exc:        # the task's own error, kept with its item
+            out.append(BatchResult(error=exc))
+    return out
+
+
 def _state_key(objective: GaitObjective) -> str:
     """What a saved optimiser state must match to be resumed."""
     key = repr(objective)
@@ -349,13 +376,16 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: int = 60,
                   popsize: int | None = None, seed: int = 1, start: dict | None = None,
-                  workers: int | None = None, sigma0: float = 0.2, progress=None) -> dict:
+                  workers: int | None = None, sigma0: float = 0.2, progress=None,
+                  client=None) -> dict:
     """CMA-ES on the reflex parameters (module docstring); resumes from ``out_dir`` when it
     holds a state of the same objective. Writes ``out_dir/reflex_params.json`` (the best set
     by name, its cost and gait quality, the objective, generations and evaluations) and
     ``out_dir/cma_state.pkl``; returns the JSON's content. ``start``: a parameter set by name
     (warm start, e.g. the set optimised without a device). ``wall_s`` is the search's wall
-    time over all its runs (a resumed run adds its own; one with nothing left adds none)."""
+    time over all its runs (a resumed run adds its own; one with nothing left adds none).
+    ``client``: a Dask ``distributed.Client`` whose workers walk each generation instead of
+    ``workers`` local processes (:func:`evaluate_batch`)."""
     import cma
     objective = objective or GaitObjective()
     if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
@@ -392,7 +422,7 @@ def optimize_gait(out_dir, objective: GaitObjective | None = None, generations: 
     t_start, total_s = time.perf_counter(), wall_s
     while es.countiter < generations and not es.stop():
         Z = es.ask()
-        res = run_batch(_evaluate, [(z, base, objective) for z in Z], workers)
+        res = evaluate_batch(_evaluate, [(z, base, objective) for z in Z], workers, client)
         costs = [r.value[0] if r.ok else 3000.0 for r in res]
         es.tell(Z, costs)
         i = int(np.argmin(costs))

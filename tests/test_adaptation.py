@@ -1,0 +1,118 @@
+"""The adaptation protocol (afo_mj.studies.adaptation, ``afo-mj adapt``): convergence on
+synthetic histories, the spread and the paired change against hand-computed values, the
+refusals, and one tiny real run through the command (resumed once)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from afo_mj.app.errors import InvalidInput
+from afo_mj.studies import adaptation as ad
+
+
+def _history(bests):
+    return [{"generation": i + 1, "best": b} for i, b in enumerate(bests)]
+
+
+def test_a_plateau_converges_and_a_falling_cost_does_not():
+    plateau = _history([6.0, 5.5, 5.3, 5.2] + [5.1] * 6 + [5.095])
+    ok, why, change = ad.search_converged(plateau, window=5, tol=0.01)
+    # the best after generation 6 (5.1) against the last (5.095)
+    assert ok and change == pytest.approx(0.005) and "<= 0.01" in why
+    falling = _history([6.0 - 0.02 * i for i in range(11)])
+    ok, why, change = ad.search_converged(falling, window=5, tol=0.01)
+    assert not ok and change == pytest.approx(0.10) and "> 0.01" in why
+    # one plateau shorter than the window is no evidence
+    ok, why, change = ad.search_converged(_history([5.0] * 5), window=5, tol=0.01)
+    assert not ok and change is None and "needs 6" in why
+
+
+def test_spread_and_paired_changes_by_hand():
+    spread, pct = ad.rate_spread([5.00, 5.05, 4.98])
+    assert spread == pytest.approx(0.07)
+    assert pct == pytest.approx(100 * 0.07 / (15.03 / 3))          # 1.3972 %
+    assert ad.rate_spread([5.0, None]) == (None, None)
+    ch = ad.paired_changes([5.0, 5.1], [4.8, 4.9], best_control=1, best_condition=0)
+    # 4.8/5.0 - 1 = -4 %; 4.9/5.1 - 1 = -3.9216 %
+    assert ch["paired"] == pytest.approx([-4.0, -3.92157], abs=1e-5)
+    assert ch["paired_mean"] == pytest.approx(-3.96078, abs=1e-5)
+    assert ch["paired_spread"] == pytest.approx(0.07843, abs=1e-5)
+    assert ch["best"] == pytest.approx(100 * (4.8 / 5.1 - 1))      # -5.882 %
+    # every pairing: 4.8/5.1 (-5.88 %) … 4.9/5.0 (-2 %)
+    assert ch["all_pairs_range"] == pytest.approx([100 * (4.8 / 5.1 - 1), -2.0])
+    fell = ad.paired_changes([5.0, 5.1], [4.8, None], 0, 0)
+    assert fell["paired"][1] is None and fell["paired_mean"] is None
+    assert fell["paired_spread"] is None and fell["all_pairs_range"] is None
+
+
+def test_protocol_and_command_refusals(tmp_path):
+    with pytest.raises(ValueError, match=r"restarts = 0; allowed: an integer 1"):
+        ad.AdaptationProtocol(restarts=0)
+    with pytest.raises(ValueError, match="settle_s"):
+        ad.AdaptationProtocol(search_walk_s=3.5)
+    from afo_mj.app.adaptation import adapt
+    with pytest.raises(InvalidInput, match=r"--restarts = 0; allowed"):
+        adapt(["clutched_spring"], tmp_path / "a", restarts=0)
+    with pytest.raises(InvalidInput, match=r"condition 'spring'; allowed: none, worn_mass"):
+        adapt(["spring"], tmp_path / "b")
+    with pytest.raises(InvalidInput, match="repeat"):
+        adapt(["zhang", "zhang"], tmp_path / "c")
+    with pytest.raises(InvalidInput, match="one scenario file alone"):
+        adapt(["none", "scenarios/gait_assist_hafo.toml"], tmp_path / "d")
+    with pytest.raises(InvalidInput, match="--start"):
+        adapt(["none"], tmp_path / "e", start=str(tmp_path / "missing.json"))
+    assert not any((tmp_path / n).exists() for n in "abcde")
+
+
+def test_a_folder_of_other_settings_is_refused(tmp_path):
+    conds = ad.assistance_conditions(["clutched_spring"], ad.AdaptationProtocol())
+    assert [c.name for c in conds] == ["none", "clutched_spring"]      # the control first
+    (tmp_path / "adaptation_protocol.json").write_text(json.dumps({"popsize": 8}))
+    from afo_mj.app.adaptation import DEFAULT_START
+    with pytest.raises(ValueError, match="popsize = 8; given 16"):
+        ad.adapt_conditions(tmp_path, conds, DEFAULT_START, ad.AdaptationProtocol())
+
+
+@pytest.mark.slow
+def test_tiny_protocol_run_through_the_command_and_resumed(tmp_path, capsys):
+    """2 restarts x 2 generations x 4 walks of 5 s, the control and the clutched spring; the
+    rates reported are those of the best sets walked again here by the assistance module, and
+    a second run with one generation more continues every search."""
+    from afo_mj.cli import main
+    from afo_mj.experiments.muscle_assistance import (Assistance, assistance_summary,
+                                                      assistance_walk)
+    from afo_mj.studies.gait_optimization import load_reflex_set
+    out = tmp_path / "adapt"
+    argv = ["adapt", "clutched_spring", "--out", str(out), "--restarts", "2", "--popsize", "4",
+            "--search-walk-s", "5", "--score-walk-s", "5", "--workers", "1", "--window", "1",
+            "--quiet"]
+    assert main(argv + ["--generations", "2"]) == 0
+    res = ad.AdaptationResult.from_json(json.loads((out / "adaptation.json").read_text()))
+    assert [c.name for c in res.conditions] == ["none", "clutched_spring"]
+    assert res.walks == 2 * 2 * 2 * 4
+    rates = {}
+    for c in res.conditions:
+        for r in c.restarts:
+            walk, dev = assistance_walk(Assistance(c.name), None,
+                                        load_reflex_set(out / c.name / f"restart{r.restart}"
+                                                        / "reflex_params.json"), 5.0)
+            s = assistance_summary(walk, 3.0, dev)
+            want = None if s["fell_s"] is not None else s.get("net_metabolic_w_per_kg")
+            assert r.net_metabolic_w_per_kg == (None if want is None
+                                                else pytest.approx(want, rel=1e-12))
+            rates[c.name, r.restart] = want
+    spring = res.condition("clutched_spring")
+    for i, x in enumerate(spring.change_pct_paired):
+        c0, c1 = rates["none", i], rates["clutched_spring", i]
+        assert x == (None if c0 is None or c1 is None else pytest.approx(100 * (c1 / c0 - 1)))
+    assert "afo-mj adapt: 2 conditions x 2 restarts" in capsys.readouterr().out
+    assert main(argv + ["--generations", "3"]) == 0
+    res2 = ad.AdaptationResult.from_json(json.loads((out / "adaptation.json").read_text()))
+    assert res2.walks == 2 * 2 * 3 * 4
+    assert all(r.generations == 3 for c in res2.conditions for r in c.restarts)
+    assert all(r.cpu_s is not None and r.cpu_s > 0 for c in res2.conditions
+               for r in c.restarts)
+    # another step on the same folder is refused before any walk
+    assert main(argv + ["--generations", "3", "--sigma0", "0.1"]) == 2
