@@ -116,3 +116,37 @@ def test_tiny_protocol_run_through_the_command_and_resumed(tmp_path, capsys):
                for r in c.restarts)
     # another step on the same folder is refused before any walk
     assert main(argv + ["--generations", "3", "--sigma0", "0.1"]) == 2
+
+
+def test_a_scenario_s_conditions_with_the_control_first():
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    conds, start = ad.scenario_conditions(root / "scenarios" / "gait_muscle_clutched_spring.toml",
+                                          ad.AdaptationProtocol(search_walk_s=8.0))
+    assert [c.name for c in conds] == ["no_device", "assist"]
+    assert [c.objective.scenario.condition for c in conds] == ["no_device", "assist"]
+    assert all(c.objective.duration_s == 8.0 and c.objective.tracking_weight == 0.25
+               for c in conds)
+    assert start.endswith("clutched_spring.json")
+    with pytest.raises(InvalidInput, match="walker.model"):
+        from afo_mj.app.adaptation import adapt
+        adapt([str(root / "scenarios" / "gait_assist_hafo.toml")], "unused")
+
+
+def _square(x):
+    if x < 0:
+        raise ArithmeticError(f"negative {x}")
+    return x * x
+
+
+def test_generations_walk_on_a_dask_client():
+    """evaluate_batch's Dask branch: results in input order, a task's error kept with its
+    item (an in-process cluster: no worker processes to start)."""
+    from distributed import Client
+
+    from afo_mj.studies.gait_optimization import evaluate_batch
+    with Client(processes=False, n_workers=1, threads_per_worker=2,
+                dashboard_address=None) as client:
+        res = evaluate_batch(_square, [3, -1, 2], client=client)
+    assert [r.value for r in res] == [9, None, 4]
+    assert isinstance(res[1].error, ArithmeticError) and not res[1].ok
