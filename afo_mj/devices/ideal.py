@@ -37,8 +37,11 @@ error is zero; no pressure, no temperature, no battery, no Newton iterations. Fo
 spring the same book applies: what the spring absorbs counts as regenerated and what it
 returns as drawn.
 
-The device steps in Python (no compiled kernels): the torque walker walks it in its Python
-loop (``loop="auto"`` picks it, :meth:`afo_mj.gait.walk.Walk.run`).
+Each law is written once, in compiled code (:mod:`afo_mj.devices.ideal_step`): ``begin_step``
+and ``end_step`` call those kernels from Python, and :meth:`IdealDevice.native_coupling` gives
+their C entry points to the compiled walk loops (the muscle walker's
+:mod:`afo_mj.gait.controller_loop`, the torque walker's :mod:`afo_mj.gait.walk_loop`), which
+step the device as they step a worn circuit, with no Python per step.
 """
 
 from __future__ import annotations
@@ -50,7 +53,8 @@ import numpy as np
 
 from afo_mj.circuits.device import CircuitLog
 from afo_mj.control import assistance as asst
-from afo_mj.control.impedance import impedance_table, impedance_torque
+from afo_mj.control.impedance import impedance_table
+from afo_mj.devices import ideal_step as kern
 from afo_mj.hydraulics.params import (ParameterError, Parameters, effect, param,
                                        replace_named)
 from afo_mj.human.walker import WornMass
@@ -113,11 +117,9 @@ def ideal_params(overrides: dict | None = None, preset: str = "ideal") -> IdealA
 
 
 #: the device log's columns (per worn side): the first ones as on the circuit devices
-#: (:data:`afo_mj.circuits.stepper.LOG_HEADER`), then the clutch
-LOG_FIELDS = ("time_s", "commanded_torque_nm", "delivered_torque_nm", "measured_torque_nm",
-              "phase", "stance", "mechanical_power_w", "ankle_velocity_rad_s",
-              "ankle_angle_rad", "command_angle_rad", "clutch_engaged", "engaged_angle_rad")
-(_T, _CMD, _DLV, _MEAS, _PH, _ST, _PW, _VEL, _ANG, _CANG, _ENG, _EANG) = range(len(LOG_FIELDS))
+#: (:data:`afo_mj.circuits.stepper.LOG_HEADER`), then the clutch (written by
+#: :func:`afo_mj.devices.ideal_step.ideal_end`)
+LOG_FIELDS = kern.LOG_FIELDS
 
 
 class IdealDevice:
@@ -169,30 +171,46 @@ class IdealDevice:
             raise ParameterError(f"device profile: shape {self.profile.shape}; allowed: a "
                                  "finite 1-D table of at least 2 points")
         self.impedance = impedance
-        self._imp_table = None if impedance is None else impedance_table(impedance)
+        imp_table = None if impedance is None else impedance_table(impedance)
         self.spring = spring
         self.transparent = not given
         self.ramp_strides = ramp_strides
         self.stride_limits = (params.min_stride_s, params.max_stride_s)
+        if spring is not None:
+            mode, table = kern.MODE_SPRING, None
+        elif self.profile is not None:
+            mode, table = kern.MODE_PROFILE, self.profile
+        elif imp_table is not None:
+            mode, table = kern.MODE_IMPEDANCE, imp_table
+        else:
+            mode, table = kern.MODE_TRANSPARENT, None
+        sp = spring or ClutchedSpring()
+        #: the device's whole state (:mod:`afo_mj.devices.ideal_step`), stepped by its
+        #: compiled kernels from Python or from a compiled walk loop
+        self._buf, self._meta = kern.new_buffer(
+            self.side_index, mode, table, self.timestep_s, params.min_stride_s,
+            params.max_stride_s, ramp_strides, sp.stiffness_nm_per_rad, sp.engage_phase,
+            sp.release_phase, sp.ratchet)
+        b = self._buf
         #: phase-estimator state per walker side (:func:`afo_mj.control.assistance.
         #: new_phase_state`; only the worn sides' rows move)
-        self.phase = asst.new_phase_state(2)
-        #: per walker side: the clutch's engagement angle (rad), NaN while open; whether it
-        #: has engaged in the present stance
-        self.theta_engaged = np.full(2, np.nan)
-        self.used = np.zeros(2, bool)
-        self.force2 = np.zeros(2)
-        self.damping2 = np.zeros(2)
-        self.delivered2 = np.zeros(2)
-        self.commanded2 = np.zeros(2)
-        self.phase2 = np.full(2, -1.0)
-        self._angle2 = np.zeros(2)
-        self._stance2 = np.zeros(2, bool)
+        self.phase = b[kern.B_PH:kern.B_POS].reshape(2, asst.N_PH)
+        #: per walker side: the clutch's engagement angle (rad), NaN while open
+        self.theta_engaged = b[kern.B_TH_ENG:kern.B_TH_ENG + 2]
+        self.force2 = b[kern.B_FORCE:kern.B_FORCE + 2]
+        self.damping2 = b[kern.B_DAMP:kern.B_DAMP + 2]
+        self.delivered2 = b[kern.B_DELIV:kern.B_DELIV + 2]
+        self.commanded2 = b[kern.B_CMD:kern.B_CMD + 2]
+        self.phase2 = b[kern.B_PHASE:kern.B_PHASE + 2]
         ns = len(sides)
-        self._pos_j = np.zeros(ns)
-        self._neg_j = np.zeros(ns)
-        self._peak_nm = np.zeros(ns)
+        self._pos_j = b[kern.B_POS:kern.B_POS + ns]
+        self._neg_j = b[kern.B_NEG:kern.B_NEG + ns]
+        self._peak_nm = b[kern.B_PEAK:kern.B_PEAK + ns]
+        # the kernels' inputs when stepped from Python: angle, velocity, stance (1/0) per side
+        self._in = np.zeros((3, 2))
         self.log = CircuitLog(max_steps, ns, LOG_FIELDS) if max_steps else None
+        self._log_data = (self.log.data if self.log is not None
+                          else np.zeros((0, len(LOG_FIELDS), ns)))
         self.steps = 0
         self.t_s = 0.0
 
@@ -217,83 +235,60 @@ class IdealDevice:
     # -- coupled protocol --------------------------------------------------------------------
     def begin_step(self, t: float, angle_rad, velocity_rad_s, stance):
         """The command of every worn side from the state at the step's start; returns the
-        joint force and the extra damping per walker side (views, length 2; damping 0)."""
+        joint force and the extra damping per walker side (views, length 2; damping 0).
+        The compiled :func:`afo_mj.devices.ideal_step.ideal_begin`."""
         self.t_s = float(t)
-        lo, hi = self.stride_limits
-        out = self.force2
-        out[:] = 0.0
-        for s in self.side_index:
-            on = bool(stance[s])
-            th = float(angle_rad[s])
-            self._angle2[s] = th
-            self._stance2[s] = on
-            ph = asst.phase_update(self.phase[s], t, on, lo, hi)
-            self.phase2[s] = ph
-            gain = (1.0 if self.ramp_strides == 0 else
-                    min(1.0, self.phase[s, asst.PH_N] / self.ramp_strides))
-            if self.spring is not None:
-                stretch = self._clutch(s, ph, on, th)
-                if stretch is not None:
-                    out[s] = -gain * self.spring.stiffness_nm_per_rad * stretch
-            elif self.profile is not None:
-                # only while the foot switch reads stance: a stride estimate that lags a
-                # short stride would otherwise push a swinging foot
-                out[s] = gain * asst.table_lookup(self.profile, ph) if on else 0.0
-            elif self._imp_table is not None:
-                out[s] = gain * impedance_torque(self._imp_table, ph, th,
-                                                 float(velocity_rad_s[s]))
-        self.commanded2[:] = out
+        x = self._in
+        x[0] = angle_rad
+        x[1] = velocity_rad_s
+        x[2] = stance
+        kern.ideal_begin(self.t_s, x[0], x[1], x[2], self._buf, self._meta)
         return self.force2, self.damping2
-
-    def _clutch(self, s: int, ph: float, stance: bool, theta: float) -> float | None:
-        """The clutched spring's dorsiflexion past its engagement angle on walker side ``s``
-        (rad, >= 0), or None while the clutch is open (module docstring)."""
-        sp = self.spring
-        if not stance or ph < 0.0 or ph > sp.release_phase:
-            # swing (or no stride estimate yet, or past the release): the clutch is open
-            self.theta_engaged[s] = np.nan
-            if not stance:
-                self.used[s] = False
-            return None
-        if math.isnan(self.theta_engaged[s]) and not self.used[s] and ph >= sp.engage_phase:
-            self.theta_engaged[s] = theta          # engages slack, at foot flat
-            self.used[s] = True
-        if math.isnan(self.theta_engaged[s]):
-            return None
-        if sp.ratchet and theta < self.theta_engaged[s]:
-            self.theta_engaged[s] = theta          # the ratchet takes up the slack
-        return max(theta - self.theta_engaged[s], 0.0)
 
     def end_step(self, velocity_new_rad_s):
         """Close the step with the joint velocity MuJoCo produced; returns the delivered
-        torque per walker side (the command, exactly)."""
-        h = self.timestep_s
-        d = self.delivered2
-        d[:] = self.force2
+        torque per walker side (the command, exactly). The compiled
+        :func:`afo_mj.devices.ideal_step.ideal_end`; a non-finite torque raises
+        FloatingPointError."""
+        v = self._in[1]
+        v[:] = velocity_new_rad_s
         n = self.steps
-        row = None
-        if self.log is not None and n < self.log.data.shape[0]:
-            row = self.log.data[n]
-        for j, s in enumerate(self.side_index):
-            v = float(velocity_new_rad_s[s])
-            tau = float(d[s])
-            # MuJoCo's semi-implicit Euler moves the ankle by h·q̇_{n+1} under this torque
-            w = tau * v * h
-            if w > 0.0:
-                self._pos_j[j] += w
-            else:
-                self._neg_j[j] += w
-            self._peak_nm[j] = max(self._peak_nm[j], abs(tau))
-            if row is not None:
-                eng = not math.isnan(self.theta_engaged[s])
-                row[:, j] = (self.t_s + h, self.commanded2[s], tau, tau, self.phase2[s],
-                             float(self._stance2[s]), tau * v, v, self._angle2[s] + h * v,
-                             self._angle2[s], float(eng),
-                             self.theta_engaged[s] if eng else 0.0)
-        if row is not None:
+        code = kern.ideal_end(v, self._buf, self._meta, self._log_data, n,
+                              self.t_s + self.timestep_s)
+        if not code:
+            raise self._non_finite()
+        if code == 2:
             self.log.n = n + 1
         self.steps = n + 1
         return self.delivered2
+
+    def native_coupling(self):
+        """The C entry points and buffers a compiled walk loop steps this device with
+        (:class:`afo_mj.circuits.native_entry.NativeCoupling`; the kernels of
+        :mod:`afo_mj.devices.ideal_step`, the same that :meth:`begin_step`/:meth:`end_step`
+        call). The loop reports back with :meth:`native_finished`."""
+        from afo_mj.circuits.native_entry import NativeCoupling
+        begin, end = kern.entry_addresses()
+        return NativeCoupling(begin, end, self._buf, self._meta, self._log_data, self.force2,
+                              self.damping2, self.delivered2)
+
+    def native_finished(self, steps: int, last_t_s: float, failed: bool = False) -> None:
+        """A compiled loop stepped this device ``steps`` times, the last one beginning at
+        ``last_t_s``: the step counter, the log's length and the time move on as
+        :meth:`end_step` would have moved them; ``failed`` (a torque went non-finite in the
+        last step) raises the error :meth:`end_step` raises."""
+        if steps:
+            self.t_s = float(last_t_s)
+        self.steps += steps - 1 if failed else steps
+        if self.log is not None:
+            self.log.n = min(self.steps, self.log.data.shape[0])
+        if failed:
+            raise self._non_finite()
+
+    def _non_finite(self) -> FloatingPointError:
+        return FloatingPointError(f"ideal device: a non-finite torque at t = {self.t_s:.4f} s "
+                                  f"(command {self.commanded2.tolist()} N·m, angle "
+                                  f"{self._buf[kern.B_ANGLE:kern.B_ANGLE + 2].tolist()} rad)")
 
     # -- ledger ----------------------------------------------------------------------------
     def ledger(self, k: int = 0) -> dict:
