@@ -73,7 +73,11 @@ def test_ideal_zhang_torque_follows_the_profile_on_the_estimated_phase(params):
     assert checked > 30
     # the gate by itself: strides of 1 s measured, then at 40 % of a stride the torque is the
     # profile's with the foot on the ground and none with it off (an early toe off)
-    ideal = ma._IdealTorque(ma.Assistance("zhang", zhang_peak_nm_per_kg=0.3), 75.0)
+    dev = ma.ideal_device(ma.Assistance("zhang", zhang_peak_nm_per_kg=0.3), 75.0)
+
+    def ideal(t, angle2, velocity2, stance2):
+        return dev.begin_step(t, angle2, velocity2, stance2)[0]
+
     zero2 = np.zeros(2)
     for t in np.arange(0.0, 2.4, 0.01):
         ideal(t, zero2, zero2, np.array([(t % 1.0) < 0.6, False]))
@@ -250,7 +254,7 @@ def test_ramp_scales_the_ideal_torque_by_the_strides_measured(params):
     from afo_mj.control import assistance as asst
     a0 = ma.Assistance("zhang", zhang_peak_nm_per_kg=0.2)
     a4 = ma.Assistance("zhang", zhang_peak_nm_per_kg=0.2, ramp_strides=4)
-    t0, t4 = ma._IdealTorque(a0, 75.0), ma._IdealTorque(a4, 75.0)
+    d0, d4 = ma.ideal_device(a0, 75.0), ma.ideal_device(a4, 75.0)
     rng = np.random.default_rng(3)
     t = 0.0
     seen = set()
@@ -258,9 +262,9 @@ def test_ramp_scales_the_ideal_torque_by_the_strides_measured(params):
         t = k * 1e-3
         stance = np.array([(t % 1.1) < 0.65, ((t + 0.55) % 1.1) < 0.65])
         ang, vel = rng.normal(0, 0.1, 2), rng.normal(0, 1, 2)
-        full = t0(t, ang, vel, stance).copy()
-        ramped = t4(t, ang, vel, stance).copy()
-        n = t4.phase[0, asst.PH_N]
+        full = d0.begin_step(t, ang, vel, stance)[0].copy()
+        ramped = d4.begin_step(t, ang, vel, stance)[0].copy()
+        n = d4.phase[0, asst.PH_N]
         np.testing.assert_allclose(ramped[0], full[0] * min(1.0, n / 4), rtol=1e-12)
         if full[0] != 0.0:
             seen.add(int(n))

@@ -54,8 +54,8 @@ from afo_mj.gait.muscle_walk import MuscleWalk, run_muscle_walk
 from afo_mj.human.metabolics import basal_rate_w
 from afo_mj.human.walker import WalkerParams
 
-__all__ = ["KINDS", "DEVICE_PRESETS", "Assistance", "assistance_device", "assistance_walk",
-           "assistance_summary", "assistance_comparison"]
+__all__ = ["KINDS", "DEVICE_PRESETS", "Assistance", "ideal_device", "assistance_device",
+           "assistance_walk", "assistance_summary", "assistance_comparison"]
 
 #: the conditions :class:`Assistance` knows
 KINDS = ("none", "worn_mass", "zhang", "clutched_spring", "hafo")
@@ -137,27 +137,24 @@ class Assistance:
         return self.kind
 
 
-class _IdealTorque:
-    """The ideal (massless) torque of ``zhang`` or ``clutched_spring`` per side as a
-    ``device_torque`` callback of :func:`~afo_mj.gait.muscle_walk.run_muscle_walk`: the
-    command of an :class:`~afo_mj.devices.ideal.IdealDevice` (gait phase estimated from
-    stance as a device would estimate it), which delivers exactly what it commands."""
-
-    def __init__(self, a: Assistance, body_mass_kg: float):
-        spring = (ClutchedSpring(a.spring_nm_per_rad, a.spring_engage_phase,
-                                 a.spring_release_phase, a.spring_ratchet)
-                  if a.kind == "clutched_spring"
-                  else None)
-        profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg,
-                                      *ZHANG_TIMING_PCT) if a.kind == "zhang" else None)
-        self.device = IdealDevice(sides=a.sides, profile=profile, spring=spring,
-                                  ramp_strides=a.ramp_strides)
-        #: the device's phase-estimator state per walker side
-        self.phase = self.device.phase
-
-    def __call__(self, t, angle2, velocity2, stance2):
-        force2, _damping2 = self.device.begin_step(t, angle2, velocity2, stance2)
-        return force2
+def ideal_device(a: Assistance, body_mass_kg: float, timestep_s: float = 1e-3,
+                 max_steps: int = 0) -> IdealDevice:
+    """The device of a ``zhang`` or ``clutched_spring`` condition: an
+    :class:`~afo_mj.devices.ideal.IdealDevice` (massless; gait phase estimated from stance as
+    a device would estimate it) on ``a.sides`` commanding the Zhang profile of
+    ``a.zhang_peak_nm_per_kg`` × ``body_mass_kg`` or the clutched spring, with ``a``'s ramp;
+    it delivers exactly what it commands, stepped in the muscle walk's compiled loop."""
+    if a.kind not in ("zhang", "clutched_spring"):
+        raise ValueError(f"ideal_device: assistance.kind = {a.kind!r}; allowed: 'zhang', "
+                         "'clutched_spring'")
+    spring = (ClutchedSpring(a.spring_nm_per_rad, a.spring_engage_phase,
+                             a.spring_release_phase, a.spring_ratchet)
+              if a.kind == "clutched_spring" else None)
+    profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg, *ZHANG_TIMING_PCT)
+               if a.kind == "zhang" else None)
+    return IdealDevice(sides=a.sides, profile=profile, spring=spring,
+                       ramp_strides=a.ramp_strides, timestep_s=timestep_s,
+                       max_steps=max_steps)
 
 
 def assistance_device(a: Assistance, timestep_s: float, max_steps: int = 0):
@@ -179,7 +176,8 @@ def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
                     max_force_scale: dict | None = None, worn_masses=()):
     """Walk the muscle walker under one condition (with ``worn_masses`` besides the
     device's). Returns ``(walk, device)`` (the :class:`~afo_mj.gait.muscle_walk.MuscleWalk`
-    and the ``hafo`` condition's device, or None)."""
+    and the ``hafo`` condition's device, or None). The ideal conditions wear
+    :func:`ideal_device` (no log kept; not returned: an ideal source has no losses to report)."""
     w = walker or WalkerParams()
     a = assistance
     extra = tuple(worn_masses)
@@ -189,7 +187,7 @@ def assistance_walk(assistance: Assistance, walker: WalkerParams | None = None,
     if a.kind in ("zhang", "clutched_spring"):
         return run_muscle_walk(w, params, duration_s, worn_masses=extra,
                                max_force_scale=max_force_scale,
-                               device_torque=_IdealTorque(a, w.body_mass_kg)), None
+                               device=ideal_device(a, w.body_mass_kg, w.timestep_s)), None
     dev = assistance_device(a, w.timestep_s, int(duration_s / w.timestep_s) + 4)
     worn = tuple(dev.worn_masses()) + extra
     if a.kind == "worn_mass":
