@@ -206,8 +206,9 @@ def test_clutched_spring_scenario_runs_with_the_wearers_metabolic_change(tmp_pat
 
 def test_the_ideal_device_walks_the_torque_walker(tmp_path):
     """gait_assist_hafo with the HAFO swapped for the ideal device: the torque walker steps
-    it in its Python loop; delivered = commanded = the record's torque, the Zhang peak of
-    40 N·m reached, nothing delivered while transparent, and a worn mass at the ankle."""
+    it in its compiled loop (its C entry points); delivered = commanded = the record's
+    torque, the Zhang peak of 40 N·m reached, nothing delivered while transparent, and a worn
+    mass at the ankle."""
     sc, cfg, summary, results = _run(HAFO, ["device.preset=ideal", "gait.strides=5",
                                             "gait.analyse_strides=[3, 5]",
                                             "device.params.mass_kg=0.5"])

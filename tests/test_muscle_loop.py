@@ -144,9 +144,18 @@ def test_compiled_is_refused_where_it_cannot_run(params):
         MuscleWalkStepper(params=params, duration_s=0.1, loop="compiled",
                           device_torque=lambda t, a, v, s: np.zeros(2))
     from afo_mj.devices.ideal import ClutchedSpring, IdealDevice
+
+    class PythonCoupled:
+        """A coupled device with no compiled entry points (its step is Python only)."""
+        coupled, timestep_s = True, 1e-3
+
     with pytest.raises(ValueError, match="compiled entry points"):
         MuscleWalkStepper(params=params, duration_s=0.1, loop="compiled",
-                          device=IdealDevice(sides=("right",), spring=ClutchedSpring(100.0)))
+                          device=PythonCoupled())
+    # the ideal device has them (afo_mj.devices.ideal_step)
+    assert MuscleWalkStepper(params=params, duration_s=0.1, loop="compiled",
+                             device=IdealDevice(sides=("right",),
+                                                spring=ClutchedSpring(100.0))).compiled
     w = MuscleWalkStepper(params=params, duration_s=0.1, loop="compiled")
     with pytest.raises(ValueError, match=r"step\(action\)"):
         w.step((1.0, 0.0))
