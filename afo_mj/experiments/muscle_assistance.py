@@ -94,6 +94,19 @@ class Assistance:
     #: ideal conditions: the torque rises linearly over this many strides of the phase
     #: estimator (as devices ramp assistance on), 0 = at once
     ramp_strides: int = 0
+    #: the Zhang profile's timing ``(peak, rise, fall)`` in % of the stride, of the ``zhang``
+    #: torque and of the ``hafo`` command (:func:`afo_mj.control.assistance.zhang_profile`);
+    #: default the published generic timing :data:`ZHANG_TIMING_PCT`. Left out of the repr
+    #: at that default, so that the optimiser's state key (:func:`afo_mj.studies.
+    #: gait_optimization.optimize_gait`) of the searches saved before it stays the same
+    zhang_timing_pct: tuple = ZHANG_TIMING_PCT
+
+    def __repr__(self) -> str:
+        shown = [f for f in dataclasses.fields(self)
+                 if f.repr and not (f.name == "zhang_timing_pct"
+                                    and self.zhang_timing_pct == ZHANG_TIMING_PCT)]
+        return (f"{type(self).__qualname__}("
+                + ", ".join(f"{f.name}={getattr(self, f.name)!r}" for f in shown) + ")")
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -114,6 +127,18 @@ class Assistance:
                 or not 0 <= self.ramp_strides <= 100:
             raise ValueError(f"assistance.ramp_strides = {self.ramp_strides!r}; allowed: an "
                              "integer 0 … 100")
+        timing = self.zhang_timing_pct
+        if isinstance(timing, (str, bytes)) or not hasattr(timing, "__len__") \
+                or len(timing) != 3 or any(isinstance(v, bool) or not isinstance(v, (int, float))
+                                           or not math.isfinite(v) for v in timing):
+            raise ValueError(f"assistance.zhang_timing_pct = {timing!r}; allowed: three "
+                             "finite numbers (peak, rise, fall), % of the stride")
+        timing = tuple(float(v) for v in timing)
+        object.__setattr__(self, "zhang_timing_pct", timing)
+        try:
+            asst.zhang_profile(1.0, *timing, n=3)
+        except asst.ParameterError as exc:
+            raise ValueError(f"assistance.zhang_timing_pct = {list(timing)!r}: {exc}") from None
         for name, lo, hi in (("zhang_peak_nm_per_kg", 0.0, 3.0),
                              ("spring_nm_per_rad", 0.0, 2000.0),
                              ("spring_engage_phase", 0.0, 0.5),
@@ -126,14 +151,16 @@ class Assistance:
     @property
     def label(self) -> str:
         """A short name for tables."""
+        timing = ("" if self.zhang_timing_pct == ZHANG_TIMING_PCT else
+                  ", peak {:.1f} %, rise {:.1f} %, fall {:.1f} %".format(*self.zhang_timing_pct))
         if self.kind == "zhang":
-            return f"zhang {self.zhang_peak_nm_per_kg:g} N·m/kg"
+            return f"zhang {self.zhang_peak_nm_per_kg:g} N·m/kg{timing}"
         if self.kind == "clutched_spring":
             return (f"clutched spring {self.spring_nm_per_rad:g} N·m/rad"
                     + (", ratchet" if self.spring_ratchet else ""))
         if self.kind == "hafo":
             name = device_entry(self.hafo_preset).label
-            return f"{name} ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m)"
+            return f"{name} ({self.hafo_preset}, {self.hafo_peak_torque_nm:g} N·m{timing})"
         return self.kind
 
 
@@ -150,7 +177,7 @@ def ideal_device(a: Assistance, body_mass_kg: float, timestep_s: float = 1e-3,
     spring = (ClutchedSpring(a.spring_nm_per_rad, a.spring_engage_phase,
                              a.spring_release_phase, a.spring_ratchet)
               if a.kind == "clutched_spring" else None)
-    profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg, *ZHANG_TIMING_PCT)
+    profile = (asst.zhang_profile(a.zhang_peak_nm_per_kg * body_mass_kg, *a.zhang_timing_pct)
                if a.kind == "zhang" else None)
     return IdealDevice(sides=a.sides, profile=profile, spring=spring,
                        ramp_strides=a.ramp_strides, timestep_s=timestep_s,
@@ -162,7 +189,7 @@ def assistance_device(a: Assistance, timestep_s: float, max_steps: int = 0):
     the right ankle commanding the Zhang profile of ``a.hafo_peak_torque_nm``, built as
     ``afo-mj run`` builds an ``assist`` condition (a log of ``max_steps`` steps)."""
     cfg = preset_config(a.hafo_preset, ("right",),
-                        asst.zhang_profile(a.hafo_peak_torque_nm, *ZHANG_TIMING_PCT),
+                        asst.zhang_profile(a.hafo_peak_torque_nm, *a.zhang_timing_pct),
                         key="assistance.hafo_preset")
     return make_device(cfg, "assist", timestep_s, max_steps)
 
