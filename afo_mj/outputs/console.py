@@ -483,6 +483,69 @@ def adaptation_lines(res, out) -> list[str]:
     return lines
 
 
+def hil_tuning_lines(res, out) -> list[str]:
+    """``tools/hil_tuning.py``: every arm's restarts (net metabolic rate, W/kg, Umberger 2010;
+    the tuned profiles), the changes (tuned vs generic paired by restart, both vs the
+    control) beside Zhang et al.'s figure, then a JSON line."""
+    import json
+    p = res.protocol["adaptation"]
+    b = res.protocol["bounds"]
+
+    def rate(v):
+        return "falls" if v is None else f"{v:.3f} W/kg"
+
+    def change(name, ch):
+        rng = ch.get("all_pairs_range")
+        return (f"  {name}: paired " + ", ".join(_pct(x) for x in ch["paired"])
+                + f" (mean {_pct(ch['paired_mean'])}, spread "
+                + ("-" if ch["paired_spread"] is None else f"{ch['paired_spread']:.2f} points")
+                + f"); best vs best {_pct(ch['best'])}"
+                + ("" if rng is None else f" (every pairing {rng[0]:+.2f} … {rng[1]:+.2f} %)"))
+
+    lines = [f"hil tuning: 3 arms x {p['restarts']} restarts, CMA-ES popsize {p['popsize']}, "
+             f"{p['generations']} generations, sigma0 {p['sigma0']:g} (reflexes), "
+             f"{res.protocol['profile_sigma']:g} of each bound (profile); {res.walks} walks"
+             + ("" if res.cpu_s is None else f", {res.cpu_s:.0f} s CPU"),
+             "  bounds: peak " + "–".join(f"{v:g}" for v in b["peak_nm_per_kg"])
+             + " N·m/kg, peak time " + "–".join(f"{v:g}" for v in b["peak_time_pct"])
+             + " %, rise " + "–".join(f"{v:g}" for v in b["rise_time_pct"])
+             + " %, fall " + "–".join(f"{v:g}" for v in b["fall_time_pct"]) + " % of stride",
+             f"  objective: {res.objective}"]
+    for name, arm in (("control", res.control), ("generic", res.generic)):
+        lines.append(f"  {name} ({arm.label}): wearer restart {arm.best_restart}, "
+                     f"{rate(arm.net_metabolic_w_per_kg)}"
+                     + ("" if arm.spread_pct is None else f"; spread {arm.spread_pct:.2f} %"))
+        for r in arm.restarts:
+            lines.append(f"    restart {r.restart} (seed {r.seed}): "
+                         f"{rate(r.net_metabolic_w_per_kg)}, cost {r.search_cost:.3f} after "
+                         f"{r.generations} generations; {r.convergence}")
+    lines.append(f"  tuned: wearer restart {res.tuned_best_restart}, "
+                 f"{rate(res.tuned_net_metabolic_w_per_kg)}"
+                 + ("" if res.tuned_spread_pct is None
+                    else f"; spread {res.tuned_spread_pct:.2f} %"))
+    for r in res.tuned:
+        lines.append(f"    restart {r.restart} (seed {r.seed}): peak {r.peak_nm_per_kg:.3f} "
+                     f"N·m/kg at {r.peak_time_pct:.1f} %, rise {r.rise_time_pct:.1f} %, fall "
+                     f"{r.fall_time_pct:.1f} %; {rate(r.net_metabolic_w_per_kg)}, cost "
+                     f"{r.search_cost:.3f} after {r.generations} generations; "
+                     f"{r.convergence}")
+    lines.append("  change of the net metabolic rate:")
+    lines.append(change("tuned vs generic", res.tuned_vs_generic))
+    lines.append(change("tuned vs control", res.tuned_vs_control))
+    lines.append(change("generic vs control", res.generic_vs_control))
+    pub = res.published
+    lines.append(f"  published: tuned {pub['tuned_change_pct']:+.1f} ± "
+                 f"{pub['tuned_change_sd_pct']:.1f} % ({pub['source']})")
+    lines.append(f"  {out}/hil_tuning.json")
+    lines.append(json.dumps({"tuned_vs_generic": res.tuned_vs_generic,
+                             "tuned_vs_control": res.tuned_vs_control,
+                             "generic_vs_control": res.generic_vs_control,
+                             "tuned_profiles": [{k: getattr(r, k) for k in (
+                                 "peak_nm_per_kg", "peak_time_pct", "rise_time_pct",
+                                 "fall_time_pct")} for r in res.tuned]}))
+    return lines
+
+
 def gait_optimization_lines(doc: Mapping, out) -> list[str]:
     """``afo-mj optimize-gait``: the best reflex set's cost and gait, and a JSON line."""
     import json
