@@ -60,8 +60,8 @@ import numpy as np
 from afo_mj import progress
 from afo_mj.calibration import residual_analysis as ra
 from afo_mj.calibration.calibration_model import (
-    DIFF_STEP, FIT_FTOL, REPLAY_CACHE_SIZE, CalibrationModel, _Model, declared_labels,
-    model_outputs, sensor_outputs)
+    DIFF_STEP, FIT_FTOL, REPLAY_CACHE_SIZE, SENSITIVITY_STEP_S, CalibrationModel, _Model,
+    declared_labels, model_outputs, sensor_outputs)
 from afo_mj.calibration.calibration_setup import (
     CALIBRATION_KEYS, CALIBRATION_TABLE, LOAD_KEYS, LOAD_TABLE, SENSOR_KEYS, SENSOR_TABLE,
     CalibrationError, CalibrationOptions, CalibrationSetup, load_calibration_scenario,
@@ -164,8 +164,10 @@ class Calibration(CalibrationModel):
     def _declared_jacobian(self, m: _Model, f0: np.ndarray) -> np.ndarray:
         """Forward-difference sensitivities of the training residuals to the declared
         parameters at ``m.x`` (steps ``0.01 · max(|x_j|, 0.1)``); a column the fit's last
-        Jacobian took with the same step is reused, not replayed again."""
-        cols = []
+        Jacobian took with the same step is reused, not replayed again. The others are taken
+        at :attr:`sensitivity_step_s` when one is set (``f0`` is then replayed there too)."""
+        cols: list = []
+        f0c = None
         for j in range(len(self.declared)):
             x = m.x.copy()
             step = 0.01 * max(abs(x[j]), 0.1)
@@ -173,7 +175,10 @@ class Calibration(CalibrationModel):
                 cols.append(m.raw_jac[:, j])
                 continue
             x[j] += step
-            cols.append((self.train_residuals(m.effects, x) - f0) / step)
+            with self.at_sensitivity_step() as coarse:
+                if f0c is None:
+                    f0c = self.train_residuals(m.effects, m.x) if coarse else f0
+                cols.append((self.train_residuals(m.effects, x) - f0c) / step)
         return np.array(cols).T
 
     def _probes(self, e: Effect) -> list[list[float]]:
@@ -222,13 +227,19 @@ class Calibration(CalibrationModel):
                                  "effects": {}}
         scores = []
         kd = len(self.declared)
+        # each probe's change of the outputs is replayed at the sensitivity step, beside the
+        # base there (a difference at one step: the stepper's own error cancels); the probe's
+        # residual is that change added to the base's residual at the replay's step
+        with self.at_sensitivity_step() as coarse:
+            f0c = self.train_residuals(m.effects, m.x) if coarse else f0
         for e in pool:
             best = {"effect": e.name, "score": 0.0, "probe": None, "base": m}
             for probe in self._probes(e):
                 xp = [v / p.scale for v, p in zip(probe, e.parameters)]
                 x = np.concatenate([m.x, xp])
                 try:
-                    f1 = self.train_residuals(m.effects + [e], x)
+                    with self.at_sensitivity_step():
+                        f1 = self.train_residuals(m.effects + [e], x) - f0c + f0
                 except ParameterError:
                     continue
                 xe = None
@@ -305,7 +316,8 @@ class Calibration(CalibrationModel):
         lo, hi = self._bounds([])
         progress.reporter().stage(f"calibration: identifiability of {k} declared parameters "
                                   f"({k + 1} replays)…")
-        J, _ = self.jacobian([], np.ones(k), lo, hi)
+        with self.at_sensitivity_step():
+            J, _ = self.jacobian([], np.ones(k), lo, hi)
         floor = self.noise_floor()
         n1 = len(self.train_idx)
         w = np.concatenate([np.full(n1, 1.0 / max(floor[c], 1e-12)) for c in self.outputs])
@@ -486,6 +498,7 @@ class Calibration(CalibrationModel):
         t_start = time.perf_counter()
         self.held_declared: dict[str, float] = {}
         replay_step = self.choose_step()                      # before any replay is fitted
+        replay_step = self.set_sensitivity_step(replay_step)
         self.select_declared()
         self.drop_fitted_candidates()
         structure = list(self.declared_effects)
@@ -529,6 +542,19 @@ class Calibration(CalibrationModel):
                   + (f"; {out['reason']}" if out.get("reason") else ""))
         self._replays.clear()
         return out
+
+    def set_sensitivity_step(self, replay_step: dict) -> dict:
+        """When the replay's step (chosen or stated) is finer than
+        :data:`~afo_mj.calibration.calibration_model.SENSITIVITY_STEP_S`, the sensitivities
+        (the identifiability screen, the rankings' probes, a ranking's declared columns not
+        reused from a fit) and each fit's first stage are replayed at that step, and only
+        the fits' last stage, their held-out errors and the refits' judgement at the
+        replay's own (:meth:`CalibrationModel.fit`). Returns ``replay_step`` with
+        ``sensitivity_step_s`` (None: the replay's own step throughout)."""
+        fine = float(self.replay.max_step_s)
+        self.sensitivity_step_s = (SENSITIVITY_STEP_S if self.described
+                                   and SENSITIVITY_STEP_S > fine * (1.0 + 1e-9) else None)
+        return {**replay_step, "sensitivity_step_s": self.sensitivity_step_s}
 
     def numerical_check(self, m: _Model) -> dict:
         """The final model ``m`` integrated by Radau beside the replay on the record's first
@@ -966,6 +992,7 @@ class Calibration(CalibrationModel):
             "residual_attribution": verdict.attribution,
             "data_driven_discrepancy": verdict.discrepancy,
             "evaluations": self.evaluations,
+            "evaluations_at_sensitivity_step": self.coarse_evaluations,
             "wall_time_s": time.perf_counter() - t_start,
             "_series": {"time_s": self.t, "measured": self.meas, "before": before.out,
                         "after": after.out, "i_cut": self.i_cut},
