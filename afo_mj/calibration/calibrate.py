@@ -117,6 +117,15 @@ def _refit_line(rec: dict) -> str:
     not)."""
     line = (f"held-out error {-100 * rec['held_out_drop']:+.0f} %, "
             f"ΔBIC {rec['delta_bic']:+.1f}, ")
+    if rec.get("plausibility"):
+        return (line + ("taken: at the noise floor with every declared value within its "
+                        "tolerance" if rec["pays"] else "not taken" + (
+                            "" if rec["identifiable"] else " (not identifiable)")
+                        + ("" if rec["at_noise"] else " (not at the noise floor)")
+                        + (f" ({', '.join(rec['beyond_tolerance'])} beyond tolerance)"
+                           if rec["beyond_tolerance"] else "")
+                        + (f" (at a bound: {'; '.join(rec['at_bound'])})"
+                           if rec.get("at_bound") else "")))
     if rec["pays"]:
         return line + "pays"
     return (line + "does not pay" + ("" if rec["identifiable"] else " (not identifiable)")
@@ -637,16 +646,28 @@ class Calibration(CalibrationModel):
         ``max_effects`` are in."""
         s = _Search(start, [], {})
         pool = list(self.candidates)
+        plausibility = False
         while len(s.model.effects) - len(structure) < self.options.max_effects and pool:
-            added = self.search_round(s, pool)
+            added = (self.plausibility_round(s, pool) if plausibility
+                     else self.search_round(s, pool))
             if added is None:
                 break
+            pool = [c for c in pool if c.name != added.name]
             if self.at_noise(s.model):
+                beyond = self.beyond_tolerance(s.model)
+                if not beyond or not self.screen_columns:
+                    progress.reporter().stage(
+                        f"calibration: every channel within {AT_NOISE_MULTIPLE:g}× its noise "
+                        "floor; no candidate can improve beyond the noise, the search ends")
+                    break
+                # at the noise floor, but only with a declared value beyond its datasheet
+                # tolerance: an effect that explains the record as well with every declared
+                # value within its tolerance is the more plausible model
                 progress.reporter().stage(
                     f"calibration: every channel within {AT_NOISE_MULTIPLE:g}× its noise "
-                    "floor; no candidate can improve beyond the noise, the search ends")
-                break
-            pool = [c for c in pool if c.name != added.name]
+                    f"floor, but with {', '.join(beyond)} beyond its datasheet tolerance; "
+                    "the candidates ranked from the described values are refitted")
+                plausibility = True
         for name, entry in s.candidates.items():
             entry["best_score"] = max(entry["scores"]) if entry["scores"] else 0.0
             entry["selected"] = any(st["effect"] == name for st in s.steps)
@@ -708,6 +729,70 @@ class Calibration(CalibrationModel):
         s.model = m
         return e
 
+    def plausibility_round(self, s: _Search, pool: list[Effect]) -> Effect | None:
+        """A round after the noise stop was reached by a model ``s.model`` that holds a
+        declared value beyond its datasheet tolerance (:meth:`search_effects`).
+
+        A fit that needs a declared value beyond its tolerance is less plausible than one
+        that explains the record as well with every declared value within it: the datasheet
+        is evidence too. So the pool is ranked from the described values
+        (:meth:`described_ranking`: the values beyond their tolerance left out of the
+        projection) and its top ``refit_top`` above ``min_refit_score`` are refitted from
+        there, each with every declared value bounded to its datasheet tolerance
+        (:meth:`CalibrationModel.fit` ``within_tolerance``: an effect and a declared value
+        that act alike, such as a piston leakage and the pump's slip, would otherwise slide
+        back along their common valley). A refit is taken when it is at the noise floor
+        (:meth:`at_noise`), holds every declared value within its tolerance, and its new
+        parameters are identifiable and not pinned at a library bound
+        (:meth:`judge_refit` with ``plausibility``; the held-out drop and ΔBIC of the other
+        rounds do not apply: the model it replaces is at the noise floor already, so no
+        effect can cut its error, and is judged less plausible, not worse fitting). Of those
+        taken, the lowest held-out error is added; the first taken ends the refits. Returns
+        the effect added, or ``None``."""
+        rep = progress.reporter()
+        rnd_no = len(s.steps) + 1
+        rnd = f"calibration round {rnd_no}/{self.options.max_effects} (plausibility)"
+        ranking = self.described_ranking(s.model, pool, rnd)
+        if ranking is None:
+            return None
+        info_cur = self.information(s.model)
+        top = []
+        for sc in ranking:
+            entry = s.candidates.setdefault(sc["effect"], {"scores": []})
+            entry["scores"].append(round(sc["score"], 6))
+            entry.setdefault("scores_by_start", []).append(
+                {"round": rnd_no, "described_values": round(sc["score"], 6),
+                 "plausibility_round": True})
+            if sc["score"] > self.min_refit_score and len(top) < self.options.refit_top:
+                top.append(sc)
+        taken = []
+        for sc in top:
+            e = next(c for c in pool if c.name == sc["effect"])
+            got = self.refit_candidate(s, e, sc["score"], [sc], rnd_no, info_cur,
+                                       plausibility=True)
+            if got is None:
+                continue
+            rep.stage(f"{rnd}: {e.name}: " + _refit_line(got[2]))
+            if got[2]["pays"]:
+                taken.append(got)
+                break
+        if not taken:
+            rep.stage(f"{rnd}: no candidate reaches the noise floor with every declared "
+                      "value within its tolerance; the search ends")
+            return None
+        m, e, rec, ident = min(taken, key=lambda t: t[0].held_out["overall"])
+        rep.stage(f"{rnd}: selected {e.name}")
+        step = self.selected_step(s.model, m, e, rec, ident)
+        step["selected_by"] = (
+            "plausibility: the model before it reached the noise floor only with "
+            + ", ".join(rec["replaced_beyond_tolerance"]) + " beyond its datasheet "
+            "tolerance; with this effect every channel is within "
+            f"{AT_NOISE_MULTIPLE:g}× its noise floor and every declared value within its "
+            "tolerance")
+        s.steps.append(step)
+        s.model = m
+        return e
+
     def at_noise(self, m: _Model) -> bool:
         """Whether every channel's held-out NRMSE of ``m`` is within
         :data:`AT_NOISE_MULTIPLE` times its noise floor (a described rig; a preset's search
@@ -758,7 +843,8 @@ class Calibration(CalibrationModel):
                          J=J0)
 
     def refit_candidate(self, s: _Search, e: Effect, score: float, scs: Sequence[dict],
-                        rnd_no: int, info_cur: dict) -> tuple | None:
+                        rnd_no: int, info_cur: dict, plausibility: bool = False
+                        ) -> tuple | None:
         """Refit ``s.model`` plus candidate ``e``. Its starts are those of the rankings
         ``scs`` where it scored above ``min_refit_score`` (:meth:`refit_start`: at the
         current fit, at the described values); the start of lowest training cost is fitted
@@ -777,7 +863,7 @@ class Calibration(CalibrationModel):
         best = None
         for cost, where, x0 in starts:
             try:
-                m = self.fit(s.model.effects + [e], x0)
+                m = self.fit(s.model.effects + [e], x0, within_tolerance=plausibility)
             except (CalibrationError, ReplayError) as exc:
                 s.candidates[e.name]["refit_error"] = str(exc)
                 rep.stage(f"calibration round {rnd_no}: {e.name}: refit from the {where} "
@@ -785,7 +871,8 @@ class Calibration(CalibrationModel):
                 continue
             if best is not None and m.cost >= best[0].cost:
                 continue
-            rec, ident = self.judge_refit(s.model, m, e, score, rnd_no, info_cur)
+            rec, ident = self.judge_refit(s.model, m, e, score, rnd_no, info_cur,
+                                          plausibility)
             rec["start"] = where
             best = (m, e, rec, ident)
             if rec["pays"]:
@@ -795,7 +882,8 @@ class Calibration(CalibrationModel):
         return best
 
     def judge_refit(self, current: _Model, m: _Model, e: Effect, score: float,
-                    round_no: int, info_cur: dict) -> tuple[dict, dict]:
+                    round_no: int, info_cur: dict, plausibility: bool = False
+                    ) -> tuple[dict, dict]:
         """Whether ``m`` (``current`` plus candidate ``e``, refitted) pays (step 5): the BIC
         falls by more than ``bic_margin``, the held-out overall NRMSE by ``min_error_drop``,
         the new parameters are identifiable; on a described rig also none is pinned at a
@@ -824,6 +912,16 @@ class Calibration(CalibrationModel):
                       "generic": self.generic_correction(current, len(e.parameters))}
             earned["beats_generic"] = bool(drop > earned["generic"]["held_out_drop"])
             pays = bool(pays and not earned["at_bound"] and earned["beats_generic"])
+        if plausibility:
+            # after the noise stop with a declared value beyond its tolerance
+            # (:meth:`plausibility_round`): taken when at the noise floor with every declared
+            # value within its tolerance, identifiable and at no library bound
+            beyond = self.beyond_tolerance(m)
+            earned.update({"plausibility": True, "at_noise": self.at_noise(m),
+                           "beyond_tolerance": beyond,
+                           "replaced_beyond_tolerance": self.beyond_tolerance(current)})
+            pays = bool(identifiable and not earned.get("at_bound") and earned["at_noise"]
+                        and not beyond)
         rec = {"round": round_no, "score": score, **earned,
                "delta_bic": d_bic, "delta_aic": info["aic"] - info_cur["aic"],
                "held_out_overall": m.held_out["overall"], "held_out_drop": drop,

@@ -240,9 +240,15 @@ class CalibrationModel:
             return float(np.clip(0.8 * i_max, p.lo, p.hi))
         return p.typical
 
-    def _bounds(self, effects: Sequence[Effect]) -> tuple[np.ndarray, np.ndarray]:
+    def _bounds(self, effects: Sequence[Effect], within_tolerance: bool = False
+                ) -> tuple[np.ndarray, np.ndarray]:
         lo = [d.lo_factor for d in self.declared]
         hi = [d.hi_factor for d in self.declared]
+        if within_tolerance:
+            lo = [max(v, 1.0 - d.tolerance) if d.tolerance > 0.0 else v
+                  for v, d in zip(lo, self.declared)]
+            hi = [min(v, 1.0 + d.tolerance) if d.tolerance > 0.0 else v
+                  for v, d in zip(hi, self.declared)]
         for e in effects:
             for p in e.parameters:
                 lo.append(p.lo / p.scale)
@@ -377,8 +383,8 @@ class CalibrationModel:
         return err, out
 
     # ---------------------------------------------------------------- fitting
-    def fit(self, effects: Sequence[Effect], x0: np.ndarray, max_nfev: int | None = None
-            ) -> _Model:
+    def fit(self, effects: Sequence[Effect], x0: np.ndarray, max_nfev: int | None = None,
+            within_tolerance: bool = False) -> _Model:
         """The bounded robust least-squares fit of ``effects`` (declared factors, then the
         effects' normalised values) on the training part from ``x0``, its residuals at the
         replay's step.
@@ -389,8 +395,12 @@ class CalibrationModel:
         − J_c(x₀))``. The stepper's error changes little with the parameters, so what the
         correction leaves is second order in ``x − x₀``; the residuals, the cost and the
         fit's end are the replay's own step's. A fit's first Jacobian costs one replay per
-        parameter at each step, every later one a replay per parameter at the coarse step."""
-        lo, hi = self._bounds(effects)
+        parameter at each step, every later one a replay per parameter at the coarse step.
+
+        ``within_tolerance``: each declared value with a datasheet tolerance is bounded to
+        it (factor ``1 ± tolerance``, inside its fit range): the fit of the record with the
+        datasheet held."""
+        lo, hi = self._bounds(effects, within_tolerance)
         x0 = np.clip(np.asarray(x0, dtype=float), lo, hi)
         # keep the start strictly inside (trf needs an interior point)
         span = hi - lo
