@@ -740,8 +740,8 @@ class Calibration(CalibrationModel):
         projection) and its top ``refit_top`` above ``min_refit_score`` are refitted from
         there, each with every declared value bounded to its datasheet tolerance
         (:meth:`CalibrationModel.fit` ``within_tolerance``: an effect and a declared value
-        that act alike, such as a piston leakage and the pump's slip, would otherwise slide
-        back along their common valley). A refit is taken when it is at the noise floor
+        that act alike, such as a piston leakage and the pump's slip, could otherwise trade
+        places again along their common valley). A refit is taken when it is at the noise floor
         (:meth:`at_noise`), holds every declared value within its tolerance, and its new
         parameters are identifiable and not pinned at a library bound
         (:meth:`judge_refit` with ``plausibility``; the held-out drop and ΔBIC of the other
