@@ -90,8 +90,7 @@ def _compare(args) -> int:
 
 
 def _view(args) -> int:
-    """The rerun viewer on the file (``--web``: rerun's web viewer over HTTP); without a
-    display and without ``--web``: exit 2 with the ways to see the file."""
+    """The rerun viewer on the file (``--web``: over HTTP); no display, no ``--web``: exit 2."""
     from afo_mj.app.viewer import headless_problem, run_viewer, viewer_command
     cmd = viewer_command(args.rrd, web=args.web)
     if args.print_command:
@@ -159,8 +158,7 @@ def _make_bench_record(args) -> int:
 
 
 def _sweep(args) -> int:
-    """Exit 0 all runs done (failed runs recorded), 1 every run failed, 2 invalid study (keys
-    checked before any run), 130 interrupted (finished runs kept: run again to resume)."""
+    """Exit 0 done (failures recorded), 1 every run failed, 2 invalid study, 130 interrupted."""
     from afo_mj.app.study_runs import run_sweep
 
     def start(study, points, sw):
@@ -214,9 +212,11 @@ def _optimize_gait(args) -> int:
 
 
 def _adapt(args) -> int:
-    """Exit 0 done (resumable: run again to continue), 2 invalid options."""
-    from afo_mj.app.adaptation import adapt
-    _print(console.adaptation_lines(adapt(out=args.out, **_given(adapt, args)), args.out))
+    """``adapt``, ``dose-response``: exit 0 done (resumable: run it again), 2 invalid."""
+    from afo_mj.app import adaptation as ad, dose_response as dr
+    fn, lines = ((ad.adapt, console.adaptation_lines) if args.command == "adapt"
+                 else (dr.dose_response, console.dose_response_lines))
+    _print(lines(fn(out=args.out, **_given(fn, args)), args.out))
     return 0
 
 
@@ -271,8 +271,8 @@ COMMANDS: dict[str, Callable[..., int]] = {
     "hydraulics-demo": _demo, "run": _run, "view": _view, "render": _render,
     "compare": _compare, "calibrate": _calibrate, "make-bench-record": _make_bench_record,
     "sweep": _sweep, "study": _study, "optimize": _optimize, "optimize-gait": _optimize_gait,
-    "adapt": _adapt, "design": _design, "schematic": _schematic, "export-fmu": _export_fmu,
-    "export-osim": _export_osim, "build-models": _build_models}
+    "adapt": _adapt, "dose-response": _adapt, "design": _design, "schematic": _schematic,
+    "export-fmu": _export_fmu, "export-osim": _export_osim, "build-models": _build_models}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -235,6 +235,16 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                     help="override a key of the scenario file (repeatable)")
     ad.add_argument("--quiet", action="store_true", help="no progress on stderr")
     ad.set_defaults(func=handlers["adapt"])
+    dr = sub.add_parser("dose-response", help="a dose-response study file (scenarios/studies/"
+                        "dose_*.toml): the wearer adapted at each dose by continuation from "
+                        "the previous one, the net metabolic change against the control with "
+                        "its band over restarts, and its figure; resumable")
+    dr.add_argument("study", help="the study file ([dose_response] table)")
+    dr.add_argument("--out", required=True, help="directory of the searches, "
+                    "dose_response.json and dose_response.png (run again to continue)")
+    dr.add_argument("--workers", type=int, default=None, help="worker processes")
+    dr.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    dr.set_defaults(func=handlers["dose-response"])
     de = sub.add_parser("design", help="size a minimum-weight hydraulic orthosis from "
                         "requirements and write it as scenarios afo-mj run accepts")
     de.add_argument("requirements", help="requirements file, e.g. "

@@ -543,6 +543,44 @@ def hil_tuning_lines(res, out) -> list[str]:
                              "tuned_profiles": [{k: getattr(r, k) for k in (
                                  "peak_nm_per_kg", "peak_time_pct", "rise_time_pct",
                                  "fall_time_pct")} for r in res.tuned]}))
+
+
+def dose_response_lines(res, out) -> list[str]:
+    """``afo-mj dose-response``: per level every restart's net metabolic rate (W/kg,
+    Umberger 2010), its paired change against the control and convergence, the band of the
+    changes, whether the response is monotone within the bands, then a JSON line."""
+    import json
+    p = res.protocol
+    lines = [f"afo-mj dose-response {res.study}: {res.variable} ({res.unit or '-'}), "
+             f"{len(res.levels)} rungs x {p['restarts']} restarts by continuation, "
+             f"{p['generations']} generations each; {res.walks} walks"
+             + ("" if res.cpu_s is None else f", {res.cpu_s:.0f} s CPU")
+             + ("" if res.complete else " (INCOMPLETE: run again to continue)")]
+    for lv in res.levels:
+        dose = "control" if lv.dose is None else f"{lv.dose:g}"
+        band = ("" if lv.change_pct_mean is None else
+                f"; change {_pct(lv.change_pct_mean)} ({lv.change_pct_min:+.2f} … "
+                f"{lv.change_pct_max:+.2f} %)")
+        lines.append(f"  {dose}: {lv.label}" + band + f"; {lv.searches_converged} of "
+                     f"{len(lv.restarts)} searches converged"
+                     + ("" if lv.spread_pct is None else f", spread {lv.spread_pct:.2f} %"))
+        for r in lv.restarts:
+            rate = ("falls" if r.net_metabolic_w_per_kg is None
+                    else f"{r.net_metabolic_w_per_kg:.3f} W/kg")
+            lines.append(f"    restart {r.restart}: {rate}"
+                         + ("" if r.change_pct is None else f" ({_pct(r.change_pct)})")
+                         + f", cost {r.search_cost:.3f} after {r.generations} generations; "
+                         f"{r.convergence}")
+    mono = {True: "yes", False: "NO", None: "-"}
+    lines.append(f"  monotone (non-increasing) within the bands: "
+                 f"{mono[res.monotone_within_bands]}; means falling at every step: "
+                 f"{mono[res.monotone_means]}")
+    lines.append(f"  {out}/dose_response.json, {out}/dose_response.png")
+    lines.append(json.dumps({"dose": [lv.dose for lv in res.levels],
+                             "change_pct_mean": [lv.change_pct_mean for lv in res.levels],
+                             "change_pct_min": [lv.change_pct_min for lv in res.levels],
+                             "change_pct_max": [lv.change_pct_max for lv in res.levels],
+                             "monotone_within_bands": res.monotone_within_bands}))
     return lines
 
 

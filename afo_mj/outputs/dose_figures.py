@@ -1,0 +1,72 @@
+"""The dose–response figure of :mod:`afo_mj.studies.dose_response`: ``dose_response.png``.
+
+The change of the adapted wearer's net metabolic rate (%, Umberger 2010) against the control
+(nothing worn, restart paired with restart) over the dose, as the assistance papers plot it
+(Collins et al. 2015, Fig. 3: metabolic change against spring stiffness; Zhang et al. 2017:
+against the profile's parameters): the band (min–max over the restarts) shaded, its mean as a
+line, each restart's change as a point, a level whose search had not converged drawn hollow,
+and optionally a published point with its error bar for comparison.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["plot_dose_response"]
+
+
+def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
+    """Write the figure (module docstring) for a ``DoseResponseResult`` to ``path``;
+    ``reference``: ``(dose, change %, ± %, label)`` of a published point, or None. The
+    control is drawn at 0 % where its dose is on the axis."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(5.6, 4.0), layout="constrained")
+    ax = fig.add_subplot()
+    xs, lo, mean, hi = [], [], [], []
+    for lv in result.levels:
+        if lv.dose is None:
+            continue
+        if lv is result.levels[0]:                  # the control on the axis: 0 by definition
+            xs.append(lv.dose)
+            lo.append(0.0)
+            mean.append(0.0)
+            hi.append(0.0)
+            continue
+        if lv.change_pct_mean is None:             # a restart fell: its points only
+            continue
+        xs.append(lv.dose)
+        lo.append(lv.change_pct_min)
+        mean.append(lv.change_pct_mean)
+        hi.append(lv.change_pct_max)
+    order = sorted(range(len(xs)), key=lambda i: xs[i])
+    xs, lo, mean, hi = ([v[i] for i in order] for v in (xs, lo, mean, hi))
+    ax.fill_between(xs, lo, hi, color="tab:blue", alpha=0.25, lw=0,
+                    label="band: min–max over restarts")
+    ax.plot(xs, mean, color="tab:blue", lw=1.8, label="mean of restarts")
+    first = True
+    for lv in result.levels[1:]:
+        if lv.dose is None:
+            continue
+        for r in lv.restarts:
+            if r.change_pct is None:
+                continue
+            ax.plot([lv.dose], [r.change_pct], "o", ms=4,
+                    mfc="tab:blue" if r.converged else "white", mec="tab:blue",
+                    label=("restart (hollow: search not converged)" if first else None))
+            first = False
+    if reference is not None:
+        x, y, e, label = reference
+        ax.errorbar([x], [y], yerr=[e], fmt="s", color="tab:red", capsize=3, label=label)
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_xlabel(axis_label)
+    ax.set_ylabel("change in net metabolic rate (%)")
+    p = result.protocol
+    ax.set_title(f"{result.study}: {p['restarts']} restarts × {p['generations']} "
+                 "generations per level", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150)
+    return path
