@@ -23,10 +23,6 @@ def _err(command: str, message: str) -> None:
     print(f"afo-mj {command}: {message}", file=sys.stderr)
 
 
-def _notes(command: str):
-    return lambda note: _err(command, f"note: {note}")
-
-
 def _print(lines) -> None:
     print("\n".join(lines))
 
@@ -41,18 +37,16 @@ def _demo(args) -> int:
         return 2
     _print(console.hydraulics_demo_lines(d))
     if args.json:
-        e = d["energy"]
-        print(json.dumps({"duration_s": d["duration_s"], "us_per_step": d["us_per_step"],
-                          "max_torque_nm": d["max_torque_nm"], "energy": {
-                              k: e[k] for k in ("input_j", "output_j", "heat_j",
-                                                "relative_residual")}}))
+        keys = ("input_j", "output_j", "heat_j", "relative_residual")
+        print(json.dumps({k: d[k] for k in ("duration_s", "us_per_step", "max_torque_nm")}
+                         | {"energy": {k: d["energy"][k] for k in keys}}))
     return 0
 
 
 def _run(args) -> int:
     from afo_mj.app.run import BenchRun, DeviceWalkRun, run_recorded
     res, info = run_recorded(args.scenario, args.rrd, args.set or (), args.strides,
-                             out_dir=args.out, on_note=_notes("run"))
+                             out_dir=args.out, on_note=lambda n: _err("run", f"note: {n}"))
     if isinstance(res, BenchRun):
         _print(console.bench_lines(res.bench, res.summary, res.wall_time_s, res.out_dir))
     elif isinstance(res, DeviceWalkRun):
@@ -77,7 +71,8 @@ def _compare(args) -> int:
     from afo_mj.outputs.comparison_report import format_tables
     rep = progress.reporter()
     res = compare(args.scenarios, args.out, args.set or (), args.strides, rrd_path=args.rrd,
-                  on_note=_notes("compare"), on_stage=lambda m: rep.stage(f"compare: {m}"))
+                  on_note=lambda n: _err("compare", f"note: {n}"),
+                  on_stage=lambda m: rep.stage(f"compare: {m}"))
     comp = res.comparison
     print(f"afo_mj compare: {len(comp.rows)} devices, assist condition, per mean analysed "
           f"stride ({comp.wall_time_s:.1f} s wall)")
@@ -212,11 +207,16 @@ def _optimize_gait(args) -> int:
 
 
 def _adapt(args) -> int:
-    """``adapt``, ``dose-response``: exit 0 done (resumable: run it again), 2 invalid."""
-    from afo_mj.app import adaptation as ad, dose_response as dr
-    fn, lines = ((ad.adapt, console.adaptation_lines) if args.command == "adapt"
-                 else (dr.dose_response, console.dose_response_lines))
-    _print(lines(fn(out=args.out, **_given(fn, args)), args.out))
+    """Exit 0 done (resumable: run again to continue), 2 invalid options."""
+    from afo_mj.app.adaptation import adapt
+    _print(console.adaptation_lines(adapt(out=args.out, **_given(adapt, args)), args.out))
+    return 0
+
+
+def _dose_response(args) -> int:
+    """Exit 0 done (resumable: run again to continue), 2 invalid study or options."""
+    from afo_mj.app.dose_response import dose_response as dr
+    _print(console.dose_response_lines(dr(out=args.out, **_given(dr, args)), args.out))
     return 0
 
 
@@ -265,13 +265,12 @@ def _export_osim(args) -> int:
 
 _ATOMIC = ("hydraulics-demo", "run", "render", "compare")    # write all at once or nothing
 
-# every command of ``afo-mj``, as typed, and its handler (``args -> exit code``); the parser
-# (:func:`afo_mj.cli_args.build_parser`) declares the same commands
+# every command as typed -> its handler (args -> exit code); build_parser declares the same
 COMMANDS: dict[str, Callable[..., int]] = {
     "hydraulics-demo": _demo, "run": _run, "view": _view, "render": _render,
     "compare": _compare, "calibrate": _calibrate, "make-bench-record": _make_bench_record,
     "sweep": _sweep, "study": _study, "optimize": _optimize, "optimize-gait": _optimize_gait,
-    "adapt": _adapt, "dose-response": _adapt, "design": _design, "schematic": _schematic,
+    "adapt": _adapt, "dose-response": _dose_response, "design": _design, "schematic": _schematic,
     "export-fmu": _export_fmu, "export-osim": _export_osim, "build-models": _build_models}
 
 
