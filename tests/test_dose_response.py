@@ -36,7 +36,7 @@ def fakes(monkeypatch):
     """optimize_gait replaced: it records its call, and writes a best set that is its start
     with P0 raised by 1 (one per rung) and P1 set to the restart's seed, a state file and a
     flat history; the scoring walk gives RATES by the objective's dose and P1's seed."""
-    calls = {"search": [], "score": 0}
+    calls = {"search": [], "score": 0, "rates": dict(RATES)}
 
     def optimize_gait(out_dir, objective, generations, popsize, seed, start, workers,
                       sigma0, client):
@@ -62,8 +62,10 @@ def fakes(monkeypatch):
             a = objective.assistance
             dose = 0.0 if a.kind == "none" else a.zhang_peak_nm_per_kg
             restart = int(params[rl.PARAM_NAMES.index(P1)]) - 1
-            out.append(BatchResult(value={"fell_s": None, "speed_m_s": 1.25,
-                                          "net_metabolic_w_per_kg": RATES[dose, restart]}))
+            rate = calls["rates"][dose, restart]         # None: the walk falls at 19 s
+            out.append(BatchResult(value={"fell_s": None if rate is not None else 19.0,
+                                          "speed_m_s": 1.25,
+                                          "net_metabolic_w_per_kg": rate or 4.0}))
         return out
 
     monkeypatch.setattr(dr, "optimize_gait", optimize_gait)
@@ -105,6 +107,8 @@ def test_continuation_wiring_bands_and_paired_changes(tmp_path, fakes):
     assert l2.spread_pct == pytest.approx(100 * 0.5 / 4.85)
     assert ctl.change_pct_mean is None and ctl.dose == 0.0
     assert res.monotone_within_bands is True and res.monotone_means is True
+    # each restart's own chain: 0, -2, -8 falls throughout; 0, -3.85, -1.92 rises once
+    assert res.monotone_per_restart == (True, False) and res.monotone_left_out == ()
     assert res.complete and res.walks == 6 * 4 * 3
     assert all(r.converged for lv in res.levels for r in lv.restarts)   # flat histories
     # the spread 0.2/5.1 = 3.9 % > 1 %: no level converged as a whole
@@ -112,6 +116,20 @@ def test_continuation_wiring_bands_and_paired_changes(tmp_path, fakes):
     saved = dr.DoseResponseResult.from_json(
         json.loads((tmp_path / "dose_response.json").read_text()))
     assert saved == res
+
+
+def test_a_level_whose_restart_falls_has_no_band_and_is_left_out(tmp_path, fakes):
+    fakes["rates"][0.15, 1] = None
+    fakes["rates"][0.3, 1] = 5.3              # +1.92 %: restart 1's chain rises (0 -> +1.92)
+    res = dr.run_dose_response(tmp_path, _study())
+    l1, l2 = res.levels[1:]
+    assert l1.restarts[1].net_metabolic_w_per_kg is None and l1.restarts[1].fell_s == 19.0
+    assert l1.change_pct_min is None and l1.rate_mean is None and not l1.converged
+    assert "restart(s) 1 fall" in l1.reason
+    # the bands: [0, 0] and [-8, +1.92] (0.15 left out): a non-increasing curve fits
+    assert res.monotone_left_out == ("level1_0.15",)
+    assert res.monotone_within_bands is True and res.monotone_means is True
+    assert res.monotone_per_restart == (True, False)
 
 
 def test_resume_continues_and_reuses_the_scores(tmp_path, fakes):

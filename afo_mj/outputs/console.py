@@ -574,7 +574,11 @@ def dose_response_lines(res, out) -> list[str]:
     mono = {True: "yes", False: "NO", None: "-"}
     lines.append(f"  monotone (non-increasing) within the bands: "
                  f"{mono[res.monotone_within_bands]}; means falling at every step: "
-                 f"{mono[res.monotone_means]}")
+                 f"{mono[res.monotone_means]}"
+                 + (f" (left out, a restart fell: {', '.join(res.monotone_left_out)})"
+                    if res.monotone_left_out else "")
+                 + "; each restart's chain non-increasing: "
+                 + ", ".join(mono[x] for x in res.monotone_per_restart))
     lines.append(f"  {out}/dose_response.json, {out}/dose_response.png")
     lines.append(json.dumps({"dose": [lv.dose for lv in res.levels],
                              "change_pct_mean": [lv.change_pct_mean for lv in res.levels],

@@ -56,6 +56,11 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
                     mfc="tab:blue" if r.converged else "white", mec="tab:blue",
                     label=("restart (hollow: search not converged)" if first else None))
             first = False
+    fell = [lv.dose for lv in result.levels[1:] if lv.dose is not None
+            and any(r.net_metabolic_w_per_kg is None for r in lv.restarts)]
+    if fell:
+        ax.plot(fell, [0.0] * len(fell), "x", color="tab:red", ms=7,
+                label="a restart's best set falls in its scoring walk (level has no band)")
     if reference is not None:
         x, y, e, label = reference
         ax.errorbar([x], [y], yerr=[e], fmt="s", color="tab:red", capsize=3, label=label)

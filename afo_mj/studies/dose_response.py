@@ -346,10 +346,15 @@ class DoseResponseResult(Document):
     complete: bool = entry("bool", "every rung of the study has been run")
     monotone_within_bands: bool | None = entry(
         "bool?", "a non-increasing curve passes through every level's band of paired changes "
-        "(the control's 0 included when it is on the dose axis; null: a fall or fewer than "
-        "two levels)")
+        "(the control's 0 included when it is on the dose axis; levels where a restart fell "
+        "left out, see monotone_left_out; null: fewer than two levels with a band)")
     monotone_means: bool | None = entry("bool?", "the mean paired changes fall at every "
-                                        "step (null: as above)")
+                                        "step (the same levels; null: as above)")
+    monotone_left_out: tuple = entry("list", "levels left out of the two tests above: a "
+                                     "restart's scoring walk fell, so the level has no band")
+    monotone_per_restart: tuple = entry(
+        "list", "per restart (its own chain of continuation): its paired changes never rise "
+        "from one level to the next, over the levels where it walks (null: fewer than two)")
     walks: int = entry("int", "walks of every search")
     cpu_s: float | None = entry("number?", "CPU time of every search measured by this study "
                                 "(null: some not measured)", "s")
@@ -474,24 +479,37 @@ def _level(rung: Rung, restarts: list[DoseRestart], protocol, control: DoseLevel
                      converged=not why, reason=reason)
 
 
-def _monotone(levels: list[DoseLevel]) -> tuple[bool | None, bool | None]:
-    """(within bands, means) over the rungs on the dose axis (the control's 0 change
-    included when its dose is on the axis)."""
-    pts = []
+def _monotone(levels: list[DoseLevel]) -> tuple[bool | None, bool | None, list[str],
+                                                 list[bool | None]]:
+    """``(within bands, means, levels left out, per restart)`` over the rungs on the dose
+    axis (the control's 0 change included when its dose is on the axis). A level where a
+    restart fell has no band: it is left out of the first two (named in the third); each
+    restart's own chain of paired changes is judged over the levels where it walks (None:
+    fewer than two)."""
+    pts, left_out = [], []
+    chains: dict[int, list[float]] = {}
     for lv in levels:
         if lv.dose is None:
             continue
-        if lv.change_pct_min is None and lv is levels[0]:
+        if lv is levels[0]:
             pts.append((0.0, 0.0, 0.0))
-        elif lv.change_pct_min is None:
-            return None, None
+            for r in lv.restarts:
+                chains.setdefault(r.restart, []).append(0.0)
+            continue
+        for r in lv.restarts:
+            if r.change_pct is not None:
+                chains.setdefault(r.restart, []).append(r.change_pct)
+        if lv.change_pct_min is None:
+            left_out.append(lv.name)
         else:
             pts.append((lv.change_pct_min, lv.change_pct_mean, lv.change_pct_max))
+    per_restart = [None if len(c) < 2 else all(b <= a for a, b in zip(c, c[1:]))
+                   for _i, c in sorted(chains.items())]
     if len(pts) < 2:
-        return None, None
+        return None, None, left_out, per_restart
     lo, mean, hi = zip(*pts)
     return (monotone_within_bands(lo, hi, decreasing=True),
-            all(b < a for a, b in zip(mean, mean[1:])))
+            all(b < a for a, b in zip(mean, mean[1:])), left_out, per_restart)
 
 
 def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, client=None,
@@ -549,13 +567,14 @@ def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, cli
 
 def _result(study: DoseStudy, start_sha: str, levels: list[DoseLevel], complete: bool
             ) -> DoseResponseResult:
-    mono, means = _monotone(levels)
+    mono, means, left_out, per_restart = _monotone(levels)
     cpus = [r.cpu_s for lv in levels for r in lv.restarts]
     return DoseResponseResult(
         study=study.name, description=study.description, variable=study.variable,
         unit=study.unit, kind=study.kind, assistance=json.loads(json.dumps(study.assistance)),
         protocol=dataclasses.asdict(study.protocol), start=str(study.start),
         start_sha256=start_sha, levels=tuple(levels), complete=complete,
-        monotone_within_bands=mono, monotone_means=means,
+        monotone_within_bands=mono, monotone_means=means, monotone_left_out=tuple(left_out),
+        monotone_per_restart=tuple(per_restart),
         walks=sum(r.walks for lv in levels for r in lv.restarts),
         cpu_s=None if any(x is None for x in cpus) else float(sum(cpus)))
