@@ -24,6 +24,9 @@ RATES = {(0.0, 0): 5.0, (0.0, 1): 5.2, (0.15, 0): 4.9, (0.15, 1): 5.0,
          (0.3, 0): 4.6, (0.3, 1): 5.1}
 
 
+START = {n: float(v) for n, v in zip(rl.PARAM_NAMES, dr.load_reflex_set(dr.DEFAULT_START))}
+
+
 def _study(levels=(0.0, 0.15, 0.3), generations=3, **kw):
     return dr.DoseStudy(name="t", variable="zhang_peak_nm_per_kg", levels=levels,
                         assistance={"ramp_strides": 3},
@@ -63,6 +66,11 @@ def fakes(monkeypatch):
             dose = 0.0 if a.kind == "none" else a.zhang_peak_nm_per_kg
             restart = int(params[rl.PARAM_NAMES.index(P1)]) - 1
             rate = calls["rates"][dose, restart]         # None: the walk falls at 19 s
+            if a.kind == "none":
+                # nothing worn: the control's rate, less 0.1 W/kg per rung searched after it
+                # (the best set walked with the device taken off)
+                rungs = round(params[rl.PARAM_NAMES.index(P0)] - START[P0])
+                rate -= 0.1 * (rungs - 1)
             out.append(BatchResult(value={"fell_s": None if rate is not None else 19.0,
                                           "speed_m_s": 1.25,
                                           "net_metabolic_w_per_kg": rate or 4.0}))
@@ -109,6 +117,16 @@ def test_continuation_wiring_bands_and_paired_changes(tmp_path, fakes):
     assert res.monotone_within_bands is True and res.monotone_means is True
     # each restart's own chain: 0, -2, -8 falls throughout; 0, -3.85, -1.92 rises once
     assert res.monotone_per_restart == (True, False) and res.monotone_left_out == ()
+    # the best sets with the device taken off: 4.9/5.0 - 1 = -2 %, 5.1/5.2 - 1 = -1.9231 %
+    # at 0.15; 4.8/5.0 and 5.0/5.2 at 0.3
+    assert [r.device_off_w_per_kg for r in l1.restarts] == pytest.approx([4.9, 5.1])
+    assert [r.device_off_change_pct for r in l1.restarts] == pytest.approx(
+        [-2.0, -1.923077], abs=1e-6)
+    assert [r.device_off_change_pct for r in l2.restarts] == pytest.approx(
+        [-4.0, -3.846154], abs=1e-6)
+    assert all(r.device_off_w_per_kg is None and r.device_off_change_pct is None
+               for r in ctl.restarts)
+    assert fakes["score"] == 2 + 2 * 4
     assert res.complete and res.walks == 6 * 4 * 3
     assert all(r.converged for lv in res.levels for r in lv.restarts)   # flat histories
     # the spread 0.2/5.1 = 3.9 % > 1 %: no level converged as a whole
@@ -134,11 +152,11 @@ def test_a_level_whose_restart_falls_has_no_band_and_is_left_out(tmp_path, fakes
 
 def test_resume_continues_and_reuses_the_scores(tmp_path, fakes):
     dr.run_dose_response(tmp_path, _study(levels=(0.0, 0.15)))
-    assert fakes["score"] == 4
-    # more generations and a level appended: every search continues, only the new rung and
-    # nothing else is walked again (the same best sets keep their scores)
+    assert fakes["score"] == 2 + 4                # the level's walks with and without
+    # a level appended: every search continues, only the new rung and nothing else is
+    # walked again (the same best sets keep their scores)
     res = dr.run_dose_response(tmp_path, _study(generations=3))
-    assert fakes["score"] == 4 + 2
+    assert fakes["score"] == 2 + 4 + 4
     assert [lv.name for lv in res.levels] == ["control", "level1_0.15", "level2_0.3"]
     # a resumed search keeps the start it began from
     assert res.levels[1].restarts[0].started_from.endswith("control/restart0/reflex_params.json")

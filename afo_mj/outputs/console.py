@@ -569,6 +569,13 @@ def dose_response_lines(res, out) -> list[str]:
                     else f"{r.net_metabolic_w_per_kg:.3f} W/kg")
             lines.append(f"    restart {r.restart}: {rate}"
                          + ("" if r.change_pct is None else f" ({_pct(r.change_pct)})")
+                         + ("" if r.device_off_fell_s is None and r.device_off_w_per_kg is None
+                            else "; device off: " + (
+                                f"falls at {r.device_off_fell_s:.1f} s"
+                                if r.device_off_w_per_kg is None else
+                                f"{r.device_off_w_per_kg:.3f} W/kg "
+                                f"({_pct(r.device_off_change_pct)}) at "
+                                f"{r.device_off_speed_m_s:.2f} m/s"))
                          + f", cost {r.search_cost:.3f} after {r.generations} generations; "
                          f"{r.convergence}")
     mono = {True: "yes", False: "NO", None: "-"}

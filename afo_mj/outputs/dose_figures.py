@@ -1,11 +1,11 @@
 """The dose–response figure of :mod:`afo_mj.studies.dose_response`: ``dose_response.png``.
 
 The change of the adapted wearer's net metabolic rate (%, Umberger 2010) against the control
-(nothing worn, restart paired with restart) over the dose, as the assistance papers plot it
-(Collins et al. 2015, Fig. 3: metabolic change against spring stiffness; Zhang et al. 2017:
-against the profile's parameters): the band (min–max over the restarts) shaded, its mean as a
-line, each restart's change as a point, a level whose search had not converged drawn hollow,
-and optionally a published point with its error bar for comparison.
+(nothing worn, restart paired with restart) over the dose, as the exoskeleton papers plot a
+metabolic change against a device parameter (Collins et al. 2015: against spring
+stiffness): the band (min–max over the restarts) shaded, its mean as a line, each restart's
+change as a point (hollow: its search had not converged), each restart's best set walked with
+the device taken off as a grey triangle, and optionally a published point with its error bar.
 """
 
 from __future__ import annotations
@@ -56,6 +56,11 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
                     mfc="tab:blue" if r.converged else "white", mec="tab:blue",
                     label=("restart (hollow: search not converged)" if first else None))
             first = False
+    off = [(lv.dose, r.device_off_change_pct) for lv in result.levels[1:]
+           if lv.dose is not None for r in lv.restarts if r.device_off_change_pct is not None]
+    if off:
+        ax.plot(*zip(*off), "v", ms=5, mfc="white", mec="0.45",
+                label="same wearer, device taken off (at its own speed)")
     fell = [lv.dose for lv in result.levels[1:] if lv.dose is not None
             and any(r.net_metabolic_w_per_kg is None for r in lv.restarts)]
     if fell:

@@ -21,6 +21,10 @@ family of optima along a parameter by starting each solve from the neighbouring 
   change against the control paired by restart (rung ``k`` restart ``i`` against control
   restart ``i``, which it descends from) with its band (min, mean, max), and the convergence
   state (:func:`~afo_mj.studies.adaptation.search_converged`, the restarts' spread);
+* each restart's best set is also walked with the device taken off: its rate against the
+  control's restart measures what the search along the chain did to the wearer by itself
+  (the chain's later rungs have been searched longer than the control), the part of the
+  change the device is not needed for;
 * the study is resumable: each rung × restart is its own search folder
   ``OUT/<rung>/restart<i>`` and each scoring walk is kept there (``dose_score.json``); the
   document is rewritten after every rung, so a stopped run leaves the rungs it finished.
@@ -295,6 +299,16 @@ class DoseRestart(Document):
     change_pct: float | None = entry("number?", "change of the rate against the control's "
                                      "restart of the same index (null for the control or a "
                                      "fall)", "%")
+    device_off_w_per_kg: float | None = entry(
+        "number?", "the same best set walked with the device taken off: what the search "
+        "alone did to the wearer (null for the control, or it fell)", "W/kg")
+    device_off_fell_s: float | None = entry("number?", "time of that walk's fall (null: "
+                                            "none, or the control)", "s")
+    device_off_speed_m_s: float | None = entry("number?", "speed of that walk", "m/s")
+    device_off_change_pct: float | None = entry(
+        "number?", "its rate against the control's restart of the same index: the part of "
+        "change_pct the search along the chain would give without the device (null: the "
+        "control or a fall)", "%")
     cpu_s: float | None = entry("number?", "CPU time of the search measured by this study's "
                                 "runs (null: some of it was not measured)", "s")
 
@@ -422,27 +436,33 @@ def _search(d: Path, rung: Rung, start_set: dict, started_from: str, protocol, i
 
 
 def _scores(rung: Rung, dirs: list[Path], docs: list[dict], protocol, workers, client):
-    """Each restart's scoring walk, kept in ``dose_score.json`` for the best set it scored
-    (walked again only when the search found a better one)."""
-    out, todo = [None] * len(dirs), []
+    """Each restart's scoring walk, and (not for the control) the same best set walked with
+    the device taken off; both kept in ``dose_score.json`` for the best set they scored
+    (walked again only when the search found a better one). Returns ``[(score, off), …]``
+    (``off`` None for the control)."""
+    from afo_mj.experiments.muscle_assistance import Assistance
+    off_objective = (None if rung.objective.assistance.kind == "none" else
+                     dataclasses.replace(rung.objective, assistance=Assistance("none")))
+    saved, items, slots = [], [], []
     for i, (d, doc) in enumerate(zip(dirs, docs)):
         key = {"cost": float(doc["cost"]), "generations": int(doc["optimizer"]["generations"]),
                "score_walk_s": protocol.score_walk_s, "settle_s": protocol.settle_s}
         f = d / "dose_score.json"
-        if f.exists():
-            saved = json.loads(f.read_text(encoding="utf-8"))
-            if saved.get("key") == key:
-                out[i] = saved["score"]
-                continue
-        todo.append((i, key))
-    items = [(rung.objective, load_reflex_set(dirs[i] / "reflex_params.json"),
-              protocol.score_walk_s, protocol.settle_s) for i, _ in todo]
-    for (i, key), r in zip(todo, evaluate_batch(_score, items, workers, client)):
+        have = json.loads(f.read_text(encoding="utf-8")) if f.exists() else {}
+        have = have if have.get("key") == key else {"key": key}
+        saved.append(have)
+        params = load_reflex_set(d / "reflex_params.json")
+        for what, obj in (("score", rung.objective), ("off", off_objective)):
+            if obj is not None and what not in have:
+                items.append((obj, params, protocol.score_walk_s, protocol.settle_s))
+                slots.append((i, what))
+    for (i, what), r in zip(slots, evaluate_batch(_score, items, workers, client)):
         if not r.ok:
             raise RuntimeError(f"scoring walk of {rung.name} restart {i}: {r.error}")
-        _write_json(dirs[i] / "dose_score.json", {"key": key, "score": r.value})
-        out[i] = r.value
-    return out
+        saved[i][what] = r.value
+    for d, have in zip(dirs, saved):
+        _write_json(d / "dose_score.json", have)
+    return [(h["score"], h.get("off")) for h in saved]
 
 
 def _level(rung: Rung, restarts: list[DoseRestart], protocol, control: DoseLevel | None
@@ -451,7 +471,9 @@ def _level(rung: Rung, restarts: list[DoseRestart], protocol, control: DoseLevel
     if control is not None:
         ctl = [r.net_metabolic_w_per_kg for r in control.restarts]
         ch = paired_changes(ctl, rates, 0, 0)["paired"]
-        restarts = [dataclasses.replace(r, change_pct=ch[i] if i < len(ch) else None)
+        off = paired_changes(ctl, [r.device_off_w_per_kg for r in restarts], 0, 0)["paired"]
+        restarts = [dataclasses.replace(r, change_pct=ch[i] if i < len(ch) else None,
+                                        device_off_change_pct=off[i] if i < len(off) else None)
                     for i, r in enumerate(restarts)]
         cmin, cmean, cmax = band([r.change_pct for r in restarts])
     else:
@@ -544,7 +566,8 @@ def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, cli
             froms.append(began)
         scores = _scores(rung, dirs, docs, protocol, workers, client)
         rows = []
-        for i, (d, doc, cpu, began, s) in enumerate(zip(dirs, docs, cpus, froms, scores)):
+        for i, (d, doc, cpu, began, (s, off)) in enumerate(zip(dirs, docs, cpus, froms,
+                                                                scores)):
             conv, why, change = search_converged(doc["history"], protocol.window,
                                                  protocol.cost_tol)
             fell = s["fell_s"]
@@ -555,7 +578,12 @@ def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, cli
                 converged=conv, convergence=why, best_cost_change=change,
                 net_metabolic_w_per_kg=None if fell is not None
                 else s["net_metabolic_w_per_kg"],
-                fell_s=fell, speed_m_s=s.get("speed_m_s"), change_pct=None, cpu_s=cpu))
+                fell_s=fell, speed_m_s=s.get("speed_m_s"), change_pct=None,
+                device_off_w_per_kg=(None if off is None or off["fell_s"] is not None
+                                     else off["net_metabolic_w_per_kg"]),
+                device_off_fell_s=None if off is None else off["fell_s"],
+                device_off_speed_m_s=None if off is None else off.get("speed_m_s"),
+                device_off_change_pct=None, cpu_s=cpu))
         levels.append(_level(rung, rows, protocol, levels[0] if levels else None))
         prev = [({n: v for n, v in zip(rl.PARAM_NAMES,
                                        load_reflex_set(d / "reflex_params.json").tolist())},
