@@ -127,6 +127,7 @@ def test_continuation_wiring_bands_and_paired_changes(tmp_path, fakes):
     assert all(r.device_off_w_per_kg is None and r.device_off_change_pct is None
                for r in ctl.restarts)
     assert fakes["score"] == 2 + 2 * 4
+    assert res.monotone_matched_within_bands is None and l1.matched_change_pct_mean is None
     assert res.complete and res.walks == 6 * 4 * 3
     assert all(r.converged for lv in res.levels for r in lv.restarts)   # flat histories
     # the spread 0.2/5.1 = 3.9 % > 1 %: no level converged as a whole
@@ -148,6 +149,34 @@ def test_a_level_whose_restart_falls_has_no_band_and_is_left_out(tmp_path, fakes
     assert res.monotone_left_out == ("level1_0.15",)
     assert res.monotone_within_bands is True and res.monotone_means is True
     assert res.monotone_per_restart == (True, False)
+
+
+def test_the_matched_control_is_searched_on_along_the_chain(tmp_path, fakes):
+    res = dr.run_dose_response(tmp_path, _study(matched_control=True))
+    assert [(c[0], c[1]) for c in fakes["search"]][4:8] == [
+        ("control1", "restart0"), ("control1", "restart1"),
+        ("level2_0.3", "restart0"), ("level2_0.3", "restart1")]
+    for rung, prev in (("control1", "control"), ("control2", "control1")):
+        for i in range(2):
+            src = json.loads((tmp_path / rung / f"restart{i}" / "continuation_start.json")
+                             .read_text())
+            assert src["from"] == str(tmp_path / prev / f"restart{i}" / "reflex_params.json")
+    l1, l2 = res.levels[1:]
+    # the matched controls walk 0.1 W/kg cheaper per rung searched on: 4.9, 5.1 after one
+    # rung, 4.8, 5.0 after two; 4.9/4.9 - 1 = 0, 5.0/5.1 - 1 = -1.9608 %, 4.6/4.8 - 1 =
+    # -4.1667 %, 5.1/5.0 - 1 = +2 %
+    assert [r.matched_control_w_per_kg for r in l1.restarts] == pytest.approx([4.9, 5.1])
+    assert [r.matched_change_pct for r in l1.restarts] == pytest.approx([0.0, -1.960784],
+                                                                       abs=1e-6)
+    assert [r.matched_change_pct for r in l2.restarts] == pytest.approx([-4.166667, 2.0],
+                                                                       abs=1e-6)
+    assert (l2.matched_change_pct_min, l2.matched_change_pct_max) == pytest.approx(
+        (-4.166667, 2.0), abs=1e-6)
+    # bands [0, 0], [-1.96, 0], [-4.17, +2]: the last reaches above -1.96 … 0, so a
+    # non-increasing curve still fits (it may stay at 0)
+    assert res.monotone_matched_within_bands is True
+    assert l1.matched_control_walks == 2 * 4 * 3 and res.walks == (6 + 4) * 4 * 3
+    assert fakes["score"] == 2 + 4 + 2 + 4 + 2
 
 
 def test_resume_continues_and_reuses_the_scores(tmp_path, fakes):
@@ -259,6 +288,8 @@ def test_the_profile_peaks_at_the_chosen_time():
     ("[dose_response]\nvariable = 'zhang_peak_nm_per_kg'\nlevels = [0.0, 0.3]\nseeds = 3",
      "dose_response.seeds; allowed: variable, levels"),
     ("[dose_response]\nlevels = [0.0, 0.3]", "variable missing"),
+    ("[dose_response]\nvariable = 'zhang_peak_nm_per_kg'\nlevels = [0.0, 0.3]\n"
+     "matched_control = 1", "matched_control = 1; allowed: true, false"),
     ("[sweep]\nx = 1", "key 'sweep'; allowed: name, description, dose_response"),
     ("[dose_response]\nvariable = 'spring_engage_phase'\nlevels = [0.02, 0.7]",
      "spring_engage_phase = 0.7; allowed: 0 … 0.5"),

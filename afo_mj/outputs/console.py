@@ -561,6 +561,9 @@ def dose_response_lines(res, out) -> list[str]:
         band = ("" if lv.change_pct_mean is None else
                 f"; change {_pct(lv.change_pct_mean)} ({lv.change_pct_min:+.2f} … "
                 f"{lv.change_pct_max:+.2f} %)")
+        if lv.matched_change_pct_mean is not None:
+            band += (f"; vs the matched control {_pct(lv.matched_change_pct_mean)} "
+                     f"({lv.matched_change_pct_min:+.2f} … {lv.matched_change_pct_max:+.2f} %)")
         lines.append(f"  {dose}: {lv.label}" + band + f"; {lv.searches_converged} of "
                      f"{len(lv.restarts)} searches converged"
                      + ("" if lv.spread_pct is None else f", spread {lv.spread_pct:.2f} %"))
@@ -569,6 +572,9 @@ def dose_response_lines(res, out) -> list[str]:
                     else f"{r.net_metabolic_w_per_kg:.3f} W/kg")
             lines.append(f"    restart {r.restart}: {rate}"
                          + ("" if r.change_pct is None else f" ({_pct(r.change_pct)})")
+                         + ("" if r.matched_change_pct is None else
+                            f", vs matched control {r.matched_control_w_per_kg:.3f} W/kg: "
+                            f"{_pct(r.matched_change_pct)}")
                          + ("" if r.device_off_fell_s is None and r.device_off_w_per_kg is None
                             else "; device off: " + (
                                 f"falls at {r.device_off_fell_s:.1f} s"
@@ -585,7 +591,9 @@ def dose_response_lines(res, out) -> list[str]:
                  + (f" (left out, a restart fell: {', '.join(res.monotone_left_out)})"
                     if res.monotone_left_out else "")
                  + "; each restart's chain non-increasing: "
-                 + ", ".join(mono[x] for x in res.monotone_per_restart))
+                 + ", ".join(mono[x] for x in res.monotone_per_restart)
+                 + f"; against the matched control, within the bands: "
+                 f"{mono[res.monotone_matched_within_bands]}")
     lines.append(f"  {out}/dose_response.json, {out}/dose_response.png")
     lines.append(json.dumps({"dose": [lv.dose for lv in res.levels],
                              "change_pct_mean": [lv.change_pct_mean for lv in res.levels],

@@ -4,8 +4,10 @@ The change of the adapted wearer's net metabolic rate (%, Umberger 2010) against
 (nothing worn, restart paired with restart) over the dose, as the exoskeleton papers plot a
 metabolic change against a device parameter (Collins et al. 2015: against spring
 stiffness): the band (min–max over the restarts) shaded, its mean as a line, each restart's
-change as a point (hollow: its search had not converged), each restart's best set walked with
-the device taken off as a grey triangle, and optionally a published point with its error bar.
+change as a point (hollow: its search had not converged); the change against the matched
+control (the control searched on as long, when run) as a dashed line with its range; each
+restart's best set walked with the device taken off as a grey triangle; and optionally a
+published point with its error bar.
 """
 
 from __future__ import annotations
@@ -56,6 +58,16 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
                     mfc="tab:blue" if r.converged else "white", mec="tab:blue",
                     label=("restart (hollow: search not converged)" if first else None))
             first = False
+    matched = [(lv.dose, lv.matched_change_pct_min, lv.matched_change_pct_mean,
+                lv.matched_change_pct_max) for lv in result.levels[1:]
+               if lv.dose is not None and lv.matched_change_pct_mean is not None]
+    if matched:
+        if result.levels[0].dose is not None:
+            matched.insert(0, (result.levels[0].dose, 0.0, 0.0, 0.0))
+        mx, mlo, mmean, mhi = zip(*sorted(matched))
+        ax.plot(mx, mmean, "--", color="tab:green", lw=1.5,
+                label="against the control searched as long (mean)")
+        ax.vlines(mx, mlo, mhi, color="tab:green", lw=3, alpha=0.5)
     off = [(lv.dose, r.device_off_change_pct) for lv in result.levels[1:]
            if lv.dose is not None for r in lv.restarts if r.device_off_change_pct is not None]
     if off:

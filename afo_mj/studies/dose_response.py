@@ -25,6 +25,10 @@ family of optima along a parameter by starting each solve from the neighbouring 
   control's restart measures what the search along the chain did to the wearer by itself
   (the chain's later rungs have been searched longer than the control), the part of the
   change the device is not needed for;
+* with ``matched_control = true`` the control is also searched on with nothing worn, one
+  rung per level (``control<k>``, restart ``i`` from the previous one's restart ``i``), and
+  each level is compared with the control searched as long (``matched_change_pct``): the
+  continuation's later rungs have had more generations than the control;
 * the study is resumable: each rung × restart is its own search folder
   ``OUT/<rung>/restart<i>`` and each scoring walk is kept there (``dose_score.json``); the
   document is rewritten after every rung, so a stopped run leaves the rungs it finished.
@@ -83,7 +87,7 @@ DOSE_VARIABLES = {
 }
 _STUDY_KEYS = ("name", "description", "dose_response")
 _PROTOCOL_KEYS = tuple(f.name for f in dataclasses.fields(AdaptationProtocol))
-_DOSE_KEYS = ("variable", "levels", "assistance", "start") + _PROTOCOL_KEYS
+_DOSE_KEYS = ("variable", "levels", "assistance", "start", "matched_control") + _PROTOCOL_KEYS
 #: the protocol settings every rung's search must share with the one that began the study
 _FIXED = ("popsize", "sigma0", "seed", "search_walk_s", "settle_s", "tracking_weight")
 DEFAULT_START = Path(__file__).resolve().parents[1] / "data" / "adapted" / "none.json"
@@ -114,9 +118,15 @@ class DoseStudy:
     assistance: dict = dataclasses.field(default_factory=dict)
     protocol: AdaptationProtocol = dataclasses.field(default_factory=AdaptationProtocol)
     start: str = str(DEFAULT_START)
+    #: also search the control on along the chain, one rung per level (nothing worn), so
+    #: that each level is compared with a control searched as long
+    matched_control: bool = False
 
     def __post_init__(self):
         from afo_mj.experiments.muscle_assistance import Assistance
+        if not isinstance(self.matched_control, bool):
+            raise ValueError(f"dose_response.matched_control = {self.matched_control!r}; "
+                             "allowed: true, false")
         if self.variable not in DOSE_VARIABLES:
             raise ValueError(f"dose_response.variable = {self.variable!r}; allowed: "
                              f"{', '.join(DOSE_VARIABLES)}")
@@ -233,7 +243,8 @@ def parse_dose_study(text: str, origin: str = "<study>", base_dir: Path | None =
     try:
         return DoseStudy(name=name, variable=dr["variable"], levels=tuple(levels),
                          description=str(data.get("description", "")),
-                         assistance=assistance, protocol=protocol, start=start)
+                         assistance=assistance, protocol=protocol, start=start,
+                         matched_control=dr.get("matched_control", False))
     except ValueError as exc:
         raise ValueError(f"{origin}: {exc}") from None
 
@@ -309,6 +320,12 @@ class DoseRestart(Document):
         "number?", "its rate against the control's restart of the same index: the part of "
         "change_pct the search along the chain would give without the device (null: the "
         "control or a fall)", "%")
+    matched_control_w_per_kg: float | None = entry(
+        "number?", "rate of the matched control's restart of the same index: the control "
+        "searched on with nothing worn for as many rungs as this one (null: not run, or it "
+        "fell)", "W/kg")
+    matched_change_pct: float | None = entry("number?", "change of the rate against that "
+                                             "matched control (null: as above)", "%")
     cpu_s: float | None = entry("number?", "CPU time of the search measured by this study's "
                                 "runs (null: some of it was not measured)", "s")
 
@@ -335,6 +352,15 @@ class DoseLevel(Document):
     converged: bool = entry("bool", "every restart converged, walks, and the spread is "
                             "within the target")
     reason: str = entry("str", "why converged or not")
+    matched_change_pct_min: float | None = entry(
+        "number?", "lowest change against the matched control (null: no matched control, "
+        "or a fall)", "%", default=None)
+    matched_change_pct_mean: float | None = entry("number?", "mean change against the "
+                                                  "matched control", "%", default=None)
+    matched_change_pct_max: float | None = entry("number?", "highest change against the "
+                                                 "matched control", "%", default=None)
+    matched_control_walks: int = entry("int", "walks of the matched control's searches of "
+                                       "this rung (0: none)", default=0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -364,6 +390,9 @@ class DoseResponseResult(Document):
         "left out, see monotone_left_out; null: fewer than two levels with a band)")
     monotone_means: bool | None = entry("bool?", "the mean paired changes fall at every "
                                         "step (the same levels; null: as above)")
+    monotone_matched_within_bands: bool | None = entry(
+        "bool?", "the same test on the bands of the changes against the matched control "
+        "(null: no matched control, or fewer than two levels with a band)")
     monotone_left_out: tuple = entry("list", "levels left out of the two tests above: a "
                                      "restart's scoring walk fell, so the level has no band")
     monotone_per_restart: tuple = entry(
@@ -534,6 +563,18 @@ def _monotone(levels: list[DoseLevel]) -> tuple[bool | None, bool | None, list[s
             all(b < a for a, b in zip(mean, mean[1:])), left_out, per_restart)
 
 
+def _monotone_matched(levels: list[DoseLevel]) -> bool | None:
+    """:func:`monotone_within_bands` (non-increasing) over the matched controls' bands, the
+    control's 0 first when its dose is on the axis; None without two bands."""
+    pts = [(0.0, 0.0)] if levels and levels[0].dose is not None else []
+    pts += [(lv.matched_change_pct_min, lv.matched_change_pct_max) for lv in levels[1:]
+            if lv.dose is not None and lv.matched_change_pct_min is not None]
+    if len(pts) < 2 or not any(lv.matched_control_walks for lv in levels):
+        return None
+    lo, hi = zip(*pts)
+    return monotone_within_bands(lo, hi, decreasing=True)
+
+
 def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, client=None,
                       progress=None) -> DoseResponseResult:
     """Run (or continue) ``study`` into ``out_dir`` (module docstring); writes
@@ -550,47 +591,79 @@ def run_dose_response(out_dir, study: DoseStudy, workers: int | None = None, cli
     _check_study(out, study, start_sha)
     rungs = study.rungs()
     prev = [(start_set, str(study.start))] * protocol.restarts
+    sham_prev = None
     levels: list[DoseLevel] = []
     res = None
-    for rung in rungs:
-        dirs, docs, cpus, froms = [], [], [], []
-        for i in range(protocol.restarts):
-            if progress is not None:
-                progress(f"{rung.label} restart {i}")
-            d = out / rung.name / f"restart{i}"
-            doc, cpu, began = _search(d, rung, prev[i][0], prev[i][1], protocol, i, workers,
-                                      client)
-            dirs.append(d)
-            docs.append(doc)
-            cpus.append(cpu)
-            froms.append(began)
-        scores = _scores(rung, dirs, docs, protocol, workers, client)
-        rows = []
-        for i, (d, doc, cpu, began, (s, off)) in enumerate(zip(dirs, docs, cpus, froms,
-                                                                scores)):
-            conv, why, change = search_converged(doc["history"], protocol.window,
-                                                 protocol.cost_tol)
-            fell = s["fell_s"]
-            rows.append(DoseRestart(
-                restart=i, seed=protocol.seed + i, out_dir=str(d), started_from=began,
-                generations=int(doc["optimizer"]["generations"]),
-                walks=int(doc["optimizer"]["evaluations"]), search_cost=float(doc["cost"]),
-                converged=conv, convergence=why, best_cost_change=change,
-                net_metabolic_w_per_kg=None if fell is not None
-                else s["net_metabolic_w_per_kg"],
-                fell_s=fell, speed_m_s=s.get("speed_m_s"), change_pct=None,
-                device_off_w_per_kg=(None if off is None or off["fell_s"] is not None
-                                     else off["net_metabolic_w_per_kg"]),
-                device_off_fell_s=None if off is None else off["fell_s"],
-                device_off_speed_m_s=None if off is None else off.get("speed_m_s"),
-                device_off_change_pct=None, cpu_s=cpu))
-        levels.append(_level(rung, rows, protocol, levels[0] if levels else None))
-        prev = [({n: v for n, v in zip(rl.PARAM_NAMES,
-                                       load_reflex_set(d / "reflex_params.json").tolist())},
-                 str(d / "reflex_params.json")) for d in dirs]
+    for k, rung in enumerate(rungs):
+        rows, prev = _run_rung(out, rung, prev, protocol, workers, client, progress)
+        level = _level(rung, rows, protocol, levels[0] if levels else None)
+        if k == 0:
+            sham_prev = prev
+        elif study.matched_control:
+            sham = Rung(f"control{k}", None, f"control, searched on ({k})", rungs[0].objective)
+            sham_rows, sham_prev = _run_rung(out, sham, sham_prev, protocol, workers, client,
+                                             progress)
+            level = _matched(level, sham_rows)
+        levels.append(level)
         res = _result(study, start_sha, levels, complete=len(levels) == len(rungs))
         _write_json(out / "dose_response.json", res.to_json())
     return res
+
+
+def _run_rung(out: Path, rung: Rung, prev: list, protocol, workers, client, progress):
+    """One rung's searches (restart ``i`` from ``prev[i]``, ``(set, where from)``) and
+    scoring walks; returns its :class:`DoseRestart` rows (changes not yet set) and the
+    ``prev`` of the next rung."""
+    from afo_mj.gait import reflex_law as rl
+    dirs, docs, cpus, froms = [], [], [], []
+    for i in range(protocol.restarts):
+        if progress is not None:
+            progress(f"{rung.label} restart {i}")
+        d = out / rung.name / f"restart{i}"
+        doc, cpu, began = _search(d, rung, prev[i][0], prev[i][1], protocol, i, workers,
+                                  client)
+        dirs.append(d)
+        docs.append(doc)
+        cpus.append(cpu)
+        froms.append(began)
+    scores = _scores(rung, dirs, docs, protocol, workers, client)
+    rows = []
+    for i, (d, doc, cpu, began, (s, off)) in enumerate(zip(dirs, docs, cpus, froms, scores)):
+        conv, why, change = search_converged(doc["history"], protocol.window,
+                                             protocol.cost_tol)
+        fell = s["fell_s"]
+        rows.append(DoseRestart(
+            restart=i, seed=protocol.seed + i, out_dir=str(d), started_from=began,
+            generations=int(doc["optimizer"]["generations"]),
+            walks=int(doc["optimizer"]["evaluations"]), search_cost=float(doc["cost"]),
+            converged=conv, convergence=why, best_cost_change=change,
+            net_metabolic_w_per_kg=None if fell is not None else s["net_metabolic_w_per_kg"],
+            fell_s=fell, speed_m_s=s.get("speed_m_s"), change_pct=None,
+            device_off_w_per_kg=(None if off is None or off["fell_s"] is not None
+                                 else off["net_metabolic_w_per_kg"]),
+            device_off_fell_s=None if off is None else off["fell_s"],
+            device_off_speed_m_s=None if off is None else off.get("speed_m_s"),
+            device_off_change_pct=None, matched_control_w_per_kg=None,
+            matched_change_pct=None, cpu_s=cpu))
+    nxt = [({n: v for n, v in zip(rl.PARAM_NAMES,
+                                  load_reflex_set(d / "reflex_params.json").tolist())},
+            str(d / "reflex_params.json")) for d in dirs]
+    return rows, nxt
+
+
+def _matched(level: DoseLevel, sham: list[DoseRestart]) -> DoseLevel:
+    """``level`` with each restart's rate set against the matched control's restart of the
+    same index (the control searched on for as many rungs), and the band of those
+    changes."""
+    ctl = [r.net_metabolic_w_per_kg for r in sham]
+    ch = paired_changes(ctl, [r.net_metabolic_w_per_kg for r in level.restarts], 0, 0)
+    rows = tuple(dataclasses.replace(r, matched_control_w_per_kg=ctl[i],
+                                     matched_change_pct=ch["paired"][i])
+                 for i, r in enumerate(level.restarts))
+    lo, mean, hi = band(ch["paired"])
+    return dataclasses.replace(level, restarts=rows, matched_change_pct_min=lo,
+                               matched_change_pct_mean=mean, matched_change_pct_max=hi,
+                               matched_control_walks=sum(r.walks for r in sham))
 
 
 def _result(study: DoseStudy, start_sha: str, levels: list[DoseLevel], complete: bool
@@ -604,5 +677,7 @@ def _result(study: DoseStudy, start_sha: str, levels: list[DoseLevel], complete:
         start_sha256=start_sha, levels=tuple(levels), complete=complete,
         monotone_within_bands=mono, monotone_means=means, monotone_left_out=tuple(left_out),
         monotone_per_restart=tuple(per_restart),
-        walks=sum(r.walks for lv in levels for r in lv.restarts),
+        monotone_matched_within_bands=_monotone_matched(levels),
+        walks=sum(r.walks for lv in levels for r in lv.restarts)
+        + sum(lv.matched_control_walks for lv in levels),
         cpu_s=None if any(x is None for x in cpus) else float(sum(cpus)))
