@@ -176,6 +176,9 @@ def test_the_matched_control_is_searched_on_along_the_chain(tmp_path, fakes):
     # non-increasing curve still fits (it may stay at 0)
     assert res.monotone_matched_within_bands is True
     assert l1.matched_control_walks == 2 * 4 * 3 and res.walks == (6 + 4) * 4 * 3
+    assert l1.matched_control_cpu_s is not None and res.cpu_s == pytest.approx(sum(
+        r.cpu_s for lv in res.levels for r in lv.restarts) + sum(
+        lv.matched_control_cpu_s for lv in res.levels[1:]))
     assert fakes["score"] == 2 + 4 + 2 + 4 + 2
 
 

@@ -361,6 +361,9 @@ class DoseLevel(Document):
                                                  "matched control", "%", default=None)
     matched_control_walks: int = entry("int", "walks of the matched control's searches of "
                                        "this rung (0: none)", default=0)
+    matched_control_cpu_s: float | None = entry(
+        "number?", "CPU time of those searches measured by this study (null: none run, or "
+        "not measured)", "s", default=None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -399,8 +402,9 @@ class DoseResponseResult(Document):
         "list", "per restart (its own chain of continuation): its paired changes never rise "
         "from one level to the next, over the levels where it walks (null: fewer than two)")
     walks: int = entry("int", "walks of every search")
-    cpu_s: float | None = entry("number?", "CPU time of every search measured by this study "
-                                "(null: some not measured)", "s")
+    cpu_s: float | None = entry("number?", "CPU time of every search measured by this study, "
+                                "the matched controls' included (null: some not measured)",
+                                "s")
 
     def level(self, name: str) -> DoseLevel:
         """The rung called ``name``; KeyError naming the known ones."""
@@ -663,13 +667,16 @@ def _matched(level: DoseLevel, sham: list[DoseRestart]) -> DoseLevel:
     lo, mean, hi = band(ch["paired"])
     return dataclasses.replace(level, restarts=rows, matched_change_pct_min=lo,
                                matched_change_pct_mean=mean, matched_change_pct_max=hi,
-                               matched_control_walks=sum(r.walks for r in sham))
+                               matched_control_walks=sum(r.walks for r in sham),
+                               matched_control_cpu_s=(None if any(r.cpu_s is None for r in sham)
+                                                      else float(sum(r.cpu_s for r in sham))))
 
 
 def _result(study: DoseStudy, start_sha: str, levels: list[DoseLevel], complete: bool
             ) -> DoseResponseResult:
     mono, means, left_out, per_restart = _monotone(levels)
-    cpus = [r.cpu_s for lv in levels for r in lv.restarts]
+    cpus = [r.cpu_s for lv in levels for r in lv.restarts] + [
+        lv.matched_control_cpu_s for lv in levels if lv.matched_control_walks]
     return DoseResponseResult(
         study=study.name, description=study.description, variable=study.variable,
         unit=study.unit, kind=study.kind, assistance=json.loads(json.dumps(study.assistance)),
