@@ -247,28 +247,31 @@ def test_rungs_of_each_variable():
     # no dose means nothing worn: the control is prepended off the axis
     assert [(r.name, r.dose) for r in rungs] == [("control", None), ("level1_46", 46.0),
                                                   ("level2_56.5", 56.5)]
-    assert rungs[1].objective.assistance.zhang_peak_time_pct == 46.0
-    assert "peak at 46 %" in rungs[1].label
+    assert rungs[1].objective.assistance.zhang_timing_pct == (46.0, 26.2, 9.8)
+    assert "peak 46.0 %" in rungs[1].label
 
 
 def test_the_profile_peaks_at_the_chosen_time():
-    """The device's Zhang table has its peak (−peak torque) at the chosen phase and none
-    before onset = peak − 26.2 %: a timing level really moves the torque."""
+    """A timing level's device table has its peak (−peak torque) at the chosen phase and
+    none before onset = peak − 26.2 %: the level really moves the torque."""
     import numpy as np
 
-    from afo_mj.experiments.muscle_assistance import Assistance, _IdealTorque
-    dev = _IdealTorque(Assistance("zhang", zhang_peak_nm_per_kg=0.5, zhang_peak_time_pct=46.0),
-                       80.0).device
-    table = np.asarray(dev.profile)
+    from afo_mj.experiments.muscle_assistance import ideal_device
+    s = dr.DoseStudy(name="t", variable="zhang_peak_time_pct", levels=(46.0, 56.5),
+                     assistance={"zhang_peak_nm_per_kg": 0.5})
+    a = s.rungs()[1].objective.assistance
+    assert a.zhang_timing_pct == (46.0, 26.2, 9.8)
+    table = np.asarray(ideal_device(a, 80.0).profile)
     phase = np.linspace(0.0, 100.0, len(table))
     assert table.min() == pytest.approx(-40.0, rel=1e-3)
     assert phase[np.argmin(table)] == pytest.approx(46.0, abs=100.0 / (len(table) - 1))
     assert np.all(table[phase < 46.0 - 26.2] == 0.0)
-    with pytest.raises(ValueError, match=r"zhang_peak_time_pct = 95.0; allowed: 26.2 … 90.2"):
-        Assistance("zhang", zhang_peak_time_pct=95.0)
-    # the default stays out of the repr (earlier searches' state keys unchanged)
-    assert "zhang_peak_time_pct" not in repr(Assistance("zhang"))
-    assert "zhang_peak_time_pct=46.0" in repr(Assistance("zhang", zhang_peak_time_pct=46.0))
+    # a zhang_timing_pct given keeps its rise and fall; its peak is the level's
+    s2 = dr.DoseStudy(name="t", variable="zhang_peak_time_pct", levels=(50.0, 56.5),
+                      assistance={"zhang_timing_pct": [52.9, 20.0, 12.0]})
+    assert s2.rungs()[2].objective.assistance.zhang_timing_pct == (56.5, 20.0, 12.0)
+    with pytest.raises(ValueError, match=r"level 95: assistance.zhang_timing_pct"):
+        dr.DoseStudy(name="t", variable="zhang_peak_time_pct", levels=(50.0, 95.0))
 
 
 @pytest.mark.parametrize("text, match", [

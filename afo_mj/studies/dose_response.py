@@ -77,7 +77,8 @@ __all__ = ["DOSE_VARIABLES", "DOSE_RESPONSE_FORMAT", "DoseStudy", "Rung", "DoseR
 
 DOSE_RESPONSE_FORMAT = "afo_mj dose_response v1"
 
-#: dose variable -> (assistance kind, unit, axis label, the dose that means nothing worn)
+#: dose variable -> (assistance kind, unit, axis label, the dose that means nothing worn);
+#: each is an Assistance field but the peak time, the first of ``zhang_timing_pct``
 DOSE_VARIABLES = {
     "zhang_peak_nm_per_kg": ("zhang", "N·m/kg", "peak torque (N·m/kg)", 0.0),
     "zhang_peak_time_pct": ("zhang", "%", "peak time (% of stride)", None),
@@ -165,12 +166,19 @@ class DoseStudy:
         return DOSE_VARIABLES[self.variable][1]
 
     def _assistance(self, dose: float):
-        from afo_mj.experiments.muscle_assistance import Assistance
+        from afo_mj.experiments.muscle_assistance import ZHANG_TIMING_PCT, Assistance
         fixed = dict(self.assistance)
         if "sides" in fixed:
             fixed["sides"] = tuple(fixed["sides"])
+        if self.variable == "zhang_peak_time_pct":
+            # the peak of Assistance.zhang_timing_pct (peak, rise, fall); rise and fall
+            # Zhang et al.'s, or those of a zhang_timing_pct given
+            timing = tuple(fixed.pop("zhang_timing_pct", ZHANG_TIMING_PCT))
+            dosed = {"zhang_timing_pct": (dose, *timing[1:])}
+        else:
+            dosed = {self.variable: dose}
         try:
-            return Assistance(self.kind, **fixed, **{self.variable: dose})
+            return Assistance(self.kind, **fixed, **dosed)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"dose_response level {dose:g}: {exc}") from None
 
