@@ -2,7 +2,7 @@
 the continuation's wiring and resume with the search and the scoring walk replaced by
 bookkeeping fakes, the bands and paired changes against hand-computed values, the
 monotonicity test on hand-made bands, the study file's parsing and refusals, the shipped study
-files, and one tiny real run through the command (slow)."""
+files, and one tiny real run through the command (about 5 s)."""
 
 from __future__ import annotations
 
@@ -340,7 +340,6 @@ def test_command_refusals(tmp_path):
     assert not any((tmp_path / n).exists() for n in "abcd")
 
 
-@pytest.mark.slow
 def test_tiny_real_run_through_the_command(tmp_path, capsys):
     """The control and one Zhang level, 2 restarts x 2 generations x 4 walks of 5 s: the
     level's restart i starts from the control's restart i's best set, and each change
