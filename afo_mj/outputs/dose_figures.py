@@ -87,7 +87,7 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
     p = result.protocol
     ax.set_title(f"{result.study}: {p['restarts']} restarts × {p['generations']} "
                  "generations per level", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="lower left")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150)
