@@ -24,7 +24,7 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
     import matplotlib
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(5.6, 4.0), layout="constrained")
+    fig = Figure(figsize=(6.0, 5.0), layout="constrained")
     ax = fig.add_subplot()
     xs, lo, mean, hi = [], [], [], []
     for lv in result.levels:
@@ -87,7 +87,8 @@ def plot_dose_response(path, result, axis_label: str, reference=None) -> Path:
     p = result.protocol
     ax.set_title(f"{result.study}: {p['restarts']} restarts × {p['generations']} "
                  "generations per level", fontsize=9)
-    ax.legend(fontsize=7, loc="lower left")
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2,
+               fontsize=7)      # under the axes: it hides no point
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150)
