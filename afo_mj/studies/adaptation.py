@@ -325,8 +325,11 @@ def _check_protocol(out: Path, protocol: AdaptationProtocol, start_sha: str,
     _write_json(path, dict(fixed, conditions=names))
 
 
-def _score(item):
-    """The scoring walk of one restart's best set: its assistance summary, or the fall."""
+def score_walk(item):
+    """The scoring walk of one restart's best set (``(objective, params, walk_s,
+    settle_s)``): its net metabolic rate and speed, or the fall. Shared by the adaptation,
+    the dose-response and the human-in-the-loop tuning (any objective whose
+    ``objective_walk`` walks its parameters)."""
     from afo_mj.experiments.muscle_assistance import assistance_summary
     objective, params, walk_s, settle_s = item
     try:
@@ -389,7 +392,7 @@ def adapt_conditions(out_dir, conditions: Sequence[AdaptCondition], start,
             items.append((c.objective, load_reflex_set(d / "reflex_params.json"),
                           protocol.score_walk_s, protocol.settle_s))
             keys.append((c.name, i))
-    scored = evaluate_batch(_score, items, workers, client)
+    scored = evaluate_batch(score_walk, items, workers, client)
     scores = {}
     for k, r in zip(keys, scored):
         if not r.ok:

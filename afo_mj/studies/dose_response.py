@@ -65,7 +65,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from afo_mj.metrics.document_base import Document, entry
-from afo_mj.studies.adaptation import (AdaptationProtocol, _cpu_s, _objective_kw, _score,
+from afo_mj.studies.adaptation import (AdaptationProtocol, _cpu_s, _objective_kw, score_walk,
                                        _write_json, paired_changes, rate_spread,
                                        search_converged)
 from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch,
@@ -497,7 +497,7 @@ def _scores(rung: Rung, dirs: list[Path], docs: list[dict], protocol, workers, c
             if obj is not None and what not in have:
                 items.append((obj, params, protocol.score_walk_s, protocol.settle_s))
                 slots.append((i, what))
-    for (i, what), r in zip(slots, evaluate_batch(_score, items, workers, client)):
+    for (i, what), r in zip(slots, evaluate_batch(score_walk, items, workers, client)):
         if not r.ok:
             raise RuntimeError(f"scoring walk of {rung.name} restart {i}: {r.error}")
         saved[i][what] = r.value

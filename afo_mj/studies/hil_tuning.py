@@ -72,9 +72,9 @@ from afo_mj.experiments.muscle_assistance import ZHANG_TIMING_PCT, Assistance
 from afo_mj.metrics.document_base import Document, entry
 from afo_mj.studies.adaptation import (AdaptationProtocol, AdaptCondition, ConditionResult,
                                        adapt_conditions, assistance_conditions, paired_changes,
-                                       rate_spread, search_converged)
+                                       rate_spread, score_walk, search_converged)
 from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch, gait_cost,
-                                              load_reflex_set, objective_walk)
+                                              load_reflex_set)
 
 __all__ = ["ProfileBounds", "ZhangSetting", "GENERIC", "HilProtocol", "TunedRestart",
            "HilTuningResult", "joint_vector", "split_joint", "joint_search", "tune_zhang",
@@ -432,19 +432,6 @@ def _cpu_s() -> float:
     return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
 
 
-def _score_tuned(item):
-    """The scoring walk of a tuned restart's best (reflexes, profile)."""
-    from afo_mj.experiments.muscle_assistance import assistance_summary
-    objective, params, walk_s, settle_s = item
-    try:
-        walk, dev = objective_walk(objective, params, walk_s)
-    except FloatingPointError as exc:
-        return {"fell_s": 0.0, "error": str(exc)}
-    s = assistance_summary(walk, settle_s, dev)
-    return {"fell_s": s["fell_s"], "net_metabolic_w_per_kg": s.get("net_metabolic_w_per_kg"),
-            "speed_m_s": s.get("speed_m_s")}
-
-
 def _check_folder(out: Path, protocol: HilProtocol, starts: dict) -> None:
     path = out / "hil_protocol.json"
     fixed = dict(protocol.fixed(), **starts)
@@ -516,7 +503,7 @@ def tune_zhang(out_dir, protocol: HilProtocol | None = None, control_start=None,
         items.append((dataclasses.replace(objective,
                                           assistance=s.assistance(objective.assistance)),
                       load_reflex_set(d / "reflex_params.json"), a.score_walk_s, a.settle_s))
-    scored = evaluate_batch(_score_tuned, items, workers, client)
+    scored = evaluate_batch(score_walk, items, workers, client)
     rows = []
     for i, ((d, doc, cpu), r) in enumerate(zip(searches, scored)):
         if not r.ok:
