@@ -223,6 +223,10 @@ def parse_study(text: str, origin: str = "<study>", base_dir: Path | None = None
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise StudyError(f"{origin}: not valid TOML ({exc})") from None
+    if "dose_response" in doc:
+        raise StudyError(f"{origin}: a [dose_response] study (the adapted wearer against a "
+                         "dose); allowed here: a sweep or optimisation study; run it with "
+                         "afo-mj dose-response")
     for k in doc:
         if k not in _TOP_KEYS:
             raise _fail(origin, k, doc[k], f"the keys {', '.join(_TOP_KEYS)}")
