@@ -284,7 +284,8 @@ def test_a_softer_cable_is_fitted_as_the_cable(tmp_path):
 @pytest.mark.slow
 def test_backlash_on_the_simulated_load_is_named(tmp_path):
     """Rig 2 with 0.02 rad of play at the pulley (its dead-zone cable), 5 s (the figures
-    below were measured on 8 s), seed 13: the described rig's backlash candidate, the cable's dead band in the circuit
+    below were measured on 8 s), seed 13: the described rig's backlash candidate, the
+    cable's dead band in the circuit
     (``PulleyCylinders.backlash_rad``, the pistons a mass of their own while the cable is
     slack), works on the simulated load. Measured: ``backlash`` named first with
     b = 0.02005 rad, every channel within 2× its noise floor (angle 1.77×, torque 1.03×,
