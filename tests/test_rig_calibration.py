@@ -163,7 +163,7 @@ def _rig_setup(**options):
 
 @pytest.mark.slow
 def test_effect_outside_the_library_is_not_named(rig, tmp_path):
-    """Blind: a 10 s record of the independent rig whose torque cell rings at 80 Hz (a
+    """Blind: a 6 s record of the independent rig whose torque cell rings at 80 Hz (a
     second-order sensor, not in the library): the baseline misses 2× the torque channel's
     noise floor, no physical effect is named, and the data-driven discrepancy reads the torque
     channel as the model's torque through a second-order instrument near 80 Hz. The residual is
@@ -172,7 +172,7 @@ def test_effect_outside_the_library_is_not_named(rig, tmp_path):
     nothing accounts for; issue 41): measured, torque 2.45× its floor, accounted for by the
     replay's numerical error, the resonance and the discrepancy."""
     from afo_mj.calibration.calibrate import calibrate_setup
-    data = rig.write_record(tmp_path / "ring.csv", duration_s=10.0, seed=4,
+    data = rig.write_record(tmp_path / "ring.csv", duration_s=6.0, seed=4,
                             effects={"torque_sensor_resonance": 80.0})
     rep = calibrate_setup(data, _rig_setup(max_effects=1, refit_top=2))
     assert rep["baseline"]["ratio"]["ankle_torque_nm"] > 2.0
