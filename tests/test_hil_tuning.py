@@ -157,3 +157,90 @@ def test_tiny_experiment_through_the_tool(tmp_path, capsys):
     # the tool refuses a folder of other settings (exit 2, named)
     assert tool.main(argv) == 2
     assert "holds an experiment with" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- the HAFO
+def test_hafo_protocol_refusals():
+    with pytest.raises(ValueError, match="HilProtocol.device = 'valve'"):
+        hil.HilProtocol(device="valve")
+    with pytest.raises(ValueError, match="battery_weights .* with device 'zhang'"):
+        hil.HilProtocol(battery_weights=(0.0, 1.0))
+    for bad in ((), (-1.0,), (0.5, 0.5), (math.nan,), (True,), "1"):
+        with pytest.raises(ValueError, match="HilProtocol.battery_weights"):
+            hil.HilProtocol(device="hafo", battery_weights=bad)
+    p = hil.HilProtocol(device="hafo", battery_weights=(0, 0.25))
+    assert p.battery_weights == (0.0, 0.25) and p.generic == hil.GENERIC_HAFO
+    assert p.fixed()["device"] == "hafo" and "device" not in hil.HilProtocol().fixed()
+    # the HAFO commands peak × body mass: the generic one is the shipped 40 N·m
+    a = hil.GENERIC_HAFO.assistance(ma.Assistance("hafo"), 75.0)
+    assert a.hafo_peak_torque_nm == 40.0 and a.zhang_timing_pct == ma.ZHANG_TIMING_PCT
+    assert hil.ZhangSetting(0.2, 50.0, 20.0, 10.0).assistance(
+        ma.Assistance("hafo"), 80.0).hafo_peak_torque_nm == pytest.approx(16.0, abs=1e-9)
+    with pytest.raises(ValueError, match="body mass"):
+        hil.GENERIC_HAFO.assistance(ma.Assistance("hafo"))
+    with pytest.raises(ValueError, match="allowed: 'zhang', or 'hafo'"):
+        hil.GENERIC.assistance(ma.Assistance("clutched_spring"), 75.0)
+    # a battery weight on the ideal torque, or one the protocol does not list, is refused
+    with pytest.raises(ValueError, match="battery_weight = 1.0 with assistance.kind = 'zhang'"):
+        hil.joint_cost(reflex_params(), hil.profile_objective(hil.HilProtocol()), 1.0)
+    obj = hil.profile_objective(p)
+    with pytest.raises(ValueError, match="allowed: one of protocol.battery_weights"):
+        hil.joint_search("/nonexistent/never", obj, reflex_params(), p, seed=1,
+                         battery_weight=1.0)
+    with pytest.raises(ValueError, match="allowed: 'hafo'"):
+        hil.joint_search("/nonexistent/never", hil.profile_objective(hil.HilProtocol()),
+                         reflex_params(), p, seed=1)
+    with pytest.raises(ValueError, match="no battery in its log"):
+        ma.battery_use(None, ma.ideal_device(ma.Assistance("zhang"), 75.0))
+
+
+def _ledger_input_j(params, duration_s):
+    _walk, dev = ma.assistance_walk(ma.Assistance("hafo"), None, params, duration_s)
+    return dev.ledger(0)["input_j"]
+
+
+def test_battery_term_against_the_ledger_of_prefix_walks():
+    """The objective's battery term on a 6 s HAFO walk against the device's own ledger: the
+    walk is deterministic, so the battery energy between the first and last scored heel
+    strike is the ledger's input (∫V_oc I dt, integrated in the compiled step) of a walk
+    stopped at the last one less that of a walk stopped at the first; per kg and metre with
+    the pelvis's distance read here. The wearer's cost is the one gait_cost gives."""
+    from afo_mj.studies.gait_optimization import gait_cost
+    params = hil.load_reflex_set(DATA / "hafo.json")
+    p = hil.HilProtocol(device="hafo", battery_weights=(0.0, 1.0), adaptation=AdaptationProtocol(
+        search_walk_s=6.0, score_walk_s=6.0, settle_s=2.0))
+    obj = hil.profile_objective(p)
+    assert obj.assistance.kind == "hafo" and obj.assistance.hafo_peak_torque_nm == 40.0
+    c0, i0 = hil.joint_cost(params, obj, 0.0)
+    c1, i1 = hil.joint_cost(params, obj, 1.0)
+    assert c0 == gait_cost(params, obj)[0] == i0["wearer_cost"] == i1["wearer_cost"]
+    walk, dev = ma.assistance_walk(obj.assistance, None, params, 6.0)
+    hs = np.asarray(walk.record.events.heel_strikes_s[0])
+    hs = hs[hs > 2.0]
+    assert len(hs) >= 3
+    e_ref = _ledger_input_j(params, float(hs[-1])) - _ledger_input_j(params, float(hs[0]))
+    assert e_ref > 1.0      # the 40 N·m profile draws from the battery
+    t, x = walk.record.time_s, walk.record.pelvis_position_m[:, 0]
+    dist = float(np.interp(hs[-1], t, x) - np.interp(hs[0], t, x))
+    assert i1["battery_j"] == pytest.approx(e_ref, rel=0.02)
+    assert i1["battery_j_per_stride"] == pytest.approx(e_ref / (len(hs) - 1), rel=0.02)
+    assert i1["electrical_power_w"] == pytest.approx(e_ref / (hs[-1] - hs[0]), rel=0.02)
+    assert c1 - c0 == pytest.approx(e_ref / (75.0 * dist), rel=0.02)
+
+
+def test_hafo_joint_search_keys_its_battery_weight(tmp_path):
+    """A HAFO joint search (1 generation of 4 walks of 4 s) keeps its battery weight in its
+    state: the folder refuses another weight, and each walk's info carries the battery."""
+    start = hil.load_reflex_set(DATA / "hafo.json")
+    p = hil.HilProtocol(device="hafo", battery_weights=(0.0, 0.5), adaptation=_tiny(1).adaptation)
+    obj = hil.profile_objective(p)
+    doc = hil.joint_search(tmp_path / "s", obj, start, p, seed=2, workers=1, battery_weight=0.5)
+    assert doc["battery_weight"] == 0.5
+    assert p.bounds.contains(hil.ZhangSetting(**doc["profile"]))
+    if "speed_m_s" in doc["quality"]:
+        assert doc["cost"] == pytest.approx(
+            doc["quality"]["wearer_cost"] + 0.5 * doc["quality"]
+            ["battery_cost_of_transport_j_per_kg_m"] + hil.BOUND_PENALTY
+            * doc["bound_violation"], rel=1e-12)
+    with pytest.raises(ValueError, match="other settings"):
+        hil.joint_search(tmp_path / "s", obj, start, p, seed=2, workers=1, battery_weight=0.0)

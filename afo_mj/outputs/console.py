@@ -483,10 +483,11 @@ def adaptation_lines(res, out) -> list[str]:
     return lines
 
 
-def hil_tuning_lines(res, out) -> list[str]:
+def hil_tuning_lines(res, out, json_line: bool = True) -> list[str]:
     """``tools/hil_tuning.py``: every arm's restarts (net metabolic rate, W/kg, Umberger 2010;
-    the tuned profiles), the changes (tuned vs generic paired by restart, both vs the
-    control) beside Zhang et al.'s figure, then a JSON line."""
+    the tuned profiles; for the HAFO the battery energy per stride and mean electrical
+    power), the changes (tuned vs generic paired by restart, both vs the control) beside
+    Zhang et al.'s figure, then (``json_line``) a JSON line."""
     import json
     p = res.protocol["adaptation"]
     b = res.protocol["bounds"]
@@ -502,7 +503,13 @@ def hil_tuning_lines(res, out) -> list[str]:
                 + f"); best vs best {_pct(ch['best'])}"
                 + ("" if rng is None else f" (every pairing {rng[0]:+.2f} … {rng[1]:+.2f} %)"))
 
-    lines = [f"hil tuning: 3 arms x {p['restarts']} restarts, CMA-ES popsize {p['popsize']}, "
+    bat = res.battery
+
+    def battery(j, w):
+        return "" if j is None else f", battery {j:.2f} J/stride ({w:.2f} W)"
+
+    lines = [("" if res.device is None else f"{res.device}, battery weight {bat['weight']:g}: ")
+             + f"hil tuning: 3 arms x {p['restarts']} restarts, CMA-ES popsize {p['popsize']}, "
              f"{p['generations']} generations, sigma0 {p['sigma0']:g} (reflexes), "
              f"{res.protocol['profile_sigma']:g} of each bound (profile); {res.walks} walks"
              + ("" if res.cpu_s is None else f", {res.cpu_s:.0f} s CPU"),
@@ -516,9 +523,12 @@ def hil_tuning_lines(res, out) -> list[str]:
                      f"{rate(arm.net_metabolic_w_per_kg)}"
                      + ("" if arm.spread_pct is None else f"; spread {arm.spread_pct:.2f} %"))
         for r in arm.restarts:
+            gb = ("" if bat is None or name != "generic" else
+                  battery(bat["generic_j_per_stride"][r.restart],
+                          bat["generic_power_w"][r.restart]))
             lines.append(f"    restart {r.restart} (seed {r.seed}): "
-                         f"{rate(r.net_metabolic_w_per_kg)}, cost {r.search_cost:.3f} after "
-                         f"{r.generations} generations; {r.convergence}")
+                         f"{rate(r.net_metabolic_w_per_kg)}{gb}, cost {r.search_cost:.3f} "
+                         f"after {r.generations} generations; {r.convergence}")
     lines.append(f"  tuned: wearer restart {res.tuned_best_restart}, "
                  f"{rate(res.tuned_net_metabolic_w_per_kg)}"
                  + ("" if res.tuned_spread_pct is None
@@ -526,9 +536,12 @@ def hil_tuning_lines(res, out) -> list[str]:
     for r in res.tuned:
         lines.append(f"    restart {r.restart} (seed {r.seed}): peak {r.peak_nm_per_kg:.3f} "
                      f"N·m/kg at {r.peak_time_pct:.1f} %, rise {r.rise_time_pct:.1f} %, fall "
-                     f"{r.fall_time_pct:.1f} %; {rate(r.net_metabolic_w_per_kg)}, cost "
-                     f"{r.search_cost:.3f} after {r.generations} generations; "
-                     f"{r.convergence}")
+                     f"{r.fall_time_pct:.1f} %; {rate(r.net_metabolic_w_per_kg)}"
+                     f"{battery(r.battery_j_per_stride, r.electrical_power_w)}, cost "
+                     f"{r.search_cost:.3f}"
+                     + ("" if r.wearer_cost is None else
+                        f" (wearer's {r.wearer_cost:.3f})")
+                     + f" after {r.generations} generations; {r.convergence}")
     lines.append("  change of the net metabolic rate:")
     lines.append(change("tuned vs generic", res.tuned_vs_generic))
     lines.append(change("tuned vs control", res.tuned_vs_control))
@@ -536,13 +549,73 @@ def hil_tuning_lines(res, out) -> list[str]:
     pub = res.published
     lines.append(f"  published: tuned {pub['tuned_change_pct']:+.1f} ± "
                  f"{pub['tuned_change_sd_pct']:.1f} % ({pub['source']})")
-    lines.append(f"  {out}/hil_tuning.json")
+    if bat is not None:
+        lines.append(f"  battery per stride: generic {_num(bat['generic_best_j_per_stride'])} "
+                     f"J (spread {_num(bat['generic_spread_j_per_stride'])}), tuned "
+                     f"{_num(bat['tuned_best_j_per_stride'])} J (spread "
+                     f"{_num(bat['tuned_spread_j_per_stride'])}); mean electrical power "
+                     f"generic {_num(bat['generic_best_power_w'])} W, tuned "
+                     f"{_num(bat['tuned_best_power_w'])} W")
+    lines.append(f"  {out}/" + ("hil_tuning.json" if bat is None
+                                else f"hil_tuning_hafo_w{bat['weight']:g}.json"))
+    if not json_line:
+        return lines
     lines.append(json.dumps({"tuned_vs_generic": res.tuned_vs_generic,
                              "tuned_vs_control": res.tuned_vs_control,
                              "generic_vs_control": res.generic_vs_control,
                              "tuned_profiles": [{k: getattr(r, k) for k in (
                                  "peak_nm_per_kg", "peak_time_pct", "rise_time_pct",
                                  "fall_time_pct")} for r in res.tuned]}))
+
+
+def _num(v, fmt: str = ".2f") -> str:
+    return "-" if v is None else f"{v:{fmt}}"
+
+
+def hil_front_lines(results, out) -> list[str]:
+    """``tools/hil_tuning.py --device hafo``: each battery weight's arms
+    (:func:`hil_tuning_lines`), then the front: per weight the wearer's net metabolic rate
+    (W/kg), its change against the generic HAFO profile and the control (paired mean with its
+    spread in points), the battery energy per stride (J) and mean electrical power (W) with
+    the restarts' spread, and a JSON line of the front."""
+    import json
+    lines = []
+    for res in results:
+        lines += hil_tuning_lines(res, out, json_line=False)
+    g = results[0]
+    b0 = g.battery
+    lines.append("  front (wearer = lowest search cost; paired mean and spread over restarts):")
+    lines.append(f"    generic HAFO: {_num(g.generic.net_metabolic_w_per_kg, '.3f')} W/kg, "
+                 f"vs control {_pct(g.generic_vs_control['paired_mean'])} (spread "
+                 f"{_num(g.generic_vs_control['paired_spread'])} points); battery "
+                 f"{_num(b0['generic_best_j_per_stride'])} J/stride (spread "
+                 f"{_num(b0['generic_spread_j_per_stride'])}), "
+                 f"{_num(b0['generic_best_power_w'])} W")
+    front = []
+    for res in results:
+        b, tg, tc = res.battery, res.tuned_vs_generic, res.tuned_vs_control
+        lines.append(f"    w = {b['weight']:g}: {_num(res.tuned_net_metabolic_w_per_kg, '.3f')} "
+                     f"W/kg (spread {_pct(res.tuned_spread_pct, '.2f')}), vs generic "
+                     f"{_pct(tg['paired_mean'])} (spread {_num(tg['paired_spread'])} points), "
+                     f"vs control {_pct(tc['paired_mean'])} (spread "
+                     f"{_num(tc['paired_spread'])} points); battery "
+                     f"{_num(b['tuned_best_j_per_stride'])} J/stride (spread "
+                     f"{_num(b['tuned_spread_j_per_stride'])}), {_num(b['tuned_best_power_w'])} W")
+        front.append({"battery_weight": b["weight"],
+                      "net_metabolic_w_per_kg": res.tuned_net_metabolic_w_per_kg,
+                      "rate_spread_pct": res.tuned_spread_pct,
+                      "vs_generic_pct": tg, "vs_control_pct": tc,
+                      "battery_j_per_stride": b["tuned_j_per_stride"],
+                      "electrical_power_w": b["tuned_power_w"],
+                      "profiles": [{k: getattr(r, k) for k in (
+                          "peak_nm_per_kg", "peak_time_pct", "rise_time_pct",
+                          "fall_time_pct")} for r in res.tuned]})
+    lines.append(json.dumps({"device": "hafo", "generic": {
+        "net_metabolic_w_per_kg": g.generic.net_metabolic_w_per_kg,
+        "vs_control_pct": g.generic_vs_control,
+        "battery_j_per_stride": b0["generic_j_per_stride"],
+        "electrical_power_w": b0["generic_power_w"]}, "front": front}))
+    return lines
 
 
 def dose_response_lines(res, out) -> list[str]:

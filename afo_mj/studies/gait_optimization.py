@@ -300,12 +300,15 @@ def _state_key(objective: GaitObjective) -> str:
     return key if objective.scenario is None else f"{key} scenario={objective.scenario!r}"
 
 
-def gait_cost(params: np.ndarray, objective: GaitObjective) -> tuple[float, dict]:
-    """The objective of one walk under ``params`` (lower is better) and what it measured."""
-    try:
-        walk, _ = _walk(objective, objective.walker, params)
-    except FloatingPointError as exc:
-        return 2000.0, {"error": str(exc)}
+def gait_cost(params: np.ndarray, objective: GaitObjective, walk=None) -> tuple[float, dict]:
+    """The objective of one walk under ``params`` (lower is better) and what it measured.
+    ``walk``: that walk already walked (:func:`objective_walk` of ``objective`` and
+    ``params``, for a caller that also reads the walk's device), else it is walked here."""
+    if walk is None:
+        try:
+            walk, _ = _walk(objective, objective.walker, params)
+        except FloatingPointError as exc:
+            return 2000.0, {"error": str(exc)}
     r = walk.record
     t = float(r.time_s[-1])
     dist = float(r.pelvis_position_m[-1, 0] - r.pelvis_position_m[0, 0])

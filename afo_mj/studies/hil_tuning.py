@@ -52,6 +52,38 @@ The tuned arm is compared with the generic one paired by restart (same start, sa
 budget: the profile's share), and both with the control. The result is a
 :class:`HilTuningResult` (format ``afo_mj hil tuning v1``) written atomically to
 ``OUT/hil_tuning.json``.
+
+**The HAFO's command profile, with the battery as a second objective**
+(``HilProtocol(device="hafo", battery_weights=...)``). The same experiment with the ``hafo``
+condition (:mod:`afo_mj.experiments.muscle_assistance`: the pump-driven orthosis, its
+circuit stepped with the walk, commanding the Zhang profile): one code path, the device
+the only difference. The peak is searched in N·m/kg as for the ideal torque and commanded as
+``peak × body mass`` (``hafo_peak_torque_nm``); the generic HAFO profile is the shipped
+40 N·m at the published timing (:data:`GENERIC_HAFO`), the start ``adapted/hafo.json``.
+Each battery weight ``w`` is its own tuned arm (``OUT/tuned_w<w>``, result
+``OUT/hil_tuning_hafo_w<w>.json``), all sharing the control and generic arms; the joint
+search then minimises
+
+    wearer's cost + w × E_bat / (m d)
+
+with ``E_bat`` the energy the battery gave up over the scored strides (chemical, net of
+what regeneration put back: :func:`~afo_mj.experiments.muscle_assistance.battery_use`), ``m``
+the body mass and ``d`` the distance walked over those strides. The term is in the units of
+the wearer's effort term (the net metabolic cost of transport, J/(kg·m)), so ``w = 1``
+counts a battery joule as a metabolic joule; with the speed held it equals
+``w × battery power / (m v)``, the weighted sum ``rate + w × P_bat/m`` (both W/kg) divided by
+the speed. Weights scanned (e.g. 0, 0.25, 1) trace the convex part of the front between the
+wearer's metabolic rate and the battery energy per stride; a weight other than 0 with the
+ideal torque (no battery) is refused by name.
+
+The choice and its known bias: one joint search has one objective, so the reflexes (the
+wearer) see the battery term too and may trade a little of their own cost for battery
+energy, e.g. by back-driving the pump, which charges the battery (a zero command at 0 N·m
+regenerates about 2 J per stride on the shipped HAFO wearer). The nested protocol (an outer
+search on the profile, each candidate re-adapted on the wearer's cost alone) has no such bias
+but costs an adaptation per candidate, which this machine does not afford. Each tuned restart
+therefore reports its best walk's wearer's cost without the battery term beside the search
+cost, and every arm's scoring walk its battery energy per stride and mean electrical power.
 """
 
 from __future__ import annotations
@@ -68,17 +100,18 @@ from typing import ClassVar
 
 import numpy as np
 
-from afo_mj.experiments.muscle_assistance import ZHANG_TIMING_PCT, Assistance
+from afo_mj.experiments.muscle_assistance import ZHANG_TIMING_PCT, Assistance, battery_use
 from afo_mj.metrics.document_base import Document, entry
 from afo_mj.studies.adaptation import (AdaptationProtocol, AdaptCondition, ConditionResult,
                                        adapt_conditions, assistance_conditions, paired_changes,
                                        rate_spread, score_walk, search_converged)
 from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch, gait_cost,
-                                              load_reflex_set)
+                                              load_reflex_set, objective_walk)
 
-__all__ = ["ProfileBounds", "ZhangSetting", "GENERIC", "HilProtocol", "TunedRestart",
-           "HilTuningResult", "joint_vector", "split_joint", "joint_search", "tune_zhang",
-           "HIL_FORMAT", "BOUND_PENALTY", "ZHANG_2017"]
+__all__ = ["ProfileBounds", "ZhangSetting", "GENERIC", "GENERIC_HAFO", "DEVICES", "HilProtocol",
+           "TunedRestart", "HilTuningResult", "joint_vector", "split_joint", "joint_search",
+           "joint_cost", "profile_objective", "tune_profile", "tune_zhang", "HIL_FORMAT",
+           "BOUND_PENALTY", "ZHANG_2017"]
 
 HIL_FORMAT = "afo_mj hil tuning v1"
 #: cost per squared unit (of a bound's range) that a profile coordinate lies outside its bound
@@ -113,18 +146,37 @@ class ZhangSetting:
     def values(self) -> np.ndarray:
         return np.array([getattr(self, n) for n in PROFILE_NAMES], float)
 
-    def assistance(self, base: Assistance) -> Assistance:
-        """``base`` (a ``zhang`` condition: its sides and ramp) wearing this profile."""
-        return dataclasses.replace(base, zhang_peak_nm_per_kg=float(self.peak_nm_per_kg),
-                                   zhang_timing_pct=(float(self.peak_time_pct),
-                                                     float(self.rise_time_pct),
-                                                     float(self.fall_time_pct)))
+    def assistance(self, base: Assistance, body_mass_kg: float | None = None) -> Assistance:
+        """``base`` wearing this profile: a ``zhang`` condition (its sides and ramp) gets the
+        peak per body mass as it is; a ``hafo`` condition commands ``peak × body_mass_kg``
+        (N·m, rounded to 1e-9 N·m so that a round figure stays round in the state keys).
+        ValueError for another kind, or a ``hafo`` one without the body mass."""
+        timing = (float(self.peak_time_pct), float(self.rise_time_pct),
+                  float(self.fall_time_pct))
+        if base.kind == "zhang":
+            return dataclasses.replace(base, zhang_peak_nm_per_kg=float(self.peak_nm_per_kg),
+                                       zhang_timing_pct=timing)
+        if base.kind == "hafo" and body_mass_kg is not None:
+            return dataclasses.replace(
+                base, hafo_peak_torque_nm=round(float(self.peak_nm_per_kg)
+                                                * float(body_mass_kg), 9),
+                zhang_timing_pct=timing)
+        raise ValueError(f"ZhangSetting.assistance: assistance.kind = {base.kind!r} (body "
+                         f"mass {body_mass_kg!r}); allowed: 'zhang', or 'hafo' with the "
+                         "body mass")
 
 
 #: the four profile parameters, in the joint vector's order
 PROFILE_NAMES = tuple(f.name for f in dataclasses.fields(ZhangSetting))
 #: the generic profile: the project's default Zhang torque at the published timing
 GENERIC = ZhangSetting(0.5, *ZHANG_TIMING_PCT)
+#: the devices whose command profile the experiment tunes: the ideal torque and the HAFO
+DEVICES = ("zhang", "hafo")
+#: the walker's body mass (kg) the HAFO's generic peak is given per (WalkerParams' default)
+_BODY_MASS_KG = 75.0
+#: the generic HAFO profile: the shipped 40 N·m (``Assistance.hafo_peak_torque_nm``, the
+#: ``adapted/hafo.json`` wearer's device) per the 75 kg walker, at the published timing
+GENERIC_HAFO = ZhangSetting(40.0 / _BODY_MASS_KG, *ZHANG_TIMING_PCT)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,9 +278,34 @@ class HilProtocol:
     adaptation: AdaptationProtocol = dataclasses.field(default_factory=AdaptationProtocol)
     bounds: ProfileBounds = dataclasses.field(default_factory=ProfileBounds)
     profile_sigma: float = 0.1
-    generic: ZhangSetting = GENERIC
+    #: None: :data:`GENERIC` for the ideal torque, :data:`GENERIC_HAFO` for the HAFO
+    generic: ZhangSetting | None = None
+    #: the device whose profile is tuned (:data:`DEVICES`)
+    device: str = "zhang"
+    #: the battery weights ``w``, one tuned arm each (module docstring); only ``(0.0,)`` for
+    #: the ideal torque, which has no battery
+    battery_weights: tuple = (0.0,)
 
     def __post_init__(self):
+        if self.device not in DEVICES:
+            raise ValueError(f"HilProtocol.device = {self.device!r}; allowed: "
+                             f"{', '.join(DEVICES)}")
+        if self.generic is None:
+            object.__setattr__(self, "generic",
+                               GENERIC if self.device == "zhang" else GENERIC_HAFO)
+        w = self.battery_weights
+        ok = (not isinstance(w, (str, bytes)) and hasattr(w, "__len__") and len(w) >= 1
+              and all(not isinstance(x, bool) and isinstance(x, (int, float))
+                      and math.isfinite(x) and 0.0 <= x <= 100.0 for x in w)
+              and len(set(float(x) for x in w)) == len(w))
+        if not ok:
+            raise ValueError(f"HilProtocol.battery_weights = {w!r}; allowed: one or more "
+                             "distinct numbers 0 … 100")
+        object.__setattr__(self, "battery_weights", tuple(float(x) for x in w))
+        if self.device == "zhang" and self.battery_weights != (0.0,):
+            raise ValueError(f"HilProtocol.battery_weights = {list(w)!r} with device 'zhang'; "
+                             "allowed: [0.0] (the ideal torque source has no battery; "
+                             "device 'hafo' takes battery weights)")
         v = self.profile_sigma
         if isinstance(v, bool) or not isinstance(v, (int, float)) \
                 or not (math.isfinite(v) and 0.005 <= v <= 1.0):
@@ -241,11 +318,16 @@ class HilProtocol:
     def fixed(self) -> dict:
         """What a resumed experiment must share with the one that started it."""
         a = self.adaptation
-        return {"popsize": a.popsize, "sigma0": a.sigma0, "seed": a.seed,
-                "search_walk_s": a.search_walk_s, "settle_s": a.settle_s,
-                "tracking_weight": a.tracking_weight, "profile_sigma": float(self.profile_sigma),
-                "bounds": {k: list(v) for k, v in dataclasses.asdict(self.bounds).items()},
-                "generic": dataclasses.asdict(self.generic)}
+        out = {"popsize": a.popsize, "sigma0": a.sigma0, "seed": a.seed,
+               "search_walk_s": a.search_walk_s, "settle_s": a.settle_s,
+               "tracking_weight": a.tracking_weight, "profile_sigma": float(self.profile_sigma),
+               "bounds": {k: list(v) for k, v in dataclasses.asdict(self.bounds).items()},
+               "generic": dataclasses.asdict(self.generic)}
+        # the ideal torque's keys stay those written before the HAFO was a device (its
+        # saved folders resume); the battery weight is each tuned arm's own (its search key)
+        if self.device != "zhang":
+            out["device"] = self.device
+        return out
 
 
 # --------------------------------------------------------------------------- the search
@@ -255,11 +337,44 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
+def with_profile(objective: GaitObjective, setting: ZhangSetting) -> GaitObjective:
+    """``objective`` with its device commanding ``setting``."""
+    return dataclasses.replace(objective, assistance=setting.assistance(
+        objective.assistance, objective.walker.body_mass_kg))
+
+
+def joint_cost(params, objective: GaitObjective, battery_weight: float = 0.0
+               ) -> tuple[float, dict]:
+    """The joint search's objective of one walk (module docstring): the wearer's cost
+    (:func:`~afo_mj.studies.gait_optimization.gait_cost`) plus, for a ``hafo`` condition
+    that walked its scored strides, ``battery_weight × battery_cost_of_transport`` (J/(kg·m),
+    :func:`~afo_mj.experiments.muscle_assistance.battery_use` of the same walk). The info
+    carries ``wearer_cost`` (without the battery term) and, for the HAFO, the battery figures.
+    ValueError for a weight other than 0 with a device that has no battery."""
+    hafo = objective.assistance.kind == "hafo" and objective.scenario is None
+    if battery_weight != 0.0 and not hafo:
+        raise ValueError(f"joint_cost: battery_weight = {battery_weight!r} with assistance.kind "
+                         f"= {objective.assistance.kind!r}; allowed: 0 (only 'hafo' has a "
+                         "battery)")
+    try:
+        walk, dev = objective_walk(objective, params)
+    except FloatingPointError as exc:
+        return 2000.0, {"error": str(exc)}
+    cost, info = gait_cost(params, objective, walk=walk)
+    info = dict(info, wearer_cost=cost)
+    if hafo and "speed_m_s" in info:
+        bat = battery_use(walk, dev, objective.settle_s)
+        if bat is not None:
+            info.update(bat)
+            cot = bat["battery_cost_of_transport_j_per_kg_m"]
+            cost += battery_weight * (cot if math.isfinite(cot) else 100.0)
+    return cost, info
+
+
 def _evaluate_joint(packed):
-    x, base, objective, bounds = packed
+    x, base, objective, bounds, weight = packed
     params, setting, violation = split_joint(x, base, bounds)
-    obj = dataclasses.replace(objective, assistance=setting.assistance(objective.assistance))
-    cost, info = gait_cost(params, obj)
+    cost, info = joint_cost(params, with_profile(objective, setting), weight)
     return cost + BOUND_PENALTY * violation, dict(info, profile=dataclasses.asdict(setting),
                                                   bound_violation=violation)
 
@@ -271,29 +386,38 @@ def _sha(params: np.ndarray) -> str:
 
 
 def joint_search(out_dir, objective: GaitObjective, start_params, protocol: HilProtocol,
-                 seed: int, workers: int | None = None, client=None, progress=None) -> dict:
+                 seed: int, workers: int | None = None, client=None, progress=None,
+                 battery_weight: float = 0.0) -> dict:
     """CMA-ES over the joint vector (module docstring) from ``start_params`` (the reflexes)
     and ``protocol.generic`` (the profile), for ``protocol.adaptation.generations`` of
-    ``popsize`` walks of ``objective`` (a ``zhang`` condition: its profile is replaced by each
-    candidate's). Resumable: the state is written atomically to ``out_dir/cma_state.pkl``
-    after every generation and a run with the same folder continues (ValueError for a folder
-    of another objective, start or settings). Writes ``out_dir/reflex_params.json`` (the best
+    ``popsize`` walks of ``objective`` (a condition of ``protocol.device``: its profile is
+    replaced by each candidate's), on :func:`joint_cost` with ``battery_weight``. Resumable:
+    the state is written atomically to ``out_dir/cma_state.pkl`` after every generation and
+    a run with the same folder continues (ValueError for a folder of another objective,
+    start, settings or battery weight). Writes ``out_dir/reflex_params.json`` (the best
     reflex set by name, readable by :func:`~afo_mj.gait.muscle_walk.load_reflex_set`, with
     its ``profile``) and returns its content."""
     import cma
 
     from afo_mj.gait import reflex_law as rl
     from afo_mj.gait.muscle_walk import reflex_params
-    if objective.assistance.kind != "zhang" or objective.scenario is not None:
+    if objective.assistance.kind != protocol.device or objective.scenario is not None:
         raise ValueError(f"joint_search: objective.assistance.kind = "
-                         f"{objective.assistance.kind!r}; allowed: 'zhang' (no scenario)")
+                         f"{objective.assistance.kind!r}; allowed: {protocol.device!r} "
+                         "(protocol.device, no scenario)")
+    if battery_weight not in protocol.battery_weights:
+        raise ValueError(f"joint_search: battery_weight = {battery_weight!r}; allowed: one of "
+                         f"protocol.battery_weights {list(protocol.battery_weights)}")
     p = protocol.adaptation
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     base = reflex_params()
     start_params = np.asarray(start_params, float)
-    key = json.dumps({"objective": repr(objective), "start_sha256": _sha(start_params),
-                      "seed": int(seed), **protocol.fixed()}, sort_keys=True)
+    key = {"objective": repr(objective), "start_sha256": _sha(start_params),
+           "seed": int(seed), **protocol.fixed()}
+    if protocol.device != "zhang":
+        key["battery_weight"] = float(battery_weight)
+    key = json.dumps(key, sort_keys=True)
     state_file = out / "cma_state.pkl"
     if state_file.exists():
         saved = pickle.loads(state_file.read_bytes())
@@ -315,8 +439,8 @@ def joint_search(out_dir, objective: GaitObjective, start_params, protocol: HilP
     t0, total_s = time.perf_counter(), wall_s
     while es.countiter < p.generations and not es.stop():
         X = es.ask()
-        res = evaluate_batch(_evaluate_joint, [(x, base, objective, protocol.bounds) for x in X],
-                             workers, client)
+        res = evaluate_batch(_evaluate_joint, [(x, base, objective, protocol.bounds,
+                                                battery_weight) for x in X], workers, client)
         costs = [r.value[0] if r.ok else 3000.0 for r in res]
         es.tell(X, costs)
         i = int(np.argmin(costs))
@@ -339,7 +463,8 @@ def joint_search(out_dir, objective: GaitObjective, start_params, protocol: HilP
            "parameters": dict(zip(rl.PARAM_NAMES, params.tolist())),
            "profile": dataclasses.asdict(setting), "bound_violation": violation,
            "cost": best[0], "quality": best_info,
-           "assistance": dataclasses.asdict(setting.assistance(objective.assistance)),
+           "assistance": dataclasses.asdict(with_profile(objective, setting).assistance),
+           "battery_weight": float(battery_weight),
            "optimizer": {"method": "CMA-ES (joint: reflexes and profile)", "seed": int(seed),
                          "sigma0": p.sigma0, "profile_sigma": protocol.profile_sigma,
                          "generations": es.countiter, "evaluations": es.countevals,
@@ -378,6 +503,15 @@ class TunedRestart(Document):
     wall_s: float = entry("number", "the search's wall time over all its runs", "s")
     cpu_s: float | None = entry("number?", "CPU time of the search measured by this "
                                 "experiment's runs (null: not all of it)", "s")
+    wearer_cost: float | None = entry(
+        "number?", "HAFO only: the search's best walk's wearer's cost without the battery "
+        "term", omit_none=True, default=None)
+    battery_j_per_stride: float | None = entry(
+        "number?", "HAFO only: battery energy per stride of the scoring walk (chemical, net "
+        "of regeneration; null: it fell)", "J", omit_none=True, default=None)
+    electrical_power_w: float | None = entry(
+        "number?", "HAFO only: that energy per second of the scored strides", "W",
+        omit_none=True, default=None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -416,6 +550,12 @@ class HilTuningResult(Document):
     walks: int = entry("int", "walks of every search")
     cpu_s: float | None = entry("number?", "CPU time of every search measured here (null: "
                                 "some not measured)", "s")
+    device: str | None = entry("str?", "the device whose profile is tuned, 'hafo' (absent: "
+                               "the ideal Zhang torque)", omit_none=True, default=None)
+    battery: dict | None = entry(
+        "object?", "HAFO only: the battery weight w and term, and per arm (generic, tuned) "
+        "the scoring walks' battery energy per stride (J) and mean electrical power (W) by "
+        "restart, the wearer's and the spread (max − min)", omit_none=True, default=None)
 
 
 OBJECTIVE_TEXT = (
@@ -423,6 +563,14 @@ OBJECTIVE_TEXT = (
     "joint-angle RMS vs Winter, net metabolic cost of transport by Umberger 2010); the tuned "
     "arm searches the reflexes and the four profile parameters jointly on that cost; arms are "
     "judged by a fresh walk's net metabolic rate (Umberger 2010, W/kg)")
+#: what the HAFO's battery term is (module docstring)
+BATTERY_TERM_TEXT = (
+    "w × battery energy over the scored strides (chemical, net of regeneration) / (body mass "
+    "× distance walked), J/(kg·m), added to the wearer's cost: w = 1 counts a battery joule "
+    "as a metabolic joule")
+BATTERY_OBJECTIVE_TEXT = (
+    "; device: the HAFO (hafo_gait) commanding the profile, peak N·m/kg × body mass; the "
+    "tuned arm's joint search adds " + BATTERY_TERM_TEXT + " (the reflexes see it too)")
 
 
 # --------------------------------------------------------------------------- the protocol
@@ -444,28 +592,69 @@ def _check_folder(out: Path, protocol: HilProtocol, starts: dict) -> None:
     _write_atomic(path, json.dumps(fixed, indent=1).encode())
 
 
-def zhang_objective(protocol: HilProtocol) -> GaitObjective:
-    """The generic arm's (and the tuned arm's starting) objective: the generic profile on
-    both ankles, ramped on over 3 strides as the shipped adapted Zhang wearer was, the
-    adaptation protocol's walk and weights."""
+def profile_objective(protocol: HilProtocol) -> GaitObjective:
+    """The generic arm's (and the tuned arms' starting) objective: the generic profile on
+    ``protocol.device`` (the ideal torque on both ankles ramped on over 3 strides as the
+    shipped adapted Zhang wearer was; the HAFO on the right ankle as the shipped HAFO
+    wearer), the adaptation protocol's walk and weights."""
     a = protocol.adaptation
-    return GaitObjective(assistance=protocol.generic.assistance(Assistance("zhang",
-                                                                           ramp_strides=3)),
+    base = GaitObjective(assistance=Assistance("zhang", ramp_strides=3)
+                         if protocol.device == "zhang" else Assistance("hafo"),
                          duration_s=float(a.search_walk_s), settle_s=float(a.settle_s),
                          tracking_weight=float(a.tracking_weight))
+    return with_profile(base, protocol.generic)
 
 
-def tune_zhang(out_dir, protocol: HilProtocol | None = None, control_start=None, start=None,
-               workers: int | None = None, client=None, progress=None) -> HilTuningResult:
+def zhang_objective(protocol: HilProtocol) -> GaitObjective:
+    """:func:`profile_objective` (its former name, when the ideal torque was the only
+    device)."""
+    return profile_objective(protocol)
+
+
+def _tuned_dir(out: Path, protocol: HilProtocol, weight: float) -> Path:
+    return out / ("tuned" if protocol.device == "zhang" else f"tuned_w{weight:g}")
+
+
+def _result_path(out: Path, protocol: HilProtocol, weight: float) -> Path:
+    return out / ("hil_tuning.json" if protocol.device == "zhang"
+                  else f"hil_tuning_hafo_w{weight:g}.json")
+
+
+def _score_with_battery(item):
+    """:func:`~afo_mj.studies.adaptation.score_walk` and, for a HAFO walk that did not fall,
+    the battery figures of the same walk (:func:`~afo_mj.experiments.muscle_assistance.
+    battery_use`)."""
+    objective, params, walk_s, settle_s = item
+    out = score_walk(item)
+    if objective.assistance.kind == "hafo" and out["fell_s"] is None:
+        try:
+            walk, dev = objective_walk(objective, params, walk_s)
+        except FloatingPointError as exc:
+            return {"fell_s": 0.0, "error": str(exc)}
+        out.update(battery_use(walk, dev, settle_s) or {})
+    return out
+
+
+def _spread(values):
+    v = [x for x in values if x is not None]
+    return None if len(v) != len(values) or len(v) < 2 else float(max(v) - min(v))
+
+
+def tune_profile(out_dir, protocol: HilProtocol | None = None, control_start=None,
+                 start=None, workers: int | None = None, client=None, progress=None
+                 ) -> tuple:
     """Run (or continue) the experiment (module docstring) into ``out_dir``, restart by
-    restart across the three arms (a run stopped early leaves pairs); returns and writes
-    ``out_dir/hil_tuning.json``. ``control_start`` / ``start``: reflex sets (default the
-    shipped ``adapted/none.json`` and ``adapted/zhang.json``). ValueError: a folder of other
-    settings or starts, a start that is not a reflex set."""
+    restart across the arms (a run stopped early leaves pairs): the control, the generic
+    profile and one tuned arm per battery weight; returns one :class:`HilTuningResult` per
+    weight, each written to ``out_dir`` (``hil_tuning.json`` for the ideal torque,
+    ``hil_tuning_hafo_w<w>.json`` for the HAFO). ``control_start`` / ``start``: reflex sets
+    (default the shipped ``adapted/none.json`` and ``adapted/zhang.json`` or
+    ``adapted/hafo.json``). ValueError: a folder of other settings or starts, a start that
+    is not a reflex set."""
     data = Path(__file__).resolve().parents[1] / "data" / "adapted"
     protocol = protocol or HilProtocol()
     control_start = str(control_start or data / "none.json")
-    start = str(start or data / "zhang.json")
+    start = str(start or data / f"{protocol.device}.json")
     start_params = load_reflex_set(start)
     starts = {"control_start_sha256": _sha(load_reflex_set(control_start)),
               "start_sha256": _sha(start_params)}
@@ -474,78 +663,130 @@ def tune_zhang(out_dir, protocol: HilProtocol | None = None, control_start=None,
     _check_folder(out, protocol, starts)
     a = protocol.adaptation
     control_cond = assistance_conditions(["none"], a)
-    objective = zhang_objective(protocol)
-    generic_cond = [AdaptCondition("zhang", objective.assistance.label, objective)]
+    objective = profile_objective(protocol)
+    generic_cond = [AdaptCondition(protocol.device, objective.assistance.label, objective)]
     say = progress or (lambda text: None)
-    searches = []
+    weights = protocol.battery_weights
+    searches = {w: [] for w in weights}
     for i in range(a.restarts):
         sub = dataclasses.replace(a, restarts=i + 1)
         control = adapt_conditions(out / "control", control_cond, control_start, sub, workers,
                                    client, say)
         generic = adapt_conditions(out / "generic", generic_cond, start, sub, workers, client,
                                    say)
-        d = out / "tuned" / f"restart{i}"
-        say(f"tuned restart {i}")
-        cost_file = d / "hil_cpu.json"
-        known = not (d / "cma_state.pkl").exists() or cost_file.exists()
-        prior = (json.loads(cost_file.read_text(encoding="utf-8"))["cpu_s"]
-                 if cost_file.exists() else 0.0)
-        t0 = _cpu_s()
-        doc = joint_search(d, objective, start_params, protocol, a.seed + i, workers, client)
-        cpu = None
-        if known and client is None:
-            cpu = prior + _cpu_s() - t0
-            _write_atomic(cost_file, json.dumps({"cpu_s": cpu}).encode())
-        searches.append((d, doc, cpu))
-    items = []
-    for d, doc, _ in searches:
-        s = ZhangSetting(**doc["profile"])
-        items.append((dataclasses.replace(objective,
-                                          assistance=s.assistance(objective.assistance)),
-                      load_reflex_set(d / "reflex_params.json"), a.score_walk_s, a.settle_s))
-    scored = evaluate_batch(score_walk, items, workers, client)
-    rows = []
-    for i, ((d, doc, cpu), r) in enumerate(zip(searches, scored)):
-        if not r.ok:
-            raise RuntimeError(f"scoring walk of tuned restart {i}: {r.error}")
-        s = r.value
-        conv, why, _change = search_converged(doc["history"], a.window, a.cost_tol)
-        rms = (doc.get("quality") or {}).get("angle_rms_deg")
-        rows.append(TunedRestart(
-            restart=i, seed=a.seed + i, out_dir=str(d),
-            generations=int(doc["optimizer"]["generations"]),
-            walks=int(doc["optimizer"]["evaluations"]), search_cost=float(doc["cost"]),
-            converged=conv, convergence=why, **doc["profile"],
-            net_metabolic_w_per_kg=None if s["fell_s"] is not None
-            else s["net_metabolic_w_per_kg"],
-            fell_s=s["fell_s"], speed_m_s=s.get("speed_m_s"),
-            angle_rms_deg=float(np.mean(list(rms.values()))) if rms else None,
-            wall_s=float(doc["wall_s"]), cpu_s=cpu))
+        for w in weights:
+            d = _tuned_dir(out, protocol, w) / f"restart{i}"
+            say(f"tuned restart {i}" + ("" if protocol.device == "zhang"
+                                        else f", battery weight {w:g}"))
+            cost_file = d / "hil_cpu.json"
+            known = not (d / "cma_state.pkl").exists() or cost_file.exists()
+            prior = (json.loads(cost_file.read_text(encoding="utf-8"))["cpu_s"]
+                     if cost_file.exists() else 0.0)
+            t0 = _cpu_s()
+            doc = joint_search(d, objective, start_params, protocol, a.seed + i, workers,
+                               client, battery_weight=w)
+            cpu = None
+            if known and client is None:
+                cpu = prior + _cpu_s() - t0
+                _write_atomic(cost_file, json.dumps({"cpu_s": cpu}).encode())
+            searches[w].append((d, doc, cpu))
+    hafo = protocol.device == "hafo"
     c_arm, g_arm = control.conditions[0], generic.conditions[0]
+    # every tuned restart's scoring walk, and for the HAFO the generic restarts' again (the
+    # adaptation's scoring walk keeps no battery figures; the walk is the same)
+    items, keys = [], []
+    for w in weights:
+        for i, (d, doc, _) in enumerate(searches[w]):
+            items.append((with_profile(objective, ZhangSetting(**doc["profile"])),
+                          load_reflex_set(d / "reflex_params.json"), a.score_walk_s,
+                          a.settle_s))
+            keys.append((w, i))
+    if hafo:
+        for r in g_arm.restarts:
+            items.append((objective, load_reflex_set(Path(r.out_dir) / "reflex_params.json"),
+                          a.score_walk_s, a.settle_s))
+            keys.append(("generic", r.restart))
+    scored = dict(zip(keys, evaluate_batch(_score_with_battery, items, workers, client)))
+    for k, r in scored.items():
+        if not r.ok:
+            raise RuntimeError(f"scoring walk of {k[0]} restart {k[1]}: {r.error}")
     c_rates = [r.net_metabolic_w_per_kg for r in c_arm.restarts]
     g_rates = [r.net_metabolic_w_per_kg for r in g_arm.restarts]
-    t_rates = [r.net_metabolic_w_per_kg for r in rows]
-    t_best = int(np.argmin([r.search_cost for r in rows]))
-    _spread, t_spread_pct = rate_spread(t_rates)
-    cpus = ([r.cpu_s for r in c_arm.restarts] + [r.cpu_s for r in g_arm.restarts]
-            + [r.cpu_s for r in rows])
-    res = HilTuningResult(
-        protocol={"adaptation": dataclasses.asdict(a), **{k: v for k, v in
-                                                           protocol.fixed().items()
-                                                           if k in ("profile_sigma", "bounds",
-                                                                    "generic")}},
-        objective=OBJECTIVE_TEXT, control_start=control_start, start=start,
-        control=c_arm, generic=g_arm, tuned=tuple(rows), tuned_best_restart=t_best,
-        tuned_net_metabolic_w_per_kg=t_rates[t_best], tuned_spread_pct=t_spread_pct,
-        tuned_converged=all(r.converged and r.net_metabolic_w_per_kg is not None
-                            for r in rows),
-        tuned_vs_generic=paired_changes(g_rates, t_rates, g_arm.best_restart, t_best),
-        tuned_vs_control=paired_changes(c_rates, t_rates, c_arm.best_restart, t_best),
-        generic_vs_control=paired_changes(c_rates, g_rates, c_arm.best_restart,
-                                          g_arm.best_restart),
-        published=dict(ZHANG_2017),
-        walks=sum(r.walks for r in c_arm.restarts) + sum(r.walks for r in g_arm.restarts)
-        + sum(r.walks for r in rows),
-        cpu_s=None if any(x is None for x in cpus) else float(sum(cpus)))
-    _write_atomic(out / "hil_tuning.json", json.dumps(res.to_json(), indent=1).encode())
-    return res
+    g_bat = [scored[("generic", r.restart)].value for r in g_arm.restarts] if hafo else []
+    results = []
+    for w in weights:
+        rows = []
+        for i, (d, doc, cpu) in enumerate(searches[w]):
+            s = scored[(w, i)].value
+            walked = s["fell_s"] is None
+            conv, why, _change = search_converged(doc["history"], a.window, a.cost_tol)
+            q = doc.get("quality") or {}
+            rms = q.get("angle_rms_deg")
+            rows.append(TunedRestart(
+                restart=i, seed=a.seed + i, out_dir=str(d),
+                generations=int(doc["optimizer"]["generations"]),
+                walks=int(doc["optimizer"]["evaluations"]), search_cost=float(doc["cost"]),
+                converged=conv, convergence=why, **doc["profile"],
+                net_metabolic_w_per_kg=s["net_metabolic_w_per_kg"] if walked else None,
+                fell_s=s["fell_s"], speed_m_s=s.get("speed_m_s"),
+                angle_rms_deg=float(np.mean(list(rms.values()))) if rms else None,
+                wall_s=float(doc["wall_s"]), cpu_s=cpu,
+                wearer_cost=q.get("wearer_cost") if hafo else None,
+                battery_j_per_stride=s.get("battery_j_per_stride") if hafo else None,
+                electrical_power_w=s.get("electrical_power_w") if hafo else None))
+        t_rates = [r.net_metabolic_w_per_kg for r in rows]
+        t_best = int(np.argmin([r.search_cost for r in rows]))
+        _spread_w, t_spread_pct = rate_spread(t_rates)
+        cpus = ([r.cpu_s for r in c_arm.restarts] + [r.cpu_s for r in g_arm.restarts]
+                + [r.cpu_s for r in rows])
+        battery = None
+        if hafo:
+            g_j = [b.get("battery_j_per_stride") for b in g_bat]
+            g_p = [b.get("electrical_power_w") for b in g_bat]
+            t_j = [r.battery_j_per_stride for r in rows]
+            t_p = [r.electrical_power_w for r in rows]
+            battery = {
+                "weight": w, "term": BATTERY_TERM_TEXT,
+                "generic_j_per_stride": g_j, "generic_power_w": g_p,
+                "generic_best_j_per_stride": g_j[g_arm.best_restart],
+                "generic_best_power_w": g_p[g_arm.best_restart],
+                "generic_spread_j_per_stride": _spread(g_j),
+                "tuned_j_per_stride": t_j, "tuned_power_w": t_p,
+                "tuned_best_j_per_stride": t_j[t_best], "tuned_best_power_w": t_p[t_best],
+                "tuned_spread_j_per_stride": _spread(t_j),
+                "tuned_wearer_cost": [r.wearer_cost for r in rows]}
+        res = HilTuningResult(
+            protocol={"adaptation": dataclasses.asdict(a),
+                      **{k: v for k, v in protocol.fixed().items()
+                         if k in ("profile_sigma", "bounds", "generic")}},
+            objective=OBJECTIVE_TEXT if not hafo else OBJECTIVE_TEXT + BATTERY_OBJECTIVE_TEXT,
+            control_start=control_start, start=start,
+            control=c_arm, generic=g_arm, tuned=tuple(rows), tuned_best_restart=t_best,
+            tuned_net_metabolic_w_per_kg=t_rates[t_best], tuned_spread_pct=t_spread_pct,
+            tuned_converged=all(r.converged and r.net_metabolic_w_per_kg is not None
+                                for r in rows),
+            tuned_vs_generic=paired_changes(g_rates, t_rates, g_arm.best_restart, t_best),
+            tuned_vs_control=paired_changes(c_rates, t_rates, c_arm.best_restart, t_best),
+            generic_vs_control=paired_changes(c_rates, g_rates, c_arm.best_restart,
+                                              g_arm.best_restart),
+            published=dict(ZHANG_2017),
+            walks=sum(r.walks for r in c_arm.restarts) + sum(r.walks for r in g_arm.restarts)
+            + sum(r.walks for r in rows),
+            cpu_s=None if any(x is None for x in cpus) else float(sum(cpus)),
+            device="hafo" if hafo else None, battery=battery)
+        _write_atomic(_result_path(out, protocol, w),
+                      json.dumps(res.to_json(), indent=1).encode())
+        results.append(res)
+    return tuple(results)
+
+
+def tune_zhang(out_dir, protocol: HilProtocol | None = None, control_start=None, start=None,
+               workers: int | None = None, client=None, progress=None) -> HilTuningResult:
+    """:func:`tune_profile` of the ideal Zhang torque (its one tuned arm's result).
+    ValueError for a protocol of another device."""
+    protocol = protocol or HilProtocol()
+    if protocol.device != "zhang":
+        raise ValueError(f"tune_zhang: protocol.device = {protocol.device!r}; allowed: 'zhang' "
+                         "(tune_profile runs the HAFO)")
+    return tune_profile(out_dir, protocol, control_start, start, workers, client,
+                        progress)[0]
