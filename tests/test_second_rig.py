@@ -6,8 +6,9 @@ blind calibration of its records with its datasheet description
 torque = pump torque, load spring = hydraulic torque), volume conservation (the piston moves
 the volume the pump swept), the cable–oil–foot resonance against the two-mass analytic
 frequency, every effect switch, the record format and the rig's independence from afo_mj.
-(b) Calibration, slow: the clean record gives ``no_missing_effect`` with every channel within
-2× its noise floor, with the rig's compliant cable and with a rigid one.
+(b) Calibration, slow, in tests/test_second_rig_blind.py (the clean records) and
+tests/test_second_rig_effects.py (a softer cable, backlash): files of their own so that the
+suite's workers, which take whole files, can run them side by side.
 """
 
 from __future__ import annotations
@@ -192,116 +193,3 @@ def test_rig_is_independent_of_afo_mj():
     mods = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
     mods += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
     assert mods and not [m for m in mods if m.split(".")[0] in ("afo_mj", "independent_rig")]
-
-
-# ---------------------------------------------------------------------------- (b) calibration
-CAL_DURATION_S = 6.0
-
-
-def _calibrate(tmp_path, rigid_cable: bool, effects=None):
-    from afo_mj.calibration.calibrate import calibrate_setup, load_calibration_scenario
-    from afo_mj.calibration.measured_data import load_measured
-    prm = dataclasses.replace(P, cable_stiffness_n_m=1.5e9) if rigid_cable else P
-    path = R.write_record(tmp_path / "r.csv", CAL_DURATION_S, effects=effects, seed=5,
-                          params=prm)
-    scn = SCENARIO
-    if rigid_cable:
-        scn = tmp_path / "rigid.toml"
-        text = SCENARIO.read_text(encoding="utf-8")
-        assert "series_compliance_rad_per_nm = 5.442e-4" in text
-        scn.write_text(text.replace("series_compliance_rad_per_nm = 5.442e-4",
-                                    "series_compliance_rad_per_nm = 0.0"), encoding="utf-8")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        rep = calibrate_setup(load_measured(path), load_calibration_scenario(str(scn)))
-    floor = rep["baseline"]["noise_floor"]
-    final = {c: rep["error_after"][c] / floor[c] for c in floor}
-    print(rep["verdict"], {c: round(v, 2) for c, v in final.items()})
-    return rep, final
-
-
-@pytest.mark.slow
-def test_clean_record_reaches_the_noise_floor(tmp_path):
-    """The clean record of the rig as built (a steel rope of 1.5 MN/m, declared): what it
-    should give, ``no_missing_effect`` with every channel within 2× its noise floor. The
-    rig's 20 N of seal friction stretches the rope (0.76 mrad at the ankle at each
-    reversal); the described series compliance stretches with the cable's force, the seal
-    friction included (measured: worst channel 1.26×, the angle 1.23×; before, with the
-    hydraulic torque only, structure_wrong and the angle at 2.29×)."""
-    rep, final = _calibrate(tmp_path, rigid_cable=False)
-    assert rep["verdict"] == "no_missing_effect" and rep["effects_selected"] == []
-    assert max(final.values()) <= 2.0, final
-    # nothing named: no declared value beyond its tolerance (at the replay's 0.5 ms the fit
-    # moved the motor inductance -32 % to absorb the stepper's error; the step is now chosen
-    # by the numerical check before the fit, issue 41)
-    assert rep["declared_deviations"] == [], rep["declared_deviations"]
-    assert rep["replay_step"]["source"] == "numerical_check" and rep["replay_step"]["reached"]
-
-
-@pytest.mark.slow
-def test_clean_record_with_a_rigid_cable_reaches_the_noise_floor(tmp_path):
-    """The same bench with a rigid cable (k = 1.5 GN/m, described with no series compliance):
-    ``no_missing_effect``, nothing named, every channel within 2× its noise floor, and the
-    fitted seal Coulomb force within 5 % of the rig's 20 N (12 + 2 × 4 N)."""
-    rep, final = _calibrate(tmp_path, rigid_cable=True)
-    assert rep["hold_warnings"] == [] and rep["record_flags"] == []
-    assert rep["verdict"] == "no_missing_effect" and rep["effects_selected"] == []
-    assert rep["declared_deviations"] == [], rep["declared_deviations"]
-    assert max(final.values()) <= 2.0, final
-    # the seals' total Coulomb force, packed from the fitted described values (each seal's
-    # O-ring figures) as the circuit packs it
-    from afo_mj.calibration.calibrate import load_calibration_scenario
-    from afo_mj.calibration.declared_set import described_parameters
-    scn = tmp_path / "rigid.toml"
-    ds = described_parameters(load_calibration_scenario(str(scn)).replay())
-    fitted = {k: v for k, v in rep["declared_fit"].items() if k.startswith("cylinder.")}
-    fc = ds.row(fitted).get("cylinder.seal_fc", ds._base["cylinder.seal_fc"])
-    assert fc == pytest.approx(20.0, rel=0.05)
-
-
-@pytest.mark.slow
-def test_a_softer_cable_is_fitted_as_the_cable(tmp_path):
-    """Issue 41 item 2: the rig's rope replaced by one 5× softer (300 kN/m, the rig's
-    ``softer_cable``) while the description keeps the datasheet 1.5 MN/m. The cable's
-    compliance is a declared value like any other, so the calibration fits it, named as the
-    cable (``cylinder.series_compliance_rad_per_nm``), within its ±30 % tolerance of the truth
-    1/(r² k) (it was absent from the fixed declared list, and the oil's bulk modulus was
-    lowered instead: −70 % in the user's trial), reported beyond its tolerance; the bulk
-    modulus stays within its tolerance and every channel within 2× its floor (measured on
-    2026-11-28: 2.66e-3 against 2.72e-3 rad/(N m), bulk modulus −26 %, worst channel
-    1.38×)."""
-    rep, final = _calibrate(tmp_path, rigid_cable=False, effects={"softer_cable": True})
-    truth = 1.0 / (P.pulley_radius_m ** 2 * 3.0e5)
-    fit = rep["declared_fit"]
-    assert fit["cylinder.series_compliance_rad_per_nm"] == pytest.approx(truth, rel=0.3)
-    assert abs(fit["fluid.liquid_bulk_modulus_pa"] / 1.6e9 - 1.0) <= 0.3
-    devs = {d["parameter"]: d for d in rep["declared_deviations"]}
-    assert devs["cylinder.series_compliance_rad_per_nm"]["relative_change"] > 2.0
-    assert "fluid.liquid_bulk_modulus_pa" not in devs
-    assert rep["verdict"] == "no_missing_effect" and max(final.values()) <= 2.0, final
-
-
-@pytest.mark.slow
-def test_backlash_on_the_simulated_load_is_named(tmp_path):
-    """Rig 2 with 0.02 rad of play at the pulley (its dead-zone cable), 5 s (the figures
-    below were measured on 8 s), seed 13: the described rig's backlash candidate, the
-    cable's dead band in the circuit
-    (``PulleyCylinders.backlash_rad``, the pistons a mass of their own while the cable is
-    slack), works on the simulated load. Measured: ``backlash`` named first with
-    b = 0.02005 rad, every channel within 2× its noise floor (angle 1.77×, torque 1.03×,
-    chambers 1.06×/1.03×, current 1.10×, speed 1.01×). Before the dead band existed:
-    structure_wrong, nothing named, the angle 57.9×; with massless pistons (seals at the
-    joint's speed while the pistons crossed the gap): angle 2.64×, chambers 2.53×, current
-    2.61×."""
-    from afo_mj.calibration.calibrate import calibrate_setup, load_calibration_scenario
-    from afo_mj.calibration.measured_data import load_measured
-    path = R.write_record(tmp_path / "r.csv", 5.0, {"backlash": True}, seed=13)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        rep = calibrate_setup(load_measured(path), load_calibration_scenario(str(SCENARIO)))
-    floor = rep["baseline"]["noise_floor"]
-    final = {c: rep["error_after"][c] / floor[c] for c in floor}
-    assert [s["effect"] for s in rep["effects_selected"]][:1] == ["backlash"]
-    play = rep["effects_selected"][0]["parameters"]["backlash.backlash_rad"]
-    assert play == pytest.approx(R.EFFECTS["backlash"].default, rel=0.05)
-    assert max(final.values()) <= 2.0, final
