@@ -98,6 +98,22 @@ def test_terms_sum_to_a_walks_recorded_rates_and_the_floor_costs_less_than_the_w
                                                   rel=1e-12)
 
 
+def test_moco_2d_row_is_the_published_gross_figure_net_of_the_basal_rate():
+    """Moco's 2D walking example (opensim-moco PR #532: the metabolic term 0.16 at weight 0.1,
+    gross of the 1.2 W/kg basal rate) on its reference's half cycle, 0.62347006 m in
+    0.47008941 s: worked by hand, speed 1.32628 m/s, net COT 1.6 − 1.2/1.32628 = 0.69521
+    J/(kg m), net 0.92205 W/kg, per stride 0.69521 × 1.24694 m = 0.86689 J/kg; the docs'
+    row says so."""
+    import energy_model_terms as emt
+    m = emt.moco_2d()
+    assert m["speed_m_s"] == pytest.approx(1.32628, abs=1e-5)
+    assert m["cot_j_per_kg_m"] == pytest.approx(0.69521, abs=1e-5)
+    assert m["net_w_per_kg"] == pytest.approx(0.92205, abs=1e-5)
+    assert m["stride_j_per_kg"] == pytest.approx(0.86689, abs=1e-5)
+    doc = (ROOT / "docs" / "muscle_walker.md").read_text(encoding="utf-8")
+    assert "| 0.922 | 0.70 | 0.87 | 0.32 × |" in doc
+
+
 @pytest.mark.slow
 def test_docs_energy_table_is_current():
     """``tools/energy_model_terms.py --check`` against docs/muscle_walker.md's block."""

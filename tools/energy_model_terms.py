@@ -2,7 +2,9 @@
 metabolic rate split into its terms (:func:`afo_mj.human.metabolics.umberger2010_terms_w`,
 :func:`afo_mj.human.metabolics.bhargava2004_terms_w`) over the last 5 s of a 10 s walk of the
 shipped ``1.25`` reflex set, the net cost of transport and per stride, what the 1 % excitation
-floor alone costs, and the Umberger / Bhargava ratio.
+floor alone costs, and the Umberger / Bhargava ratio; beside them Weyand et al.'s measured
+net cost per stride and OpenSim Moco's 2D walking example's published cost (Bhargava's
+model on another walker, :func:`moco_2d`).
 
 The walk's record has each muscle's excitation, activation, CE velocity and tendon force per
 1 ms step; the CE length is the law's start length plus the summed steps ``v h`` (the law's
@@ -46,6 +48,18 @@ DURATION_S = 10.0
 #: adults' net metabolic energy per stride at their economical walking speeds (J/kg;
 #: Weyand et al. 2010, J Exp Biol 213:3972: 2.74 ± 0.12)
 WEYAND_J_PER_KG = 2.74
+#: OpenSim Moco's 2D walking example with Bhargava et al.'s model (``example2DWalkingMetabolics``,
+#: opensim-core; a tracking problem of half a gait cycle, 18 DeGroote-Fregly muscles, the
+#: smoothed Bhargava 2004 model). Its one published figure: A. Falisse in opensim-org/
+#: opensim-moco pull request #532 (2020-02-06): the metabolic objective term 0.16 at weight
+#: 0.1, i.e. the cost of transport the example prints (10 × the term) 1.6 J/(kg m), gross:
+#: the model's ``total_metabolic_rate`` includes the basal rate (1.2 W/kg by default)
+MOCO_2D_GROSS_COT_J_PER_KG_M = 1.6
+MOCO_BASAL_W_PER_KG = 1.2
+#: the example's half gait cycle: pelvis_tx 0 -> 0.62347006 m over 0.47008941 s
+#: (``referenceCoordinates.sto``, the tracked reference; the problem's final time)
+MOCO_2D_HALF_CYCLE_M = 0.62347006
+MOCO_2D_HALF_CYCLE_S = 0.47008941
 WINDOW_S = 5.0
 #: the excitation floor (Geyer & Herr's pre-activation, :data:`afo_mj.human.muscle.PREACTIVATION`)
 FLOOR = mu.PREACTIVATION
@@ -168,6 +182,17 @@ def analyse(params=None, duration_s: float = DURATION_S, window_s: float = WINDO
     return out
 
 
+def moco_2d() -> dict:
+    """Moco's 2D walking example's net cost from its published gross figure
+    (:data:`MOCO_2D_GROSS_COT_J_PER_KG_M`): speed = the half cycle's distance over its time,
+    net COT = gross − basal / speed (J/(kg m)), net rate = net COT × speed (W/kg), per stride
+    = net COT × two half cycles' distance (J/kg; the problem is left-right symmetric)."""
+    speed = MOCO_2D_HALF_CYCLE_M / MOCO_2D_HALF_CYCLE_S
+    cot = MOCO_2D_GROSS_COT_J_PER_KG_M - MOCO_BASAL_W_PER_KG / speed
+    return {"speed_m_s": speed, "cot_j_per_kg_m": cot, "net_w_per_kg": cot * speed,
+            "stride_j_per_kg": cot * 2.0 * MOCO_2D_HALF_CYCLE_M}
+
+
 def format_tables(res: dict) -> str:
     """The block's markdown (two tables and a summary line) from :func:`analyse`."""
     lines = ["| model | term | mean rate W/kg | share of net |", "|---|---|---|---|"]
@@ -209,6 +234,13 @@ def format_tables(res: dict) -> str:
         lines.append(f"| {label} | {m['net_w_per_kg']:.3f} | {m['cot_j_per_kg_m']:.2f} | "
                      f"{m['stride_j_per_kg']:.2f} | "
                      f"{m['stride_j_per_kg'] / WEYAND_J_PER_KG:.2f} × |")
+    moco = moco_2d()
+    lines.append(f"| Moco's 2D walking example, Bhargava 2004 smoothed (Falisse, opensim-moco "
+                 f"PR #532: gross {MOCO_2D_GROSS_COT_J_PER_KG_M:g} J/(kg m) less the "
+                 f"{MOCO_BASAL_W_PER_KG:g} W/kg basal rate at {moco['speed_m_s']:.2f} m/s) | "
+                 f"{moco['net_w_per_kg']:.3f} | {moco['cot_j_per_kg_m']:.2f} | "
+                 f"{moco['stride_j_per_kg']:.2f} | "
+                 f"{moco['stride_j_per_kg'] / WEYAND_J_PER_KG:.2f} × |")
     t0, t1 = res["window_s"]
     lines += ["", f"Umberger / Bhargava: {u['net_w_per_kg'] / b['net_w_per_kg']:.2f} "
               f"(net rates); walk {t0:.1f}–{t1:.1f} s of the `1.25` set at "
