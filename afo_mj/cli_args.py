@@ -226,6 +226,10 @@ def build_parser(handlers: Mapping[str, Callable], version: str) -> argparse.Arg
                     "walk lasts (the first 3 not scored)")
     ad.add_argument("--score-walk-s", type=float, default=20.0, help="seconds of the walk "
                     "that scores each restart's best set")
+    ad.add_argument("--groups", type=int, default=1, help="split the restarts into this many "
+                    "groups (a divisor of --restarts): each group's best restart is a "
+                    "replicate of the best-of-(restarts/groups) wearer, whose spread is then "
+                    "the one checked against --spread-target-pct")
     ad.add_argument("--start", default=None, help="reflex_params.json every search starts "
                     "from (default: the shipped control, or the scenario's reflex_set)")
     ad.add_argument("--workers", type=int, default=None, help="worker processes")

@@ -47,14 +47,50 @@ def test_spread_and_paired_changes_by_hand():
     assert fell["paired_spread"] is None and fell["all_pairs_range"] is None
 
 
+def test_group_estimates_by_hand():
+    """Six restarts in two groups of three: each group's wearer is its lowest-cost restart,
+    the spreads and the changes against the control group by group as worked by hand."""
+    ctl = ad.group_estimates([5.0, 4.9, 5.2, 5.1, 5.3, 4.95],
+                             [4.5, 4.4, 4.6, 4.45, 4.7, 4.42], 2)
+    assert ctl["size"] == 3 and ctl["restarts"] == [[0, 1, 2], [3, 4, 5]]
+    assert ctl["best_restart"] == [1, 5] and ctl["best_rate"] == [4.4, 4.42]
+    assert ctl["best_spread_pct"] == pytest.approx(100 * 0.02 / 4.41)          # 0.4535 %
+    assert ctl["mean_rate"] == pytest.approx([4.5, 13.57 / 3])
+    assert ctl["mean_spread_pct"] == pytest.approx(0.51718, abs=1e-5)
+    assert "change_pct_best" not in ctl
+    dev = ad.group_estimates([5.0, 5.1, 4.8, 4.7, 5.0, 5.2],
+                             [4.3, 4.2, 4.35, 4.25, 4.5, 4.3], 2, ctl)
+    assert dev["best_restart"] == [2, 3]
+    # 4.35 / 4.4 - 1 = -1.13636 %; 4.25 / 4.42 - 1 = -3.84615 %
+    assert dev["change_pct_best"] == pytest.approx([-1.13636, -3.84615], abs=1e-5)
+    assert dev["change_pct_best_mean"] == pytest.approx(-2.49126, abs=1e-5)
+    assert dev["change_pct_best_spread"] == pytest.approx(2.70979, abs=1e-5)
+    # group means 4.28333 / 4.5 - 1 = -4.81481 %; 4.35 / 4.52333 - 1 = -3.83198 %
+    assert dev["change_pct_mean"] == pytest.approx([-4.81481, -3.83198], abs=1e-5)
+    assert dev["change_pct_mean_spread"] == pytest.approx(0.98283, abs=1e-5)
+    fell = ad.group_estimates([5.0, 4.9, 5.2, 5.1], [4.5, None, 4.6, 4.45], 2)
+    assert fell["best_rate"] == [None, 4.45] and fell["best_spread_pct"] is None
+    assert fell["mean_rate"][0] is None and fell["mean_spread_pct"] is None
+    with pytest.raises(ValueError, match="a divisor"):
+        ad.group_estimates([5.0, 4.9, 5.2], [4.5, 4.4, 4.6], 2)
+
+
 def test_protocol_and_command_refusals(tmp_path):
     with pytest.raises(ValueError, match=r"restarts = 0; allowed: an integer 1"):
         ad.AdaptationProtocol(restarts=0)
     with pytest.raises(ValueError, match="settle_s"):
         ad.AdaptationProtocol(search_walk_s=3.5)
+    with pytest.raises(ValueError, match=r"groups = 4 with restarts = 9; allowed: a divisor "
+                                         r"of restarts \(1, 3, 9\)"):
+        ad.AdaptationProtocol(restarts=9, groups=4)
     from afo_mj.app.adaptation import adapt
     with pytest.raises(InvalidInput, match=r"--restarts = 0; allowed"):
         adapt(["clutched_spring"], tmp_path / "a", restarts=0)
+    with pytest.raises(InvalidInput, match=r"--groups = 2 with restarts = 3; allowed"):
+        adapt(["clutched_spring"], tmp_path / "a", groups=2)
+    from afo_mj.studies.hil_tuning import HilProtocol
+    with pytest.raises(ValueError, match=r"adaptation.groups = 3; allowed: 1"):
+        HilProtocol(adaptation=ad.AdaptationProtocol(groups=3))
     with pytest.raises(InvalidInput, match=r"condition 'spring'; allowed: none, worn_mass"):
         adapt(["spring"], tmp_path / "b")
     with pytest.raises(InvalidInput, match="repeat"):
@@ -87,7 +123,7 @@ def test_tiny_protocol_run_through_the_command_and_resumed(tmp_path, capsys):
     out = tmp_path / "adapt"
     argv = ["adapt", "clutched_spring", "--out", str(out), "--restarts", "2", "--popsize", "4",
             "--search-walk-s", "5", "--score-walk-s", "5", "--workers", "1", "--window", "1",
-            "--quiet"]
+            "--groups", "2", "--quiet"]
     assert main(argv + ["--generations", "2"]) == 0
     res = ad.AdaptationResult.from_json(json.loads((out / "adaptation.json").read_text()))
     assert [c.name for c in res.conditions] == ["none", "clutched_spring"]
@@ -107,6 +143,11 @@ def test_tiny_protocol_run_through_the_command_and_resumed(tmp_path, capsys):
     for i, x in enumerate(spring.change_pct_paired):
         c0, c1 = rates["none", i], rates["clutched_spring", i]
         assert x == (None if c0 is None or c1 is None else pytest.approx(100 * (c1 / c0 - 1)))
+    # groups of one restart: each group's wearer is its restart, changed as paired
+    assert list(spring.groups["best_rate"]) == [rates["clutched_spring", 0],
+                                                rates["clutched_spring", 1]]
+    assert list(spring.groups["change_pct_best"]) == list(spring.change_pct_paired)
+    assert "change_pct_best" not in res.condition("none").groups
     assert "afo-mj adapt: 2 conditions x 2 restarts" in capsys.readouterr().out
     assert main(argv + ["--generations", "3"]) == 0
     res2 = ad.AdaptationResult.from_json(json.loads((out / "adaptation.json").read_text()))

@@ -293,6 +293,8 @@ def test_the_profile_peaks_at_the_chosen_time():
      r"dose_response.restarts = 0; allowed: an integer 1"),
     ("[dose_response]\nvariable = 'zhang_peak_nm_per_kg'\nlevels = [0.0, 0.3]\nseeds = 3",
      "dose_response.seeds; allowed: variable, levels"),
+    ("[dose_response]\nvariable = 'zhang_peak_nm_per_kg'\nlevels = [0.0, 0.3]\ngroups = 2",
+     "dose_response.groups; allowed: variable, levels"),
     ("[dose_response]\nlevels = [0.0, 0.3]", "variable missing"),
     ("[dose_response]\nvariable = 'zhang_peak_nm_per_kg'\nlevels = [0.0, 0.3]\n"
      "matched_control = 1", "matched_control = 1; allowed: true, false"),

@@ -30,7 +30,8 @@ DEFAULT_START = Path(__file__).resolve().parents[1] / "data" / "adapted" / "none
 _OPTIONS = {"restarts": "--restarts", "generations": "--generations", "popsize": "--popsize",
             "sigma0": "--sigma0", "seed": "--seed", "window": "--window",
             "cost_tol": "--cost-tol", "spread_target_pct": "--spread-target-pct",
-            "search_walk_s": "--search-walk-s", "score_walk_s": "--score-walk-s"}
+            "search_walk_s": "--search-walk-s", "score_walk_s": "--score-walk-s",
+            "groups": "--groups"}
 
 
 def _protocol(kw: dict):
@@ -47,7 +48,8 @@ def _protocol(kw: dict):
 def adapt(conditions, out, restarts: int = 3, generations: int = 100, popsize: int = 16,
           sigma0: float = 0.04, seed: int = 1, window: int = 10, cost_tol: float = 0.01,
           spread_target_pct: float = 1.0, search_walk_s: float = 16.0,
-          score_walk_s: float = 20.0, start: str | None = None, workers: int | None = None,
+          score_walk_s: float = 20.0, groups: int = 1, start: str | None = None,
+          workers: int | None = None,
           dask: str | None = None, overrides=None, progress=None):
     """Run (or continue) the protocol into ``out`` for ``conditions`` (kinds, or one scenario
     file); returns the :class:`~afo_mj.studies.adaptation.AdaptationResult` (also written to
@@ -60,7 +62,8 @@ def adapt(conditions, out, restarts: int = 3, generations: int = 100, popsize: i
     protocol = _protocol(dict(restarts=restarts, generations=generations, popsize=popsize,
                               sigma0=sigma0, seed=seed, window=window, cost_tol=cost_tol,
                               spread_target_pct=spread_target_pct,
-                              search_walk_s=search_walk_s, score_walk_s=score_walk_s))
+                              search_walk_s=search_walk_s, score_walk_s=score_walk_s,
+                              groups=groups))
     if workers is not None and (isinstance(workers, bool) or workers < 1):
         raise InvalidInput(f"--workers = {workers!r}; allowed: an integer >= 1")
     conditions = list(conditions or [])

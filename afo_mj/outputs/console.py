@@ -437,6 +437,30 @@ def _pct(v, fmt: str = "+.2f") -> str:
     return "-" if v is None else f"{v:{fmt}} %"
 
 
+def _group_lines(g, control: str) -> list[str]:
+    """``afo-mj adapt --groups``: a condition's group wearers (best of each group) and group
+    means with their spreads, and its changes against the control group by group."""
+    if not g:
+        return []
+
+    def rates(xs):
+        return ", ".join("falls" if x is None else f"{x:.3f}" for x in xs)
+
+    def spread(x):
+        return "-" if x is None else f"{x:.2f} %"
+    lines = [f"    best of {g['size']} in {len(g['restarts'])} groups (restarts "
+             + ", ".join(str(i) for i in g["best_restart"]) + f"): {rates(g['best_rate'])} "
+             f"W/kg, spread {spread(g['best_spread_pct'])}; group means "
+             f"{rates(g['mean_rate'])} W/kg, spread {spread(g['mean_spread_pct'])}"]
+    if "change_pct_best" in g:
+        sp = g["change_pct_best_spread"]
+        lines.append(f"    vs {control} by group, best of {g['size']}: "
+                     + ", ".join(_pct(x) for x in g["change_pct_best"])
+                     + f" (mean {_pct(g['change_pct_best_mean'])}, spread "
+                     + ("-" if sp is None else f"{sp:.2f} points") + ")")
+    return lines
+
+
 def adaptation_lines(res, out) -> list[str]:
     """``afo-mj adapt``: per condition every restart's net metabolic rate (W/kg, Umberger
     2010) and convergence, the spread, the wearer and its change against the control (paired
@@ -472,13 +496,19 @@ def adaptation_lines(res, out) -> list[str]:
                          + f"); best vs best {_pct(c.change_pct_best)}"
                          + ("" if rng is None else f" (every pairing {rng[0]:+.2f} … "
                             f"{rng[1]:+.2f} %)"))
+        lines += _group_lines(c.groups, res.control)
     lines.append(f"  {out}/adaptation.json "
                  + ("(every condition converged)" if res.converged else
                     "(not converged: run again with more --generations to continue)"))
     lines.append(json.dumps({c.name: {"net_metabolic_w_per_kg": c.net_metabolic_w_per_kg,
                                       "spread_pct": c.spread_pct, "converged": c.converged,
                                       "change_pct_best": c.change_pct_best,
-                                      "change_pct_paired": c.change_pct_paired}
+                                      "change_pct_paired": c.change_pct_paired,
+                                      **({} if not c.groups else {
+                                          "best_of_group_spread_pct":
+                                              c.groups["best_spread_pct"],
+                                          "change_pct_by_group":
+                                              c.groups.get("change_pct_best")})}
                              for c in res.conditions}))
     return lines
 

@@ -87,7 +87,10 @@ DOSE_VARIABLES = {
                             None),
 }
 _STUDY_KEYS = ("name", "description", "dose_response")
-_PROTOCOL_KEYS = tuple(f.name for f in dataclasses.fields(AdaptationProtocol))
+#: the adaptation protocol's settings a study file may set (not its groups: a rung's
+#: restarts are chains, not replicates of one search)
+_PROTOCOL_KEYS = tuple(f.name for f in dataclasses.fields(AdaptationProtocol)
+                       if f.name != "groups")
 _DOSE_KEYS = ("variable", "levels", "assistance", "start", "matched_control") + _PROTOCOL_KEYS
 #: the protocol settings every rung's search must share with the one that began the study
 _FIXED = ("popsize", "sigma0", "seed", "search_walk_s", "settle_s", "tracking_weight")

@@ -293,6 +293,9 @@ class HilProtocol:
         if self.generic is None:
             object.__setattr__(self, "generic",
                                GENERIC if self.device == "zhang" else GENERIC_HAFO)
+        if self.adaptation.groups != 1:
+            raise ValueError(f"HilProtocol.adaptation.groups = {self.adaptation.groups!r}; "
+                             "allowed: 1 (the tuned arms have no groups)")
         w = self.battery_weights
         ok = (not isinstance(w, (str, bytes)) and hasattr(w, "__len__") and len(w) >= 1
               and all(not isinstance(x, bool) and isinstance(x, (int, float))
