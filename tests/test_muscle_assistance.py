@@ -336,9 +336,11 @@ def test_adapted_metabolic_rate_falls_with_assistance_and_rises_with_worn_mass(a
     with three CMA-ES seeds, each against the control searched with its seed. In every
     search the ideal Zhang torque lowers the net metabolic rate (Umberger 2010) below the
     control's and the clutched spring's, and worn mass alone raises it (Zhang et al. 2017;
-    Collins et al. 2015; Browning et al. 2007). The spring's own effect is smaller than the
-    searches' spread (measured -1.8, -5.5, +1.5 %; README), so it is asserted on the mean of
-    the three: Zhang < spring < none < worn mass."""
+    Browning et al. 2007): effects whose range over the three seeds excludes zero (Zhang
+    -7.7 … -15.6 %, worn mass +0.3 … +11.5 %, Zhang against the spring -5.9 … -13.5 %).
+    The spring's own effect is not asserted: its seeds' range straddles zero (-1.8, -5.5,
+    +1.5 %; README); the adaptation protocol's restarts settle its sign
+    (docs/muscle_walker.md), not these single searches."""
     kinds = ("none", "worn_mass", "zhang", "clutched_spring")
     rates = []
     for seed in SEEDS:
@@ -349,7 +351,8 @@ def test_adapted_metabolic_rate_falls_with_assistance_and_rises_with_worn_mass(a
         assert rate["none"] < rate["worn_mass"], (seed, rate)
         rates.append(rate)
     mean = {k: float(np.mean([r[k] for r in rates])) for k in kinds}
-    assert mean["zhang"] < mean["clutched_spring"] < mean["none"] < mean["worn_mass"], mean
+    assert mean["zhang"] < min(mean["clutched_spring"], mean["none"]), mean
+    assert mean["none"] < mean["worn_mass"], mean
 
 
 @pytest.mark.slow
