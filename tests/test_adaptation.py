@@ -148,7 +148,9 @@ def test_tiny_protocol_run_through_the_command_and_resumed(tmp_path, capsys):
                                                 rates["clutched_spring", 1]]
     assert list(spring.groups["change_pct_best"]) == list(spring.change_pct_paired)
     assert "change_pct_best" not in res.condition("none").groups
-    assert "afo-mj adapt: 2 conditions x 2 restarts" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "afo-mj adapt: 2 conditions x 2 restarts" in printed
+    assert "best of 1 in 2 groups" in printed and "vs none by group, best of 1" in printed
     assert main(argv + ["--generations", "3"]) == 0
     res2 = ad.AdaptationResult.from_json(json.loads((out / "adaptation.json").read_text()))
     assert res2.walks == 2 * 2 * 3 * 4
