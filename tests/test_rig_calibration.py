@@ -371,3 +371,24 @@ def test_declared_deviation_beyond_tolerance_and_3_se_only():
     assert out[0]["fitted"] == pytest.approx(0.52 * 1.6e9)
     assert out[0]["equivalent_to"][1].startswith(
         "cylinder.series_compliance_rad_per_nm (declared value raised, similarity 1.00)")
+
+
+def test_a_parameter_held_at_its_bound_leaves_the_covariance():
+    """Gauss–Newton covariance with a parameter pinned at an active bound (a declared value at
+    its datasheet tolerance in a plausibility refit): two nearly collinear columns are
+    unidentifiable together (correlation ≈ 1), but with the first held the second's standard
+    error is the one-parameter closed form ``s/‖j₂‖`` (s² = SSE/(n − 1)) and its correlation 0."""
+    from afo_mj.calibration.calibration_model import CalibrationModel, _Model
+    rng = np.random.default_rng(3)
+    n = 500
+    j1 = rng.normal(size=n)
+    j2 = j1 + 1e-4 * rng.normal(size=n)
+    m = _Model([], np.array([1.0, 2.0]), sse=4.0, jac=np.column_stack([j1, j2]))
+    both = CalibrationModel.identifiability(None, m)
+    assert abs(both["correlation"][0, 1]) > 0.999
+    held = CalibrationModel.identifiability(None, m, held=[0])
+    s = np.sqrt(4.0 / (n - 1))
+    assert held["sd"][1] == pytest.approx(s / np.linalg.norm(j2), rel=1e-9)
+    assert held["relative_se"][1] == pytest.approx(s / np.linalg.norm(j2) / 2.0, rel=1e-9)
+    assert held["sd"][0] == 0.0 and held["correlation"][0, 1] == 0.0
+    assert not held["rank_deficient"] and held["held"] == [0]

@@ -651,6 +651,19 @@ class Calibration(CalibrationModel):
             added = (self.plausibility_round(s, pool) if plausibility
                      else self.search_round(s, pool))
             if added is None:
+                if (not plausibility and self.screen_columns
+                        and self.beyond_tolerance(s.model)):
+                    # no candidate pays on a model (the declared fit alone, or with the
+                    # effects found) that needs a declared value beyond its tolerance: the
+                    # plausibility round asks whether an effect explains the record as well
+                    # within the datasheet
+                    progress.reporter().stage(
+                        f"calibration: no candidate pays, but the model holds "
+                        f"{', '.join(self.beyond_tolerance(s.model))} beyond its datasheet "
+                        "tolerance; the candidates ranked from the described values are "
+                        "refitted within it")
+                    plausibility = True
+                    continue
                 break
             pool = [c for c in pool if c.name != added.name]
             if self.at_noise(s.model):
@@ -730,8 +743,9 @@ class Calibration(CalibrationModel):
         return e
 
     def plausibility_round(self, s: _Search, pool: list[Effect]) -> Effect | None:
-        """A round after the noise stop was reached by a model ``s.model`` that holds a
-        declared value beyond its datasheet tolerance (:meth:`search_effects`).
+        """A round after the search stopped on a model ``s.model`` that holds a declared
+        value beyond its datasheet tolerance (:meth:`search_effects`): it reached the noise
+        floor, or no candidate paid.
 
         A fit that needs a declared value beyond its tolerance is less plausible than one
         that explains the record as well with every declared value within it: the datasheet
@@ -741,13 +755,16 @@ class Calibration(CalibrationModel):
         there, each with every declared value bounded to its datasheet tolerance
         (:meth:`CalibrationModel.fit` ``within_tolerance``: an effect and a declared value
         that act alike, such as a piston leakage and the pump's slip, could otherwise trade
-        places again along their common valley). A refit is taken when it is at the noise floor
-        (:meth:`at_noise`), holds every declared value within its tolerance, and its new
-        parameters are identifiable and not pinned at a library bound
+        places again along their common valley). A refit is taken when it explains the record
+        as well (at the noise floor, :meth:`at_noise`, or a held-out error within
+        :data:`PLAUSIBILITY_SLACK` of the model it replaces), holds every declared value within
+        its tolerance, and its new parameters are identifiable (a declared value pinned at its
+        tolerance held in the covariance) and not pinned at a library bound
         (:meth:`judge_refit` with ``plausibility``; the held-out drop and ΔBIC of the other
-        rounds do not apply: the model it replaces is at the noise floor already, so no
-        effect can cut its error, and is judged less plausible, not worse fitting). Of those
-        taken, the lowest held-out error is added; the first taken ends the refits. Returns
+        rounds do not apply: the model it replaces fits as well already, and is judged less
+        plausible, not worse fitting). Of those
+        taken, the lowest held-out error is added, the others within the slack of it listed as
+        indistinguishable from it (``indistinguishable_from``). Returns
         the effect added, or ``None``."""
         rep = progress.reporter()
         rnd_no = len(s.steps) + 1
@@ -775,20 +792,25 @@ class Calibration(CalibrationModel):
             rep.stage(f"{rnd}: {e.name}: " + _refit_line(got[2]))
             if got[2]["pays"]:
                 taken.append(got)
-                break
         if not taken:
-            rep.stage(f"{rnd}: no candidate reaches the noise floor with every declared "
+            rep.stage(f"{rnd}: no candidate explains the record as well with every declared "
                       "value within its tolerance; the search ends")
             return None
         m, e, rec, ident = min(taken, key=lambda t: t[0].held_out["overall"])
         rep.stage(f"{rnd}: selected {e.name}")
         step = self.selected_step(s.model, m, e, rec, ident)
         step["selected_by"] = (
-            "plausibility: the model before it reached the noise floor only with "
+            "plausibility: the model before it explained the record only with "
             + ", ".join(rec["replaced_beyond_tolerance"]) + " beyond its datasheet "
-            "tolerance; with this effect every channel is within "
-            f"{AT_NOISE_MULTIPLE:g}× its noise floor and every declared value within its "
+            "tolerance; with this effect it explains it as well (every channel within "
+            f"{AT_NOISE_MULTIPLE:g}× its noise floor, or a held-out error within "
+            f"{100 * PLAUSIBILITY_SLACK:g} % of it) with every declared value within its "
             "tolerance")
+        # the others taken explain it as well: within the slack of the one selected, the
+        # record does not tell them apart (e.g. a leakage across the pistons or the pump)
+        step["indistinguishable_from"] = [
+            t[1].name for t in taken if t[1] is not e
+            and t[0].held_out["overall"] <= (1.0 + PLAUSIBILITY_SLACK) * m.held_out["overall"]]
         s.steps.append(step)
         s.model = m
         return e
@@ -891,12 +913,26 @@ class Calibration(CalibrationModel):
         Returns the candidate's report record and ``m``'s identifiability."""
         opts = self.options
         info = self.information(m)
-        ident = self.identifiability(m)
+        # a plausibility refit bounds the declared values to their tolerance: one pinned at
+        # that bound is held, not free, in the covariance (a leakage beside a pump slip held
+        # at +100 %: the remainder is the leakage's, however alike the two act)
+        held = [k for k, d in enumerate(self.declared)
+                if plausibility and d.tolerance > 0.0
+                and abs(float(m.x[k]) - 1.0) >= d.tolerance * (1.0 - 1e-3)]
+        ident = self.identifiability(m, held)
         k0 = len(current.x)
         rel = ident["relative_se"][k0:]
         corr = ident["correlation"]
+        # in a plausibility refit the trade between the effect and a declared value is bounded
+        # by that value's tolerance (the datasheet decides it, not the record): only the
+        # correlations with the other effects' parameters count; the marginal standard error
+        # (relative_se), which carries the declared values' correlation, still must be small
+        kd = len(self.declared)
+        others = range(kd if plausibility else 0, len(m.x))
         max_corr = float(max((abs(corr[i, j]) for i in range(k0, len(m.x))
-                              for j in range(len(m.x)) if j != i), default=0.0))
+                              for j in others if j != i), default=0.0))
+        max_corr_declared = float(max((abs(corr[i, j]) for i in range(k0, len(m.x))
+                                       for j in range(kd)), default=0.0))
         drop = 1.0 - m.held_out["overall"] / current.held_out["overall"]
         identifiable = bool(np.all(rel < opts.max_relative_se)
                             and max_corr < opts.max_correlation
@@ -913,19 +949,25 @@ class Calibration(CalibrationModel):
             earned["beats_generic"] = bool(drop > earned["generic"]["held_out_drop"])
             pays = bool(pays and not earned["at_bound"] and earned["beats_generic"])
         if plausibility:
-            # after the noise stop with a declared value beyond its tolerance
-            # (:meth:`plausibility_round`): taken when at the noise floor with every declared
-            # value within its tolerance, identifiable and at no library bound
+            # after the search stopped on a model with a declared value beyond its tolerance
+            # (:meth:`plausibility_round`): taken when it explains the record as well (at the
+            # noise floor, or a held-out error within PLAUSIBILITY_SLACK of the model it
+            # replaces) with every declared value within its tolerance, identifiable (the
+            # declared values pinned at their tolerance held) and at no library bound
             beyond = self.beyond_tolerance(m)
+            as_good = bool(self.at_noise(m) or m.held_out["overall"]
+                           <= (1.0 + PLAUSIBILITY_SLACK) * current.held_out["overall"])
             earned.update({"plausibility": True, "at_noise": self.at_noise(m),
-                           "beyond_tolerance": beyond,
+                           "as_good": as_good, "beyond_tolerance": beyond,
+                           "held_at_tolerance": [self.declared[k].name for k in held],
                            "replaced_beyond_tolerance": self.beyond_tolerance(current)})
-            pays = bool(identifiable and not earned.get("at_bound") and earned["at_noise"]
+            pays = bool(identifiable and not earned.get("at_bound") and as_good
                         and not beyond)
         rec = {"round": round_no, "score": score, **earned,
                "delta_bic": d_bic, "delta_aic": info["aic"] - info_cur["aic"],
                "held_out_overall": m.held_out["overall"], "held_out_drop": drop,
                "relative_se": [float(v) for v in rel], "max_correlation": max_corr,
+               "max_correlation_with_declared": max_corr_declared,
                "identifiable": identifiable, "pays": pays,
                "parameters": {k: v for k, v in self.physical(m.effects, m.x).items()
                               if k.startswith(e.name + ".")}}
@@ -1157,6 +1199,10 @@ class Calibration(CalibrationModel):
 #: noise floor leaves only noise (the threshold of the verdict's "within 1.2× its noise"):
 #: the round's remaining refits and later rounds are skipped
 AT_NOISE_MULTIPLE = 1.2
+#: a plausibility refit (every declared value within its tolerance) explains the record "as
+#: well" as the model it replaces when its held-out overall NRMSE is at most this much larger
+#: (or every channel is within AT_NOISE_MULTIPLE of its floor)
+PLAUSIBILITY_SLACK = 0.02
 
 
 #: a declared value's deviation and another change of the outputs are indistinguishable when

@@ -477,25 +477,38 @@ class CalibrationModel:
         ll = n * math.log(max(m.sse, 1e-300) / n)
         return {"aic": ll + 2 * p, "bic": ll + p * math.log(n)}
 
-    def identifiability(self, m: _Model) -> dict:
+    def identifiability(self, m: _Model, held: Sequence[int] = ()) -> dict:
         """Relative standard errors and correlations of the parameters, from the Gauss–Newton
-        covariance ``s² (JᵀJ)⁻¹`` with ``s² = SSE/(m − p)`` (normalised parameters)."""
+        covariance ``s² (JᵀJ)⁻¹`` with ``s² = SSE/(m − p)`` (normalised parameters).
+
+        ``held``: indices of parameters pinned at an active bound of the fit (a declared value
+        at its datasheet tolerance in a fit bounded to it): not free at the optimum, so the
+        covariance is that of the free parameters with these held (their columns left out of
+        ``J``; Bates & Watts, *Nonlinear Regression Analysis*, 1988, §3.6 on parameters at
+        bounds); a held parameter reads standard error 0 and correlation 0."""
         J = np.asarray(m.jac)
         n, p = J.shape
+        free = np.array([k for k in range(p) if k not in set(held)], dtype=int)
         jtj = J.T @ J
-        s2 = m.sse / max(n - p, 1)
+        s2 = m.sse / max(n - len(free), 1)
         try:
-            cov = s2 * np.linalg.pinv(jtj, rcond=1e-12)
+            cov = np.zeros((p, p))
+            cov[np.ix_(free, free)] = s2 * np.linalg.pinv(jtj[np.ix_(free, free)], rcond=1e-12)
         except np.linalg.LinAlgError:
             cov = np.full((p, p), np.inf)
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(sd, sd)
         corr = np.nan_to_num(corr, nan=1.0)
+        if len(free) < p:
+            corr[[k for k in range(p) if k not in set(free)], :] = 0.0
+            corr[:, [k for k in range(p) if k not in set(free)]] = 0.0
+            np.fill_diagonal(corr, 1.0)
         rel = sd / np.maximum(np.abs(m.x), 1e-12)
         m.cov = cov
-        return {"sd": sd, "relative_se": rel, "correlation": corr,
-                "rank_deficient": bool(np.linalg.matrix_rank(jtj) < p)}
+        return {"sd": sd, "relative_se": rel, "correlation": corr, "held": list(held),
+                "rank_deficient": bool(np.linalg.matrix_rank(jtj[np.ix_(free, free)])
+                                       < len(free))}
 
     def _robust_cost(self, f: np.ndarray) -> float:
         """The fits' objective at residuals ``f``: ``½ Σ ρ(f²)`` with the ``soft_l1`` loss
