@@ -26,17 +26,16 @@ indistinguishable from), the worst channel's held-out NRMSE over its noise floor
 
 The last line is a JSON object.
 
-``--matrix [--quick] [--duration-s S]``: instead, the matrix rig × effect × verdict ×
-final/floor (issue 41, item 5) over two blind rigs, each from its own textbook: rig 1's
-stepped variant (``tests/independent_rig.py`` with its voltage held between 2 ms digital
-updates, declared zero-order; ``lab_rig.toml``) and the second rig (``tests/second_rig.py``,
-a 200 Hz command held zero-order; ``second_rig.toml``), each on its clean record and with
-one effect on at a time (default records of 20 s; ``--quick``: clean and three effects per
-rig, 8 s records). Per row: the verdict, what was named, the worst channel's held-out NRMSE
-over its noise floor at the baseline and at the end (``final/floor``), whether the named
-effect is the one switched on ("hit"), the wall time and the CPU time of the calibration
-(``time.process_time``: the issue's limit is 120 s on one core). The last line is a JSON
-object.
+``--matrix [--quick] [--duration-s S] [--cases rig/case,...]``: instead, the matrix rig × effect
+× verdict × final/floor (issue 41, item 5) over two blind rigs, each from its own textbook: rig
+1's stepped variant (``tests/independent_rig.py`` with its voltage held between 2 ms digital
+updates, declared zero-order; ``lab_rig.toml``) and the second rig (``tests/second_rig.py``, a
+200 Hz command held zero-order; ``second_rig.toml``), each on its clean record and with one
+effect on at a time (default records of 20 s; ``--quick``: clean and three effects per rig, 8 s
+records). Per row: the verdict, what was named, the worst channel's held-out NRMSE over its
+noise floor at the baseline and at the end (``final/floor``), whether the named effect is the
+one switched on ("hit"), the wall time and the CPU time of the calibration
+(``time.process_time``: the issue's limit is 120 s on one core). The last line is a JSON object.
 """
 
 from __future__ import annotations
@@ -56,11 +55,15 @@ from pathlib import Path  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
+#: the library's forms of a seal friction growing with pressure: any names the kind (rig 1's
+#: grows with p_a + p_b, each cable seal against its chamber; rig 2's per seal)
+PRESSURE_FRICTION = ("pressure_friction", "seal_pressure_friction",
+                     "cable_seal_pressure_friction")
 #: case → (rig effects, the library names that count as naming it)
 CASES = {
     "clean": ({}, ()),
     "stribeck": ({"stribeck": 4.0}, ("stribeck_friction",)),
-    "pressure_friction": ({"pressure_friction": 5e-6}, ("pressure_friction",)),
+    "pressure_friction": ({"pressure_friction": 5e-6}, PRESSURE_FRICTION),
     "piston_leakage": ({"piston_leakage": 5e-13}, ("piston_leakage",)),
     "pump_leakage": ({"pump_leakage": 5e-13}, ("pump_leakage",)),
     "hose_compliance": ({"hose_compliance": 3e8}, ("hose_wall_compliance",)),
@@ -109,7 +112,7 @@ RIG2_TRUTH = {
     "current_limit": ("motor_current_limit",),
     "softer_cable": ("series_compliance", "cylinder.series_compliance_rad_per_nm"),
     "backlash": ("backlash",),
-    "seal_pressure_friction": ("seal_pressure_friction", "pressure_friction"),
+    "seal_pressure_friction": PRESSURE_FRICTION,
     "charge_loss": ("charge_loss",),
 }
 #: pairs (every effect must be named: "hit" means all of them) and an effect outside the
@@ -126,6 +129,7 @@ RIG2_MORE = {
                                            ("piston_leakage", "sensor_delay")),
     "pair:stribeck+entrained_air": ({"stribeck": True, "entrained_air": True},
                                     ("stribeck_friction", "entrained_air")),
+    "outside:pressure_port_resonance": ({"pressure_port_resonance": True}, ()),
 }
 QUICK = {"rig1_stepped": ["clean", "current_limit", "pressure_friction", "cable_compliance"],
          "rig2": ["clean", "current_limit", "seal_pressure_friction", "backlash"]}
@@ -175,10 +179,17 @@ def matrix(argv: list[str]) -> None:
             raise SystemExit("--duration-s needs a number of seconds (>= 4)") from None
         if not duration >= 4.0:
             raise SystemExit(f"--duration-s = {duration!r}; allowed: >= 4")
+    only = None
+    if "--cases" in argv:
+        k = argv.index("--cases")
+        if k + 1 >= len(argv):
+            raise SystemExit("--cases needs rig/case names, e.g. rig2/backlash,rig1_stepped/clean")
+        only = set(argv[k + 1].split(","))
     bad = [a for a in argv if a.startswith("--") and a not in ("--matrix", "--quick",
-                                                               "--duration-s")]
+                                                               "--duration-s", "--cases")]
     if bad:
-        raise SystemExit(f"unknown option {bad[0]!r}; allowed: --matrix, --quick, --duration-s")
+        raise SystemExit(f"unknown option {bad[0]!r}; allowed: --matrix, --quick, "
+                         "--duration-s, --cases")
     rig1_cases = {c: CASES[c] for c in ["clean"] + SINGLES} | RIG1_MORE
     rig2_cases = ({"clean": ({}, ())} | {e: ({e: True}, t) for e, t in RIG2_TRUTH.items()}
                   | RIG2_MORE)
@@ -189,14 +200,22 @@ def matrix(argv: list[str]) -> None:
             setup = load_calibration_scenario(str(ROOT / "scenarios/calibration" / (
                 "lab_rig.toml" if rig_name == "rig1_stepped" else "second_rig.toml")))
             picks = QUICK[rig_name] if quick else list(cases)
+            if only is not None:
+                picks = [c for c in cases if f"{rig_name}/{c}" in only]
+                unknown = only - {f"{r}/{c}" for r, cs in plan.items() for c in cs}
+                if unknown:
+                    raise SystemExit(f"--cases: unknown {sorted(unknown)[0]!r}; allowed: "
+                                     + ", ".join(f"{r}/{c}" for r, cs in plan.items()
+                                                 for c in cs))
             for k, case in enumerate(picks):
                 fx, truth = cases[case]
-                path = Path(tmp) / f"{rig_name}_{case}.csv"
+                path = Path(tmp) / f"{rig_name}_{case.replace(':', '_').replace('+', '_')}.csv"
+                seed = 10 + list(cases).index(case)     # a case's record whatever is picked
                 if rig_name == "rig1_stepped":
-                    data = rig1.write_record(path, duration, fx, seed=10 + k,
+                    data = rig1.write_record(path, duration, fx, seed=seed,
                                              command_update_s=2e-3)
                 else:
-                    data = load_measured(rig2.write_record(path, duration, fx, seed=10 + k))
+                    data = load_measured(rig2.write_record(path, duration, fx, seed=seed))
                 if k == 0:      # compile the kernel outside the timing
                     r = setup.replay()
                     r.simulate(data.time_s[:50], {c: data.channels[c][:50]

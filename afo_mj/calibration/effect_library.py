@@ -26,6 +26,9 @@ pressure_friction           seal: ``c_p |Δp| tanh(v/v_C)`` (seed §2.3, ref. [4
 seal_pressure_friction      seal, per seal: ``f_h (|Δp| + p_a⁺ + p_b⁺) tanh(v/v_C)``: the
                             piston seal against ``|p_a − p_b|``, each cable seal against its
                             own chamber (Parker O-ring handbook ORD 5700)
+cable_seal_pressure_friction
+                            seal, each cable seal only: ``f_h (p_a⁺ + p_b⁺) tanh(v/v_C)``
+                            (Parker ORD 5700; the piston seal as declared)
 entrained_air               oil: bulk modulus with air fraction ``a`` (seed eq. 2.5)
 hose_wall_compliance        hose: ``C += V_h/(2 K_wall)`` per end (Merritt §2.5)
 piston_leakage              cylinder: ``Q = G_l Δp/μ`` across each piston (laminar gap)
@@ -257,6 +260,17 @@ def _common_effects() -> list[Effect]:
                _row((_CP, _CP_CHAMBER)),
                signature="torque residual ∝ (|Δp| + p_a + p_b)·sign(v): grows with the "
                          "common-mode pressure too", labels=(_CP, _CP_CHAMBER)),
+        Effect("cable_seal_pressure_friction", "seal",
+               "f_h (p_a⁺ + p_b⁺) tanh(v/v_C) per cylinder: each cable (rod) seal against its "
+               "own chamber's gauge pressure, the piston seal's friction as declared",
+               "Parker O-ring handbook ORD 5700, friction F = F_C + F_H per seal (a piston "
+               "seal of low or balanced friction, the cable seals loaded by their chambers); "
+               "afo_mj.hydraulics.laws.chamber_seal_pressure_friction_n",
+               (P("cable_seal_pressure_coefficient_m2", "m^2", 0.0, 5e-5, 2e-6,
+                  "friction force per Pa of each cable seal's own chamber pressure"),),
+               _row(_CP_CHAMBER),
+               signature="torque residual ∝ (p_a + p_b)·sign(v): the common-mode pressure "
+                         "only", labels=(_CP_CHAMBER,)),
         Effect("entrained_air", "oil",
                "B_eff(p) of seed eq. 2.5 with air fraction a at atmospheric pressure",
                "seed eq. 2.5 (entrained air)",
