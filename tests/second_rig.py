@@ -208,7 +208,16 @@ EFFECTS: Mapping[str, Effect] = {e.name: e for e in (
     Effect("charge_loss", "drain_m3_s_pa", "m³/(s·Pa)", 2.0e-13,
            "worn pump case drain (per port, to the case at 0 gauge) and leaking check-valve "
            "seats (a quarter of it), the loss made up by the charge circuit"),
+    Effect("pressure_port_resonance", "natural_frequency_hz", "Hz", 120.0,
+           "each chamber's transducer sits at the end of a drilled port: the oil in the "
+           "passage rings on the transducer's dead volume (a Helmholtz resonator, damping "
+           "ratio PORT_DAMPING_RATIO), so the transducer reads the chamber pressure through "
+           "a second-order system (not an afo_mj library effect)"),
 )}
+
+#: damping ratio of the pressure transducers' port resonance (laminar passage; Watton's
+#: transducer-mounting discussion: lightly damped, 0.05–0.3)
+PORT_DAMPING_RATIO = 0.12
 
 STRIBECK_SPEED_M_S = 3.0e-3
 CURRENT_LOOP_GAIN_V_A = 50.0
@@ -598,12 +607,31 @@ def noise_sigmas(params: Rig2Params) -> dict[str, float]:
     return {ch: math.sqrt(s ** 2 + q.get(ch, 0.0) ** 2 / 12.0) for ch, s in white.items()}
 
 
+def port_reading(t: np.ndarray, p: np.ndarray, natural_frequency_hz: float,
+                 damping_ratio: float = PORT_DAMPING_RATIO) -> np.ndarray:
+    """What a transducer at the end of a drilled port reads of the chamber pressure ``p``:
+    the port's oil (inertance ``I``) rings on the transducer's dead volume (capacitance
+    ``C``), ``p_s'' + 2ζω_n p_s' + ω_n² p_s = ω_n² p`` with ``ω_n = 1/√(IC)`` (a Helmholtz
+    resonator; Watton, transducer mounting; Doebelin, *Measurement Systems*, second-order
+    instruments). Integrated exactly for a chamber pressure linear between the samples
+    (``scipy.signal.lsim``), starting at rest at ``p[0]``."""
+    from scipy.signal import lsim
+    w = 2.0 * math.pi * natural_frequency_hz
+    sys = ([w * w], [1.0, 2.0 * damping_ratio * w, w * w])
+    _, y, _ = lsim(sys, p - p[0], t, interp=True)
+    return np.asarray(y) + p[0]
+
+
 def measure(rig: Rig2, t: np.ndarray, Y: np.ndarray, seed: int) -> dict[str, np.ndarray]:
-    """What the data logger stores: each output delayed (``sensor_delay``), its white noise
+    """What the data logger stores: the chamber pressures read through their ports
+    (``pressure_port_resonance``), each output delayed (``sensor_delay``), its white noise
     added (seeded), then quantised by its converter (round to the step); the pressure ADCs
     clip at 0 and full scale, the current ADC at ±half its span. The command is logged as
     sent."""
     true = true_channels(rig, t, Y)
+    if "pressure_port_resonance" in rig.fx:
+        for ch in ("chamber_a_pa", "chamber_b_pa"):
+            true[ch] = port_reading(t, true[ch], rig.fx["pressure_port_resonance"])
     rng = np.random.default_rng(seed)
     delay = rig.fx.get("sensor_delay", 0.0)
     p = rig.p

@@ -133,7 +133,10 @@ EFFECT_STATE = dict(i=6.0, omega_m=50.0, p_1a=3e6, p_ma=2.9e6, p_a=2.8e6, p_1b=0
                     p_mb=0.6e6, p_b=0.7e6, x_p=1e-3, v_p=2e-3, theta=-0.0287, omega_f=-0.05)
 
 
-@pytest.mark.parametrize("name", [n for n in R.EFFECTS if n != "sensor_delay"])
+SENSOR_EFFECTS = ("sensor_delay", "pressure_port_resonance")
+
+
+@pytest.mark.parametrize("name", [n for n in R.EFFECTS if n not in SENSOR_EFFECTS])
 def test_every_physical_effect_changes_the_dynamics(name):
     """Each effect switched on alone changes the right-hand side at a working state (t = 5 s,
     the piston moving, a pressure difference, 6 A, the cable within the play)."""
@@ -153,6 +156,30 @@ def test_sensor_delay_shifts_the_outputs_only():
     np.testing.assert_allclose(late["motor_current_a"][k + 100:],
                                now["motor_current_a"][100:-k], atol=0.4)
     assert not np.allclose(late["motor_current_a"], now["motor_current_a"], atol=0.4)
+
+
+def test_port_resonance_reads_through_a_second_order_system():
+    """The transducers' port resonance against the closed-form step response of
+    ``ω_n²/(s² + 2ζω_n s + ω_n²)`` (Ogata, *Modern Control Engineering*, §5-3): a 1 MPa step
+    overshoots by ``exp(−πζ/√(1−ζ²))`` at ``t_p = π/(ω_n√(1−ζ²))``; only the pressures change."""
+    f, z = 120.0, R.PORT_DAMPING_RATIO
+    t = np.arange(0.0, 0.2, 1e-6)      # the step ramps over one sample: 1 µs
+    p = np.where(t >= 0.01, 1.0e6, 0.0) + 2.0e5
+    y = R.port_reading(t, p, f)
+    wd = 2 * math.pi * f * math.sqrt(1 - z * z)
+    tt = t[t >= 0.01] - 0.01
+    exact = 2.0e5 + 1.0e6 * (1 - np.exp(-z * 2 * math.pi * f * tt)
+                             * (np.cos(wd * tt) + z / math.sqrt(1 - z * z) * np.sin(wd * tt)))
+    np.testing.assert_allclose(y[t >= 0.01], exact, atol=2e3)     # 0.2 % of the step
+    assert y.max() - 1.2e6 == pytest.approx(
+        1.0e6 * math.exp(-math.pi * z / math.sqrt(1 - z * z)), rel=0.01)
+    rig = R.Rig2(None, {"pressure_port_resonance": True}, R.voltage_command(0.5))
+    t, Y = rig.simulate(0.5)
+    ring = R.measure(rig, t, Y, seed=1)
+    now = R.measure(R.Rig2(None, {}, R.voltage_command(0.5)), t, Y, seed=1)
+    for ch in R.OUTPUTS:
+        same = np.array_equal(ring[ch], now[ch])
+        assert same != ch.startswith("chamber_"), ch
 
 
 def test_refusals_name_the_value():
