@@ -94,7 +94,11 @@ def first_named(report: dict) -> list[str]:
     """The first thing the report names: the first effect selected, or the first declared
     value beyond its tolerance with its equivalents (one finding, several names)."""
     if report["effects_selected"]:
-        return [report["effects_selected"][0]["effect"]]
+        # an effect selected with others the record cannot tell from it (a plausibility
+        # round's refits within the slack of its error) names them too, as a declared value
+        # beyond its tolerance names its equivalents
+        first = report["effects_selected"][0]
+        return [first["effect"]] + list(first.get("indistinguishable_from") or [])
     devs = report.get("declared_deviations") or []
     if not devs:
         return []
@@ -143,7 +147,8 @@ def _hit(case: str, rep: dict, truth) -> bool:
         return not rep["effects_selected"] and any(
             isinstance(d, dict) and d.get("found") for d in disc.values())
     if case.startswith("pair:"):
-        sel = [s["effect"] for s in rep["effects_selected"]]
+        sel = [n for s in rep["effects_selected"]
+               for n in [s["effect"]] + list(s.get("indistinguishable_from") or [])]
         return all(t in sel for t in truth)
     return bool(truth) and bool(set(first_named(rep)) & set(truth))
 
@@ -153,7 +158,9 @@ def _row(rep: dict, truth, wall: float, cpu: float | None = None, case: str = ""
     final = {c: rep["error_after"][c] / floor[c] for c in floor}
     worst = max(final, key=final.get)
     names = named(rep)
+    sel = rep["effects_selected"]
     return {"verdict": rep["verdict"], "named": names[:3],
+            "indistinguishable": list(sel[0].get("indistinguishable_from") or []) if sel else [],
             "baseline_max": round(max(rep["baseline"]["ratio"].values()), 2),
             "final_max": round(final[worst], 2), "worst_channel": worst,
             "hit": _hit(case, rep, truth),
@@ -225,8 +232,10 @@ def matrix(argv: list[str]) -> None:
                 row = {"rig": rig_name, "effect": case, **_row(
                     rep, truth, time.perf_counter() - t0, time.process_time() - c0, case)}
                 rows.append(row)
+                alt = (f" (or {', '.join(row['indistinguishable'])})"
+                       if row["indistinguishable"] else "")
                 print(f"{rig_name:13s} {case:36s} {row['verdict']:18s} "
-                      f"named {row['named']!s:45s} baseline {row['baseline_max']:5.2f}x "
+                      f"named {row['named']!s}{alt} baseline {row['baseline_max']:5.2f}x "
                       f"final {row['final_max']:5.2f}x the floor ({row['worst_channel']}) "
                       f"{'hit' if row['hit'] else '-':3s} {row['wall_s']:.0f} s wall, "
                       f"{row['cpu_s']:.0f} s CPU", flush=True)
