@@ -106,12 +106,13 @@ def first_named(report: dict) -> list[str]:
 
 
 #: the second rig's cases: rig effect → the library names that count as naming it (an
-#: empty tuple: nothing in the library describes it)
+#: empty tuple: nothing in the library describes it); a declared value that is the effect's
+#: own parameter (the cable's compliance, the oil's air fraction) names it too
 RIG2_TRUTH = {
     "internal_leakage": ("piston_leakage",),
     "sensor_delay": ("sensor_delay",),
     "stribeck": ("stribeck_friction",),
-    "entrained_air": ("entrained_air",),
+    "entrained_air": ("entrained_air", "fluid.air_fraction"),
     "viscosity_drift": ("viscosity_drift",),
     "current_limit": ("motor_current_limit",),
     "softer_cable": ("series_compliance", "cylinder.series_compliance_rad_per_nm"),
