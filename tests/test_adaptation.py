@@ -193,3 +193,18 @@ def test_generations_walk_on_a_dask_client():
         res = evaluate_batch(_square, [3, -1, 2], client=client)
     assert [r.value for r in res] == [9, None, 4]
     assert isinstance(res[1].error, ArithmeticError) and not res[1].ok
+
+
+def test_a_folder_with_other_settings_is_refused_by_name(tmp_path):
+    """The one refusal the adaptation, dose-response and HIL studies share: a saved setting
+    that differs is named with both values; a key the saved file lacks is refused unless
+    the caller allows it (a folder written before that setting existed)."""
+    from afo_mj.studies.adaptation import refuse_other_settings
+    with pytest.raises(ValueError, match=r"holds a study with popsize = 8; given 16; allowed"):
+        refuse_other_settings(tmp_path, {"popsize": 8, "seed": 1}, {"seed": 1, "popsize": 16},
+                              "a study")
+    with pytest.raises(ValueError, match=r"with groups = None; given 2"):
+        refuse_other_settings(tmp_path, {"seed": 1}, {"seed": 1, "groups": 2}, "searches")
+    refuse_other_settings(tmp_path, {"seed": 1}, {"seed": 1, "groups": 2}, "searches",
+                          absent_ok=True)
+    refuse_other_settings(tmp_path, {"seed": 1, "x": 2}, {"seed": 1}, "searches")

@@ -61,6 +61,7 @@ from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch, loa
 __all__ = ["AdaptationProtocol", "AdaptCondition", "RestartResult", "ConditionResult",
            "AdaptationResult", "search_converged", "rate_spread", "paired_changes",
            "assistance_conditions", "scenario_conditions", "adapt_conditions", "group_estimates",
+           "refuse_other_settings",
            "ADAPTATION_FORMAT"]
 
 ADAPTATION_FORMAT = "afo_mj adaptation v1"
@@ -368,6 +369,18 @@ def _write_json(path: Path, data) -> None:
     os.replace(tmp, path)
 
 
+def refuse_other_settings(out: Path, saved: dict, fixed: dict, what: str,
+                          absent_ok: bool = False) -> None:
+    """Refuse to resume in ``out`` a study (``what``: "searches", "a study", …) whose saved
+    settings ``saved`` differ from the given ``fixed`` ones: one error naming the key, both
+    values and what is allowed. ``absent_ok``: a key the saved file lacks (written before the
+    setting existed) passes."""
+    for k, v in fixed.items():
+        if (k in saved or not absent_ok) and saved.get(k) != v:
+            raise ValueError(f"{out} holds {what} with {k} = {saved.get(k)!r}; given {v!r}; "
+                             "allowed: the same (or another output folder)")
+
+
 def _check_protocol(out: Path, protocol: AdaptationProtocol, start_sha: str,
                     names: list[str]) -> None:
     """Refuse a folder whose searches were started with other fixed settings; record them
@@ -377,10 +390,7 @@ def _check_protocol(out: Path, protocol: AdaptationProtocol, start_sha: str,
     fixed["start_sha256"] = start_sha
     if path.exists():
         saved = json.loads(path.read_text(encoding="utf-8"))
-        for k, v in fixed.items():
-            if k in saved and saved[k] != v:
-                raise ValueError(f"{out} holds searches with {k} = {saved[k]!r}; given "
-                                 f"{v!r}; allowed: the same (or another output folder)")
+        refuse_other_settings(out, saved, fixed, "searches", absent_ok=True)
         names = list(dict.fromkeys(list(saved.get("conditions", [])) + names))
     _write_json(path, dict(fixed, conditions=names))
 

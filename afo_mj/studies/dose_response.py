@@ -67,7 +67,7 @@ import numpy as np
 from afo_mj.metrics.document_base import Document, entry
 from afo_mj.studies.adaptation import (AdaptationProtocol, _cpu_s, _objective_kw, score_walk,
                                        _write_json, paired_changes, rate_spread,
-                                       search_converged)
+                                       refuse_other_settings, search_converged)
 from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch,
                                               load_reflex_set, optimize_gait)
 
@@ -437,10 +437,7 @@ def _check_study(out: Path, study: DoseStudy, start_sha: str) -> None:
     levels = list(study.levels)
     if path.exists():
         saved = json.loads(path.read_text(encoding="utf-8"))
-        for k, v in fixed.items():
-            if saved.get(k) != v:
-                raise ValueError(f"{out} holds a study with {k} = {saved.get(k)!r}; given "
-                                 f"{v!r}; allowed: the same (or another output folder)")
+        refuse_other_settings(out, saved, fixed, "a study")
         old = saved.get("levels", [])
         n = min(len(old), len(levels))
         if old[:n] != levels[:n]:

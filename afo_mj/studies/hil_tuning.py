@@ -92,7 +92,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
 import pickle
 import time
 from pathlib import Path
@@ -104,9 +103,10 @@ from afo_mj.experiments.muscle_assistance import ZHANG_TIMING_PCT, Assistance, b
 from afo_mj.metrics.document_base import Document, entry
 from afo_mj.studies.adaptation import (AdaptationProtocol, AdaptCondition, ConditionResult,
                                        adapt_conditions, assistance_conditions, paired_changes,
-                                       rate_spread, score_walk, search_converged)
-from afo_mj.studies.gait_optimization import (GaitObjective, evaluate_batch, gait_cost,
-                                              load_reflex_set, objective_walk)
+                                       rate_spread, refuse_other_settings, score_walk,
+                                       search_converged)
+from afo_mj.studies.gait_optimization import (GaitObjective, _write_atomic, evaluate_batch,
+                                              gait_cost, load_reflex_set, objective_walk)
 
 __all__ = ["ProfileBounds", "ZhangSetting", "GENERIC", "GENERIC_HAFO", "DEVICES", "HilProtocol",
            "TunedRestart", "HilTuningResult", "joint_vector", "split_joint", "joint_search",
@@ -334,12 +334,6 @@ class HilProtocol:
 
 
 # --------------------------------------------------------------------------- the search
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
-
-
 def with_profile(objective: GaitObjective, setting: ZhangSetting) -> GaitObjective:
     """``objective`` with its device commanding ``setting``."""
     return dataclasses.replace(objective, assistance=setting.assistance(
@@ -587,11 +581,8 @@ def _check_folder(out: Path, protocol: HilProtocol, starts: dict) -> None:
     path = out / "hil_protocol.json"
     fixed = dict(protocol.fixed(), **starts)
     if path.exists():
-        saved = json.loads(path.read_text(encoding="utf-8"))
-        for k, v in fixed.items():
-            if saved.get(k) != v:
-                raise ValueError(f"{out} holds an experiment with {k} = {saved.get(k)!r}; "
-                                 f"given {v!r}; allowed: the same (or another output folder)")
+        refuse_other_settings(out, json.loads(path.read_text(encoding="utf-8")), fixed,
+                              "an experiment")
     _write_atomic(path, json.dumps(fixed, indent=1).encode())
 
 
