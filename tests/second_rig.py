@@ -213,11 +213,19 @@ EFFECTS: Mapping[str, Effect] = {e.name: e for e in (
            "passage rings on the transducer's dead volume (a Helmholtz resonator, damping "
            "ratio PORT_DAMPING_RATIO), so the transducer reads the chamber pressure through "
            "a second-order system (not an afo_mj library effect)"),
+    Effect("brush_drop", "voltage_v", "V", 0.3,
+           "the motor's brushes drop this voltage (both together) against the current, "
+           "linear in the current up to BRUSH_LINEAR_CURRENT_A and about constant beyond "
+           "(the contact drop of a brushed motor; not an afo_mj library effect)"),
 )}
 
 #: damping ratio of the pressure transducers' port resonance (laminar passage; Watton's
 #: transducer-mounting discussion: lightly damped, 0.05–0.3)
 PORT_DAMPING_RATIO = 0.12
+
+#: current below which the brushes' contact drop is about linear (the contact film conducts
+#: ohmically at low current density; beyond, the drop is about constant)
+BRUSH_LINEAR_CURRENT_A = 0.1
 
 STRIBECK_SPEED_M_S = 3.0e-3
 CURRENT_LOOP_GAIN_V_A = 50.0
@@ -305,6 +313,23 @@ def seal_force(v: float, sealed_pa: float, f0: float, prm: Rig2Params,
     if "stribeck" in fx:
         fc *= 1.0 + (fx["stribeck"] - 1.0) * math.exp(-abs(v) / STRIBECK_SPEED_M_S)
     return fc * smooth_sign(v, prm.seal_smoothing_m_s) + prm.seal_viscous_n_s_m * v
+
+
+def brush_drop(i: float, drop_v: float) -> float:
+    """Voltage lost across the brush–commutator contacts of a brushed DC motor [V], both
+    brushes together, against the armature current ``i``.
+
+    The classical DC-machine model takes the brush drop as a constant voltage opposing the
+    current, independent of its size (Chapman, *Electric Machinery Fundamentals*, the DC
+    motor chapter: about 2 V for the carbon brushes of industrial machines; copper-graphite
+    brushes of a low-voltage motor drop a few tenths of a volt). At low current the contact
+    film conducts about ohmically, so the drop rises linearly up to a current and is constant
+    beyond (the brush model of the Modelica Standard Library,
+    ``Modelica.Electrical.Machines.Losses.DCMachines.Brush``); written here with the
+    algebraic smooth sign, ``V_b i/√(i² + I_lin²)``, ``I_lin`` =
+    :data:`BRUSH_LINEAR_CURRENT_A`. The armature equation becomes
+    ``L di/dt = V − R i − V_b(i) − k ω``."""
+    return drop_v * smooth_sign(i, BRUSH_LINEAR_CURRENT_A)
 
 
 def dead_zone(d: float, half_play: float, eps: float) -> tuple[float, float]:
@@ -401,6 +426,9 @@ class Rig2:
         lim = fx.get("current_limit")
         if lim is not None and abs(i) > lim:
             v_mot = v_cmd - CURRENT_LOOP_GAIN_V_A * (abs(i) - lim) * math.copysign(1.0, i)
+        # the brushes' contact drop, inside the motor (off: none, the clean bench's motor is
+        # taken at its datasheet terminal resistance)
+        v_brush = brush_drop(i, fx["brush_drop"]) if "brush_drop" in fx else 0.0
         mu_r = self.viscosity_ratio(t)
         # motor friction (Coulomb, regularised, + viscous)
         t_fric = p.motor_coulomb_nm * smooth_sign(w, p.motor_friction_speed_rad_s) \
@@ -438,22 +466,24 @@ class Rig2:
         st, slope = dead_zone(d, self.half_play_m, 2.0e-5)
         f_cable = self.k_c * st + self.c_c * slope * dd
         tau = -r * f_cable
-        return dict(v_cmd=v_cmd, v_mot=v_mot, i=i, w=w, t_fric=t_fric, dp_pump=dp_pump,
-                    q_slip=q_slip, q_drain_a=q_drain_a, q_drain_b=q_drain_b, q_ca=q_ca,
-                    q_cb=q_cb, q1a=q1a, q1b=q1b, q2a=q2a, q2b=q2b, q_pist=q_pist,
+        return dict(v_cmd=v_cmd, v_mot=v_mot, v_brush=v_brush, i=i, w=w, t_fric=t_fric,
+                    dp_pump=dp_pump, q_slip=q_slip, q_drain_a=q_drain_a, q_drain_b=q_drain_b,
+                    q_ca=q_ca, q_cb=q_cb, q1a=q1a, q1b=q1b, q2a=q2a, q2b=q2b, q_pist=q_pist,
                     f_seal=f_seal, f_cable=f_cable, tau=tau, x=x, vp=vp, theta=th, wf=wf,
                     p1a=p1a, pma=pma, pa=pa, p1b=p1b, pmb=pmb, pb=pb)
 
     # ------------------------------------------------------------------ derivatives
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        """``dy/dt``. Motor (J&K's and Watton's DC-motor drive): ``L di/dt = V − R i − k ω``,
+        """``dy/dt``. Motor (J&K's and Watton's DC-motor drive): ``L di/dt = V − R i − V_b(i)
+        − k ω`` (``V_b``: :func:`brush_drop`, 0 unless ``brush_drop`` is on),
         ``J ω̇ = k i − T_f − D Δp``. Continuity at each of the six line nodes. Piston:
         ``m ẍ = A (p_a − p_b) − F_seal − F_cable``. Foot: ``J θ̈ = τ − k_L θ − c_L θ̇``."""
         p, a = self.p, self.algebraic(t, y)
         dy = np.zeros_like(y)
         A, s, D = self.A, p.stroke_m, self.D
         if p.inductance_h > 0:
-            dy[0] = (a["v_mot"] - p.resistance_ohm * a["i"] - p.motor_k * a["w"]) / p.inductance_h
+            dy[0] = (a["v_mot"] - p.resistance_ohm * a["i"] - a["v_brush"]
+                     - p.motor_k * a["w"]) / p.inductance_h
         if not self.motor_locked:
             dy[1] = (p.motor_k * a["i"] - a["t_fric"] - D * a["dp_pump"]) / p.rotor_inertia_kg_m2
             dy[2] = a["w"]

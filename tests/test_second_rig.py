@@ -182,6 +182,34 @@ def test_port_resonance_reads_through_a_second_order_system():
         assert same != ch.startswith("chamber_"), ch
 
 
+@pytest.mark.parametrize("v0", [1.5, -1.5, 0.15])
+def test_brush_drop_at_stall_against_the_armature_balance(v0):
+    """Motor held, a constant voltage: at rest ``V = R i + V_b i/√(i² + I_lin²)`` (the
+    armature balance with the brushes' drop, no back-EMF; solved here by brentq). Above the
+    drop the current is about ``(V − V_b)/R`` (4.01 A at 1.5 V, against 5.02 A without
+    brushes); below it the brushes pass only a small current (0.15 V: about 0.05 A instead of
+    0.50 A), odd in the voltage."""
+    vb = R.EFFECTS["brush_drop"].default
+    i_lin = R.BRUSH_LINEAR_CURRENT_A
+
+    def gap(i):
+        return P.resistance_ohm * i + vb * i / math.sqrt(i * i + i_lin * i_lin) - v0
+
+    ref = brentq(gap, -abs(v0) / P.resistance_ohm, abs(v0) / P.resistance_ohm)
+    got = {}
+    for fx in ({}, {"brush_drop": True}):
+        rig = R.Rig2(None, fx, _step(v0), motor_locked=True)
+        t, Y = rig.simulate(0.02, hold_period_s=None, sample_rate_hz=1000.0)
+        got[bool(fx)] = Y[rig.ix["i"], -1]
+    assert got[True] == pytest.approx(ref, rel=1e-4)
+    assert got[False] == pytest.approx(v0 / P.resistance_ohm, rel=1e-4)
+    if abs(v0) > vb:
+        assert got[True] == pytest.approx((v0 - math.copysign(vb, v0)) / P.resistance_ohm,
+                                          rel=1e-3)
+    else:
+        assert abs(got[True]) < 0.15 * abs(v0) / P.resistance_ohm
+
+
 def test_refusals_name_the_value():
     with pytest.raises(ValueError, match="effect 'air' unknown; allowed: internal_leakage"):
         R.resolve_effects({"air": True})
