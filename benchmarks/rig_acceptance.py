@@ -79,13 +79,21 @@ CASES = {
 SINGLES = [c for c in CASES if c not in ("clean", "pair", "out_of_library")]
 
 
+def _explaining(report: dict) -> list[dict]:
+    """The declared values beyond their tolerance that the report names: those of a model
+    that explains the record (``explains_record``: every channel within the noise multiple);
+    in a model that still misses it they are the fit bending toward what it lacks."""
+    return [d for d in report.get("declared_deviations") or []
+            if d.get("explains_record", True)]
+
+
 def named(report: dict) -> list[str]:
     """What the report names, in order: the effects selected, then (when none was) each
     declared value beyond its tolerance (a described rig's value: the cable's compliance is
     named as itself) and what it is indistinguishable from."""
     out = [s["effect"] for s in report["effects_selected"]]
     if not out:
-        for d in report.get("declared_deviations") or []:
+        for d in _explaining(report):
             out += [e.split(" (")[0] for e in d["equivalent_to"]] + [d["parameter"]]
     return out
 
@@ -99,7 +107,7 @@ def first_named(report: dict) -> list[str]:
         # beyond its tolerance names its equivalents
         first = report["effects_selected"][0]
         return [first["effect"]] + list(first.get("indistinguishable_from") or [])
-    devs = report.get("declared_deviations") or []
+    devs = _explaining(report)
     if not devs:
         return []
     return [devs[0]["parameter"]] + [e.split(" (")[0] for e in devs[0]["equivalent_to"]]
@@ -135,6 +143,7 @@ RIG2_MORE = {
     "pair:stribeck+entrained_air": ({"stribeck": True, "entrained_air": True},
                                     ("stribeck_friction", "entrained_air")),
     "outside:pressure_port_resonance": ({"pressure_port_resonance": True}, ()),
+    "outside:brush_drop": ({"brush_drop": True}, ()),
 }
 QUICK = {"rig1_stepped": ["clean", "current_limit", "pressure_friction", "cable_compliance"],
          "rig2": ["clean", "current_limit", "seal_pressure_friction", "backlash"]}

@@ -232,3 +232,42 @@ def test_markdown_gives_the_replay_step_and_each_step_tried(tmp_path):
                           "reason": "[calibration] replay_max_step_s (no choice made)"}
     md = write_calibration_report(rep, tmp_path / "b")["report.md"].read_text()
     assert "at most 0.2 ms: [calibration] replay_max_step_s" in md
+
+
+def _deviation(explains, worst):
+    return {"parameter": "fluid.liquid_bulk_modulus_pa", "unit": "Pa", "datasheet": 1.6e9,
+            "fitted": 4.34e9, "relative_change": 1.71, "relative_sd": 0.21,
+            "tolerance": 0.3, "in_tolerances": 5.7,
+            "equivalent_to": ["pump_leakage (effect, similarity 0.99)"],
+            "explains_record": explains, "final_worst_ratio": worst}
+
+
+def test_declared_values_beyond_tolerance_name_nothing_when_the_model_misses_the_record():
+    """A declared value beyond its tolerance in a model that explains the record (every
+    channel within the noise multiple) is a finding; in one that still misses it (rig 2's
+    brush drop: the angle 65.6× its floor) the fit bent it, and the report says so."""
+    from afo_mj.calibration.calibrate import explains_record
+    base = {"noise_multiple": 2.0,
+            "noise_floor": {"ankle_angle_rad": 0.002, "motor_current_a": 0.01}}
+    devs = explains_record([{"parameter": "x"}],
+                           {"ankle_angle_rad": 0.1313, "motor_current_a": 0.015}, base)
+    assert devs[0]["explains_record"] is False
+    assert devs[0]["final_worst_ratio"] == pytest.approx(65.65)
+    devs = explains_record([{"parameter": "x"}],
+                           {"ankle_angle_rad": 0.0039, "motor_current_a": 0.0199}, base)
+    assert devs[0]["explains_record"] is True          # 1.95× and 1.99×, both within 2×
+    assert devs[0]["final_worst_ratio"] == pytest.approx(1.99)
+
+
+@pytest.mark.parametrize("explains, words, not_words", [
+    (True, "either a wrong datasheet value", "names nothing"),
+    (False, "(worst channel 65.6× its noise floor) names nothing", "either a wrong"),
+])
+def test_markdown_deviations_section_says_whether_they_explain(tmp_path, explains, words,
+                                                               not_words):
+    rep = make_report("unexplained_residual", with_series=False)
+    rep["declared_deviations"] = [_deviation(explains, 1.0 if explains else 65.63)]
+    md = write_calibration_report(rep, tmp_path / "cal")["report.md"].read_text()
+    sec = md.split("## Declared parameters beyond their datasheet tolerance")[1].split("## ")[0]
+    assert words in sec and not_words not in sec
+    assert "`fluid.liquid_bulk_modulus_pa`" in sec

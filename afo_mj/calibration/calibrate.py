@@ -1093,6 +1093,7 @@ class Calibration(CalibrationModel):
                numerical: dict | None = None, replay_step: dict | None = None) -> dict:
         """The report dictionary (:mod:`afo_mj.outputs.calibration_report` writes it)."""
         params, sd_phys, deviations = self.final_parameters(search.model)
+        explains_record(deviations, after.err, before.baseline)
         for st in search.steps:
             st["uncertainties"] = {k: (v if math.isfinite(v) else None)
                                    for k, v in st["uncertainties"].items()}
@@ -1209,6 +1210,32 @@ PLAUSIBILITY_SLACK = 0.02
 #: the cosine of their noise-whitened columns is at least this: the other explains at least
 #: 90 % (0.95²) of the deviation's signature, and the rest is what separates them
 EQUIVALENT_SIMILARITY = 0.95
+
+
+def explains_record(deviations: list[dict], error_after: Mapping[str, float],
+                    baseline: Mapping) -> list[dict]:
+    """Mark each declared value beyond its tolerance (``deviations``, the report's
+    ``declared_deviations``) with whether the model holding it explains the record:
+    ``explains_record`` is True when every channel's final held-out NRMSE
+    (``error_after``) is within the noise multiple of its noise floor (``baseline``'s
+    ``noise_multiple`` and ``noise_floor``), with ``final_worst_ratio`` the worst channel's
+    NRMSE over its floor.
+
+    A deviation of a model that explains the record is a finding: a wrong datasheet value,
+    or an effect that acts exactly like it. A deviation of a model that still misses the
+    record (on rig 2's brushes dropping 0.3 V, the bulk modulus at 2.7× and the winding
+    resistance at +24 % with the residual 66× the angle's floor) is the fit bending a value
+    toward something the model lacks, and names nothing. Returns ``deviations``, changed in
+    place."""
+    floor = baseline.get("noise_floor") or {}
+    mult = float(baseline.get("noise_multiple", 2.0))
+    ratios = [float(error_after[c]) / max(float(f), 1e-12) for c, f in floor.items()
+              if c in error_after]
+    worst = max(ratios) if ratios else float("nan")
+    for d in deviations:
+        d["explains_record"] = bool(ratios) and worst <= mult
+        d["final_worst_ratio"] = worst if math.isfinite(worst) else None
+    return deviations
 
 
 def _projected(A: np.ndarray, r: np.ndarray) -> float:

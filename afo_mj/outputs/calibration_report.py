@@ -471,9 +471,20 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
     devs = report.get("declared_deviations")
     if devs:
         L.append("## Declared parameters beyond their datasheet tolerance\n")
-        L.append("A fitted datasheet value outside its tolerance (by more than 3 standard "
-                 "errors) is either a wrong datasheet value or an effect that acts exactly "
-                 "like it; the record cannot separate the two.\n")
+        missing = [d for d in devs if d.get("explains_record") is False]
+        if missing:
+            worst = missing[0].get("final_worst_ratio")
+            L.append("A fitted datasheet value outside its tolerance (by more than 3 standard "
+                     "errors) in a model that still misses the record "
+                     + (f"(worst channel {worst:.3g}× its noise floor) "
+                        if isinstance(worst, (int, float)) else "")
+                     + "names nothing: the fit bent these values toward what the model "
+                     "lacks. Read them as part of the unexplained residual, not as wrong "
+                     "datasheet values nor as the effects listed beside them.\n")
+        else:
+            L.append("A fitted datasheet value outside its tolerance (by more than 3 "
+                     "standard errors) is either a wrong datasheet value or an effect that "
+                     "acts exactly like it; the record cannot separate the two.\n")
         rows = [[f"`{d['parameter']}`", _f(d.get("datasheet")), _f(d.get("fitted")),
                  _signed_pct(d.get("relative_change")), f"±{100 * d['tolerance']:.0f} %",
                  ", ".join(d.get("equivalent_to") or []) or "—"] for d in devs]
