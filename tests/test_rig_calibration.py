@@ -392,3 +392,118 @@ def test_a_parameter_held_at_its_bound_leaves_the_covariance():
     assert held["relative_se"][1] == pytest.approx(s / np.linalg.norm(j2) / 2.0, rel=1e-9)
     assert held["sd"][0] == 0.0 and held["correlation"][0, 1] == 0.0
     assert not held["rank_deficient"] and held["held"] == [0]
+
+
+# ---------------------------------------------------------------- judged against the noise
+def _two_channel_residual(n=4000, k=3.0, seed=5):
+    """Training residuals (NRMSE units) of two channels: a precise one (noise floor 0.001)
+    carrying a structure ``k`` times its floor (RMS) on top of its noise, and a noisy one
+    (floor 0.015) that is noise alone; the declared sensitivity ``J`` an offset on the noisy
+    channel, the candidate's change ``d`` the structure itself."""
+    rng = np.random.default_rng(seed)
+    f1, f2 = 0.001, 0.015
+    t = np.linspace(0.0, 1.0, n)
+    s = np.sin(2 * np.pi * 3 * t)
+    s *= k * f1 / np.sqrt(np.mean(s ** 2))
+    r = np.concatenate([s + rng.normal(0.0, f1, n), rng.normal(0.0, f2, n)])
+    J = np.concatenate([np.zeros(n), np.ones(n)])[:, None]
+    d = np.concatenate([s, np.zeros(n)])
+    w = np.concatenate([np.full(n, 1 / f1), np.full(n, 1 / f2)])
+    return J, d, r, w
+
+
+def _lm_fraction(J, d, r):
+    """Closed form of the score test's fraction for one column: with ``r`` and ``d`` made
+    orthogonal to ``J`` (Gram–Schmidt), ``(d⊥·r⊥)² / (|d⊥|² |r|²)``."""
+    P = J @ np.linalg.solve(J.T @ J, J.T)
+    rp, dp = r - P @ r, d - P @ d
+    return float((dp @ rp) ** 2 / ((dp @ dp) * (r @ r)))
+
+
+def test_an_effect_on_a_precise_channel_scores_in_noise_units():
+    """Rig 2's viscosity drift shows only on the 14-bit angle, whose floor is a tenth of the
+    other channels'. In NRMSE units its share of the residual is small (here ~9/235 ≈ 0.04,
+    under the described rig's refit gate of 0.05, as the drift's 0.041); in noise units it is
+    the structure's excess over the noise (~9/11 ≈ 0.82). The score takes the larger; without
+    noise weights (a preset) it is the NRMSE one. A change that must enter with the wrong
+    sign scores 0 in both."""
+    from afo_mj.calibration.calibrate import _score, _ScoreBase
+    J, d, r, w = _two_channel_residual()
+    nrmse = _lm_fraction(J, d, r)
+    noise = _lm_fraction(J * w[:, None], d * w, r * w)
+    assert nrmse == pytest.approx(9 / 235, rel=0.1) and nrmse < 0.05
+    assert noise == pytest.approx(9 / 11, rel=0.05)
+    sc, coef = _score(_ScoreBase(J, r, w), d[:, None], signed=True)
+    assert sc == pytest.approx(noise, rel=1e-9)
+    assert coef[-1] == pytest.approx(1.0, rel=0.02)       # the structure at its own size
+    sc0, _ = _score(_ScoreBase(J, r), d[:, None], signed=True)
+    assert sc0 == pytest.approx(nrmse, rel=1e-9)
+    assert _score(_ScoreBase(J, r, w), -d[:, None], signed=True)[0] == 0.0
+
+
+#: rig 2's noise floors (held-out NRMSE of its sensor noise, 20 s record)
+_RIG2_FLOOR = {"ankle_angle_rad": 0.001376, "ankle_torque_nm": 0.01661,
+               "chamber_a_pa": 0.01438, "chamber_b_pa": 0.01424, "motor_current_a": 0.01401,
+               "motor_speed_rad_s": 0.01790}
+
+
+def _judge(before_ratio, after_ratio, generic_noise_drop=0.0):
+    """``Calibration.judge_refit`` of a one-parameter candidate on a described rig whose
+    held-out errors are ``before_ratio``/``after_ratio`` times rig 2's floors, with a BIC
+    fall of 3000 and a 2 % standard error (the declared values are not in the fake)."""
+    from types import SimpleNamespace
+
+    from afo_mj.calibration.calibrate import Calibration, CalibrationOptions
+    from afo_mj.calibration.calibration_model import CalibrationModel, _Model
+    from afo_mj.calibration.effect_library import effects_for
+
+    chans = list(_RIG2_FLOOR)
+
+    def held(ratio):
+        err = {c: q * _RIG2_FLOOR[c] for c, q in zip(chans, ratio)}
+        err["overall"] = float(np.sqrt(np.mean([err[c] ** 2 for c in chans])))
+        return err
+
+    fake = SimpleNamespace(options=CalibrationOptions(), declared=(), described=True,
+                           outputs=chans, noise_floor=lambda: dict(_RIG2_FLOOR))
+    fake.error_in_noise_units = lambda err: CalibrationModel.error_in_noise_units(fake, err)
+    fake.information = lambda m: {"bic": -3000.0 if m.effects else 0.0, "aic": 0.0}
+    fake.identifiability = lambda m, held=(): {"relative_se": np.array([0.02]),
+                                               "correlation": np.eye(1),
+                                               "rank_deficient": False}
+    fake.at_bound = lambda e, x: []
+    fake.generic_correction = lambda m, n: {
+        "channel": "ankle_angle_rad", "held_out_drop": 0.004, "parameters": n,
+        "noise_units_channel": "ankle_angle_rad",
+        "held_out_drop_noise_units": generic_noise_drop}
+    fake.physical = lambda effects, x: {}
+    drift = {e.name: e for e in effects_for(chans, described=True)}["viscosity_drift"]
+    current = _Model([], np.zeros(0), held_out=held(before_ratio))
+    m = _Model([drift], np.array([1.4]), held_out=held(after_ratio))
+    rec, _ = Calibration.judge_refit(fake, current, m, drift, 0.5, 1, {"bic": 0.0, "aic": 0.0})
+    return rec
+
+
+def test_a_refit_to_the_noise_floor_pays_in_noise_units():
+    """The drift refit measured on rig 2 (angle 4.14× → 1.04× its floor, the others ~1.05×
+    → ~1.0×) cuts the overall NRMSE by only 5.6 % (under min_error_drop 10 %: the other
+    channels, at their floor, dominate it) but the error in noise units by 48 %
+    (√(mean ratio²): 1.94 → 1.00), both by hand here: it pays, in noise units. A clean
+    record (every channel within 1.12× its floor) cannot gain 10 % in noise units even with
+    every channel brought to 0.98×; and a gain on one channel that does as well in noise
+    units leaves the candidate unnamed."""
+    before = (4.14, 1.06, 1.05, 1.03, 1.08, 0.99)
+    after = (1.04, 1.01, 0.99, 0.98, 1.01, 0.98)
+    f = np.array(list(_RIG2_FLOOR.values()))
+    by_hand = 1 - np.linalg.norm(np.multiply(after, f)) / np.linalg.norm(np.multiply(before, f))
+    in_noise = 1 - np.linalg.norm(after) / np.linalg.norm(before)
+    assert by_hand == pytest.approx(0.056, abs=0.002) and in_noise == pytest.approx(0.484,
+                                                                                   abs=0.002)
+    rec = _judge(before, after)
+    assert rec["held_out_drop"] == pytest.approx(by_hand, rel=1e-9)
+    assert rec["held_out_drop_noise_units"] == pytest.approx(in_noise, rel=1e-9)
+    assert rec["pays"] and rec["pays_in"] == ["noise_units"]
+    clean = _judge((1.12, 1.05, 1.02, 1.0, 1.03, 1.01), (0.98,) * 6)
+    assert clean["held_out_drop_noise_units"] < 0.10 and not clean["pays"]
+    generic = _judge(before, after, generic_noise_drop=0.5)
+    assert not generic["pays"] and generic["pays_in"] == []

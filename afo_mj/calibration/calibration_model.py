@@ -528,3 +528,22 @@ class CalibrationModel:
         """Per channel, the NRMSE a perfect model would show: the sensor noise σ over the
         channel's SD (the NRMSE scale)."""
         return {c: self.noise[c] / self.scale[c] for c in self.outputs}
+
+    def error_in_noise_units(self, err: Mapping[str, float]) -> float:
+        """A model's held-out error measured against the noise: ``√(mean_c (e_c/f_c)²)``, the
+        root mean square over the output channels of each channel's held-out NRMSE ``e_c``
+        over its noise floor ``f_c`` (:meth:`noise_floor`). It is the held-out RMS residual
+        of each channel in units of its own noise σ, averaged in the mean square: the
+        Gaussian log-likelihood's view of the held-out part, in which every channel weighs
+        by its noise, not by its signal's spread (as the overall NRMSE does). A perfect model
+        scores about 1 whatever the channels' spreads."""
+        floor = self.noise_floor()
+        return float(math.sqrt(np.mean([(err[c] / floor[c]) ** 2 for c in self.outputs])))
+
+    def noise_weights(self) -> np.ndarray:
+        """Per training residual row (:meth:`train_residuals`, channel by channel), the
+        weight ``1/f_c`` that turns its NRMSE units into units of the channel's noise σ (the
+        whitening of the identifiability screen)."""
+        floor = self.noise_floor()
+        n1 = len(self.train_idx)
+        return np.concatenate([np.full(n1, 1.0 / max(floor[c], 1e-12)) for c in self.outputs])

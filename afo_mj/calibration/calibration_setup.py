@@ -62,7 +62,9 @@ class CalibrationOptions:
     #: rig (an effect must cut the held-out NRMSE by ``min_error_drop`` = 10 %, i.e. the
     #: held-out SSE by ~19 %: a score below 5 % cannot get there even if the linearisation
     #: underestimates it threefold; the effects found on the independent rig scored
-    #: 0.12–0.62), 1e-4 for the presets
+    #: 0.12–0.62), 1e-4 for the presets. On a described rig the score is the larger of the
+    #: fractions in NRMSE units and in units of each channel's noise (the held-out drop is
+    #: judged in both units too), so the same argument holds in each
     min_refit_score: float | None = None
     #: how each input was produced between its samples (the scenario's ``[calibration.hold]``:
     #: channel → ``"zero_order"`` or ``"linear"``; overrides the sidecar's ``[hold]``); a
