@@ -547,8 +547,13 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
         drop = e.get("held_out_drop")
         L.append(f"Held-out NRMSE (overall) {_pct(e.get('held_out_before'))} % → "
                  f"{_pct(e.get('held_out_after'))} % "
-                 f"({_signed_pct(-drop) if isinstance(drop, (int, float)) else '—'}); "
-                 f"ΔBIC {_f(e.get('delta_bic'), '.1f')}, ΔAIC {_f(e.get('delta_aic'), '.1f')} "
+                 f"({_signed_pct(-drop) if isinstance(drop, (int, float)) else '—'})"
+                 + (f"; in units of each channel's noise "
+                    f"{_signed_pct(-e['held_out_drop_noise_units'])}"
+                    if isinstance(e.get("held_out_drop_noise_units"), (int, float)) else "")
+                 + (f" (pays in: {', '.join(e['pays_in'])})" if e.get("pays_in") else "")
+                 + f"; ΔBIC {_f(e.get('delta_bic'), '.1f')}, "
+                 f"ΔAIC {_f(e.get('delta_aic'), '.1f')} "
                  "(negative: the effect pays for its parameters).\n")
 
     # ---- fitted parameters
@@ -571,7 +576,9 @@ def render_markdown(report: Mapping, figures: tuple[str, ...] = FIGURES) -> str:
     L.append("Score: the fraction of the training residual's |r|² the effect's linearised "
              "change explains beyond the declared parameters (best over the rounds). The top "
              "candidates were refitted in the full model; an effect *pays* when ΔBIC falls "
-             "enough, the held-out error drops enough and its parameters are identifiable.\n")
+             "enough, the held-out error drops enough (on a described rig: the overall NRMSE "
+             "or the error in units of each channel's noise; the score is the larger of the "
+             "two units' too) and its parameters are identifiable.\n")
     cands = report.get("candidates") or {}
     order = sorted(cands.items(), key=lambda kv: -float(kv[1].get("best_score") or 0.0))
     crow = []

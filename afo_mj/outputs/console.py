@@ -373,7 +373,9 @@ def calibration_lines(report: Mapping, out) -> list[str]:
         pars = ", ".join(f"{k.split('.', 1)[1]} = {v:.4g}" for k, v in s["parameters"].items())
         lines.append(f"  + {s['effect']} ({s['component']}): {pars}; held-out NRMSE "
                      f"{s['held_out_before']:.4f} -> {s['held_out_after']:.4f} "
-                     f"({-100 * s['held_out_drop']:+.0f} %)")
+                     f"({-100 * s['held_out_drop']:+.0f} %"
+                     + (f"; {-100 * s['held_out_drop_noise_units']:+.0f} % in noise units"
+                        if "held_out_drop_noise_units" in s else "") + ")")
     if report.get("unexplained_where"):
         lines.append(f"  unexplained: {report['unexplained_where']}")
     lines.append(f"held-out NRMSE (overall): before {eb:.4f}, after {ea:.4f} "
