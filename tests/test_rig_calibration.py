@@ -507,3 +507,38 @@ def test_a_refit_to_the_noise_floor_pays_in_noise_units():
     assert clean["held_out_drop_noise_units"] < 0.10 and not clean["pays"]
     generic = _judge(before, after, generic_noise_drop=0.5)
     assert not generic["pays"] and generic["pays_in"] == []
+
+
+def test_step_correction_columns_are_replayed_once_per_parameter():
+    """The fits' Jacobian correction ``J_f − J_c`` (CalibrationModel.step_correction): a
+    parameter's fine-step column is replayed at the first fit that holds it, kept, and
+    reused by later fits; a new effect's parameter costs only its own fine column. The
+    correction is checked against hand-computed linear columns (J_f = (1+h) a_j, J_c = a_j
+    at the 0.5 ms and 62.5 µs steps: J_f − J_c = h a_j)."""
+    from types import SimpleNamespace
+
+    from afo_mj.calibration.calibration_model import CalibrationModel
+    a = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])      # residuals × parameters
+    taken = []
+
+    def jacobian(effects, x, lo, hi, columns=None):
+        cols = range(x.size) if columns is None else columns
+        taken.extend((fake.replay.max_step_s, j) for j in cols)
+        J = np.full((2, x.size), np.nan)
+        for j in cols:
+            J[:, j] = a[:, j] * (1.0 + 0.1 * (fake.replay.max_step_s < 1e-4))
+        return J, np.ones(x.size)
+
+    fake = SimpleNamespace(replay=SimpleNamespace(max_step_s=6.25e-5), sensitivity_step_s=5e-4,
+                           _step_corrections={}, jacobian=jacobian)
+    jc = a.copy()
+    got = CalibrationModel.step_correction(fake, [], ["k", "m"], np.ones(2), None, None,
+                                           jc[:, :2])
+    assert np.allclose(got, 0.1 * a[:, :2])
+    assert taken == [(6.25e-5, 0), (6.25e-5, 1)]
+    taken.clear()
+    # a later fit with one more parameter: only that column is replayed at the fine step
+    got = CalibrationModel.step_correction(fake, [], ["k", "m", "e.p"], np.ones(3), None,
+                                           None, jc)
+    assert np.allclose(got, 0.1 * a)
+    assert taken == [(6.25e-5, 2)]

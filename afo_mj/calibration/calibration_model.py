@@ -231,6 +231,9 @@ class CalibrationModel:
         #: step throughout; set by the choice of the replay's step when it is finer)
         self.sensitivity_step_s: float | None = None
         self._replays: collections.OrderedDict = collections.OrderedDict()
+        #: the fits' step corrections ``J_f − J_c`` by column (:meth:`fit`): (declared name
+        #: or effect.parameter, fine step, coarse step) → column, taken once per calibration
+        self._step_corrections: dict[tuple, np.ndarray] = {}
         self.log: list[str] = []
 
     # ---------------------------------------------------------------- model evaluation
@@ -394,8 +397,11 @@ class CalibrationModel:
         between the two steps' Jacobians taken once, at the start: ``J(x) ≈ J_c(x) + (J_f(x₀)
         − J_c(x₀))``. The stepper's error changes little with the parameters, so what the
         correction leaves is second order in ``x − x₀``; the residuals, the cost and the
-        fit's end are the replay's own step's. A fit's first Jacobian costs one replay per
-        parameter at each step, every later one a replay per parameter at the coarse step.
+        fit's end are the replay's own step's. The correction's columns are kept by
+        parameter (:meth:`step_correction`): a parameter's column is replayed at the fine
+        step once per calibration, at the first fit that holds it, so a fit costs a replay
+        per parameter at the coarse step per Jacobian and a fine replay per parameter new to
+        the calibration.
 
         ``within_tolerance``: each declared value with a datasheet tolerance is bounded to
         it (factor ``1 ± tolerance``, inside its fit range): the fit of the record with the
@@ -409,6 +415,8 @@ class CalibrationModel:
         two_steps = (self.sensitivity_step_s is not None
                      and self.sensitivity_step_s > self.replay.max_step_s)
 
+        keys = self.column_keys(effects)
+
         def jac(x):
             last["x"] = x.copy()
             if not two_steps:
@@ -417,11 +425,8 @@ class CalibrationModel:
             with self.at_sensitivity_step():
                 jc, h = self.jacobian(effects, x, lo, hi)
             if "correction" not in last:
-                jf, h = self.jacobian(effects, x, lo, hi)
-                last["correction"] = jf - jc
-                last["J"], last["h"] = jf, h
-            else:
-                last["J"], last["h"] = jc + last["correction"], h
+                last["correction"] = self.step_correction(effects, keys, x, lo, hi, jc)
+            last["J"], last["h"] = jc + last["correction"], h
             return last["J"]
 
         res = least_squares(lambda x: self.train_residuals(effects, x), x0, jac=jac,
@@ -438,15 +443,37 @@ class CalibrationModel:
         m.held_out, _ = self.held_out_errors(effects, res.x)
         return m
 
+    def column_keys(self, effects: Sequence[Effect]) -> list[str]:
+        """A name per parameter of a structure, in the order of its ``x``: each declared
+        value's name, then ``effect.parameter``."""
+        return ([d.name for d in self.declared]
+                + [f"{e.name}.{p.name}" for e in effects for p in e.parameters])
+
+    def step_correction(self, effects: Sequence[Effect], keys: Sequence[str], x: np.ndarray,
+                        lo: np.ndarray, hi: np.ndarray, jc: np.ndarray) -> np.ndarray:
+        """The columns of ``J_f − J_c`` (:meth:`fit`) at ``x``, ``jc`` the coarse
+        Jacobian there: a column kept from an earlier fit of this calibration is reused
+        (the stepper's error varies little with the parameters, so its sensitivity is taken
+        as one per parameter: the same second-order approximation as holding it over one
+        fit's path), the others are replayed at the fine step and kept."""
+        steps = (float(self.replay.max_step_s), float(self.sensitivity_step_s))
+        missing = [j for j, k in enumerate(keys) if (k, *steps) not in self._step_corrections]
+        if missing:
+            jf, _ = self.jacobian(effects, x, lo, hi, columns=missing)
+            for j in missing:
+                self._step_corrections[(keys[j], *steps)] = jf[:, j] - jc[:, j]
+        return np.column_stack([self._step_corrections[(k, *steps)] for k in keys])
+
     def jacobian(self, effects: Sequence[Effect], x: np.ndarray, lo: np.ndarray,
-                 hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                 hi: np.ndarray, columns: Sequence[int] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """``(J, steps)``: the forward-difference Jacobian of :meth:`train_residuals` at
         ``x`` and the step of each column, with the steps of
         ``scipy.optimize.least_squares(diff_step=DIFF_STEP)`` (``2-point``): ``DIFF_STEP
         · |x_j|`` (``√ε · max(1, |x_j|)`` where that is no step), taken backwards where the
         forward step would leave the bounds ``[lo, hi]``. The residuals at ``x`` and a
         column whose parameter only changes the sensor transforms come from kept replays
-        (:meth:`simulate`)."""
+        (:meth:`simulate`). ``columns``: only these columns are taken (the others NaN)."""
         x = np.asarray(x, dtype=float)
         f0 = self.train_residuals(effects, x)
         sign = np.where(x >= 0.0, 1.0, -1.0)
@@ -462,8 +489,8 @@ class CalibrationModel:
         h = np.where(violated & fitting, -h, h)
         h = np.where(~fitting & (upper >= lower), upper, h)
         h = np.where(~fitting & (upper < lower), -lower, h)
-        J = np.empty((f0.size, x.size))
-        for j in range(x.size):
+        J = np.full((f0.size, x.size), np.nan)
+        for j in (range(x.size) if columns is None else columns):
             x1 = x.copy()
             x1[j] = x[j] + h[j]
             J[:, j] = (self.train_residuals(effects, x1) - f0) / (x1[j] - x[j])
