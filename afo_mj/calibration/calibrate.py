@@ -727,15 +727,18 @@ class Calibration(CalibrationModel):
         refits = rep.task(f"{rnd}: refitting the top {len(top)} candidates", len(top),
                           "refits", fmt=lambda v: f"{v:.0f}")
         tried = []
-        for score, name, scs in top:
+        for k, (score, name, scs) in enumerate(top):
             e = next(c for c in pool if c.name == name)
             got = self.refit_candidate(s, e, score, scs, rnd_no, info_cur)
             if got is not None:
                 tried.append(got)
                 rep.stage(f"{rnd}: {e.name}: " + _refit_line(got[2]))
             refits.advance()
-            if got is not None and got[2]["pays"] and self.at_noise(got[0]):
+            if got is not None and got[2]["pays"] and self.at_noise(got[0]) and not (
+                    k + 1 < len(top) and top[k + 1][0] >= (1.0 - PLAUSIBILITY_SLACK) * score):
                 # what is left is noise: a lower-ranked candidate cannot do better beyond it
+                # (one that scored within the slack of it is refitted still: the two may
+                # explain the record alike, and are then listed as indistinguishable)
                 break
         refits.close()
         paying = [t for t in tried if t[2]["pays"]]
@@ -744,7 +747,13 @@ class Calibration(CalibrationModel):
             return None
         m, e, rec, ident = min(paying, key=lambda t: t[0].held_out["overall"])
         rep.stage(f"{rnd}: selected {e.name}")
-        s.steps.append(self.selected_step(s.model, m, e, rec, ident))
+        step = self.selected_step(s.model, m, e, rec, ident)
+        # the others that paid within the plausibility slack of it: the record does not
+        # tell them apart (as in the plausibility round)
+        step["indistinguishable_from"] = [
+            t[1].name for t in paying if t[1] is not e
+            and t[0].held_out["overall"] <= (1.0 + PLAUSIBILITY_SLACK) * m.held_out["overall"]]
+        s.steps.append(step)
         s.model = m
         return e
 
