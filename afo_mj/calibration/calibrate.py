@@ -115,6 +115,15 @@ class _Verdict:
     attribution: dict | None = None     # a described rig beyond its noise: what explains it
 
 
+def _indistinguishable(refits: Sequence[tuple], m: _Model, e: Effect) -> list[str]:
+    """The effects of the other paying ``refits`` (``(model, effect, record, ident)``)
+    whose held-out error is within :data:`PLAUSIBILITY_SLACK` of the selected ``m``'s
+    (effect ``e``): the record does not tell them apart from it (e.g. a leakage across the
+    pistons or across the pump)."""
+    return [t[1].name for t in refits if t[1] is not e
+            and t[0].held_out["overall"] <= (1.0 + PLAUSIBILITY_SLACK) * m.held_out["overall"]]
+
+
 def _refit_line(rec: dict) -> str:
     """A refit's progress line: its held-out error change, ΔBIC, whether it pays (and why
     not)."""
@@ -750,9 +759,7 @@ class Calibration(CalibrationModel):
         step = self.selected_step(s.model, m, e, rec, ident)
         # the others that paid within the plausibility slack of it: the record does not
         # tell them apart (as in the plausibility round)
-        step["indistinguishable_from"] = [
-            t[1].name for t in paying if t[1] is not e
-            and t[0].held_out["overall"] <= (1.0 + PLAUSIBILITY_SLACK) * m.held_out["overall"]]
+        step["indistinguishable_from"] = _indistinguishable(paying, m, e)
         s.steps.append(step)
         s.model = m
         return e
@@ -823,9 +830,7 @@ class Calibration(CalibrationModel):
             "tolerance")
         # the others taken explain it as well: within the slack of the one selected, the
         # record does not tell them apart (e.g. a leakage across the pistons or the pump)
-        step["indistinguishable_from"] = [
-            t[1].name for t in taken if t[1] is not e
-            and t[0].held_out["overall"] <= (1.0 + PLAUSIBILITY_SLACK) * m.held_out["overall"]]
+        step["indistinguishable_from"] = _indistinguishable(taken, m, e)
         s.steps.append(step)
         s.model = m
         return e
