@@ -28,12 +28,14 @@ from afo_mj.calibration.effect_library import (
 from afo_mj.calibration.measured_data import MeasuredData
 from afo_mj.calibration.record_checks import check_record, declared_charge_pa
 from afo_mj.calibration.sampling import check_holds
+from afo_mj.calibration.secant_jacobian import SecantJacobian, soft_l1_jacobian_weights
 from afo_mj.experiments.bench_replay import HELD_CHANNELS, BenchReplay, ReplayError
 from afo_mj.hydraulics.params import ParameterError
 from afo_mj.hydraulics.sensor import first_order_lag, sensor_reading
 
 __all__ = ["CalibrationModel", "declared_labels", "model_outputs", "sensor_outputs",
-           "DIFF_STEP", "REPLAY_CACHE_SIZE", "FIT_FTOL", "SENSITIVITY_STEP_S"]
+           "DIFF_STEP", "REPLAY_CACHE_SIZE", "FIT_FTOL", "SENSITIVITY_STEP_S",
+           "SECANT_REFRESH"]
 
 
 def declared_labels(replay: BenchReplay, d: DeclaredParameter) -> tuple[str, ...]:
@@ -85,6 +87,10 @@ FIT_FTOL = 1e-6
 #: nearly the same in both, largely cancels; a fit started there is finished at the replay's step
 #: (:meth:`CalibrationModel.fit`), so no fitted value keeps the coarse step's bias
 SENSITIVITY_STEP_S = 5e-4
+#: finite-difference columns retaken per iteration of a fit between secant (Broyden) updates
+#: of its Jacobian (:class:`afo_mj.calibration.secant_jacobian.SecantJacobian`); a full
+#: Jacobian is taken at the start, after a rejected step and at the end
+SECANT_REFRESH = 2
 
 
 @dataclasses.dataclass
@@ -400,8 +406,14 @@ class CalibrationModel:
         fit's end are the replay's own step's. The correction's columns are kept by
         parameter (:meth:`step_correction`): a parameter's column is replayed at the fine
         step once per calibration, at the first fit that holds it, so a fit costs a replay
-        per parameter at the coarse step per Jacobian and a fine replay per parameter new to
-        the calibration.
+        per parameter at the coarse step per full Jacobian and a fine replay per parameter
+        new to the calibration.
+
+        Between full Jacobians (the first, one after each rejected step, and one at the
+        end, which is what the covariance and the rankings read), the Jacobian is carried
+        by secant updates with :data:`SECANT_REFRESH` columns retaken per step
+        (:class:`~afo_mj.calibration.secant_jacobian.SecantJacobian`): a step costs about
+        three replays, not one per parameter.
 
         ``within_tolerance``: each declared value with a datasheet tolerance is bounded to
         it (factor ``1 ± tolerance``, inside its fit range): the fit of the record with the
@@ -411,35 +423,41 @@ class CalibrationModel:
         # keep the start strictly inside (trf needs an interior point)
         span = hi - lo
         x0 = np.clip(x0, lo + 1e-9 * span, hi - 1e-9 * span)
-        last = {}
         two_steps = (self.sensitivity_step_s is not None
                      and self.sensitivity_step_s > self.replay.max_step_s)
-
         keys = self.column_keys(effects)
+        steps = np.full(x0.size, np.nan)
+        correction: list[np.ndarray] = []
 
-        def jac(x):
-            last["x"] = x.copy()
+        def columns(x, cols):
             if not two_steps:
-                last["J"], last["h"] = self.jacobian(effects, x, lo, hi)
-                return last["J"]
-            with self.at_sensitivity_step():
-                jc, h = self.jacobian(effects, x, lo, hi)
-            if "correction" not in last:
-                last["correction"] = self.step_correction(effects, keys, x, lo, hi, jc)
-            last["J"], last["h"] = jc + last["correction"], h
-            return last["J"]
+                J, h = self.jacobian(effects, x, lo, hi, columns=list(cols))
+            else:
+                with self.at_sensitivity_step():
+                    J, h = self.jacobian(effects, x, lo, hi, columns=list(cols))
+                if not correction:
+                    correction.append(self.step_correction(effects, keys, x, lo, hi, J))
+                J = J + correction[0]
+            steps[list(cols)] = h[list(cols)]
+            return J
 
-        res = least_squares(lambda x: self.train_residuals(effects, x), x0, jac=jac,
+        sj = SecantJacobian(lambda x: self.train_residuals(effects, x), columns, x0.size,
+                            refresh=SECANT_REFRESH)
+        res = least_squares(sj.residuals, x0, jac=sj.jacobian,
                             bounds=(lo, hi), method="trf", loss="soft_l1",
                             f_scale=self.f_scale, x_scale=1.0, ftol=FIT_FTOL,
                             max_nfev=max_nfev or self.options.max_nfev)
         r = res.fun
         if not np.all(np.isfinite(r)):
             raise CalibrationError("non-finite residual in the fit")
+        # the covariance, the rankings and the screens read the Jacobian at the end: a
+        # finite-difference one, not the secant estimate the last steps were taken with
+        if sj.J is None or not np.array_equal(sj.x, res.x) or not sj.fresh.all():
+            sj.full(res.x)
+        raw = sj.J
         m = _Model(list(effects), res.x, cost=float(res.cost), sse=float(r @ r),
-                   jac=res.jac, nfev=int(res.nfev), fun=np.array(r))
-        if "x" in last and np.array_equal(last["x"], res.x):
-            m.raw_jac, m.jac_steps = last["J"], last["h"]
+                   jac=soft_l1_jacobian_weights(r, self.f_scale)[:, None] * raw,
+                   nfev=int(res.nfev), fun=np.array(r), raw_jac=raw, jac_steps=steps.copy())
         m.held_out, _ = self.held_out_errors(effects, res.x)
         return m
 
