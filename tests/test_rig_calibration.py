@@ -542,3 +542,51 @@ def test_step_correction_columns_are_replayed_once_per_parameter():
                                            None, jc)
     assert np.allclose(got, 0.1 * a)
     assert taken == [(6.25e-5, 2)]
+
+
+def test_a_refit_that_trades_precise_channels_for_coarse_ones_does_not_pay():
+    """The fit weighs the channels by their spread, the noise units by their noise: a refit
+    can cut the overall NRMSE by trading the angle (the most precise channel) for the torque.
+    Torque 3× → 2× its floor with the angle 1× → 6× cuts the NRMSE by more than 10 % and
+    worsens the error in noise units by more than 10 % (both by hand): it does not pay, and
+    says why; the same torque gain with the angle kept pays."""
+    f = np.array(list(_RIG2_FLOOR.values()))
+    before = (1.0, 3.0, 1.0, 1.0, 1.0, 1.0)
+    traded = (6.0, 2.0, 1.0, 1.0, 1.0, 1.0)
+    kept = (1.0, 2.0, 1.0, 1.0, 1.0, 1.0)
+    nrmse = 1 - np.linalg.norm(np.multiply(traded, f)) / np.linalg.norm(np.multiply(before, f))
+    noise = 1 - np.linalg.norm(traded) / np.linalg.norm(before)
+    assert nrmse >= 0.10 and noise <= -0.10
+    rec = _judge(before, traded)
+    assert rec["held_out_drop"] == pytest.approx(nrmse, rel=1e-9)
+    assert rec["pays_in"] == ["nrmse"] and rec["worsened_in"] == ["noise_units"]
+    assert not rec["pays"]
+    from afo_mj.calibration.calibrate import _refit_line
+    assert "worse in noise units" in _refit_line(rec)
+    ok = _judge(before, kept)
+    assert ok["pays"] and ok["worsened_in"] == []
+
+
+def test_no_plausibility_round_on_a_model_that_still_misses_the_record():
+    """A model whose declared values sit beyond their tolerance goes to the plausibility
+    round only when it explains the record (every channel within baseline_noise_multiple ×
+    its floor): at 1.9× the floor it does, at 2.1× (or 66×, rig 2's brushes) it does not,
+    and the search ends without the round."""
+    from types import SimpleNamespace
+
+    from afo_mj.calibration.calibrate import Calibration, CalibrationOptions
+    from afo_mj.calibration.calibration_model import _Model
+
+    chans = list(_RIG2_FLOOR)
+    calls = []
+    for ratio, goes in ((1.9, True), (2.1, False), (66.0, False)):
+        fake = SimpleNamespace(options=CalibrationOptions(), described=True, outputs=chans,
+                               noise_floor=lambda: dict(_RIG2_FLOOR), candidates=[object()],
+                               screen_columns=[0], beyond_tolerance=lambda m: ["fluid.bulk"])
+        fake.explains = lambda m: Calibration.explains(fake, m)
+        fake.search_round = lambda s, pool: None
+        fake.plausibility_round = lambda s, pool: calls.append(ratio)
+        start = _Model([], np.ones(1), held_out={c: ratio * v for c, v in _RIG2_FLOOR.items()})
+        assert Calibration.explains(fake, start) is goes
+        Calibration.search_effects(fake, start, [])
+        assert (ratio in calls) is goes
