@@ -584,6 +584,7 @@ def test_no_plausibility_round_on_a_model_that_still_misses_the_record():
                                noise_floor=lambda: dict(_RIG2_FLOOR), candidates=[object()],
                                screen_columns=[0], beyond_tolerance=lambda m: ["fluid.bulk"])
         fake.explains = lambda m: Calibration.explains(fake, m)
+        fake._within_floor = lambda m, k: Calibration._within_floor(fake, m, k)
         fake.search_round = lambda s, pool: None
         fake.plausibility_round = lambda s, pool: calls.append(ratio)
         start = _Model([], np.ones(1), held_out={c: ratio * v for c, v in _RIG2_FLOOR.items()})

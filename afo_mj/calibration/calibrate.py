@@ -841,10 +841,15 @@ class Calibration(CalibrationModel):
         """Whether every channel's held-out NRMSE of ``m`` is within
         :data:`AT_NOISE_MULTIPLE` times its noise floor (a described rig; a preset's search
         goes on as before)."""
+        return self._within_floor(m, AT_NOISE_MULTIPLE)
+
+    def _within_floor(self, m: _Model, multiple: float) -> bool:
+        """Whether every channel's held-out NRMSE of ``m`` is within ``multiple`` times its
+        noise floor (a described rig with held-out errors; else False)."""
         if not self.described or m.held_out is None:
             return False
         floor = self.noise_floor()
-        return all(m.held_out[c] <= AT_NOISE_MULTIPLE * floor[c] for c in self.outputs)
+        return all(m.held_out[c] <= multiple * floor[c] for c in self.outputs)
 
     def explains(self, m: _Model) -> bool:
         """Whether ``m`` explains the record: every channel's held-out NRMSE within
@@ -857,11 +862,7 @@ class Calibration(CalibrationModel):
         them toward what it lacks, and an effect that misses the record "as well" within
         the datasheet is the same bending, not a more plausible explanation (there, a
         current limit of 8.9 A with the held-out error 0.9 % worse and ΔBIC +1406)."""
-        if not self.described or m.held_out is None:
-            return False
-        floor = self.noise_floor()
-        mult = self.options.baseline_noise_multiple
-        return all(m.held_out[c] <= mult * floor[c] for c in self.outputs)
+        return self._within_floor(m, self.options.baseline_noise_multiple)
 
     def beyond_tolerance(self, m: _Model) -> list[str]:
         """The declared values ``m`` holds beyond their datasheet tolerance (factor ``f``

@@ -2,9 +2,9 @@
 updates, with a few finite-difference columns refreshed per iteration.
 
 Why: a calibration fit has ~20 parameters and a forward-difference Jacobian costs one replay
-per parameter at every accepted step, so a fit of 40 evaluations spends ~95 % of its replays
-on Jacobians. The trust-region steps of such a fit are short (a few percent of the normalised
-parameters), where the residuals are nearly linear: the secant update carries the Jacobian
+per parameter at every accepted step: on rig 1's Stribeck + hose record, 2,946 of the
+calibration's 3,334 replays were the fits' Jacobians. The trust-region steps of such a
+fit are short (a few percent of the normalised parameters), where the residuals are nearly linear: the secant update carries the Jacobian
 from one step to the next for the price of the residuals the step already computed.
 
 The method is the secant Levenberg–Marquardt of Madsen, Nielsen & Tingleff, *Methods for
@@ -129,7 +129,7 @@ class SecantJacobian:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         x = np.array(x, dtype=float)
-        if self.J is None or self._since_jacobian != 1 or self.x is None:
+        if self.J is None or self._since_jacobian != 1:
             return self.full(x).copy()
         f = self._f_at(x)
         B = broyden_update(self.J, x - self.x, f - self.f)
