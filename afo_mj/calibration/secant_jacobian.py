@@ -4,8 +4,9 @@ updates, with a few finite-difference columns refreshed per iteration.
 Why: a calibration fit has ~20 parameters and a forward-difference Jacobian costs one replay
 per parameter at every accepted step: on rig 1's Stribeck + hose record, 2,946 of the
 calibration's 3,334 replays were the fits' Jacobians. The trust-region steps of such a
-fit are short (a few percent of the normalised parameters), where the residuals are nearly linear: the secant update carries the Jacobian
-from one step to the next for the price of the residuals the step already computed.
+fit are short (a few percent of the normalised parameters), where the residuals are nearly
+linear: the secant update carries the Jacobian from one step to the next for the price of
+the residuals the step already computed.
 
 The method is the secant Levenberg–Marquardt of Madsen, Nielsen & Tingleff, *Methods for
 Non-Linear Least Squares Problems* (2nd ed., IMM DTU, 2004), §3.4: after a step
