@@ -1117,7 +1117,8 @@ class Calibration(CalibrationModel):
         misses the multiple on the check's window and Radau's reaches it), the "where"
         findings on that channel (:func:`afo_mj.calibration.residual_analysis.
         where_findings`: a slow drift, a common-mode or differential drift, a transient after
-        input steps, a resonance), ``data_driven_discrepancy`` (found, and its held-out RMS
+        input steps, a resonance, a broadband excess in the top of the band: a vibration
+        faster than the record resolves), ``data_driven_discrepancy`` (found, and its held-out RMS
         within the multiple of the noise). ``unexplained``: the channels nothing accounts
         for; only these make the verdict ``structure_wrong``."""
         base = before.baseline
@@ -1259,9 +1260,14 @@ class Calibration(CalibrationModel):
         except MeasuredDataError:
             cycles = []
         sig = _signatures(t, ins, states)
-        return {c: ra.analyse_channel(c, t, self.meas[c][idx], out[c][idx], ins, states, sig,
-                                      self.noise[c], cycles or None)
-                for c in self.outputs}
+        summaries = {c: ra.analyse_channel(c, t, self.meas[c][idx], out[c][idx], ins, states,
+                                           sig, self.noise[c], cycles or None)
+                     for c in self.outputs}
+        for a, b in ra.line_pairs(self.outputs):
+            summaries[a]["line_pair_high_band"] = ra.line_pair_high_band(
+                self.meas[a][idx] - out[a][idx], self.meas[b][idx] - out[b][idx], self.fs_hz,
+                self.noise[a], self.noise[b], sig["velocity"])
+        return summaries
 
 
 #: a described rig's model whose held-out NRMSE is within this multiple of every channel's

@@ -72,7 +72,8 @@ __all__ = ["nrmse", "noise_sigma_estimate", "ljung_box", "whiteness", "cross_cor
            "peak_cross_correlation", "signature_correlations", "phase_average",
            "residual_spectrum", "dominant_frequency", "analyse_channel", "locate_structure",
            "WHITE_P_VALUE", "STRUCTURE_EXCESS_RATIO", "windowed_drift", "line_pairs",
-           "line_pair_drifts", "step_times", "step_transients", "resonance", "where_findings"]
+           "line_pair_drifts", "step_times", "step_transients", "resonance", "where_findings",
+           "high_band_excess", "line_pair_high_band"]
 
 #: Ljung–Box p-value above which a residual counts as white.
 WHITE_P_VALUE = 0.01
@@ -482,8 +483,9 @@ def analyse_channel(name: str, time_s, measured, model, inputs: Mapping[str, np.
     ``dominant_frequency_hz`` (:func:`dominant_frequency` above 0.5 Hz; None for a constant
     residual), ``drift`` (:func:`windowed_drift`), ``transient`` (:func:`step_transients`
     on the input whose steps leave the largest named transient, with its name under
-    ``"input"``; None without inputs) and ``resonance`` (:func:`resonance`). ValueErrors
-    name the channel.
+    ``"input"``; None without inputs), ``resonance`` (:func:`resonance`) and ``high_band``
+    (:func:`high_band_excess`, localised near rest by the ``"velocity"`` signature when
+    given). ValueErrors name the channel.
     """
     if not isinstance(name, str) or not name:
         raise ValueError(f"name = {name!r}; allowed: a non-empty str (the channel name)")
@@ -552,7 +554,8 @@ def _analyse_channel(name, time_s, measured, model, inputs, states, signatures, 
             "peak_phase": peak_phase, "peak_value": peak_value,
             "dominant_frequency_hz": None if constant else dominant_frequency(res, fs, 0.5),
             "drift": windowed_drift(res, fs, sigma), "transient": transient,
-            "resonance": resonance(res, fs, sigma)}
+            "resonance": resonance(res, fs, sigma),
+            "high_band": high_band_excess(res, fs, sigma, sigs.get("velocity"))}
 
 
 def _num(summary: dict, key: str, where: str, optional: bool = False):
@@ -677,6 +680,23 @@ def locate_structure(channel_summaries: Mapping[str, dict]) -> str:
 # * resonance (:func:`resonance`): the Welch peak of :func:`dominant_frequency`, its RMS
 #   amplitude from the PSD within ±3 bins of the peak less the white-noise floor (the median
 #   PSD), named when the peak stands 10× above the median PSD and its RMS exceeds 0.5σ.
+# * broadband excess in the top of the band (:func:`high_band_excess`): the residual's power
+#   between ``HIGH_BAND_FRACTION·fs`` and the Nyquist (the Welch PSD integrated over the band)
+#   against white noise's share of it, ``σ²·(fs/2 − f_lo)/(fs/2)`` (a white sequence of
+#   variance σ² spreads it evenly up to the Nyquist). Named when the band's RMS is
+#   ``HIGH_BAND_MIN_RATIO``× the noise's, its excess ``√(P − P_noise)`` exceeds 0.5σ and no
+#   single peak holds half of the excess (broadband, not a resonance). Flat power up to the
+#   Nyquist that the model does not produce is an oscillation faster than the record resolves,
+#   aliased into the band (Oppenheim & Schafer, *Discrete-Time Signal Processing*, §4.2), or a
+#   train of sharp events: no replay at the record's rate follows it in phase. When it comes in
+#   bursts while the joint is near rest (``SLOW_LOCALISATION``× the band power of the rest of
+#   the record in its slowest ``SLOW_FRACTION``), it is the signature of friction-excited
+#   vibration: a friction force that falls with sliding speed (Stribeck) acts as negative
+#   damping on a lightly damped mode (a piston on its cable and oil), which then oscillates
+#   about the sticking point (stick-slip; Armstrong-Hélouvry, Dupont & Canudas de Wit,
+#   *Automatica* 30 (1994), §3). For a line pair the differential ``r_a − r_b`` and the
+#   common-mode ``(r_a + r_b)/2`` are judged the same way (σ as for the drifts): a force on the
+#   piston moves the two chambers apart.
 
 #: Significance of a windowed-mean change, in SDs of white noise's window-mean difference.
 DRIFT_K = 5.0
@@ -696,6 +716,20 @@ TRANSIENT_LOCALISATION = 1.5
 RESONANCE_PROMINENCE = 10.0
 #: Resonance RMS / σ above which it is named.
 RESONANCE_MIN_RATIO = 0.5
+#: The upper band judged for broadband excess starts at this fraction of the sample rate
+#: (0.2: 200–500 Hz of a 1 kHz record).
+HIGH_BAND_FRACTION = 0.2
+#: Band RMS / the white noise's RMS in the band above which the band's excess is named.
+HIGH_BAND_MIN_RATIO = 1.5
+#: Excess RMS (beyond the noise's share of the band) / σ above which it is named.
+HIGH_BAND_MIN_EXCESS = 0.5
+#: Largest share of the band's excess one spectral peak (±3 Welch bins) may hold for the excess
+#: to count as broadband (a larger share is a resonance's, :func:`resonance`).
+HIGH_BAND_MAX_PEAK_SHARE = 0.5
+#: The slowest fraction of the record (by |velocity|) in which bursts near rest are looked for.
+SLOW_FRACTION = 0.2
+#: Band power near rest / band power elsewhere above which the excess comes in bursts near rest.
+SLOW_LOCALISATION = 2.0
 
 _UNITS = (("_rad_s", "rad/s", 1.0), ("_pa", "MPa", 1e-6), ("_nm", "N·m", 1.0),
           ("_rad", "rad", 1.0), ("_a", "A", 1.0), ("_v", "V", 1.0), ("_k", "K", 1.0),
@@ -909,12 +943,101 @@ def resonance(residual, fs_hz: float, noise_sigma: float, f_min_hz: float = 0.5)
             "resonance": bool(prom > RESONANCE_PROMINENCE and rms / sigma > RESONANCE_MIN_RATIO)}
 
 
+def high_band_excess(residual, fs_hz: float, noise_sigma: float, velocity=None) -> dict:
+    """The residual's broadband power between ``f_lo = HIGH_BAND_FRACTION·fs_hz`` and the
+    Nyquist against white noise of SD ``noise_sigma`` (module notes, "broadband excess").
+
+    ``P`` is the Welch PSD (:func:`residual_spectrum`) integrated over the band, ``P_n =
+    σ² (fs/2 − f_lo)/(fs/2)`` the white noise's share of it. Returns ``{"f_lo_hz",
+    "band_rms", "noise_rms" (√P_n), "ratio" (band_rms/noise_rms), "excess_rms" (√max(P − P_n,
+    0)), "excess_ratio" (excess_rms/σ), "peak_share" (the largest ±3-bin window's share of
+    the band's excess power above the noise's level), "near_rest" (band power in the slowest
+    ``SLOW_FRACTION`` of the samples by ``|velocity|`` over the band power elsewhere, from
+    the residual high-passed at ``f_lo`` by a 4th-order Butterworth run forwards and
+    backwards; None without ``velocity``), "broadband" (named: ratio ≥ HIGH_BAND_MIN_RATIO,
+    excess_ratio ≥ HIGH_BAND_MIN_EXCESS, peak_share ≤ HIGH_BAND_MAX_PEAK_SHARE)}``.
+
+    Example: white noise of σ = 1 (0.6 of its variance in the band) plus an independent
+    sequence of SD 0.6 confined to 0.25–0.5·fs gives ratio √((0.6 + 0.36)/0.6) = 1.26, excess
+    0.6: not named; of SD 2, ratio √((0.6 + 4)/0.6) = 2.77, excess 2: named.
+    """
+    r = _array("residual", residual, min_n=_MIN_SPECTRUM_SAMPLES)
+    fs = _positive("fs_hz", fs_hz)
+    sigma = _positive("noise_sigma", noise_sigma)
+    nyq = 0.5 * fs
+    f_lo = HIGH_BAND_FRACTION * fs
+    noise_p = sigma * sigma * (nyq - f_lo) / nyq
+    out = {"f_lo_hz": f_lo, "band_rms": 0.0, "noise_rms": math.sqrt(noise_p), "ratio": 0.0,
+           "excess_rms": 0.0, "excess_ratio": 0.0, "peak_share": None, "near_rest": None,
+           "broadband": False}
+    if _is_constant(r):
+        return out
+    f, p = residual_spectrum(r, fs)
+    band = f >= f_lo
+    if np.count_nonzero(band) < 8:
+        return out
+    df = float(f[1] - f[0])
+    power = float(np.sum(p[band]) * df)
+    excess_p = max(power - noise_p, 0.0)
+    white_psd = sigma * sigma / nyq
+    above = np.maximum(p[band] - white_psd, 0.0) * df
+    peak = 0.0
+    if above.sum() > 0.0:
+        win = np.convolve(above, np.ones(7), mode="same")
+        peak = float(win.max() / above.sum())
+    out.update({"band_rms": math.sqrt(power), "ratio": math.sqrt(power / noise_p),
+                "excess_rms": math.sqrt(excess_p), "excess_ratio": math.sqrt(excess_p) / sigma,
+                "peak_share": peak})
+    if velocity is not None:
+        v = np.abs(_array("velocity", velocity, r.size, "residual"))
+        if not _is_constant(v) and r.size > 60:
+            sos = sps.butter(4, f_lo / nyq, btype="highpass", output="sos")
+            h2 = sps.sosfiltfilt(sos, r) ** 2
+            slow = v <= np.quantile(v, SLOW_FRACTION)
+            if 0 < np.count_nonzero(slow) < r.size:
+                rest = float(np.mean(h2[~slow]))
+                out["near_rest"] = float(np.mean(h2[slow]) / rest) if rest > 0 else None
+    out["broadband"] = bool(out["ratio"] >= HIGH_BAND_MIN_RATIO
+                            and out["excess_ratio"] >= HIGH_BAND_MIN_EXCESS
+                            and peak <= HIGH_BAND_MAX_PEAK_SHARE)
+    return out
+
+
+def line_pair_high_band(residual_a, residual_b, fs_hz: float, sigma_a: float, sigma_b: float,
+                        velocity=None) -> dict:
+    """:func:`high_band_excess` of a line pair's common mode ``(r_a + r_b)/2`` (σ_cm =
+    √(σ_a² + σ_b²)/2) and differential ``r_a − r_b`` (σ_dm = √(σ_a² + σ_b²)): independent
+    sensor noise on the two lines. Returns ``{"common_mode": …, "differential": …}``."""
+    a = _array("residual_a", residual_a, min_n=_MIN_SPECTRUM_SAMPLES)
+    b = _array("residual_b", residual_b, a.size, "residual_a")
+    s = math.hypot(_positive("sigma_a", sigma_a), _positive("sigma_b", sigma_b))
+    return {"common_mode": high_band_excess(0.5 * (a + b), fs_hz, 0.5 * s, velocity),
+            "differential": high_band_excess(a - b, fs_hz, s, velocity)}
+
+
+def _high_band_text(what: str, hb: Mapping, channel: str, fs: float) -> str:
+    rest = hb.get("near_rest")
+    burst = (f", in bursts near rest ({rest:.1f}× the band's power elsewhere): friction-"
+             f"excited vibration (stick-slip), a friction that falls with speed exciting a "
+             f"mode of the piston" if rest is not None and rest >= SLOW_LOCALISATION else
+             f": a vibration above the {0.5 * fs:.0f} Hz Nyquist (a lightly damped mode, "
+             f"such as the piston on its cable and oil, excited by a friction that falls with "
+             f"speed or by a sensor's own resonance), or sharp events")
+    return (f"{what} broadband residual above {float(hb['f_lo_hz']):.0f} Hz, RMS "
+            f"{_q(channel, float(hb['excess_rms']))} beyond the noise "
+            f"({float(hb['ratio']):.1f}× the noise's share of the band), aliased into the "
+            f"record{burst}; a replay at the record's rate cannot follow it in phase")
+
+
 def where_findings(channel_summaries: Mapping[str, dict]) -> list[dict]:
     """The named findings of :func:`analyse_channel` summaries, largest against the noise
     first: ``{"kind": "common_mode_drift" | "differential_drift" | "drift" | "step_transient"
-    | "resonance", "channels", "ratio" (size/σ), "text"}``. A line pair's common-mode or
-    differential drift replaces the drifts of its two channels. Summaries without the keys
-    ``drift``/``transient``/``resonance`` contribute nothing."""
+    | "resonance" | "high_band" | "differential_high_band" | "common_mode_high_band",
+    "channels", "ratio" (size/σ), "text"}``. A line pair's common-mode or differential drift
+    replaces the drifts of its two channels, and its common-mode or differential broadband
+    excess (``line_pair_high_band`` in the first channel's summary,
+    :func:`line_pair_high_band`) their broadband excesses (``high_band``,
+    :func:`high_band_excess`). Summaries without these keys contribute nothing."""
     out: list[dict] = []
     covered: set[str] = set()
     for a, b in line_pairs(channel_summaries):
@@ -939,7 +1062,33 @@ def where_findings(channel_summaries: Mapping[str, dict]) -> list[dict]:
                                 f"{d['ratio']:.1f}× the noise σ {_q(a, d['noise_sigma'])}"
                                 + flat})
             covered.update((a, b))
+    broad: set[str] = set()
+    for a, b in line_pairs(channel_summaries):
+        pair = channel_summaries[a].get("line_pair_high_band")
+        if not isinstance(pair, Mapping):
+            continue
+        fs = float(channel_summaries[a].get("fs_hz") or 0.0)
+        for kind, d, other, oname in (
+                ("differential", pair["differential"], pair["common_mode"], "common mode"),
+                ("common_mode", pair["common_mode"], pair["differential"], "differential")):
+            if not d["broadband"]:
+                continue
+            label = "common-mode" if kind == "common_mode" else "differential"
+            flat = ("" if other["broadband"] else
+                    f"; {oname} within the noise's band ({float(other['ratio']):.1f}×)")
+            out.append({"kind": f"{kind}_high_band", "channels": [a, b],
+                        "ratio": float(d["excess_ratio"]), "f_lo_hz": float(d["f_lo_hz"]),
+                        "near_rest": d.get("near_rest"),
+                        "text": f"{a}/{b}: " + _high_band_text(label, d, a, fs) + flat})
+            broad.update((a, b))
     for ch, s in channel_summaries.items():
+        hb = s.get("high_band")
+        if isinstance(hb, Mapping) and hb.get("broadband") and ch not in broad:
+            out.append({"kind": "high_band", "channels": [ch],
+                        "ratio": float(hb["excess_ratio"]), "f_lo_hz": float(hb["f_lo_hz"]),
+                        "near_rest": hb.get("near_rest"),
+                        "text": f"{ch}: " + _high_band_text("a", hb, ch,
+                                                           float(s.get("fs_hz") or 0.0))})
         d = s.get("drift")
         if isinstance(d, Mapping) and d.get("drift") and ch not in covered:
             m = d["window_means"]
